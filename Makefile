@@ -1,0 +1,44 @@
+# Two entry points: `make run` (the demo crawl) and `make test` (the whole suite).
+# Both set up everything from PyPI on a fresh machine; later runs reuse .venv and take seconds.
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+INSTALL_STAMP := install/.built
+
+# AMENT_PREFIX_PATH: the colcon install (for `ros2 run`-style lookup) and the venv (for .msg files).
+export AMENT_PREFIX_PATH := $(CURDIR)/install/crawler_sim:$(CURDIR)/$(VENV)
+export PYTHONPATH := $(CURDIR)
+export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+export ROS_DISTRO := jazzy
+export MPLBACKEND := Agg
+
+.PHONY: run test venv build bench clean
+
+run: build
+	$(PY) -m crawler_sim.demo
+
+test: build
+	$(PY) -m pytest -q -p no:cacheprovider test
+
+bench: build
+	$(PY) -m crawler_sim.cli bench --out bench_out
+
+venv: $(STAMP)
+
+$(STAMP): requirements.txt
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	touch $(VENV)/COLCON_IGNORE
+	$(PY) -m pip install --upgrade pip
+	$(PY) -m pip install -r requirements.txt
+	touch $@
+
+build: $(INSTALL_STAMP)
+
+$(INSTALL_STAMP): $(STAMP) setup.py setup.cfg package.xml $(wildcard config/*.yaml config/bench/*.yaml) $(wildcard crawler_sim/*.py crawler_sim/*/*.py)
+	source $(VENV)/bin/activate && colcon --log-base log build --paths . --build-base build --install-base install --symlink-install
+	touch $@
+
+clean:
+	rm -rf build install log

@@ -1,0 +1,35 @@
+"""ament_python package definition for crawler_sim."""
+from glob import glob
+import os
+
+from setuptools import find_packages, setup
+
+package_name = 'crawler_sim'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        (os.path.join('share', package_name, 'config'), glob('config/*.yaml')),
+        (os.path.join('share', package_name, 'config', 'bench'), glob('config/bench/*.yaml')),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=True,
+    maintainer='crawler_sim developers',
+    maintainer_email='dev@crawler-sim.invalid',
+    description='Exact simulation of friction-based crawling locomotion as a ROS 2 node.',
+    license='Apache-2.0',
+    tests_require=['pytest'],
+    extras_require={'test': ['pytest', 'hypothesis', 'rosbags']},
+    entry_points={
+        'console_scripts': [
+            'sim_node = crawler_sim.sim_node:main',
+            'gait_node = crawler_sim.gait_node:main',
+            'replay_node = crawler_sim.replay_node:main',
+            'crawler-sim = crawler_sim.cli:main',
+        ],
+    },
+)
