@@ -1,0 +1,157 @@
+"""The crawler: p bodies on a line with Coulomb dry friction, and the kinematics of its linkages.
+
+Sign conventions (docs/ARCHITECTURE.md): x points forward (uphill on a slope); ``friction`` [N]
+resists forward sliding, ``friction_backward`` [N] resists backward sliding; the ground exerts
+``-friction[i]`` on a body sliding forward and ``+friction_backward[i]`` on one sliding backward.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = ['Crawler', 'kinematics']
+
+
+def _check_scalar(name: str, value: float, *, lo: float | None = None,
+                  lo_open: bool = False, allowed: str = '') -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f'{name} must be a number ({allowed}), got {value!r}') from None
+    if not math.isfinite(x) or (lo is not None and (x <= lo if lo_open else x < lo)):
+        raise ValueError(f'{name} must be finite and {allowed}, got {value!r}')
+    return x
+
+
+def _check_vector(name: str, value: ArrayLike, p: int | None, *, positive: bool) -> NDArray:
+    arr = np.atleast_1d(np.asarray(value, dtype=float))
+    rule = '> 0' if positive else '>= 0'
+    if arr.ndim != 1:
+        raise ValueError(f'{name} must be a float or a list, got shape {arr.shape}')
+    if p is not None:
+        if arr.size == 1:
+            arr = np.full(p, arr[0])
+        elif arr.size != p:
+            raise ValueError(f'{name} must have 1 or {p} entries (one per body), got {arr.size}')
+    bad = ~np.isfinite(arr) | ((arr <= 0) if positive else (arr < 0))
+    if np.any(bad):
+        i = int(np.argmax(bad))
+        raise ValueError(f'{name}[{i}] must be finite and {rule}, got {arr[i]!r}')
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, init=False, eq=False)
+class Crawler:
+    """A chain of p >= 2 bodies on a line.
+
+    Parameters
+    ----------
+    masses : array_like, shape (p,)
+        Body masses [kg], finite and > 0.
+    friction : float or array_like, shape (p,)
+        Friction force magnitude resisting forward (+x) sliding [N], finite and >= 0.
+    friction_backward : float or array_like, shape (p,), optional
+        The same for backward sliding [N]; defaults to ``friction``.
+    slope : float
+        Inclination [rad], uphill is +x, in (-pi/2, pi/2); adds ``-m_i g sin(slope)`` to body i.
+    gravity : float
+        Gravitational acceleration [m/s^2], finite and >= 0.
+    """
+
+    masses: NDArray[np.float64]
+    friction: NDArray[np.float64]
+    friction_backward: NDArray[np.float64]
+    slope: float
+    gravity: float
+
+    def __init__(self, masses: ArrayLike, friction: ArrayLike,
+                 friction_backward: ArrayLike | None = None, slope: float = 0.0,
+                 gravity: float = 9.81) -> None:
+        m = _check_vector('masses', masses, None, positive=True)
+        if m.size < 2:
+            raise ValueError(f'masses must list p >= 2 bodies, got p = {m.size}')
+        p = m.size
+        f = _check_vector('friction', friction, p, positive=False)
+        fb = f if friction_backward is None else _check_vector(
+            'friction_backward', friction_backward, p, positive=False)
+        slope = _check_scalar('slope', slope, allowed='in (-pi/2, pi/2) rad')
+        if not abs(slope) < math.pi / 2:
+            raise ValueError(f'slope must be in (-pi/2, pi/2) rad, got {slope!r}')
+        gravity = _check_scalar('gravity', gravity, lo=0.0, allowed='>= 0 m/s^2')
+        object.__setattr__(self, 'masses', m)
+        object.__setattr__(self, 'friction', f)
+        object.__setattr__(self, 'friction_backward', fb)
+        object.__setattr__(self, 'slope', slope)
+        object.__setattr__(self, 'gravity', gravity)
+
+    @classmethod
+    def from_coefficients(cls, masses: ArrayLike, mu: ArrayLike,
+                          mu_backward: ArrayLike | None = None, slope: float = 0.0,
+                          gravity: float = 9.81) -> Crawler:
+        """Build from friction coefficients: f_i = mu_i m_i g cos(slope)."""
+        m = _check_vector('masses', masses, None, positive=True)
+        mu_f = _check_vector('mu', mu, m.size, positive=False)
+        mu_b = mu_f if mu_backward is None else _check_vector(
+            'mu_backward', mu_backward, m.size, positive=False)
+        slope = _check_scalar('slope', slope, allowed='in (-pi/2, pi/2) rad')
+        gravity = _check_scalar('gravity', gravity, lo=0.0, allowed='>= 0 m/s^2')
+        normal = m * gravity * math.cos(slope)
+        return cls(m, mu_f * normal, mu_b * normal, slope, gravity)
+
+    @property
+    def p(self) -> int:
+        """Number of bodies."""
+        return int(self.masses.size)
+
+    @property
+    def total_mass(self) -> float:
+        """M = sum of the masses [kg]."""
+        return float(self.masses.sum())
+
+    @property
+    def gravity_forces(self) -> NDArray[np.float64]:
+        """External force on each body along the line, -m_i g sin(slope) [N]."""
+        return -self.masses * self.gravity * math.sin(self.slope)
+
+    @property
+    def external_force(self) -> float:
+        """Total external force F_ext = -M g sin(slope) [N]."""
+        return -self.total_mass * self.gravity * math.sin(self.slope)
+
+    def to_dict(self) -> dict:
+        """Plain-data description (for scenes and bags)."""
+        return {'masses': self.masses.tolist(), 'friction': self.friction.tolist(),
+                'friction_backward': self.friction_backward.tolist(),
+                'slope': self.slope, 'gravity': self.gravity}
+
+    def __repr__(self) -> str:
+        return (f'Crawler(masses={self.masses.tolist()}, friction={self.friction.tolist()}, '
+                f'friction_backward={self.friction_backward.tolist()}, slope={self.slope}, '
+                f'gravity={self.gravity})')
+
+
+def offsets(lengths: NDArray[np.float64]) -> NDArray[np.float64]:
+    """s_i = l_0 + ... + l_{i-1} (s_0 = 0): position of body i relative to body 0.
+
+    ``lengths`` has shape (..., p-1); the result has shape (..., p).
+    """
+    out = np.zeros(lengths.shape[:-1] + (lengths.shape[-1] + 1,))
+    np.cumsum(lengths, axis=-1, out=out[..., 1:])
+    return out
+
+
+def kinematics(masses: NDArray[np.float64], l: NDArray, ld: NDArray, ldd: NDArray):
+    """Offsets of the bodies from the centre of mass and their first two derivatives.
+
+    Returns ``(e, e', e'')``, each of shape (..., p): x_i = X + e_i with X the centre of mass.
+    """
+    m_over_M = masses / masses.sum()
+    out = []
+    for arr in (l, ld, ldd):
+        s = offsets(arr)
+        out.append(s - (s @ m_over_M)[..., None])
+    return tuple(out)

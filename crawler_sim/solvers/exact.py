@@ -1,0 +1,459 @@
+"""Method "exact": event-driven solution in closed form between stick/slip events (MODEL.md s. 2).
+
+Between events the motion is known exactly:
+
+* every body slides: the centre of mass X has constant acceleration a = (F_ext + sum R_i) / M, so
+  X and V = X' are a quadratic and a line in t, and x_i = X + e_i(t) with e_i from the gait;
+* a body r sticks (alone, or with a group Z of bodies momentarily rigidly linked to it):
+  x_r is constant, x_i = x_r + s_i(t) - s_r(t), and the group's total friction is whatever
+  keeps it still: R_Z = -M e_r''(t) - F_ext - sum of the sliding bodies' R_i.
+
+Events end a segment: a sliding body's velocity reaching zero, a stuck group's required force
+reaching its friction bound, the group losing rigidity, and the gait's own breakpoints (jumps of
+l''), which are placed exactly because the gait lists them. At each segment start the contact mode
+is chosen by the acceleration-level inclusion (``contact.solve_inclusion``); when that choice is
+degenerate (a tie at a kink or at a bound, e.g. right at a stick-to-slip transition or a grazing
+contact) it is decided by the same inclusion a short look-ahead later.
+
+How brackets are chosen (so no event is missed): every segment is scanned on a grid whose spacing
+is at most ``max_step`` (default: gait period / 64, or 1/8 of the segment for aperiodic gaits), in
+chunks, vectorised. An event is bracketed by a sign change on the grid; for velocity events the
+derivative is known in closed form, so a velocity that dips to zero and back between two grid
+points is caught as well (a sign change of its derivative is refined and the minimum checked).
+Two force events closer than ``max_step`` on the same body can be missed: lower ``max_step``.
+Roots are refined with Brent's method (``scipy.optimize.brentq``) to ``tol`` seconds.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import brentq
+
+from ..gaits import Gait
+from ..model import Crawler, kinematics, offsets
+from ..trajectory import Event
+from .contact import solve_inclusion, split_friction
+
+__all__ = ['ExactSolver', 'Segment']
+
+_CHUNK = 64          # grid points evaluated at once
+_AMBIGUOUS = 1e-10   # relative slack below which a mode choice is decided by look-ahead
+
+
+@dataclass(slots=True)
+class Segment:
+    """One closed-form piece of the solution on [t0, t1]."""
+
+    t0: float
+    t1: float
+    gait: Gait
+    contact: NDArray[np.int8]     # (p,)
+    R: NDArray[np.float64]        # (p,) ground force of the sliding bodies (group entries unused)
+    K0: NDArray[np.float64]       # (p,) impulse at t0
+    X0: float                     # slide: centre of mass at t0
+    V0: float                     # slide: its velocity at t0
+    a: float                      # slide: its acceleration
+    ref: int                      # stick: reference stuck body (-1 when all slide)
+    x_ref: float                  # stick: its fixed position
+    group: NDArray[np.bool_]      # stick: bodies stuck with ref
+
+    def evaluate(self, crawler: Crawler, tau: NDArray[np.float64]) -> dict:
+        """Exact state at the times ``tau`` (shape (N,), inside [t0, t1])."""
+        m = crawler.masses
+        M = m.sum()
+        l, ld, ldd = self.gait(tau)
+        e, ep, epp = kinematics(m, l, ld, ldd)
+        d = tau - self.t0
+        n = tau.size
+        if self.ref < 0:
+            X = self.X0 + d * (self.V0 + 0.5 * self.a * d)
+            V = self.V0 + self.a * d
+            x = X[:, None] + e
+            v = V[:, None] + ep
+            A = np.full(n, self.a)
+            R = np.broadcast_to(self.R, (n, m.size)).copy()
+            K = self.K0 + np.multiply.outer(d, self.R)
+        else:
+            r = self.ref
+            s, sd = offsets(l), offsets(ld)
+            x = self.x_ref + (s - s[:, r:r + 1])
+            v = sd - sd[:, r:r + 1]
+            A = -epp[:, r]
+            V = -ep[:, r]
+            slide = ~self.group
+            f_slide = crawler.external_force + self.R[slide].sum()
+            R = np.broadcast_to(np.where(slide, self.R, 0.0), (n, m.size)).copy()
+            K = self.K0 + np.multiply.outer(d, np.where(slide, self.R, 0.0))
+            g = self.group
+            fp, fm = crawler.friction[g], crawler.friction_backward[g]
+            total = M * A - f_slide                      # ground force on the group
+            R[:, g] = -split_friction(-total, fp, fm)
+            # Impulse of the group: integral of total = M (V - V(t0)) - f_slide d, split the same
+            # way (the split is affine in the total, so it commutes with the integral).
+            Vt0 = -kinematics(m, *self.gait(self.t0))[1][r]
+            imp = M * (V - Vt0) - f_slide * d
+            K[:, g] = self.K0[g] + _split_impulse(imp, d, fp, fm)
+        grav = crawler.gravity_forces
+        body_force = R + grav - m * (A[:, None] + epp)
+        lam = np.cumsum(body_force, axis=1)[:, :-1]
+        return {'x': x, 'v': v, 'friction': R, 'impulse': K, 'linkage_force': lam,
+                'lengths': l, 'rates': ld,
+                'contact': np.broadcast_to(self.contact, (n, m.size)).copy()}
+
+
+def _split_impulse(imp: NDArray, d: NDArray, fp: NDArray, fm: NDArray) -> NDArray:
+    """Integral of the affine split of ``split_friction`` (ground-force sign), shape (N, n)."""
+    width = fp + fm
+    w = width.sum()
+    if w <= 0:
+        return np.zeros((imp.size, fp.size))
+    # R_j = fm_j - theta width_j with theta = (sum fm - total) / w, affine in the total force.
+    return fm * d[:, None] - np.multiply.outer((-imp + fm.sum() * d) / w, width)
+
+
+class ExactSolver:
+    """Event-driven integrator with a streaming interface (see ``crawler_sim.stepper``)."""
+
+    def __init__(self, crawler: Crawler, gait: Gait, *, t0: float = 0.0, x0: float = 0.0,
+                 v0: float = 0.0, tol: float = 1e-13, max_step: float | None = None,
+                 keep_segments: bool = True) -> None:
+        self.crawler = crawler
+        self.gait = gait
+        self.tol = float(tol)
+        self.max_step = max_step
+        self.keep_segments = keep_segments
+        self._m = crawler.masses
+        self._M = float(crawler.masses.sum())
+        self._fp = crawler.friction
+        self._fm = crawler.friction_backward
+        self._fext = crawler.external_force
+        self.reset(t0=t0, x0=x0, v0=v0)
+
+    # ------------------------------------------------------------------ state
+    def reset(self, *, t0: float = 0.0, x0: float = 0.0, v0: float = 0.0) -> None:
+        """Start at time t0 with body 0 at x0 [m] moving at v0 [m/s]."""
+        l, ld, ldd = self.gait(t0)
+        e, ep, _ = kinematics(self._m, l, ld, ldd)
+        self.t = float(t0)
+        self.X = float(x0 - e[0])          # centre of mass
+        self.V = float(v0 - ep[0])
+        v = self.V + ep
+        p = self._m.size
+        self.contact = np.sign(v).astype(np.int8)
+        self.zero = v == 0.0               # bodies known to be at zero velocity
+        self.K = np.zeros(p)
+        self.ref = -1
+        self.x_ref = 0.0
+        self.segments: list[Segment] = []
+        self.events: list[Event] = []
+        self.n_segments = 0
+        self.last: Segment | None = None
+        self._start_contact = self.contact.copy()
+
+    # ------------------------------------------------------------- mode choice
+    def _mode(self, t: float, ep: NDArray, epp: NDArray, t_limit: float):
+        """Contact mode at t for the bodies in ``self.zero``; returns (contact, a, ref, group)."""
+        zero = self.zero
+        contact = self.contact.copy()
+        if not zero.any():
+            R = np.where(contact > 0, -self._fp, self._fm)
+            return contact, (self._fext + R.sum()) / self._M, -1, np.zeros_like(zero)
+        choice = self._solve_mode(ep, epp, contact)
+        if choice[4]:
+            # Degenerate tie: decide by the inclusion a little later (same zero set).
+            span = max(t_limit - t, 0.0)
+            for rel in (1e-9, 1e-7, 1e-5):
+                dt = min(rel * max(span, self._timescale()), 0.5 * span) if span > 0 else 0.0
+                if dt <= 0.0:
+                    break
+                _, ld2, ldd2 = self.gait(t + dt)
+                _, ep2, epp2 = kinematics(self._m, np.zeros_like(ld2), ld2, ldd2)
+                later = self._solve_mode(ep2, epp2, contact)
+                if not later[4]:
+                    choice = later
+                    break
+        return choice[:4]
+
+    def _timescale(self) -> float:
+        return self.gait.period if self.gait.period else (self.max_step or 1.0)
+
+    def _solve_mode(self, ep: NDArray, epp: NDArray, contact: NDArray):
+        zero = self.zero
+        fp, fm, M = self._fp, self._fm, self._M
+        slide = ~zero
+        R_slide = np.where(contact > 0, -fp, fm)[slide]
+        force = self._fext + R_slide.sum()
+        kinks = -epp[zero]
+        A, s = solve_inclusion(M, 0.0, force, kinks, fp[zero], fm[zero])
+        rel = A + epp
+        new = contact.copy()
+        idx = np.nonzero(zero)[0]
+        at = kinks == A
+        new[idx] = np.where(at, 0, np.sign(rel[idx])).astype(np.int8)
+        acc_scale = max(abs(A), float(np.max(np.abs(epp))), (fp.sum() + fm.sum()) / M, 1e-300)
+        ambiguous = bool(np.any(~at & (np.abs(rel[idx]) <= _AMBIGUOUS * acc_scale)))
+        ref = -1
+        group = np.zeros_like(zero)
+        if at.any():
+            group[idx[at]] = True
+            ref = int(idx[at][0]) if not (self.ref >= 0 and group[self.ref]) else self.ref
+            lo, hi = -fm[group].sum(), fp[group].sum()
+            f_scale = max(fp.sum() + fm.sum(), abs(force), M * float(np.max(np.abs(epp))), 1e-300)
+            if hi - lo > 0 and min(s - lo, hi - s) <= _AMBIGUOUS * f_scale:
+                ambiguous = True
+        return new, A, ref, group, ambiguous
+
+    # ------------------------------------------------------------- integration
+    def advance(self, t1: float, gait: Gait | None = None) -> None:
+        """Integrate exactly to t1 with ``gait`` (default: the current one) valid on [t, t1]."""
+        if gait is not None and gait is not self.gait:
+            self._switch_gait(gait)
+        t1 = float(t1)
+        guard = 0
+        while self.t < t1:
+            breaks = self.gait.breakpoints(self.t, t1)
+            t_stop = float(breaks[0]) if breaks.size else t1
+            t_before = self.t
+            self._segment(t_stop)
+            guard = guard + 1 if self.t == t_before else 0
+            if guard > 8:   # repeated zero-length segments: a degenerate mode loop
+                raise RuntimeError(f'exact solver stalled at t = {self.t!r} s; '
+                                   'report this scene (try method="implicit")')
+
+    def _switch_gait(self, gait: Gait) -> None:
+        """Continue with a new gait: keep the bodies' positions, velocities and contact state."""
+        if self.ref >= 0:
+            self.gait = gait
+            return
+        _, ld_old, _ = self.gait(self.t)
+        l_new, ld_new, ldd_new = gait(self.t)
+        e_old = kinematics(self._m, *self.gait(self.t))
+        e_new = kinematics(self._m, l_new, ld_new, ldd_new)
+        # body 0 keeps its position and velocity
+        self.X += float(e_old[0][0] - e_new[0][0])
+        self.V += float(e_old[1][0] - e_new[1][0])
+        self.gait = gait
+
+    def _segment(self, t_stop: float) -> None:
+        t0 = self.t
+        m, M = self._m, self._M
+        l, ld, ldd = self.gait(t0)
+        e, ep, epp = kinematics(m, l, ld, ldd)
+        if self.ref >= 0:
+            # Stuck reference body: exact velocity of the centre of mass from the gait.
+            self.V = float(-ep[self.ref])
+            self.X = float(self.x_ref - e[self.ref])
+        contact, a, ref, group = self._mode(t0, ep, epp, t_stop)
+        if ref >= 0:
+            x_ref = self.x_ref if (self.ref == ref) else float(self.X + e[ref])
+        else:
+            x_ref = 0.0
+            # bodies leaving zero velocity start exactly from zero
+            leaving = self.zero & (contact != 0)
+            if leaving.any():
+                j = int(np.nonzero(leaving)[0][0])
+                self.V = float(-ep[j])
+        R = np.where(contact > 0, -self._fp, np.where(contact < 0, self._fm, 0.0))
+        seg = Segment(t0, t_stop, self.gait, contact, R, self.K.copy(), self.X, self.V, float(a),
+                      ref, x_ref, group)
+        self._record_contact_change(t0, contact)
+        if ref >= 0 and group.all() and self.gait.is_constant(t0, t_stop):
+            t_ev, hits = t_stop, []   # at rest under a constant command: nothing can happen
+        else:
+            t_ev, hits = self._find_event(seg, t_stop)
+        seg.t1 = t_ev
+        self._close(seg, t_ev, hits)
+
+    def provisional(self) -> Segment:
+        """A zero-length segment at the current time with the mode the next segment would use."""
+        t0 = self.t
+        l, ld, ldd = self.gait(t0)
+        e, ep, epp = kinematics(self._m, l, ld, ldd)
+        contact, a, ref, group = self._mode(t0, ep, epp, t0)
+        X, V = self.X, self.V
+        x_ref = self.x_ref if (ref >= 0 and ref == self.ref) else float(X + e[max(ref, 0)])
+        R = np.where(contact > 0, -self._fp, np.where(contact < 0, self._fm, 0.0))
+        return Segment(t0, t0, self.gait, contact, R, self.K.copy(), X, V, float(a), ref, x_ref,
+                       group)
+
+    def _record_contact_change(self, t: float, contact: NDArray) -> None:
+        old = self.contact
+        for i in np.nonzero(contact != old)[0]:
+            self.events.append(Event(t, int(i), int(old[i]), int(contact[i])))
+        self.contact = contact
+
+    def _close(self, seg: Segment, t_ev: float, hits: list[tuple[str, int]]) -> None:
+        """Move the state to the end of ``seg`` and mark bodies now at zero velocity."""
+        d = t_ev - seg.t0
+        m, M = self._m, self._M
+        if seg.ref < 0:
+            self.X = seg.X0 + d * (seg.V0 + 0.5 * seg.a * d)
+            self.V = seg.V0 + seg.a * d
+            self.K = seg.K0 + seg.R * d
+            zero = np.zeros(m.size, bool)
+        else:
+            l, ld, ldd = self.gait(t_ev)
+            e, ep, _ = kinematics(m, l, ld, ldd)
+            self.V = float(-ep[seg.ref])
+            self.X = float(seg.x_ref - e[seg.ref])
+            res = seg.evaluate(self.crawler, np.array([t_ev]))
+            self.K = res['impulse'][0]
+            zero = seg.group.copy()
+        ref = seg.ref
+        for kind, i in hits:
+            if kind == 'vel':
+                zero[i] = True
+                if ref < 0:
+                    # the body's velocity is exactly zero at the event
+                    _, ld, ldd = self.gait(t_ev)
+                    _, ep, _ = kinematics(m, np.zeros_like(ld), ld, ldd)
+                    self.V = float(-ep[i])
+        self.zero = zero
+        self.ref = ref
+        self.x_ref = seg.x_ref
+        self.t = t_ev
+        self.n_segments += 1
+        self.last = seg
+        if self.keep_segments:
+            self.segments.append(seg)
+
+    # ------------------------------------------------------------ event search
+    def _event_functions(self, seg: Segment, tau: NDArray):
+        """Values (N, k) and, where known, derivatives of the event functions at times tau.
+
+        Each function is positive while the segment's mode stays valid. Returns
+        (G, D, labels) with D NaN where no derivative is known.
+        """
+        m, M = self._m, self._M
+        l, ld, ldd = seg.gait(tau)
+        cols, ders, labels = [], [], []
+        if seg.ref < 0:
+            _, ep, epp = kinematics(m, l, ld, ldd)
+            d = tau - seg.t0
+            V = seg.V0 + seg.a * d
+            for i in range(m.size):
+                sg = seg.contact[i]
+                cols.append(sg * (V + ep[:, i]))
+                ders.append(sg * (seg.a + epp[:, i]))
+                labels.append(('vel', i))
+        else:
+            r = seg.ref
+            sd, sdd = offsets(ld), offsets(ldd)
+            for i in np.nonzero(~seg.group)[0]:
+                sg = seg.contact[i]
+                cols.append(sg * (sd[:, i] - sd[:, r]))
+                ders.append(sg * (sdd[:, i] - sdd[:, r]))
+                labels.append(('vel', int(i)))
+            _, _, epp = kinematics(m, l, ld, ldd)
+            g = seg.group
+            f_slide = self._fext + seg.R[~g].sum()
+            total = -M * epp[:, r] - f_slide     # ground force the group needs
+            lo, hi = -self._fp[g].sum(), self._fm[g].sum()
+            cols.append(total - lo)
+            ders.append(np.full(tau.size, np.nan))
+            labels.append(('force', r))
+            cols.append(hi - total)
+            ders.append(np.full(tau.size, np.nan))
+            labels.append(('force', r))
+            vscale = float(np.max(np.abs(sd))) + 1e-300
+            for j in np.nonzero(g)[0]:
+                if j != r:
+                    cols.append(1e-13 * vscale - np.abs(sd[:, j] - sd[:, r]))
+                    ders.append(np.full(tau.size, np.nan))
+                    labels.append(('rigid', int(j)))
+        G = np.stack(cols, axis=1) if cols else np.empty((tau.size, 0))
+        D = np.stack(ders, axis=1) if ders else np.empty((tau.size, 0))
+        return G, D, labels
+
+    def _scalar(self, seg: Segment, col: int, deriv: bool = False):
+        def f(tt: float) -> float:
+            G, D, _ = self._event_functions(seg, np.array([tt]))
+            return float((D if deriv else G)[0, col])
+        return f
+
+    def _grid_step(self, t0: float, t_stop: float) -> float:
+        if self.max_step is not None:
+            return float(self.max_step)
+        if self.gait.period:
+            return self.gait.period / 64.0
+        return max((t_stop - t0) / 8.0, 1e-300)
+
+    def _find_event(self, seg: Segment, t_stop: float) -> tuple[float, list[tuple[str, int]]]:
+        t0 = seg.t0
+        h = self._grid_step(t0, t_stop)
+        start = t0
+        while start < t_stop:
+            n = min(_CHUNK, max(2, int(math.ceil((t_stop - start) / h)) + 1))
+            end = min(t_stop, start + h * (n - 1))
+            if n == 2 or end == t_stop:
+                n = max(2, int(math.ceil((end - start) / h)) + 1)
+            tau = np.linspace(start, end, n)
+            G, D, labels = self._event_functions(seg, tau)
+            found = self._first_bracket(seg, tau, G, D, labels)
+            if found is not None:
+                return found
+            start = end
+        return t_stop, []
+
+    def _first_bracket(self, seg, tau, G, D, labels):
+        if G.shape[1] == 0:
+            return None
+        nonpos = G[1:] <= 0.0
+        # dips between grid points, for functions with a known derivative
+        dip_at = {}
+        dmask = np.isfinite(D[0])
+        if dmask.any():
+            turn = (D[:-1] < 0.0) & (D[1:] > 0.0) & (G[:-1] > 0.0) & (G[1:] > 0.0)
+            for k, c in zip(*np.nonzero(turn)):
+                if k in dip_at and any(cc == c for cc, _ in dip_at[k]):
+                    continue
+                t_min = brentq(self._scalar(seg, c, deriv=True), tau[k], tau[k + 1],
+                               xtol=self.tol, rtol=4 * np.finfo(float).eps)
+                if self._scalar(seg, c)(t_min) <= 0.0:
+                    dip_at.setdefault(int(k), []).append((int(c), t_min))
+        rows = np.nonzero(nonpos.any(axis=1))[0]
+        k_cross = int(rows[0]) if rows.size else None
+        k_dip = min(dip_at) if dip_at else None
+        if k_cross is None and k_dip is None:
+            return None
+        k = min(x for x in (k_cross, k_dip) if x is not None)
+        lo = tau[k]
+        roots = []
+        if k_cross == k:
+            for c in np.nonzero(nonpos[k])[0]:
+                if G[k, c] <= 0.0:
+                    roots.append((lo, int(c)))   # started at or below zero: event now
+                    continue
+                f = self._scalar(seg, int(c))
+                roots.append((brentq(f, lo, tau[k + 1], xtol=self.tol,
+                                     rtol=4 * np.finfo(float).eps), int(c)))
+        for c, t_min in dip_at.get(k, []):
+            f = self._scalar(seg, c)
+            roots.append((brentq(f, lo, t_min, xtol=self.tol, rtol=4 * np.finfo(float).eps), c))
+        t_ev = min(r for r, _ in roots)
+        # a crossing right at the segment start on the first grid point: zero-length, keep going
+        hits = sorted({labels[c] for r, c in roots if r <= t_ev + 2 * self.tol})
+        return t_ev, hits
+
+    # ---------------------------------------------------------------- output
+    def sample(self, times: NDArray[np.float64]) -> dict:
+        """Exact states at ``times`` (sorted, within the integrated span) from kept segments."""
+        segs = self.segments
+        starts = np.array([s.t0 for s in segs])
+        idx = np.searchsorted(starts, times, side='right') - 1
+        idx = np.clip(idx, 0, len(segs) - 1)
+        out = None
+        for k in np.unique(idx):
+            sel = np.nonzero(idx == k)[0]
+            res = segs[k].evaluate(self.crawler, times[sel])
+            if out is None:
+                out = {key: np.empty((times.size,) + val.shape[1:], val.dtype)
+                       for key, val in res.items()}
+                out['indeterminate'] = np.zeros(times.size, bool)
+            for key, val in res.items():
+                out[key][sel] = val
+            out['indeterminate'][sel] = segs[k].group.sum() > 1
+        return out
