@@ -3,6 +3,16 @@
 Every gait returns ``(l, l', l'')`` in metres, m/s and m/s^2. For a float time each array has
 shape ``(n_links,)``; the built-in gaits also take an array of times of shape ``(N,)`` and then
 return arrays of shape ``(N, n_links)``. ``l_j = x_{j+1} - x_j`` (see docs/ARCHITECTURE.md).
+
+Gaits in this module:
+
+- `Sinusoid`: one harmonic per linkage, a phase lag makes a travelling wave.
+- `Fourier`: a truncated Fourier series per linkage.
+- `Scallop`: a smooth (analytic) stroke with a fast and a slow phase, set by ``asymmetry``.
+- `PiecewiseParabolic`: bang-bang strokes, piecewise-constant l'' (exact piecewise quadratics).
+- `Spline`: a C2 cubic spline through sampled lengths.
+- `Cubic`: one constant-jerk piece (the node's actuator model).
+- `Custom`: user callables of one float time (not vectorised).
 """
 from __future__ import annotations
 
@@ -11,10 +21,18 @@ from typing import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.interpolate import CubicSpline
 
-__all__ = ['Gait', 'Custom', 'Sinusoid', 'Cubic']
+__all__ = ['Gait', 'Custom', 'Sinusoid', 'Fourier', 'Scallop', 'PiecewiseParabolic', 'Spline',
+           'Cubic']
+
+Triple = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
 
 _EMPTY = np.empty(0)
+
+# Relative tolerance on the closure of a periodic PiecewiseParabolic stroke, and on the velocities
+# at breakpoints that are snapped to exactly zero (so rests are exact).
+CLOSURE_RTOL = 1e-12
 
 
 def _per_link(name: str, value: ArrayLike, n: int | None) -> NDArray[np.float64]:
@@ -29,24 +47,91 @@ def _per_link(name: str, value: ArrayLike, n: int | None) -> NDArray[np.float64]
     return arr if n is None or arr.size == n else np.full(n, arr[0])
 
 
+def _positive(name: str, value: float, unit: str) -> float:
+    """Return ``value`` as a float, checking it is finite and > 0."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f'{name} must be a finite float > 0 {unit}, got {value!r}') from None
+    if not (math.isfinite(v) and v > 0):
+        raise ValueError(f'{name} must be finite and > 0 {unit}, got {value!r}')
+    return v
+
+
+def _n_links(n_links: int | None, inferred: int) -> int:
+    """Number of linkages: ``n_links`` when given (an int >= 1), otherwise ``inferred``."""
+    if n_links is None:
+        return int(inferred)
+    if isinstance(n_links, bool) or int(n_links) != n_links or n_links < 1:
+        raise ValueError(f'n_links must be an integer >= 1, got {n_links!r}')
+    return int(n_links)
+
+
+def _finite(name: str, value: ArrayLike) -> NDArray[np.float64]:
+    """``value`` as a float array, checking every entry is finite."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f'{name} must be a finite numeric array, got {value!r}') from None
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f'{name} must be finite, got {arr.tolist()}')
+    return arr
+
+
+def _increasing(name: str, value: ArrayLike, min_size: int) -> NDArray[np.float64]:
+    """A 1-D, finite, strictly increasing array of at least ``min_size`` times [s]."""
+    arr = _finite(name, value)
+    if arr.ndim != 1 or arr.size < min_size:
+        raise ValueError(f'{name} must be a 1-D array of at least {min_size} times, '
+                         f'got shape {arr.shape}')
+    if not np.all(np.diff(arr) > 0):
+        raise ValueError(f'{name} must be strictly increasing, got {arr.tolist()}')
+    return arr
+
+
+def _interval(t0: float, t1: float) -> tuple[float, float]:
+    """Check a query interval [t0, t1] of `breakpoints` or `is_constant`."""
+    t0, t1 = float(t0), float(t1)
+    if not (math.isfinite(t0) and math.isfinite(t1)):
+        raise ValueError(f't0 and t1 must be finite, got {t0!r}, {t1!r}')
+    if t1 < t0:
+        raise ValueError(f't1 must be >= t0, got t0={t0!r}, t1={t1!r}')
+    return t0, t1
+
+
 class Gait:
     """Base class of all gaits.
 
-    Subclasses implement ``_eval(t)`` for an array of times ``t`` of shape (N,) returning three
-    arrays of shape (N, n_links). Optionally they override ``breakpoints`` (times where l'' may
-    jump) and ``is_constant`` (rest intervals the solver can skip).
+    Contract for subclasses:
+
+    1. Set ``n_links`` (int, p - 1) and ``period`` [s] (None unless the gait is periodic).
+    2. Implement ``_eval(t)`` for an array of times ``t`` of shape (N,) [s], returning the three
+       arrays (l [m], l' [m/s], l'' [m/s^2]) of shape (N, n_links), without a Python loop over t.
+    3. l and l' must be continuous in t. If l'' jumps, override ``breakpoints`` so that it
+       returns every jump time in the open interval (t0, t1), sorted; the exact solver relies
+       on it.
+    4. Optionally override ``is_constant`` (rest intervals the solver can skip). It must return
+       True only when l' == 0 and l'' == 0 on all of [t0, t1].
     """
 
     n_links: int
     period: float | None = None
 
-    def __call__(self, t: float | ArrayLike):
+    def __call__(self, t: float | ArrayLike) -> Triple:
+        """Evaluate (l [m], l' [m/s], l'' [m/s^2]) at a time or an array of times [s].
+
+        For a float ``t`` each array has shape (n_links,); for ``t`` of shape (N,) each has
+        shape (N, n_links).
+        """
         if np.ndim(t) == 0:
             l, ld, ldd = self._eval(np.array([float(t)]))
             return l[0], ld[0], ldd[0]
-        return self._eval(np.asarray(t, dtype=float))
+        ta = np.asarray(t, dtype=float)
+        if ta.ndim != 1:
+            raise ValueError(f't must be a float or a 1-D array of times, got shape {ta.shape}')
+        return self._eval(ta)
 
-    def _eval(self, t: NDArray[np.float64]):
+    def _eval(self, t: NDArray[np.float64]) -> Triple:
         raise NotImplementedError
 
     def length(self, t: float | ArrayLike) -> NDArray[np.float64]:
@@ -78,10 +163,12 @@ class Custom(Gait):
     acceleration jumps so the exact solver places events there without searching.
     """
 
-    def __init__(self, length: Callable[[float], ArrayLike], velocity: Callable[[float], ArrayLike],
+    def __init__(self, length: Callable[[float], ArrayLike],
+                 velocity: Callable[[float], ArrayLike],
                  acceleration: Callable[[float], ArrayLike], *, period: float | None = None,
                  breakpoints: ArrayLike | None = None) -> None:
-        for name, fn in (('length', length), ('velocity', velocity), ('acceleration', acceleration)):
+        for name, fn in (('length', length), ('velocity', velocity),
+                         ('acceleration', acceleration)):
             if not callable(fn):
                 raise ValueError(f'Custom gait: {name} must be callable, got {type(fn).__name__}')
         self._fns = (length, velocity, acceleration)
@@ -89,13 +176,13 @@ class Custom(Gait):
         self.period = period
         self._breaks = np.sort(np.asarray(breakpoints if breakpoints is not None else [], float))
 
-    def __call__(self, t: float | ArrayLike):
+    def __call__(self, t: float | ArrayLike) -> Triple:
         if np.ndim(t) == 0:
             tf = float(t)
             return tuple(np.atleast_1d(np.asarray(fn(tf), dtype=float)) for fn in self._fns)
-        return self._eval(np.asarray(t, dtype=float))
+        return super().__call__(t)
 
-    def _eval(self, t: NDArray[np.float64]):
+    def _eval(self, t: NDArray[np.float64]) -> Triple:
         out = [np.empty((t.size, self.n_links)) for _ in range(3)]
         for k, tk in enumerate(t.tolist()):
             for arr, fn in zip(out, self._fns):
@@ -118,22 +205,404 @@ class Sinusoid(Gait):
     def __init__(self, mean: ArrayLike, amplitude: ArrayLike, frequency: float,
                  phase: ArrayLike = 0.0, *, n_links: int | None = None) -> None:
         sizes = [np.size(a) for a in (mean, amplitude, phase)]
-        n = n_links if n_links is not None else max(sizes)
-        self.n_links = int(n)
+        n = _n_links(n_links, max(sizes))
+        self.n_links = n
         self.mean = _per_link('mean', mean, n)
         self.amplitude = _per_link('amplitude', amplitude, n)
         self.phase = _per_link('phase', phase, n)
-        if not (math.isfinite(frequency) and frequency > 0):
-            raise ValueError(f'frequency must be finite and > 0 Hz, got {frequency!r}')
-        self.frequency = float(frequency)
+        self.frequency = _positive('frequency', frequency, 'Hz')
         self.period = 1.0 / self.frequency
         self._w = 2.0 * math.pi * self.frequency
 
-    def _eval(self, t: NDArray[np.float64]):
+    def _eval(self, t: NDArray[np.float64]) -> Triple:
         arg = self._w * t[:, None] + self.phase
         s, c = np.sin(arg), np.cos(arg)
         a = self.amplitude
         return self.mean + a * s, a * self._w * c, -a * self._w ** 2 * s
+
+
+class Fourier(Gait):
+    """A truncated Fourier series per linkage.
+
+    l_j(t) = mean_j + sum_{k=1..K} (a_jk cos(2 pi k f t) + b_jk sin(2 pi k f t))
+
+    Parameters
+    ----------
+    mean : float or array_like, shape (n_links,)
+        Mean lengths [m].
+    coefficients : pair (cos, sin) of array_like
+        ``cos`` holds a_jk and ``sin`` holds b_jk [m], both of shape (K,) (the same series for
+        every linkage) or (n_links, K). Column ``k - 1`` is harmonic k (k = 1..K); there is no
+        constant term (that is ``mean``). An array of shape (2, K) or (2, n_links, K) also works.
+    frequency : float
+        Fundamental frequency f [Hz]; ``period = 1 / f``.
+    n_links : int, optional
+        Number of linkages when it cannot be read from the shapes of ``mean`` and the
+        coefficients.
+    """
+
+    def __init__(self, mean: ArrayLike, coefficients: tuple[ArrayLike, ArrayLike] | ArrayLike,
+                 frequency: float, *, n_links: int | None = None) -> None:
+        try:
+            cos, sin = coefficients
+        except (TypeError, ValueError):
+            raise ValueError('coefficients must be a pair (cos, sin) of arrays of shape (K,) '
+                             'or (n_links, K)') from None
+        a = _finite('coefficients', cos)
+        b = _finite('coefficients', sin)
+        if a.shape != b.shape or a.ndim not in (1, 2) or a.shape[-1] < 1:
+            raise ValueError('coefficients (cos, sin) must both have shape (K,) or (n_links, K) '
+                             f'with K >= 1, got {a.shape} and {b.shape}')
+        rows = a.shape[0] if a.ndim == 2 else 1
+        n = _n_links(n_links, max(rows, np.size(mean)))
+        if a.ndim == 2 and rows != n:
+            raise ValueError(f'coefficients must have {n} rows (one per linkage), got {rows}')
+        self.n_links = n
+        self.mean = _per_link('mean', mean, n)
+        self.cos = np.broadcast_to(a, (n, a.shape[-1])).copy()
+        self.sin = np.broadcast_to(b, (n, b.shape[-1])).copy()
+        self.frequency = _positive('frequency', frequency, 'Hz')
+        self.period = 1.0 / self.frequency
+        w = 2.0 * math.pi * self.frequency
+        k = np.arange(1, a.shape[-1] + 1, dtype=float)
+        self._k = k
+        # [cos(k th) | sin(k th)] @ matrix gives l - mean, l', l'' (th = 2 pi f t).
+        a_t, b_t = self.cos.T, self.sin.T                       # (K, n)
+        wk = (w * k)[:, None]
+        self._m0 = np.vstack([a_t, b_t])
+        self._m1 = np.vstack([wk * b_t, -wk * a_t])
+        self._m2 = np.vstack([-wk ** 2 * a_t, -wk ** 2 * b_t])
+
+    def _eval(self, t: NDArray[np.float64]) -> Triple:
+        # Reduce to the phase in cycles first so that large t keeps full accuracy.
+        th = 2.0 * math.pi * np.mod(self.frequency * t, 1.0)
+        arg = th[:, None] * self._k
+        cs = np.hstack([np.cos(arg), np.sin(arg)])
+        return self.mean + cs @ self._m0, cs @ self._m1, cs @ self._m2
+
+    def is_constant(self, t0: float, t1: float) -> bool:
+        return not (np.any(self.cos) or np.any(self.sin))
+
+
+class Scallop(Gait):
+    """A smooth periodic stroke with a fast and a slow phase.
+
+    A cosine stroke between ``mean - amplitude`` and ``mean + amplitude`` is run through an
+    analytic, strictly monotone time warp so that the extension (l' > 0) lasts the fraction
+    ``asymmetry`` = r of the period and the contraction the rest. With x = 2 pi f t + phase_j -
+    pi r, c = cos(pi r), s = sin(pi r) and D = 1 - c cos x > 0, the warped phase phi(x) has
+
+        sin phi = s sin x / D,   cos phi = (cos x - c) / D,
+        phi' = s / D,            phi'' = -s c sin x / D^2
+
+    (the circle map tan(phi/2) = cot(pi r / 2) tan(x/2); phi' > 0 for every r in (0, 1)), and
+
+        l = mean + amplitude sin phi,
+        l' = amplitude w cos(phi) phi',
+        l'' = amplitude w^2 (cos(phi) phi'' - sin(phi) phi'^2),   w = 2 pi f,
+
+    all in closed form, so the gait is C-infinity. r = 0.5 gives mean - amplitude cos(w t +
+    phase). l is at its minimum when w t + phase = 0 (mod 2 pi), extends while w t + phase is in
+    (0, 2 pi r), then contracts.
+
+    Parameters
+    ----------
+    mean, amplitude : float or array_like, shape (n_links,)
+        Mean length and half stroke [m]; ``amplitude >= 0``.
+    frequency : float
+        Stroke frequency [Hz]; ``period = 1 / frequency``.
+    asymmetry : float
+        Fraction r of the period spent extending, in the open interval (0, 1). r = 0.2 is a fast
+        extension and a slow contraction.
+    phase : float or array_like, shape (n_links,)
+        Phase lead of each linkage [rad] (a lag between neighbours makes a travelling wave).
+    n_links : int, optional
+        Number of linkages when the per-linkage arguments are all floats.
+    """
+
+    def __init__(self, mean: ArrayLike, amplitude: ArrayLike, frequency: float,
+                 asymmetry: float, phase: ArrayLike = 0.0, *, n_links: int | None = None) -> None:
+        n = _n_links(n_links, max(np.size(a) for a in (mean, amplitude, phase)))
+        self.n_links = n
+        self.mean = _per_link('mean', mean, n)
+        self.amplitude = _per_link('amplitude', amplitude, n)
+        if np.any(self.amplitude < 0):
+            raise ValueError(f'amplitude must be >= 0 m, got {self.amplitude.tolist()}')
+        self.phase = _per_link('phase', phase, n)
+        self.frequency = _positive('frequency', frequency, 'Hz')
+        self.period = 1.0 / self.frequency
+        try:
+            r = float(asymmetry)
+        except (TypeError, ValueError):
+            raise ValueError(f'asymmetry must be a float in (0, 1), got {asymmetry!r}') from None
+        if not 0.0 < r < 1.0:
+            raise ValueError(f'asymmetry must be in the open interval (0, 1), got {asymmetry!r}')
+        self.asymmetry = r
+        self._c, self._s = math.cos(math.pi * r), math.sin(math.pi * r)
+        self._w = 2.0 * math.pi * self.frequency
+
+    def _eval(self, t: NDArray[np.float64]) -> Triple:
+        c, s, w, amp = self._c, self._s, self._w, self.amplitude
+        x = 2.0 * math.pi * np.mod(self.frequency * t, 1.0)[:, None] + (
+            self.phase - math.pi * self.asymmetry)
+        cx, sx = np.cos(x), np.sin(x)
+        inv_d = 1.0 / (1.0 - c * cx)
+        sin_phi, cos_phi = s * sx * inv_d, (cx - c) * inv_d
+        dphi = s * inv_d
+        ddphi = -s * c * sx * inv_d ** 2
+        return (self.mean + amp * sin_phi, amp * w * cos_phi * dphi,
+                amp * w ** 2 * (cos_phi * ddphi - sin_phi * dphi ** 2))
+
+    def is_constant(self, t0: float, t1: float) -> bool:
+        return not np.any(self.amplitude)
+
+
+class PiecewiseParabolic(Gait):
+    """Bang-bang strokes: l'' piecewise constant between breakpoints, l and l' continuous.
+
+    On piece k, t in [t_k, t_{k+1}), l'' = a_k, so l is an exact quadratic in t - t_k.
+
+    Parameters
+    ----------
+    times : array_like, shape (K + 1,)
+        Breakpoints t_0 < t_1 < ... < t_K [s]. When periodic the period is T = t_K - t_0.
+    accelerations : array_like, shape (K,) or (K, n_links)
+        l'' on each piece [m/s^2]; a 1-D array is shared by every linkage.
+    l0, v0 : float or array_like, shape (n_links,)
+        l(t_0) [m] and l'(t_0) [m/s].
+    periodic : bool
+        If True (default) the stroke repeats with period T for all t. It must close: the net
+        velocity change sum_k a_k (t_{k+1} - t_k) and the net length change over one period must
+        both be zero (relative tolerance `CLOSURE_RTOL`), else ValueError naming
+        ``accelerations``. If False, l'' = 0 outside [t_0, t_K): l continues linearly with v0
+        before t_0 and with the final velocity after t_K (it holds still when that is zero).
+
+    Notes
+    -----
+    Pieces are closed on the left: at a breakpoint l'' takes the value of the next piece, also at
+    the exact times that `breakpoints` returns for later periods.
+    Velocities at breakpoints within `CLOSURE_RTOL` (relative) of zero are set to exactly zero so
+    that rests are exact and `is_constant` can see them. `breakpoints` reports only the knots where
+    l'' actually changes.
+    """
+
+    def __init__(self, times: ArrayLike, accelerations: ArrayLike, l0: ArrayLike,
+                 v0: ArrayLike = 0.0, *, periodic: bool = True) -> None:
+        tk = _increasing('times', times, min_size=2)
+        n_pieces = tk.size - 1
+        acc = _finite('accelerations', accelerations)
+        if acc.ndim not in (1, 2) or acc.shape[0] != n_pieces:
+            raise ValueError(f'accelerations must have shape ({n_pieces},) or ({n_pieces}, '
+                             f'n_links) (one row per piece between times), got {acc.shape}')
+        n = acc.shape[1] if acc.ndim == 2 else max(np.size(l0), np.size(v0))
+        if n < 1:
+            raise ValueError(f'accelerations must have at least one column, got {acc.shape}')
+        self.n_links = int(n)
+        self.times = tk
+        self.accelerations = np.broadcast_to(acc.reshape(n_pieces, -1), (n_pieces, n)).copy()
+        self.l0 = _per_link('l0', l0, n)
+        self.v0 = _per_link('v0', v0, n)
+        self.periodic = bool(periodic)
+        self.period = float(tk[-1] - tk[0]) if self.periodic else None
+
+        dt = np.diff(tk)[:, None]
+        dv = self.accelerations * dt
+        vel = self.v0 + np.vstack([np.zeros((1, n)), np.cumsum(dv, axis=0)])  # (K + 1, n)
+        v_scale = np.abs(self.v0) + np.sum(np.abs(dv), axis=0)
+        tiny = np.abs(vel) <= CLOSURE_RTOL * v_scale
+        tiny[0] = False
+        vel[tiny] = 0.0
+        dl = vel[:-1] * dt + 0.5 * self.accelerations * dt ** 2
+        lengths = self.l0 + np.vstack([np.zeros((1, n)), np.cumsum(dl, axis=0)])
+        if self.periodic:
+            self._check_closed(dv, v_scale, lengths[-1] - self.l0, float(tk[-1] - tk[0]))
+        # Extended pieces: index 0 is (-inf, t_0), k + 1 is [t_k, t_k+1), K + 1 is [t_K, inf).
+        zeros = np.zeros((1, n))
+        self._anchor = np.concatenate([tk[:1], tk])
+        self._l = np.vstack([lengths[:1], lengths])
+        self._v = np.vstack([vel[:1], vel])
+        self._a = np.vstack([zeros, self.accelerations, zeros])
+        self._rest = np.all((self._a == 0) & (self._v == 0), axis=1)
+        if self.periodic:
+            a = self.accelerations
+            jumps = np.any(a != np.roll(a, 1, axis=0), axis=1)
+            self._jumps = tk[:-1][jumps]
+        else:
+            self._jumps = tk[np.any(self._a[1:] != self._a[:-1], axis=1)]
+
+    @staticmethod
+    def _check_closed(dv: NDArray[np.float64], v_scale: NDArray[np.float64],
+                      net_length: NDArray[np.float64], period: float) -> None:
+        net_v = np.sum(dv, axis=0)
+        if np.any(np.abs(net_v) > CLOSURE_RTOL * v_scale):
+            raise ValueError('accelerations of a periodic stroke must give zero net velocity '
+                             'change per period (sum a_k dt_k = 0), got '
+                             f'{net_v.tolist()} m/s; a periodic stroke must close')
+        if np.any(np.abs(net_length) > CLOSURE_RTOL * v_scale * period):
+            raise ValueError('accelerations (with v0) of a periodic stroke must give zero net '
+                             f'length change per period, got {net_length.tolist()} m; '
+                             'a periodic stroke must close')
+
+    @classmethod
+    def stroke(cls, mean: ArrayLike, amplitude: ArrayLike, frequency: float, asymmetry: float,
+               *, n_links: int | None = None) -> PiecewiseParabolic:
+        """A closed bang-bang stroke between ``mean - amplitude`` and ``mean + amplitude``.
+
+        Extension takes the fraction r = ``asymmetry`` of the period T = 1 / ``frequency``:
+        l'' = +a_e for r T / 2, then -a_e for r T / 2, with a_e = 8 amplitude / (r T)^2;
+        contraction takes the rest, (1 - r) T, with -a_c then +a_c, a_c = 8 amplitude /
+        ((1 - r) T)^2. l' = 0 at the ends of the stroke, where l = mean -/+ amplitude. This is
+        the piecewise-parabolic actuation of crawling-robot studies (e.g. Behn et al. 2017).
+
+        Parameters
+        ----------
+        mean, amplitude : float or array_like, shape (n_links,)
+            Mean length and half stroke [m]; ``amplitude >= 0``.
+        frequency : float
+            Stroke frequency [Hz].
+        asymmetry : float
+            Fraction of the period spent extending, in the open interval (0, 1).
+        n_links : int, optional
+            Number of linkages when ``mean`` and ``amplitude`` are floats (default 1).
+        """
+        n = _n_links(n_links, max(np.size(mean), np.size(amplitude)))
+        mean_, amp = _per_link('mean', mean, n), _per_link('amplitude', amplitude, n)
+        if np.any(amp < 0):
+            raise ValueError(f'amplitude must be >= 0 m, got {amp.tolist()}')
+        period = 1.0 / _positive('frequency', frequency, 'Hz')
+        r = float(asymmetry)
+        if not 0.0 < r < 1.0:
+            raise ValueError(f'asymmetry must be in the open interval (0, 1), got {asymmetry!r}')
+        t_ext, t_con = r * period, (1.0 - r) * period
+        times = [0.0, 0.5 * t_ext, t_ext, t_ext + 0.5 * t_con, period]
+        a_e, a_c = 8.0 * amp / t_ext ** 2, 8.0 * amp / t_con ** 2
+        return cls(times, np.vstack([a_e, -a_e, -a_c, a_c]), mean_ - amp, 0.0, periodic=True)
+
+    def _eval(self, t: NDArray[np.float64]) -> Triple:
+        tk = self.times
+        if not self.periodic:
+            j = np.searchsorted(tk, t, side='right')
+            d = (t - self._anchor[j])[:, None]
+        else:
+            # Knot k of period m sits at tk[k] + m T (period m ends at tk[0] + (m + 1) T),
+            # computed exactly as in `breakpoints`, so at a reported breakpoint the gait takes
+            # the next piece, as it does at tk[k].
+            period, last = self.period, tk.size - 1
+            m = np.floor((t - tk[0]) / period)
+            knots = np.concatenate([tk[None, :-1] + (m * period)[:, None],
+                                    (tk[0] + (m + 1) * period)[:, None]], axis=1)
+            j = np.sum(knots <= t[:, None], axis=1)
+            m = np.where(j == 0, m - 1, np.where(j > last, m + 1, m))
+            j = np.where(j == 0, last, np.where(j > last, 1, j))
+            d = (t - (tk[j - 1] + m * period))[:, None]
+        a, v = self._a[j], self._v[j]
+        return self._l[j] + d * (v + 0.5 * a * d), v + a * d, a
+
+    def breakpoints(self, t0: float, t1: float) -> NDArray[np.float64]:
+        t0, t1 = _interval(t0, t1)
+        jumps = self._jumps
+        if jumps.size == 0 or t1 <= t0:
+            return _EMPTY
+        if self.periodic:
+            start, period = self.times[0], self.period
+            m = np.arange(math.floor((t0 - start) / period) - 1,
+                          math.floor((t1 - start) / period) + 2, dtype=float)
+            jumps = np.sort((jumps[None, :] + m[:, None] * period).ravel())
+        return jumps[(jumps > t0) & (jumps < t1)]
+
+    def is_constant(self, t0: float, t1: float) -> bool:
+        """True when l' and l'' are zero on [t0, t1].
+
+        Pieces are judged on their interiors: a rest piece [t_k, t_k+1) queried exactly is
+        constant even though l'' jumps at its ends.
+        """
+        t0, t1 = _interval(t0, t1)
+        rest = self._rest
+        if not self.periodic:
+            j0 = np.searchsorted(self.times, t0, side='right')
+            j1 = j0 if t1 == t0 else np.searchsorted(self.times, t1, side='left')
+            return bool(np.all(rest[j0:j1 + 1]))
+        pieces = rest[1:-1]
+        if np.all(pieces):
+            return True
+        if t1 - t0 >= self.period:
+            return False
+        tk = self.times
+        s0 = tk[0] + np.mod(t0 - tk[0], self.period)
+        s1 = s0 + (t1 - t0)
+        knots = np.concatenate([tk, tk[1:] + self.period])
+        twice = np.concatenate([pieces, pieces])
+        j0 = min(int(np.searchsorted(knots, s0, side='right')) - 1, twice.size - 1)
+        j1 = j0 if t1 == t0 else int(np.searchsorted(knots, s1, side='left')) - 1
+        return bool(np.all(twice[j0:max(j0, j1) + 1]))
+
+
+class Spline(Gait):
+    """A C2 cubic spline through sampled lengths (scipy.interpolate.CubicSpline).
+
+    Parameters
+    ----------
+    times : array_like, shape (N,)
+        Strictly increasing sample times [s], N >= 2 (N >= 3 when periodic).
+    lengths : array_like, shape (N,) or (N, n_links)
+        Lengths at the sample times [m].
+    periodic : bool
+        If True, the spline uses ``bc_type='periodic'`` (C2 across the wrap), ``period =
+        times[-1] - times[0]`` and ``lengths[0]`` must equal ``lengths[-1]``; times outside the
+        range wrap. If False (default), the spline is *clamped*: l' = 0 at both ends
+        (``bc_type='clamped'``), and outside [times[0], times[-1]) it holds the end lengths with
+        l' = l'' = 0 (l'' is right-continuous: 0 at ``times[-1]`` itself). So l and l' are
+        continuous everywhere, and l'' can jump only at the two ends, which `breakpoints`
+        reports. Inside the range there are no breakpoints (l''' jumps at the knots, l'' does
+        not).
+    """
+
+    def __init__(self, times: ArrayLike, lengths: ArrayLike, *, periodic: bool = False) -> None:
+        self.periodic = bool(periodic)
+        tk = _increasing('times', times, min_size=3 if self.periodic else 2)
+        y = _finite('lengths', lengths)
+        if y.ndim not in (1, 2) or y.shape[0] != tk.size or y.size == 0:
+            raise ValueError(f'lengths must have shape ({tk.size},) or ({tk.size}, n_links) '
+                             f'(one row per sample time), got {y.shape}')
+        y = y.reshape(tk.size, -1).copy()
+        if self.periodic:
+            if not np.allclose(y[0], y[-1], rtol=1e-15, atol=1e-15):
+                raise ValueError('lengths[0] must equal lengths[-1] for a periodic spline, got '
+                                 f'{y[0].tolist()} and {y[-1].tolist()}')
+            y[-1] = y[0]
+        self.n_links = y.shape[1]
+        self.times = tk
+        self.lengths = y
+        self.period = float(tk[-1] - tk[0]) if self.periodic else None
+        self._spline = CubicSpline(tk, y, bc_type='periodic' if self.periodic else 'clamped',
+                                   extrapolate='periodic' if self.periodic else True)
+        self._flat = bool(np.all(y == y[0]))
+        if self.periodic:
+            self._jumps = _EMPTY
+        else:
+            end_acc = self._spline(tk[[0, -1]], 2)
+            self._jumps = tk[[0, -1]][np.any(end_acc != 0, axis=1)]
+
+    def _eval(self, t: NDArray[np.float64]) -> Triple:
+        sp = self._spline
+        if self.periodic:
+            return sp(t), sp(t, 1), sp(t, 2)
+        s = np.clip(t, self.times[0], self.times[-1])
+        outside = ((t < self.times[0]) | (t >= self.times[-1]))[:, None]
+        return sp(s), np.where(outside, 0.0, sp(s, 1)), np.where(outside, 0.0, sp(s, 2))
+
+    def breakpoints(self, t0: float, t1: float) -> NDArray[np.float64]:
+        t0, t1 = _interval(t0, t1)
+        b = self._jumps
+        return b[(b > t0) & (b < t1)]
+
+    def is_constant(self, t0: float, t1: float) -> bool:
+        t0, t1 = _interval(t0, t1)
+        if self._flat:
+            return True
+        if self.periodic:
+            return False
+        return t1 <= self.times[0] or t0 >= self.times[-1]
 
 
 class Cubic(Gait):
@@ -145,22 +614,22 @@ class Cubic(Gait):
 
     def __init__(self, t0: float, l0: ArrayLike, v0: ArrayLike, a0: ArrayLike,
                  jerk: ArrayLike) -> None:
-        self.l0 = np.atleast_1d(np.asarray(l0, dtype=float))
+        self.l0 = _per_link('l0', l0, None)
         self.n_links = self.l0.size
         self.t0 = float(t0)
         self.v0 = _per_link('v0', v0, self.n_links)
         self.a0 = _per_link('a0', a0, self.n_links)
         self.jerk = _per_link('jerk', jerk, self.n_links)
 
-    def __call__(self, t: float | ArrayLike):
+    def __call__(self, t: float | ArrayLike) -> Triple:
         if np.ndim(t) == 0:
             d = float(t) - self.t0
             j, a0, v0 = self.jerk, self.a0, self.v0
             return (self.l0 + d * (v0 + d * (0.5 * a0 + d * j / 6.0)),
                     v0 + d * (a0 + 0.5 * d * j), a0 + d * j)
-        return self._eval(np.asarray(t, dtype=float))
+        return super().__call__(t)
 
-    def _eval(self, t: NDArray[np.float64]):
+    def _eval(self, t: NDArray[np.float64]) -> Triple:
         d = (t - self.t0)[:, None]
         j, a0, v0 = self.jerk, self.a0, self.v0
         return (self.l0 + d * (v0 + d * (0.5 * a0 + d * j / 6.0)),
