@@ -41,6 +41,34 @@ __all__ = ['ExactSolver', 'Segment']
 
 _CHUNK = 64          # grid points evaluated at once
 _AMBIGUOUS = 1e-10   # relative slack below which a mode choice is decided by look-ahead
+_EPS = np.finfo(float).eps
+
+
+def offset_matrices(masses: NDArray) -> tuple[NDArray, NDArray]:
+    """Matrices C (p, p-1) and W (p, p-1) with s = C l (offsets from body 0) and e = W l
+    (offsets from the centre of mass), so that derivatives follow by the same product."""
+    p = masses.size
+    C = np.tril(np.ones((p, p - 1)), -1)
+    W = C - (masses / masses.sum()) @ C
+    return C, W
+
+
+@dataclass(slots=True)
+class PeriodicBlock:
+    """``n`` repetitions of one period of segments (``template``), each shifted forward by
+    ``D`` [m] in position and ``dK`` [N s] in impulse: the steady crawl, stored once."""
+
+    t0: float
+    n: int
+    T: float
+    D: float
+    dK: NDArray[np.float64]
+    template: list
+    template_t0: float
+
+    @property
+    def t1(self) -> float:
+        return self.t0 + self.n * self.T
 
 
 @dataclass(slots=True)
@@ -115,28 +143,37 @@ def _split_impulse(imp: NDArray, d: NDArray, fp: NDArray, fm: NDArray) -> NDArra
 
 
 class ExactSolver:
-    """Event-driven integrator with a streaming interface (see ``crawler_sim.stepper``)."""
+    """Event-driven integrator with a streaming interface (see ``crawler_sim.stepper``).
+
+    With a periodic gait the solver also checks, at every multiple of the period, whether the
+    state repeats the one a period earlier (same contact state and zero set, same centre-of-mass
+    velocity to the solver's accuracy, 16 (tol * max friction acceleration + eps |V|)). From then on the motion is the last period translated by its
+    displacement, so whole periods are skipped and stored as one ``PeriodicBlock``
+    (``periodic_skip=False`` turns this off).
+    """
 
     def __init__(self, crawler: Crawler, gait: Gait, *, t0: float = 0.0, x0: float = 0.0,
                  v0: float = 0.0, tol: float = 1e-13, max_step: float | None = None,
-                 keep_segments: bool = True) -> None:
+                 keep_segments: bool = True, periodic_skip: bool = True) -> None:
         self.crawler = crawler
         self.gait = gait
         self.tol = float(tol)
         self.max_step = max_step
         self.keep_segments = keep_segments
+        self.periodic_skip = periodic_skip
         self._m = crawler.masses
         self._M = float(crawler.masses.sum())
         self._fp = crawler.friction
         self._fm = crawler.friction_backward
         self._fext = crawler.external_force
+        self._C, self._W = offset_matrices(crawler.masses)
         self.reset(t0=t0, x0=x0, v0=v0)
 
     # ------------------------------------------------------------------ state
     def reset(self, *, t0: float = 0.0, x0: float = 0.0, v0: float = 0.0) -> None:
         """Start at time t0 with body 0 at x0 [m] moving at v0 [m/s]."""
-        l, ld, ldd = self.gait(t0)
-        e, ep, _ = kinematics(self._m, l, ld, ldd)
+        l, ld, _ = self.gait(t0)
+        e, ep = self._W @ l, self._W @ ld
         self.t = float(t0)
         self.X = float(x0 - e[0])          # centre of mass
         self.V = float(v0 - ep[0])
@@ -147,11 +184,12 @@ class ExactSolver:
         self.K = np.zeros(p)
         self.ref = -1
         self.x_ref = 0.0
-        self.segments: list[Segment] = []
+        self.segments: list = []
         self.events: list[Event] = []
         self.n_segments = 0
+        self.n_skipped_periods = 0
         self.last: Segment | None = None
-        self._start_contact = self.contact.copy()
+        self._checkpoint = None
 
     # ------------------------------------------------------------- mode choice
     def _mode(self, t: float, ep: NDArray, epp: NDArray, t_limit: float):
@@ -170,8 +208,7 @@ class ExactSolver:
                 if dt <= 0.0:
                     break
                 _, ld2, ldd2 = self.gait(t + dt)
-                _, ep2, epp2 = kinematics(self._m, np.zeros_like(ld2), ld2, ldd2)
-                later = self._solve_mode(ep2, epp2, contact)
+                later = self._solve_mode(self._W @ ld2, self._W @ ldd2, contact)
                 if not later[4]:
                     choice = later
                     break
@@ -213,35 +250,80 @@ class ExactSolver:
             self._switch_gait(gait)
         t1 = float(t1)
         guard = 0
+        T = self.gait.period if self.periodic_skip else None
         while self.t < t1:
-            breaks = self.gait.breakpoints(self.t, t1)
-            t_stop = float(breaks[0]) if breaks.size else t1
+            t_stop = t1
+            if T:
+                k_next = math.floor(self.t / T * (1 + 4 * _EPS) + 4 * _EPS) + 1
+                t_stop = min(t_stop, k_next * T)
+            breaks = self.gait.breakpoints(self.t, t_stop)
+            if breaks.size:
+                t_stop = float(breaks[0])
             t_before = self.t
             self._segment(t_stop)
             guard = guard + 1 if self.t == t_before else 0
             if guard > 8:   # repeated zero-length segments: a degenerate mode loop
                 raise RuntimeError(f'exact solver stalled at t = {self.t!r} s; '
                                    'report this scene (try method="implicit")')
+            if T and self.t == t_stop and t_stop == k_next * T:
+                self._period_boundary(k_next, T, t1)
+
+    def _signature(self):
+        return (self.contact.tobytes(), self.zero.tobytes(), self.ref)
+
+    def _period_boundary(self, k: int, T: float, t1: float) -> None:
+        """At t = k T: compare with the state one period earlier and skip repeated periods."""
+        sig = self._signature()
+        here = (k, sig, self.X, self.V, self.K.copy(), self.x_ref, len(self.segments),
+                len(self.events))
+        prev, self._checkpoint = self._checkpoint, here
+        if prev is None or prev[0] != k - 1 or prev[1] != sig:
+            return
+        # Repeated to the solver's own accuracy: event times are known to ``tol`` seconds, so
+        # velocities to about tol times the largest acceleration friction can produce.
+        acc = (self._fp.sum() + self._fm.sum() + abs(self._fext)) / self._M
+        v_tol = 16.0 * (self.tol * acc + _EPS * (abs(self.V) + abs(prev[3])))
+        if self.ref < 0 and abs(self.V - prev[3]) > v_tol:
+            return
+        n = math.floor((t1 - self.t) / T * (1 + 4 * _EPS))
+        if n < 1:
+            return
+        D = self.X - prev[2]
+        dK = self.K - prev[4]
+        new_events = self.events[prev[7]:]
+        if self.keep_segments:
+            template = [sg for sg in self.segments[prev[6]:] if isinstance(sg, Segment)]
+            self.segments.append(PeriodicBlock(self.t, n, T, D, dK, template, (k - 1) * T))
+        shifted = [Event(ev.time + j * T, ev.body, ev.old, ev.new)
+                   for j in range(1, n + 1) for ev in new_events]
+        self.events.extend(shifted)
+        self.X += n * D
+        self.x_ref += n * D
+        self.K = self.K + n * dK
+        self.t = (k + n) * T
+        self.n_skipped_periods += n
+        self.last = None
+        self._checkpoint = (k + n, sig, self.X, self.V, self.K.copy(), self.x_ref,
+                            len(self.segments), len(self.events))
 
     def _switch_gait(self, gait: Gait) -> None:
         """Continue with a new gait: keep the bodies' positions, velocities and contact state."""
+        self._checkpoint = None
         if self.ref >= 0:
             self.gait = gait
             return
-        _, ld_old, _ = self.gait(self.t)
-        l_new, ld_new, ldd_new = gait(self.t)
-        e_old = kinematics(self._m, *self.gait(self.t))
-        e_new = kinematics(self._m, l_new, ld_new, ldd_new)
+        l0, ld0, _ = self.gait(self.t)
+        l1, ld1, _ = gait(self.t)
         # body 0 keeps its position and velocity
-        self.X += float(e_old[0][0] - e_new[0][0])
-        self.V += float(e_old[1][0] - e_new[1][0])
+        self.X += float(self._W[0] @ (l0 - l1))
+        self.V += float(self._W[0] @ (ld0 - ld1))
         self.gait = gait
 
     def _segment(self, t_stop: float) -> None:
         t0 = self.t
-        m, M = self._m, self._M
         l, ld, ldd = self.gait(t0)
-        e, ep, epp = kinematics(m, l, ld, ldd)
+        W = self._W
+        e, ep, epp = W @ l, W @ ld, W @ ldd
         if self.ref >= 0:
             # Stuck reference body: exact velocity of the centre of mass from the gait.
             self.V = float(-ep[self.ref])
@@ -271,9 +353,13 @@ class ExactSolver:
         """A zero-length segment at the current time with the mode the next segment would use."""
         t0 = self.t
         l, ld, ldd = self.gait(t0)
-        e, ep, epp = kinematics(self._m, l, ld, ldd)
-        contact, a, ref, group = self._mode(t0, ep, epp, t0)
+        W = self._W
+        e, ep, epp = W @ l, W @ ld, W @ ldd
         X, V = self.X, self.V
+        if self.ref >= 0:
+            V = float(-ep[self.ref])
+            X = float(self.x_ref - e[self.ref])
+        contact, a, ref, group = self._mode(t0, ep, epp, t0)
         x_ref = self.x_ref if (ref >= 0 and ref == self.ref) else float(X + e[max(ref, 0)])
         R = np.where(contact > 0, -self._fp, np.where(contact < 0, self._fm, 0.0))
         return Segment(t0, t0, self.gait, contact, R, self.K.copy(), X, V, float(a), ref, x_ref,
@@ -288,31 +374,26 @@ class ExactSolver:
     def _close(self, seg: Segment, t_ev: float, hits: list[tuple[str, int]]) -> None:
         """Move the state to the end of ``seg`` and mark bodies now at zero velocity."""
         d = t_ev - seg.t0
-        m, M = self._m, self._M
         if seg.ref < 0:
             self.X = seg.X0 + d * (seg.V0 + 0.5 * seg.a * d)
             self.V = seg.V0 + seg.a * d
             self.K = seg.K0 + seg.R * d
-            zero = np.zeros(m.size, bool)
+            zero = np.zeros(self._m.size, bool)
         else:
-            l, ld, ldd = self.gait(t_ev)
-            e, ep, _ = kinematics(m, l, ld, ldd)
-            self.V = float(-ep[seg.ref])
-            self.X = float(seg.x_ref - e[seg.ref])
+            l, ld, _ = self.gait(t_ev)
+            self.V = float(-(self._W[seg.ref] @ ld))
+            self.X = float(seg.x_ref - self._W[seg.ref] @ l)
             res = seg.evaluate(self.crawler, np.array([t_ev]))
             self.K = res['impulse'][0]
             zero = seg.group.copy()
-        ref = seg.ref
         for kind, i in hits:
             if kind == 'vel':
                 zero[i] = True
-                if ref < 0:
+                if seg.ref < 0:
                     # the body's velocity is exactly zero at the event
-                    _, ld, ldd = self.gait(t_ev)
-                    _, ep, _ = kinematics(m, np.zeros_like(ld), ld, ldd)
-                    self.V = float(-ep[i])
+                    self.V = float(-(self._W[i] @ self.gait(t_ev)[1]))
         self.zero = zero
-        self.ref = ref
+        self.ref = seg.ref
         self.x_ref = seg.x_ref
         self.t = t_ev
         self.n_segments += 1
@@ -321,58 +402,83 @@ class ExactSolver:
             self.segments.append(seg)
 
     # ------------------------------------------------------------ event search
-    def _event_functions(self, seg: Segment, tau: NDArray):
-        """Values (N, k) and, where known, derivatives of the event functions at times tau.
+    def _functions(self, seg: Segment):
+        """The segment's event functions as (labels, rows, kind data).
 
-        Each function is positive while the segment's mode stays valid. Returns
-        (G, D, labels) with D NaN where no derivative is known.
+        Each function is positive while the segment's mode stays valid:
+        ``vel``: sigma_i v_i (derivative known); ``force``: slack of the group's required ground
+        force to each bound; ``rigid``: the group members' relative velocity staying zero.
         """
-        m, M = self._m, self._M
-        l, ld, ldd = seg.gait(tau)
-        cols, ders, labels = [], [], []
+        labels = []
         if seg.ref < 0:
-            _, ep, epp = kinematics(m, l, ld, ldd)
-            d = tau - seg.t0
-            V = seg.V0 + seg.a * d
-            for i in range(m.size):
-                sg = seg.contact[i]
-                cols.append(sg * (V + ep[:, i]))
-                ders.append(sg * (seg.a + epp[:, i]))
+            for i in range(self._m.size):
                 labels.append(('vel', i))
         else:
-            r = seg.ref
-            sd, sdd = offsets(ld), offsets(ldd)
             for i in np.nonzero(~seg.group)[0]:
-                sg = seg.contact[i]
-                cols.append(sg * (sd[:, i] - sd[:, r]))
-                ders.append(sg * (sdd[:, i] - sdd[:, r]))
                 labels.append(('vel', int(i)))
-            _, _, epp = kinematics(m, l, ld, ldd)
-            g = seg.group
-            f_slide = self._fext + seg.R[~g].sum()
-            total = -M * epp[:, r] - f_slide     # ground force the group needs
-            lo, hi = -self._fp[g].sum(), self._fm[g].sum()
-            cols.append(total - lo)
-            ders.append(np.full(tau.size, np.nan))
-            labels.append(('force', r))
-            cols.append(hi - total)
-            ders.append(np.full(tau.size, np.nan))
-            labels.append(('force', r))
-            vscale = float(np.max(np.abs(sd))) + 1e-300
-            for j in np.nonzero(g)[0]:
-                if j != r:
-                    cols.append(1e-13 * vscale - np.abs(sd[:, j] - sd[:, r]))
-                    ders.append(np.full(tau.size, np.nan))
+            labels.append(('force', seg.ref))
+            labels.append(('force', seg.ref))
+            for j in np.nonzero(seg.group)[0]:
+                if j != seg.ref:
                     labels.append(('rigid', int(j)))
-        G = np.stack(cols, axis=1) if cols else np.empty((tau.size, 0))
-        D = np.stack(ders, axis=1) if ders else np.empty((tau.size, 0))
-        return G, D, labels
+        return labels
+
+    def _event_values(self, seg: Segment, tau: NDArray):
+        """Values G (N, k) and derivatives D (N, k; NaN where unknown) at times tau (N,)."""
+        M = self._M
+        _, ld, ldd = seg.gait(tau)
+        if seg.ref < 0:
+            sg = seg.contact.astype(float)
+            V = seg.V0 + seg.a * (tau - seg.t0)
+            G = sg * (V[:, None] + ld @ self._W.T)
+            D = sg * (seg.a + ldd @ self._W.T)
+            return G, D
+        r, g = seg.ref, seg.group
+        C = self._C
+        rel = C[~g] - C[r]                          # (k, n): relative offsets to the ref body
+        sg = seg.contact[~g].astype(float)
+        Gv = sg * (ld @ rel.T)
+        Dv = sg * (ldd @ rel.T)
+        f_slide = self._fext + seg.R[~g].sum()
+        total = -M * (ldd @ self._W[r]) - f_slide    # ground force the group needs
+        lo, hi = -self._fp[g].sum(), self._fm[g].sum()
+        cols = [Gv, (total - lo)[:, None], (hi - total)[:, None]]
+        others = [j for j in np.nonzero(g)[0] if j != r]
+        if others:
+            sd = ld @ C.T
+            vscale = np.max(np.abs(sd), axis=1, keepdims=True) + 1e-300
+            cols.append(1e-13 * vscale - np.abs(sd[:, others] - sd[:, [r]]))
+        G = np.concatenate(cols, axis=1)
+        D = np.full_like(G, np.nan)
+        D[:, :Gv.shape[1]] = Dv
+        return G, D
 
     def _scalar(self, seg: Segment, col: int, deriv: bool = False):
-        def f(tt: float) -> float:
-            G, D, _ = self._event_functions(seg, np.array([tt]))
-            return float((D if deriv else G)[0, col])
-        return f
+        """Fast scalar closure for one event function (or its derivative), for root finding."""
+        kind, _ = self._functions(seg)[col]
+        gait, M = seg.gait, self._M
+        if seg.ref < 0:
+            i = col
+            sg, w = float(seg.contact[i]), self._W[i]
+            V0, a, t0 = seg.V0, seg.a, seg.t0
+            if deriv:
+                return lambda tt: sg * (a + w @ gait(tt)[2])
+            return lambda tt: sg * (V0 + a * (tt - t0) + w @ gait(tt)[1])
+        r, g = seg.ref, seg.group
+        n_vel = int((~g).sum())
+        if col < n_vel:
+            i = int(np.nonzero(~g)[0][col])
+            sg, w = float(seg.contact[i]), self._C[i] - self._C[r]
+            k = 2 if deriv else 1
+            return lambda tt: sg * (w @ gait(tt)[k])
+        if col < n_vel + 2:
+            f_slide = self._fext + seg.R[~g].sum()
+            lo, hi = -self._fp[g].sum(), self._fm[g].sum()
+            wr = self._W[r]
+            if col == n_vel:
+                return lambda tt: -M * (wr @ gait(tt)[2]) - f_slide - lo
+            return lambda tt: hi + M * (wr @ gait(tt)[2]) + f_slide
+        return lambda tt: float(self._event_values(seg, np.array([tt]))[0][0, col])
 
     def _grid_step(self, t0: float, t_stop: float) -> float:
         if self.max_step is not None:
@@ -386,33 +492,34 @@ class ExactSolver:
         h = self._grid_step(t0, t_stop)
         start = t0
         while start < t_stop:
-            n = min(_CHUNK, max(2, int(math.ceil((t_stop - start) / h)) + 1))
-            end = min(t_stop, start + h * (n - 1))
-            if n == 2 or end == t_stop:
-                n = max(2, int(math.ceil((end - start) / h)) + 1)
+            n = int(math.ceil((t_stop - start) / h * (1 - 4 * _EPS))) + 1
+            if n > _CHUNK:
+                n = _CHUNK
+                end = start + h * (n - 1)
+            else:
+                n, end = max(n, 2), t_stop
             tau = np.linspace(start, end, n)
-            G, D, labels = self._event_functions(seg, tau)
-            found = self._first_bracket(seg, tau, G, D, labels)
+            G, D = self._event_values(seg, tau)
+            found = self._first_bracket(seg, tau, G, D)
             if found is not None:
                 return found
             start = end
         return t_stop, []
 
-    def _first_bracket(self, seg, tau, G, D, labels):
+    def _root(self, f, a: float, b: float) -> float:
+        return brentq(f, a, b, xtol=self.tol, rtol=4 * _EPS)
+
+    def _first_bracket(self, seg, tau, G, D):
         if G.shape[1] == 0:
             return None
         nonpos = G[1:] <= 0.0
         # dips between grid points, for functions with a known derivative
-        dip_at = {}
-        dmask = np.isfinite(D[0])
-        if dmask.any():
-            turn = (D[:-1] < 0.0) & (D[1:] > 0.0) & (G[:-1] > 0.0) & (G[1:] > 0.0)
+        dip_at: dict[int, list] = {}
+        turn = (D[:-1] < 0.0) & (D[1:] > 0.0) & (G[:-1] > 0.0) & (G[1:] > 0.0)
+        if turn.any():
             for k, c in zip(*np.nonzero(turn)):
-                if k in dip_at and any(cc == c for cc, _ in dip_at[k]):
-                    continue
-                t_min = brentq(self._scalar(seg, c, deriv=True), tau[k], tau[k + 1],
-                               xtol=self.tol, rtol=4 * np.finfo(float).eps)
-                if self._scalar(seg, c)(t_min) <= 0.0:
+                t_min = self._root(self._scalar(seg, int(c), deriv=True), tau[k], tau[k + 1])
+                if self._scalar(seg, int(c))(t_min) <= 0.0:
                     dip_at.setdefault(int(k), []).append((int(c), t_min))
         rows = np.nonzero(nonpos.any(axis=1))[0]
         k_cross = int(rows[0]) if rows.size else None
@@ -427,14 +534,11 @@ class ExactSolver:
                 if G[k, c] <= 0.0:
                     roots.append((lo, int(c)))   # started at or below zero: event now
                     continue
-                f = self._scalar(seg, int(c))
-                roots.append((brentq(f, lo, tau[k + 1], xtol=self.tol,
-                                     rtol=4 * np.finfo(float).eps), int(c)))
+                roots.append((self._root(self._scalar(seg, int(c)), lo, tau[k + 1]), int(c)))
         for c, t_min in dip_at.get(k, []):
-            f = self._scalar(seg, c)
-            roots.append((brentq(f, lo, t_min, xtol=self.tol, rtol=4 * np.finfo(float).eps), c))
+            roots.append((self._root(self._scalar(seg, c), lo, t_min), c))
         t_ev = min(r for r, _ in roots)
-        # a crossing right at the segment start on the first grid point: zero-length, keep going
+        labels = self._functions(seg)
         hits = sorted({labels[c] for r, c in roots if r <= t_ev + 2 * self.tol})
         return t_ev, hits
 
@@ -443,17 +547,43 @@ class ExactSolver:
         """Exact states at ``times`` (sorted, within the integrated span) from kept segments."""
         segs = self.segments
         starts = np.array([s.t0 for s in segs])
-        idx = np.searchsorted(starts, times, side='right') - 1
-        idx = np.clip(idx, 0, len(segs) - 1)
-        out = None
+        idx = np.clip(np.searchsorted(starts, times, side='right') - 1, 0, len(segs) - 1)
+        out: dict = {}
         for k in np.unique(idx):
             sel = np.nonzero(idx == k)[0]
-            res = segs[k].evaluate(self.crawler, times[sel])
-            if out is None:
+            piece = segs[k]
+            if isinstance(piece, PeriodicBlock):
+                res, indet = self._sample_block(piece, times[sel])
+            else:
+                res = piece.evaluate(self.crawler, times[sel])
+                indet = np.full(sel.size, piece.group.sum() > 1)
+            if not out:
                 out = {key: np.empty((times.size,) + val.shape[1:], val.dtype)
                        for key, val in res.items()}
                 out['indeterminate'] = np.zeros(times.size, bool)
             for key, val in res.items():
                 out[key][sel] = val
-            out['indeterminate'][sel] = segs[k].group.sum() > 1
+            out['indeterminate'][sel] = indet
         return out
+
+    def _sample_block(self, block: PeriodicBlock, times: NDArray):
+        """Sample repeated periods: evaluate the template one period earlier, then shift."""
+        j = np.clip(np.floor((times - block.t0) / block.T).astype(int) + 1, 1, block.n)
+        local = times - j * block.T            # falls in the template period
+        tpl = block.template
+        starts = np.array([s.t0 for s in tpl])
+        idx = np.clip(np.searchsorted(starts, local, side='right') - 1, 0, len(tpl) - 1)
+        out: dict = {}
+        indet = np.zeros(times.size, bool)
+        for k in np.unique(idx):
+            sel = np.nonzero(idx == k)[0]
+            res = tpl[k].evaluate(self.crawler, np.clip(local[sel], tpl[k].t0, tpl[k].t1))
+            if not out:
+                out = {key: np.empty((times.size,) + val.shape[1:], val.dtype)
+                       for key, val in res.items()}
+            for key, val in res.items():
+                out[key][sel] = val
+            indet[sel] = tpl[k].group.sum() > 1
+        out['x'] = out['x'] + (j * block.D)[:, None]
+        out['impulse'] = out['impulse'] + np.multiply.outer(j, block.dK)
+        return out, indet
