@@ -77,12 +77,16 @@ class Stepper:
     dt : step [s] of "implicit" and "penalty" (default 1e-3).
     penalty : the seed's n [N s/m] for "penalty", one float or one per body.
     tol : event time tolerance of "exact" [s]; max_step : largest step between event checks [s].
+    keep_history : keep every segment / event for later sampling (``simulate`` does); streaming
+        use leaves it off and drains events with ``pop_events``.
+    periodic_skip : let "exact" skip gait periods that repeat (see ``ExactSolver``).
     """
 
     def __init__(self, crawler: Crawler, gait: Gait, method: str = 'exact', *, t0: float = 0.0,
                  x0: float = 0.0, v0: float = 0.0, dt: float | None = None,
                  penalty: ArrayLike | None = None, tol: float = 1e-13,
-                 max_step: float | None = None, keep_history: bool = False) -> None:
+                 max_step: float | None = None, keep_history: bool = False,
+                 periodic_skip: bool = True) -> None:
         self.method = _check_method(method)
         t0, x0, v0 = (_check_finite(k, v) for k, v in (('t0', t0), ('x0', x0), ('v0', v0)))
         check_gait(gait, crawler, t0)
@@ -92,7 +96,8 @@ class Stepper:
             if max_step is not None:
                 max_step = _check_positive('max_step', max_step)
             self._solver = ExactSolver(crawler, gait, t0=t0, x0=x0, v0=v0, tol=tol,
-                                       max_step=max_step, keep_segments=keep_history)
+                                       max_step=max_step, keep_segments=keep_history,
+                                       periodic_skip=periodic_skip)
         else:
             dt = 1e-3 if dt is None else _check_positive('dt', dt)
             if method == 'implicit':
@@ -100,6 +105,7 @@ class Stepper:
             else:
                 self._solver = PenaltySolver(crawler, gait, dt=dt, t0=t0, x0=x0, v0=v0,
                                              penalty=check_penalty(penalty, crawler.p))
+        self._keep = keep_history
         self._n_events_read = 0
 
     @property
@@ -145,7 +151,13 @@ class Stepper:
         """Contact events since the last call, in time order."""
         ev = self._solver.events
         out = ev[self._n_events_read:]
-        self._n_events_read = len(ev)
+        if self._keep:
+            self._n_events_read = len(ev)
+        else:
+            # streaming: drop what was read so a long run does not accumulate events
+            ev.clear()
+            if hasattr(self._solver, '_checkpoint'):
+                self._solver._checkpoint = None
         return list(out)
 
     def reset(self, *, t0: float = 0.0, x0: float = 0.0, v0: float = 0.0) -> None:
@@ -169,13 +181,15 @@ def _sample_times(t_end: float, t_eval: ArrayLike | None, dt: float | None) -> N
 def simulate(crawler: Crawler, gait: Gait, t_end: float, method: str = 'exact', *,
              dt: float | None = None, t_eval: ArrayLike | None = None, v0: float = 0.0,
              x0: float = 0.0, penalty: ArrayLike | None = None, tol: float = 1e-13,
-             max_step: float | None = None, include_events: bool = True) -> Trajectory:
+             max_step: float | None = None, include_events: bool = True,
+             periodic_skip: bool = True) -> Trajectory:
     """Simulate the crawler under ``gait`` on [0, t_end] and return the sampled ``Trajectory``.
 
     With method "exact" the values at ``t_eval`` are exact (closed form, not interpolated) and,
     unless ``t_eval`` is given or ``include_events`` is False, the event times are added to the
     default uniform samples. "implicit" and "penalty" step with ``dt`` (default 1e-3 s) and land
     a step on every requested time. v0 / x0: initial velocity / position of body 0.
+    ``tol`` / ``max_step`` / ``periodic_skip``: see ``Stepper``.
     """
     if not isinstance(crawler, Crawler):
         raise ValueError(f'crawler must be a crawler_sim.Crawler, got {type(crawler).__name__}')
@@ -184,7 +198,7 @@ def simulate(crawler: Crawler, gait: Gait, t_end: float, method: str = 'exact', 
     if dt is not None:
         dt = _check_positive('dt', dt)
     st = Stepper(crawler, gait, method, x0=x0, v0=v0, dt=dt, penalty=penalty, tol=tol,
-                 max_step=max_step, keep_history=True)
+                 max_step=max_step, keep_history=True, periodic_skip=periodic_skip)
     times = _sample_times(t_end, t_eval, dt)
     info: dict = {}
     if method == 'exact':
@@ -194,6 +208,7 @@ def simulate(crawler: Crawler, gait: Gait, t_end: float, method: str = 'exact', 
             times = np.union1d(times, [e.time for e in s.events if 0 < e.time < t_end])
         out = s.sample(times)
         info['segments'] = s.n_segments
+        info['skipped_periods'] = s.n_skipped_periods
     else:
         s = st.solver
         rows = []
