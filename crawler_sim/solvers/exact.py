@@ -121,8 +121,7 @@ class Segment:
             R[:, g] = -split_friction(-total, fp, fm)
             # Impulse of the group: integral of total = M (V - V(t0)) - f_slide d, split the same
             # way (the split is affine in the total, so it commutes with the integral).
-            Vt0 = -kinematics(m, *self.gait(self.t0))[1][r]
-            imp = M * (V - Vt0) - f_slide * d
+            imp = M * (V - self.V0) - f_slide * d    # V0 = -e_r'(t0) for stick segments
             K[:, g] = self.K0[g] + _split_impulse(imp, d, fp, fm)
         grav = crawler.gravity_forces
         body_force = R + grav - m * (A[:, None] + epp)
@@ -339,7 +338,8 @@ class ExactSolver:
                 j = int(np.nonzero(leaving)[0][0])
                 self.V = float(-ep[j])
         R = np.where(contact > 0, -self._fp, np.where(contact < 0, self._fm, 0.0))
-        seg = Segment(t0, t_stop, self.gait, contact, R, self.K.copy(), self.X, self.V, float(a),
+        V0 = float(-ep[ref]) if ref >= 0 else self.V
+        seg = Segment(t0, t_stop, self.gait, contact, R, self.K.copy(), self.X, V0, float(a),
                       ref, x_ref, group)
         self._record_contact_change(t0, contact)
         if ref >= 0 and group.all() and self.gait.is_constant(t0, t_stop):
@@ -361,6 +361,8 @@ class ExactSolver:
             X = float(self.x_ref - e[self.ref])
         contact, a, ref, group = self._mode(t0, ep, epp, t0)
         x_ref = self.x_ref if (ref >= 0 and ref == self.ref) else float(X + e[max(ref, 0)])
+        if ref >= 0:
+            V = float(-ep[ref])
         R = np.where(contact > 0, -self._fp, np.where(contact < 0, self._fm, 0.0))
         return Segment(t0, t0, self.gait, contact, R, self.K.copy(), X, V, float(a), ref, x_ref,
                        group)
@@ -383,9 +385,13 @@ class ExactSolver:
             l, ld, _ = self.gait(t_ev)
             self.V = float(-(self._W[seg.ref] @ ld))
             self.X = float(seg.x_ref - self._W[seg.ref] @ l)
-            res = seg.evaluate(self.crawler, np.array([t_ev]))
-            self.K = res['impulse'][0]
-            zero = seg.group.copy()
+            g = seg.group
+            K = seg.K0 + np.where(g, 0.0, seg.R) * d
+            f_slide = self._fext + seg.R[~g].sum()
+            imp = self._M * (self.V - seg.V0) - f_slide * d
+            K[g] += _split_impulse(np.array([imp]), np.array([d]), self._fp[g], self._fm[g])[0]
+            self.K = K
+            zero = g.copy()
         for kind, i in hits:
             if kind == 'vel':
                 zero[i] = True
@@ -480,6 +486,25 @@ class ExactSolver:
             return lambda tt: hi + M * (wr @ gait(tt)[2]) + f_slide
         return lambda tt: float(self._event_values(seg, np.array([tt]))[0][0, col])
 
+    def _scalar_pair(self, seg: Segment, col: int):
+        """(value, derivative) closure of velocity event function ``col``, one gait call each."""
+        gait = seg.gait
+        if seg.ref < 0:
+            sg, w = float(seg.contact[col]), self._W[col]
+            V0, a, t0 = seg.V0, seg.a, seg.t0
+
+            def fd(tt: float) -> tuple[float, float]:
+                _, ld, ldd = gait(tt)
+                return sg * (V0 + a * (tt - t0) + w @ ld), sg * (a + w @ ldd)
+            return fd
+        i = int(np.nonzero(~seg.group)[0][col])
+        sg, w = float(seg.contact[i]), self._C[i] - self._C[seg.ref]
+
+        def fd_rel(tt: float) -> tuple[float, float]:
+            _, ld, ldd = gait(tt)
+            return sg * (w @ ld), sg * (w @ ldd)
+        return fd_rel
+
     def _grid_step(self, t0: float, t_stop: float) -> float:
         if self.max_step is not None:
             return float(self.max_step)
@@ -509,6 +534,27 @@ class ExactSolver:
     def _root(self, f, a: float, b: float) -> float:
         return brentq(f, a, b, xtol=self.tol, rtol=4 * _EPS)
 
+    def _newton(self, fd, a: float, b: float, fa: float, fb: float) -> float:
+        """Root of a function with known derivative in [a, b] (fa > 0 >= fb): Newton from the
+        secant estimate, kept inside the bracket (bisection when it would leave), to ``tol``."""
+        t = a + (b - a) * fa / (fa - fb)
+        for _ in range(60):
+            f, df = fd(t)
+            if f > 0.0:
+                a = t
+            else:
+                b = t
+            if f == 0.0 or b - a <= self.tol:
+                return t if f <= 0.0 else b
+            step = f / df if df != 0.0 else math.inf
+            t_new = t - step
+            if abs(step) <= 0.5 * self.tol and a <= t_new <= b:
+                return t_new            # quadratic convergence: within tol of the root
+            if not (a < t_new < b):
+                t_new = 0.5 * (a + b)
+            t = t_new
+        return 0.5 * (a + b)
+
     def _first_bracket(self, seg, tau, G, D):
         if G.shape[1] == 0:
             return None
@@ -533,8 +579,12 @@ class ExactSolver:
             for c in np.nonzero(nonpos[k])[0]:
                 if G[k, c] <= 0.0:
                     roots.append((lo, int(c)))   # started at or below zero: event now
-                    continue
-                roots.append((self._root(self._scalar(seg, int(c)), lo, tau[k + 1]), int(c)))
+                elif np.isfinite(D[k, c]):
+                    roots.append((self._newton(self._scalar_pair(seg, int(c)), lo, tau[k + 1],
+                                               G[k, c], G[k + 1, c]), int(c)))
+                else:
+                    roots.append((self._root(self._scalar(seg, int(c)), lo, tau[k + 1]),
+                                  int(c)))
         for c, t_min in dip_at.get(k, []):
             roots.append((self._root(self._scalar(seg, c), lo, t_min), c))
         t_ev = min(r for r, _ in roots)
