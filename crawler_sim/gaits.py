@@ -134,6 +134,13 @@ class Gait:
     def _eval(self, t: NDArray[np.float64]) -> Triple:
         raise NotImplementedError
 
+    def at(self, t: float) -> Triple:
+        """(l, l', l'') at one float time, each of shape (n_links,): the solver's hot path.
+
+        Same values as ``self(t)`` to rounding; subclasses override it with scalar math.
+        """
+        return self(t)
+
     def length(self, t: float | ArrayLike) -> NDArray[np.float64]:
         """Linkage lengths l(t) [m]."""
         return self(t)[0]
@@ -216,6 +223,12 @@ class Sinusoid(Gait):
 
     def _eval(self, t: NDArray[np.float64]) -> Triple:
         arg = self._w * t[:, None] + self.phase
+        s, c = np.sin(arg), np.cos(arg)
+        a = self.amplitude
+        return self.mean + a * s, a * self._w * c, -a * self._w ** 2 * s
+
+    def at(self, t: float) -> Triple:
+        arg = self._w * t + self.phase
         s, c = np.sin(arg), np.cos(arg)
         a = self.amplitude
         return self.mean + a * s, a * self._w * c, -a * self._w ** 2 * s
@@ -352,6 +365,23 @@ class Scallop(Gait):
         ddphi = -s * c * sx * inv_d ** 2
         return (self.mean + amp * sin_phi, amp * w * cos_phi * dphi,
                 amp * w ** 2 * (cos_phi * ddphi - sin_phi * dphi ** 2))
+
+    def at(self, t: float) -> Triple:
+        if self.n_links != 1:
+            return self(t)
+        # the same formulas in scalar math: about 15 times faster than the array path
+        c, s, w = self._c, self._s, self._w
+        amp = float(self.amplitude[0])
+        x = 2.0 * math.pi * ((self.frequency * t) % 1.0) + (
+            float(self.phase[0]) - math.pi * self.asymmetry)
+        cx, sx = math.cos(x), math.sin(x)
+        inv_d = 1.0 / (1.0 - c * cx)
+        sin_phi, cos_phi = s * sx * inv_d, (cx - c) * inv_d
+        dphi = s * inv_d
+        ddphi = -s * c * sx * inv_d ** 2
+        return (np.array([float(self.mean[0]) + amp * sin_phi]),
+                np.array([amp * w * cos_phi * dphi]),
+                np.array([amp * w ** 2 * (cos_phi * ddphi - sin_phi * dphi ** 2)]))
 
     def is_constant(self, t0: float, t1: float) -> bool:
         return not np.any(self.amplitude)

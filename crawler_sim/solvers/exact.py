@@ -171,7 +171,7 @@ class ExactSolver:
     # ------------------------------------------------------------------ state
     def reset(self, *, t0: float = 0.0, x0: float = 0.0, v0: float = 0.0) -> None:
         """Start at time t0 with body 0 at x0 [m] moving at v0 [m/s]."""
-        l, ld, _ = self.gait(t0)
+        l, ld, _ = self.gait.at(t0)
         e, ep = self._W @ l, self._W @ ld
         self.t = float(t0)
         self.X = float(x0 - e[0])          # centre of mass
@@ -206,7 +206,7 @@ class ExactSolver:
                 dt = min(rel * max(span, self._timescale()), 0.5 * span) if span > 0 else 0.0
                 if dt <= 0.0:
                     break
-                _, ld2, ldd2 = self.gait(t + dt)
+                _, ld2, ldd2 = self.gait.at(t + dt)
                 later = self._solve_mode(self._W @ ld2, self._W @ ldd2, contact)
                 if not later[4]:
                     choice = later
@@ -311,8 +311,8 @@ class ExactSolver:
         if self.ref >= 0:
             self.gait = gait
             return
-        l0, ld0, _ = self.gait(self.t)
-        l1, ld1, _ = gait(self.t)
+        l0, ld0, _ = self.gait.at(self.t)
+        l1, ld1, _ = gait.at(self.t)
         # body 0 keeps its position and velocity
         self.X += float(self._W[0] @ (l0 - l1))
         self.V += float(self._W[0] @ (ld0 - ld1))
@@ -320,7 +320,7 @@ class ExactSolver:
 
     def _segment(self, t_stop: float) -> None:
         t0 = self.t
-        l, ld, ldd = self.gait(t0)
+        l, ld, ldd = self.gait.at(t0)
         W = self._W
         e, ep, epp = W @ l, W @ ld, W @ ldd
         if self.ref >= 0:
@@ -352,7 +352,7 @@ class ExactSolver:
     def provisional(self) -> Segment:
         """A zero-length segment at the current time with the mode the next segment would use."""
         t0 = self.t
-        l, ld, ldd = self.gait(t0)
+        l, ld, ldd = self.gait.at(t0)
         W = self._W
         e, ep, epp = W @ l, W @ ld, W @ ldd
         X, V = self.X, self.V
@@ -382,7 +382,7 @@ class ExactSolver:
             self.K = seg.K0 + seg.R * d
             zero = np.zeros(self._m.size, bool)
         else:
-            l, ld, _ = self.gait(t_ev)
+            l, ld, _ = self.gait.at(t_ev)
             self.V = float(-(self._W[seg.ref] @ ld))
             self.X = float(seg.x_ref - self._W[seg.ref] @ l)
             g = seg.group
@@ -397,7 +397,7 @@ class ExactSolver:
                 zero[i] = True
                 if seg.ref < 0:
                     # the body's velocity is exactly zero at the event
-                    self.V = float(-(self._W[i] @ self.gait(t_ev)[1]))
+                    self.V = float(-(self._W[i] @ self.gait.at(t_ev)[1]))
         self.zero = zero
         self.ref = seg.ref
         self.x_ref = seg.x_ref
@@ -468,22 +468,22 @@ class ExactSolver:
             sg, w = float(seg.contact[i]), self._W[i]
             V0, a, t0 = seg.V0, seg.a, seg.t0
             if deriv:
-                return lambda tt: sg * (a + w @ gait(tt)[2])
-            return lambda tt: sg * (V0 + a * (tt - t0) + w @ gait(tt)[1])
+                return lambda tt: sg * (a + w @ gait.at(tt)[2])
+            return lambda tt: sg * (V0 + a * (tt - t0) + w @ gait.at(tt)[1])
         r, g = seg.ref, seg.group
         n_vel = int((~g).sum())
         if col < n_vel:
             i = int(np.nonzero(~g)[0][col])
             sg, w = float(seg.contact[i]), self._C[i] - self._C[r]
             k = 2 if deriv else 1
-            return lambda tt: sg * (w @ gait(tt)[k])
+            return lambda tt: sg * (w @ gait.at(tt)[k])
         if col < n_vel + 2:
             f_slide = self._fext + seg.R[~g].sum()
             lo, hi = -self._fp[g].sum(), self._fm[g].sum()
             wr = self._W[r]
             if col == n_vel:
-                return lambda tt: -M * (wr @ gait(tt)[2]) - f_slide - lo
-            return lambda tt: hi + M * (wr @ gait(tt)[2]) + f_slide
+                return lambda tt: -M * (wr @ gait.at(tt)[2]) - f_slide - lo
+            return lambda tt: hi + M * (wr @ gait.at(tt)[2]) + f_slide
         return lambda tt: float(self._event_values(seg, np.array([tt]))[0][0, col])
 
     def _scalar_pair(self, seg: Segment, col: int):
@@ -494,14 +494,14 @@ class ExactSolver:
             V0, a, t0 = seg.V0, seg.a, seg.t0
 
             def fd(tt: float) -> tuple[float, float]:
-                _, ld, ldd = gait(tt)
+                _, ld, ldd = gait.at(tt)
                 return sg * (V0 + a * (tt - t0) + w @ ld), sg * (a + w @ ldd)
             return fd
         i = int(np.nonzero(~seg.group)[0][col])
         sg, w = float(seg.contact[i]), self._C[i] - self._C[seg.ref]
 
         def fd_rel(tt: float) -> tuple[float, float]:
-            _, ld, ldd = gait(tt)
+            _, ld, ldd = gait.at(tt)
             return sg * (w @ ld), sg * (w @ ldd)
         return fd_rel
 
