@@ -126,9 +126,13 @@ class Segment:
         grav = crawler.gravity_forces
         body_force = R + grav - m * (A[:, None] + epp)
         lam = np.cumsum(body_force, axis=1)[:, :-1]
+        contact = np.broadcast_to(self.contact, (n, m.size)).copy()
+        free = (crawler.friction + crawler.friction_backward) == 0.0
+        if free.any():
+            # no friction, no stick: these bodies' state is just the sign of their velocity
+            contact[:, free] = np.sign(v[:, free])
         return {'x': x, 'v': v, 'friction': R, 'impulse': K, 'linkage_force': lam,
-                'lengths': l, 'rates': ld,
-                'contact': np.broadcast_to(self.contact, (n, m.size)).copy()}
+                'lengths': l, 'rates': ld, 'contact': contact}
 
 
 def _split_impulse(imp: NDArray, d: NDArray, fp: NDArray, fm: NDArray) -> NDArray:
@@ -166,6 +170,8 @@ class ExactSolver:
         self._fm = crawler.friction_backward
         self._fext = crawler.external_force
         self._C, self._W = offset_matrices(crawler.masses)
+        # Frictionless bodies never stick and never change the dynamics: no events for them.
+        self._free = (self._fp + self._fm) == 0.0
         self.reset(t0=t0, x0=x0, v0=v0)
 
     # ------------------------------------------------------------------ state
@@ -176,10 +182,10 @@ class ExactSolver:
         self.t = float(t0)
         self.X = float(x0 - e[0])          # centre of mass
         self.V = float(v0 - ep[0])
-        v = self.V + ep
+        v = v0 + self._C @ ld              # body velocities, exact zeros stay zero
         p = self._m.size
-        self.contact = np.sign(v).astype(np.int8)
-        self.zero = v == 0.0               # bodies known to be at zero velocity
+        self.contact = np.where(self._free, 0, np.sign(v)).astype(np.int8)
+        self.zero = (v == 0.0) & ~self._free   # bodies known to be at zero velocity
         self.K = np.zeros(p)
         self.ref = -1
         self.x_ref = 0.0
@@ -199,9 +205,10 @@ class ExactSolver:
             R = np.where(contact > 0, -self._fp, self._fm)
             return contact, (self._fext + R.sum()) / self._M, -1, np.zeros_like(zero)
         choice = self._solve_mode(ep, epp, contact)
-        if choice[4]:
-            # Degenerate tie: decide by the inclusion a little later (same zero set).
-            span = max(t_limit - t, 0.0)
+        span = max(t_limit - t, 0.0)
+        if choice[4] or (choice[3].sum() > 1 and not self._rigid(choice[3], t, span)):
+            # Degenerate tie, or bodies at rest together whose link is not rigid beyond this
+            # instant: decide by the inclusion a little later (same zero set).
             for rel in (1e-9, 1e-7, 1e-5):
                 dt = min(rel * max(span, self._timescale()), 0.5 * span) if span > 0 else 0.0
                 if dt <= 0.0:
@@ -212,6 +219,19 @@ class ExactSolver:
                     choice = later
                     break
         return choice[:4]
+
+    def _rigid(self, group: NDArray, t: float, span: float) -> bool:
+        """True if the group's relative velocities stay zero just after t (a rigid link)."""
+        if span <= 0.0:
+            return True
+        # two look-aheads: the nearer one can round a slowly growing rate to exactly zero
+        for rel_dt in (1e-9, 1e-6):
+            dt = min(rel_dt * max(span, self._timescale()), 0.5 * span)
+            sd = self._C @ self.gait.at(t + dt)[1]
+            rel = sd[group] - sd[group][0]
+            if np.any(np.abs(rel) > 1e-13 * (np.max(np.abs(sd)) + 1e-300)):
+                return False
+        return True
 
     def _timescale(self) -> float:
         return self.gait.period if self.gait.period else (self.max_step or 1.0)
@@ -259,7 +279,7 @@ class ExactSolver:
             if breaks.size:
                 t_stop = float(breaks[0])
             t_before = self.t
-            self._segment(t_stop)
+            self._segment(t_stop, left_limit=bool(breaks.size))
             guard = guard + 1 if self.t == t_before else 0
             if guard > 8:   # repeated zero-length segments: a degenerate mode loop
                 raise RuntimeError(f'exact solver stalled at t = {self.t!r} s; '
@@ -318,7 +338,7 @@ class ExactSolver:
         self.V += float(self._W[0] @ (ld0 - ld1))
         self.gait = gait
 
-    def _segment(self, t_stop: float) -> None:
+    def _segment(self, t_stop: float, left_limit: bool = False) -> None:
         t0 = self.t
         l, ld, ldd = self.gait.at(t0)
         W = self._W
@@ -345,7 +365,7 @@ class ExactSolver:
         if ref >= 0 and group.all() and self.gait.is_constant(t0, t_stop):
             t_ev, hits = t_stop, []   # at rest under a constant command: nothing can happen
         else:
-            t_ev, hits = self._find_event(seg, t_stop)
+            t_ev, hits = self._find_event(seg, t_stop, left_limit)
         seg.t1 = t_ev
         self._close(seg, t_ev, hits)
 
@@ -438,6 +458,9 @@ class ExactSolver:
             V = seg.V0 + seg.a * (tau - seg.t0)
             G = sg * (V[:, None] + ld @ self._W.T)
             D = sg * (seg.a + ldd @ self._W.T)
+            if self._free.any():
+                G[:, self._free] = math.inf
+                D[:, self._free] = math.nan
             return G, D
         r, g = seg.ref, seg.group
         C = self._C
@@ -445,6 +468,10 @@ class ExactSolver:
         sg = seg.contact[~g].astype(float)
         Gv = sg * (ld @ rel.T)
         Dv = sg * (ldd @ rel.T)
+        free = self._free[~g]
+        if free.any():
+            Gv[:, free] = math.inf
+            Dv[:, free] = math.nan
         f_slide = self._fext + seg.R[~g].sum()
         total = -M * (ldd @ self._W[r]) - f_slide    # ground force the group needs
         lo, hi = -self._fp[g].sum(), self._fm[g].sum()
@@ -512,7 +539,10 @@ class ExactSolver:
             return self.gait.period / 64.0
         return max((t_stop - t0) / 8.0, 1e-300)
 
-    def _find_event(self, seg: Segment, t_stop: float) -> tuple[float, list[tuple[str, int]]]:
+    def _find_event(self, seg: Segment, t_stop: float,
+                    left_limit: bool = False) -> tuple[float, list[tuple[str, int]]]:
+        """First event in (t0, t_stop]; at a gait breakpoint t_stop the functions are taken as
+        left limits (the gait returns the next piece's l'' there)."""
         t0 = seg.t0
         h = self._grid_step(t0, t_stop)
         start = t0
@@ -524,6 +554,8 @@ class ExactSolver:
             else:
                 n, end = max(n, 2), t_stop
             tau = np.linspace(start, end, n)
+            if left_limit and end == t_stop:
+                tau[-1] = np.nextafter(t_stop, -math.inf)
             G, D = self._event_values(seg, tau)
             found = self._first_bracket(seg, tau, G, D)
             if found is not None:

@@ -18,6 +18,7 @@ from ..gaits import Gait
 from ..model import Crawler, kinematics
 from ..trajectory import Event
 from .contact import solve_inclusion, solve_inclusion_batch, split_friction
+from .exact import ExactSolver
 
 __all__ = ['ImplicitSolver', 'ImplicitBatch', 'TimeStepper']
 
@@ -48,11 +49,15 @@ class TimeStepper:
         self.t = float(t0)
         self.X = float(x0 - e[0])
         self.V = float(v0 - ep[0])
-        v = self.V + ep
-        self.contact = np.sign(v).astype(np.int8)
-        self.R = np.where(self.contact > 0, -self._fp, np.where(self.contact < 0, self._fm, 0.0))
-        self.A = 0.0
+        # The state at t0 (contact, friction, acceleration) is the instantaneous mode, the same
+        # one the exact method starts from.
+        seg = ExactSolver(self.crawler, self.gait, t0=t0, x0=x0, v0=v0).provisional()
+        self.contact = seg.contact.copy()
+        first = seg.evaluate(self.crawler, np.array([float(t0)]))
+        self.R = first['friction'][0]
+        self.A = float(seg.a) if seg.ref < 0 else float(-epp[seg.ref])
         self.K = np.zeros(self._m.size)
+        self._cache = None
         self.events: list[Event] = []
         self.n_steps = 0
         self.rows: list[tuple] = []
