@@ -145,6 +145,22 @@ def _split_impulse(imp: NDArray, d: NDArray, fp: NDArray, fm: NDArray) -> NDArra
     return fm * d[:, None] - np.multiply.outer((-imp + fm.sum() * d) / w, width)
 
 
+def _merge_ties(kinks: NDArray, eps: float) -> NDArray:
+    """Snap kinks closer than ``eps`` to one value: bodies rigidly linked have equal relative
+    accelerations mathematically but not always bitwise, and must be seen as one group."""
+    if kinks.size < 2:
+        return kinks
+    order = np.argsort(kinks, kind='stable')
+    k = kinks[order]
+    out = k.copy()
+    for i in range(1, k.size):
+        if k[i] - out[i - 1] <= eps:
+            out[i] = out[i - 1]
+    res = np.empty_like(kinks)
+    res[order] = out
+    return res
+
+
 class ExactSolver:
     """Event-driven integrator with a streaming interface (see ``crawler_sim.stepper``).
 
@@ -242,14 +258,16 @@ class ExactSolver:
         slide = ~zero
         R_slide = np.where(contact > 0, -fp, fm)[slide]
         force = self._fext + R_slide.sum()
-        kinks = -epp[zero]
+        acc_scale = max(float(np.max(np.abs(epp))), (fp.sum() + fm.sum() + abs(force)) / M,
+                        1e-300)
+        kinks = _merge_ties(-epp[zero], 1e-13 * acc_scale)
         A, s = solve_inclusion(M, 0.0, force, kinks, fp[zero], fm[zero])
-        rel = A + epp
-        new = contact.copy()
         idx = np.nonzero(zero)[0]
+        rel = np.zeros_like(epp)
+        rel[idx] = A - kinks                 # body accelerations (ties merged)
+        new = contact.copy()
         at = kinks == A
         new[idx] = np.where(at, 0, np.sign(rel[idx])).astype(np.int8)
-        acc_scale = max(abs(A), float(np.max(np.abs(epp))), (fp.sum() + fm.sum()) / M, 1e-300)
         ambiguous = bool(np.any(~at & (np.abs(rel[idx]) <= _AMBIGUOUS * acc_scale)))
         ref = -1
         group = np.zeros_like(zero)
@@ -366,6 +384,10 @@ class ExactSolver:
             t_ev, hits = t_stop, []   # at rest under a constant command: nothing can happen
         else:
             t_ev, hits = self._find_event(seg, t_stop, left_limit)
+            if hits and t_stop - t_ev <= 4.0 * self.tol:
+                # an event within the root tolerance of a breakpoint happens at the breakpoint:
+                # no sliver segment with the old piece's acceleration
+                t_ev = t_stop
         seg.t1 = t_ev
         self._close(seg, t_ev, hits)
 
@@ -563,6 +585,21 @@ class ExactSolver:
             start = end
         return t_stop, []
 
+    def _zoom(self, seg: Segment, col: int, a: float, b: float) -> tuple[float, float] | None:
+        """Bracket [t+, t-] of the first return to zero of a function that is 0 at ``a``,
+        rising there, and <= 0 at ``b``: sub-grids of 16 points, zooming towards ``a``.
+        None when it is never positive: a velocity at rounding level, not a slip."""
+        for _ in range(20):
+            sub = np.linspace(a, b, 17)
+            g = self._event_values(seg, sub)[0][:, col]
+            pos = np.nonzero(g[1:] > 0.0)[0]
+            if pos.size:
+                i = int(pos[0]) + 1
+                neg = np.nonzero(g[i + 1:] <= 0.0)[0]
+                return sub[i], sub[i + 1 + int(neg[0])] if neg.size else b
+            b = sub[1]
+        return None
+
     def _root(self, f, a: float, b: float) -> float:
         return brentq(f, a, b, xtol=self.tol, rtol=4 * _EPS)
 
@@ -610,7 +647,14 @@ class ExactSolver:
         if k_cross == k:
             for c in np.nonzero(nonpos[k])[0]:
                 if G[k, c] <= 0.0:
-                    roots.append((lo, int(c)))   # started at or below zero: event now
+                    if np.isfinite(D[k, c]) and D[k, c] > 0.0:
+                        # a body just left zero velocity and comes back before the next grid
+                        # point: zoom in on the first sub-interval where it turns
+                        br = self._zoom(seg, int(c), lo, tau[k + 1])
+                        if br is not None:
+                            roots.append((self._root(self._scalar(seg, int(c)), *br), int(c)))
+                    else:
+                        roots.append((lo, int(c)))   # started at or below zero: event now
                 elif np.isfinite(D[k, c]):
                     roots.append((self._newton(self._scalar_pair(seg, int(c)), lo, tau[k + 1],
                                                G[k, c], G[k + 1, c]), int(c)))
