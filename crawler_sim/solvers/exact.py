@@ -87,6 +87,7 @@ class Segment:
     ref: int                      # stick: reference stuck body (-1 when all slide)
     x_ref: float                  # stick: its fixed position
     group: NDArray[np.bool_]      # stick: bodies stuck with ref
+    leaving: NDArray[np.bool_] | None = None   # bodies that start the segment leaving rest
 
     def evaluate(self, crawler: Crawler, tau: NDArray[np.float64]) -> dict:
         """Exact state at the times ``tau`` (shape (N,), inside [t0, t1])."""
@@ -379,6 +380,7 @@ class ExactSolver:
         V0 = float(-ep[ref]) if ref >= 0 else self.V
         seg = Segment(t0, t_stop, self.gait, contact, R, self.K.copy(), self.X, V0, float(a),
                       ref, x_ref, group)
+        seg.leaving = self.zero & (contact != 0)
         self._record_contact_change(t0, contact)
         if ref >= 0 and group.all() and self.gait.is_constant(t0, t_stop):
             t_ev, hits = t_stop, []   # at rest under a constant command: nothing can happen
@@ -585,6 +587,14 @@ class ExactSolver:
             start = end
         return t_stop, []
 
+    def _leaves_rest(self, seg: Segment, col: int) -> bool:
+        """Whether velocity function ``col`` belongs to a body that starts the segment leaving
+        rest (its mode was chosen consistently, so it must first become positive)."""
+        if seg.leaving is None or col >= len(seg.contact):
+            return False
+        bodies = np.arange(seg.contact.size) if seg.ref < 0 else np.nonzero(~seg.group)[0]
+        return col < bodies.size and bool(seg.leaving[bodies[col]])
+
     def _zoom(self, seg: Segment, col: int, a: float, b: float) -> tuple[float, float] | None:
         """Bracket [t+, t-] of the first return to zero of a function that is 0 at ``a``,
         rising there, and <= 0 at ``b``: sub-grids of 16 points, zooming towards ``a``.
@@ -634,7 +644,10 @@ class ExactSolver:
         if turn.any():
             for k, c in zip(*np.nonzero(turn)):
                 t_min = self._root(self._scalar(seg, int(c), deriv=True), tau[k], tau[k + 1])
-                if self._scalar(seg, int(c))(t_min) <= 0.0:
+                # a dip counts when it goes below rounding level (a velocity that only touches
+                # zero, e.g. right after leaving rest, is not an event)
+                noise = 1e-13 * float(np.max(np.abs(G[:, c])))
+                if self._scalar(seg, int(c))(t_min) < -noise:
                     dip_at.setdefault(int(k), []).append((int(c), t_min))
         rows = np.nonzero(nonpos.any(axis=1))[0]
         k_cross = int(rows[0]) if rows.size else None
@@ -647,7 +660,7 @@ class ExactSolver:
         if k_cross == k:
             for c in np.nonzero(nonpos[k])[0]:
                 if G[k, c] <= 0.0:
-                    if np.isfinite(D[k, c]) and D[k, c] > 0.0:
+                    if k == 0 and self._leaves_rest(seg, int(c)):
                         # a body just left zero velocity and comes back before the next grid
                         # point: zoom in on the first sub-interval where it turns
                         br = self._zoom(seg, int(c), lo, tau[k + 1])
