@@ -659,8 +659,9 @@ class ExactSolver:
         roots = []
         if k_cross == k:
             for c in np.nonzero(nonpos[k])[0]:
-                if G[k, c] <= 0.0:
-                    if k == 0 and self._leaves_rest(seg, int(c)):
+                leaving = k == 0 and self._leaves_rest(seg, int(c))
+                if G[k, c] <= 0.0 or leaving:
+                    if leaving:
                         # a body just left zero velocity and comes back before the next grid
                         # point: zoom in on the first sub-interval where it turns
                         br = self._zoom(seg, int(c), lo, tau[k + 1])
