@@ -21,7 +21,7 @@ __all__ = ['VerifyReport', 'verify']
 class VerifyReport:
     """Worst violations over the samples; ``*_rel`` are scaled to be dimensionless.
 
-    momentum [N s]: worst momentum-balance residual; scale M max|V| + (|F_ext| + sum f) T.
+    momentum [N s]: worst momentum-balance residual; scale M max(|V|, |v_i|) + (|F_ext| + sum f) T.
     friction_bound [N]: worst excess of a ground force beyond its interval; scale max f.
     complementarity [W]: worst dissipation gap phi(v) + R v; scale max f * max|v|.
     stuck_velocity [m/s]: largest |v| of a body reported stuck (creep); scale max|v|.
@@ -63,7 +63,8 @@ def verify(trajectory: Trajectory) -> VerifyReport:
     mom = M * (V - V[0]) - c.external_force * dt - K.sum(axis=1)
     f_max = float(max(fp.max(), fm.max(), 1e-300))
     v_max = float(max(np.abs(tr.v).max(), 1e-300))
-    mom_scale = M * max(float(np.abs(V).max()), 1e-300) + (abs(c.external_force) +
+    # momentum scale: the largest body momentum the gait or friction can produce
+    mom_scale = M * max(float(np.abs(V).max()), v_max) + (abs(c.external_force) +
                                                           fp.sum() + fm.sum()) * float(dt[-1])
     R, v = tr.friction, tr.v
     excess = np.maximum(np.maximum(R - fm, -fp - R), 0.0)

@@ -41,17 +41,17 @@ def solve_inclusion(c: float, u_ref: float, force: float, kinks: NDArray, f_plus
     g_high = g_low + a + b
     hit = np.nonzero(g_high >= 0.0)[0]
     if hit.size == 0:
-        return u_ref + (force - a.sum()) / c, 0.0
-    i = int(hit[0])
-    if g_low[i] <= 0.0:
-        u = float(k[i])
-        # All bodies at this kink share it; their selections sum to s.
-        at = k == u
-        base = c * (u - u_ref) - force + a[k < u].sum() - b[k > u].sum()
-        s = -base
-        lo, hi = -b[at].sum(), a[at].sum()
-        return u, min(max(s, lo), hi)
-    return u_ref + (force - below_a[i] + above_b[i]) / c, 0.0
+        u = u_ref + (force - a.sum()) / c
+    else:
+        i = int(hit[0])
+        u = float(k[i]) if g_low[i] <= 0.0 else u_ref + (force - below_a[i] + above_b[i]) / c
+    at = k == u      # also when a free solution rounds onto a kink
+    if not at.any():
+        return u, 0.0
+    # All bodies at this kink share it; their selections sum to s.
+    base = c * (u - u_ref) - force + a[k < u].sum() - b[k > u].sum()
+    lo, hi = -b[at].sum(), a[at].sum()
+    return u, min(max(-base, lo), hi)
 
 
 def split_friction(total: float | NDArray, f_plus: NDArray, f_minus: NDArray) -> NDArray:
