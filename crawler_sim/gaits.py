@@ -21,7 +21,6 @@ from typing import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.interpolate import CubicSpline
 
 __all__ = ['Gait', 'Custom', 'Sinusoid', 'Fourier', 'Scallop', 'PiecewiseParabolic', 'Spline',
            'Cubic']
@@ -604,6 +603,7 @@ class Spline(Gait):
         self.times = tk
         self.lengths = y
         self.period = float(tk[-1] - tk[0]) if self.periodic else None
+        from scipy.interpolate import CubicSpline   # lazy: keeps `import crawler_sim` light
         self._spline = CubicSpline(tk, y, bc_type='periodic' if self.periodic else 'clamped',
                                    extrapolate='periodic' if self.periodic else True)
         self._flat = bool(np.all(y == y[0]))

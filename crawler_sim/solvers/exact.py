@@ -30,7 +30,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import brentq
 
 from ..gaits import Gait
 from ..model import Crawler, kinematics, offsets
@@ -226,14 +225,15 @@ class ExactSolver:
         if choice[4] or (choice[3].sum() > 1 and not self._rigid(choice[3], t, span)):
             # Degenerate tie, or bodies at rest together whose link is not rigid beyond this
             # instant: decide by the inclusion a little later (same zero set).
+            # Near t the deciding quantities grow from zero, so only their sign matters: a
+            # tighter ambiguity threshold there, and the furthest look-ahead if still unsure.
             for rel in (1e-9, 1e-7, 1e-5):
                 dt = min(rel * max(span, self._timescale()), 0.5 * span) if span > 0 else 0.0
                 if dt <= 0.0:
                     break
                 _, ld2, ldd2 = self.gait.at(t + dt)
-                later = self._solve_mode(self._W @ ld2, self._W @ ldd2, contact)
-                if not later[4]:
-                    choice = later
+                choice = self._solve_mode(self._W @ ld2, self._W @ ldd2, contact, slack=1e-14)
+                if not choice[4]:
                     break
         return choice[:4]
 
@@ -253,7 +253,8 @@ class ExactSolver:
     def _timescale(self) -> float:
         return self.gait.period if self.gait.period else (self.max_step or 1.0)
 
-    def _solve_mode(self, ep: NDArray, epp: NDArray, contact: NDArray):
+    def _solve_mode(self, ep: NDArray, epp: NDArray, contact: NDArray,
+                    slack: float = _AMBIGUOUS):
         zero = self.zero
         fp, fm, M = self._fp, self._fm, self._M
         slide = ~zero
@@ -269,7 +270,7 @@ class ExactSolver:
         new = contact.copy()
         at = kinks == A
         new[idx] = np.where(at, 0, np.sign(rel[idx])).astype(np.int8)
-        ambiguous = bool(np.any(~at & (np.abs(rel[idx]) <= _AMBIGUOUS * acc_scale)))
+        ambiguous = bool(np.any(~at & (np.abs(rel[idx]) <= slack * acc_scale)))
         ref = -1
         group = np.zeros_like(zero)
         if at.any():
@@ -277,7 +278,7 @@ class ExactSolver:
             ref = int(idx[at][0]) if not (self.ref >= 0 and group[self.ref]) else self.ref
             lo, hi = -fm[group].sum(), fp[group].sum()
             f_scale = max(fp.sum() + fm.sum(), abs(force), M * float(np.max(np.abs(epp))), 1e-300)
-            if hi - lo > 0 and min(s - lo, hi - s) <= _AMBIGUOUS * f_scale:
+            if hi - lo > 0 and min(s - lo, hi - s) <= slack * f_scale:
                 ambiguous = True
         return new, A, ref, group, ambiguous
 
@@ -611,6 +612,7 @@ class ExactSolver:
         return None
 
     def _root(self, f, a: float, b: float) -> float:
+        from scipy.optimize import brentq   # lazy: keeps `import crawler_sim` light
         return brentq(f, a, b, xtol=self.tol, rtol=4 * _EPS)
 
     def _newton(self, fd, a: float, b: float, fa: float, fb: float) -> float:
