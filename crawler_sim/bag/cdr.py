@@ -1,0 +1,304 @@
+"""Vectorized decoding of many CDR messages that share one byte layout.
+
+A recording holds hundreds of thousands of messages per topic that differ only in numbers: same
+frame id, same joint names, same array lengths. :func:`decode` therefore
+
+1. groups messages by byte length and takes the first of each group as a *template*;
+2. walks the template once (:func:`layout`), following the type's field list from rclpy and the
+   XCDR1 alignment rules of Fast CDR (alignment relative to the payload after the 4-byte
+   encapsulation header; the items of an empty sequence are not aligned, although Fast CDR
+   counts that padding in the message length when the sequence is last), and
+   records where every numeric field lies and which bytes (string contents, sequence counts,
+   encapsulation kind) must equal the template's;
+3. checks the template's decoded values against ``rclpy.serialization.deserialize_message``;
+4. checks the fixed bytes of all rows at once and slices the numeric columns out with numpy.
+
+Rows that do not match their template (and whole groups whose template fails step 3) go through
+``deserialize_message`` one by one, so the result never depends on the fast path being right.
+Padding bytes are ignored: Fast CDR leaves them uninitialised.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import re
+from typing import Any, Sequence
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+from numpy.typing import NDArray
+
+from .schema import message_class
+
+ENCAPSULATION = 4
+_PRIMITIVE = {
+    'boolean': '|u1', 'octet': '|u1', 'char': '|u1', 'uint8': '|u1', 'int8': '|i1',
+    'int16': '<i2', 'uint16': '<u2', 'int32': '<i4', 'uint32': '<u4', 'float': '<f4',
+    'int64': '<i8', 'uint64': '<u8', 'double': '<f8',
+}
+_SEQUENCE = re.compile(r'^sequence<([^,>]+)(?:, *\d+)?>$')
+_ARRAY = re.compile(r'^(.+)\[(\d+)\]$')
+_BOUNDED_STRING = re.compile(r'^string<\d+>$')
+
+
+class LayoutError(Exception):
+    """The template cannot be walked (unsupported type or inconsistent bytes)."""
+
+
+class UndecodableMessage(ValueError):
+    """A message that even ``deserialize_message`` cannot read (damaged data)."""
+
+
+@dataclass
+class Layout:
+    """Where the numeric fields of one message lie, and which bytes are fixed.
+
+    ``fields`` maps a dotted field path (``header.stamp.sec``, ``position``) to
+    ``(byte offset, element count, numpy dtype)``; ``fixed`` lists byte positions whose values
+    must equal the template's for another message to share this layout.
+    """
+
+    length: int
+    fields: dict[str, tuple[int, int, str]] = field(default_factory=dict)
+    fixed: list[int] = field(default_factory=list)
+
+
+class _Walker:
+    def __init__(self, data: bytes) -> None:
+        self.data = data
+        self.pos = ENCAPSULATION
+        self.layout = Layout(len(data), fixed=[0, 1])
+
+    def align(self, size: int) -> None:
+        rel = self.pos - ENCAPSULATION
+        self.pos += (-rel) % size
+
+    def take(self, size: int) -> int:
+        start = self.pos
+        if start + size > len(self.data):
+            raise LayoutError('template shorter than its layout')
+        self.pos += size
+        return start
+
+    def count(self) -> int:
+        self.align(4)
+        start = self.take(4)
+        self.layout.fixed.extend(range(start, start + 4))
+        return int.from_bytes(self.data[start:start + 4], 'little')
+
+    def string(self) -> None:
+        n = self.count()
+        start = self.take(n)
+        self.layout.fixed.extend(range(start, start + n))
+
+    def numbers(self, path: str, dtype: str, n: int) -> None:
+        size = np.dtype(dtype).itemsize
+        if n:                      # Fast CDR does not align an empty sequence's (absent) items
+            self.align(min(size, 8))
+        start = self.take(size * n)
+        self.layout.fields[path] = (start, n, dtype)
+
+    def element(self, path: str, type_str: str) -> None:
+        if type_str in _PRIMITIVE:
+            self.numbers(path, _PRIMITIVE[type_str], 1)
+        elif type_str == 'string' or _BOUNDED_STRING.match(type_str):
+            self.string()
+        elif (match := _SEQUENCE.match(type_str)) is not None:
+            self.sequence(path, match.group(1))
+        elif (match := _ARRAY.match(type_str)) is not None:
+            self.array(path, match.group(1), int(match.group(2)))
+        elif '/' in type_str:
+            self.message(path, type_str)
+        else:
+            raise LayoutError(f'unsupported field type {type_str!r}')
+
+    def sequence(self, path: str, item: str) -> None:
+        n = self.count()
+        if item in _PRIMITIVE:
+            self.numbers(path, _PRIMITIVE[item], n)
+        else:
+            for i in range(n):
+                self.element(f'{path}.{i}', item)
+
+    def array(self, path: str, item: str, n: int) -> None:
+        if item in _PRIMITIVE:
+            self.numbers(path, _PRIMITIVE[item], n)
+        else:
+            for i in range(n):
+                self.element(f'{path}.{i}', item)
+
+    def message(self, path: str, type_str: str) -> None:
+        pkg, _, name = type_str.rpartition('/')
+        cls = message_class(f'{pkg.split("/")[0]}/msg/{name}')
+        for name, sub in cls.get_fields_and_field_types().items():
+            self.element(f'{path}.{name}' if path else name, sub)
+
+
+def layout(data: bytes, type_name: str) -> Layout:
+    """Layout of the CDR message ``data`` (with its encapsulation header) of ``type_name``."""
+    if len(data) < ENCAPSULATION or data[:2] != b'\x00\x01':
+        raise LayoutError('not little-endian plain CDR')
+    walker = _Walker(data)
+    walker.message('', type_name)
+    return walker.layout
+
+
+def field_value(msg: Any, path: str) -> Any:
+    """Value of dotted ``path`` in an rclpy message (``header.stamp.sec``)."""
+    for part in path.split('.'):
+        msg = msg[int(part)] if part.isdigit() else getattr(msg, part)
+    return msg
+
+
+def _slow(data: bytes, type_name: str, paths: Sequence[str]) -> dict[str, NDArray]:
+    """Fields ``paths`` of one message through rclpy (UndecodableMessage if it fails)."""
+    from rclpy.serialization import deserialize_message
+    try:
+        msg = deserialize_message(data, message_class(type_name))
+    except Exception as exc:  # noqa: BLE001 - rclpy raises its own RMWError types
+        raise UndecodableMessage(f'undecodable {type_name} message ({exc})') from None
+    out = {}
+    for path in paths:
+        value = field_value(msg, path)
+        if isinstance(value, (bytes, bytearray)):
+            value = list(value)
+        out[path] = np.atleast_1d(np.asarray(value))
+    return out
+
+
+def _template_ok(template: bytes, lay: Layout, type_name: str, paths: Sequence[str]) -> bool:
+    """Check the fast layout against rclpy's own decoding of the template."""
+    try:
+        expected = _slow(template, type_name, paths)
+    except Exception:  # noqa: BLE001 - a template rclpy cannot read is simply not fast-pathed
+        return False
+    row = np.frombuffer(template, dtype=np.uint8)[None, :]
+    for path in paths:
+        got = _columns(row, lay, path)[0]
+        if got.shape != expected[path].shape or not np.array_equal(
+                got, expected[path].astype(got.dtype), equal_nan=got.dtype.kind == 'f'):
+            return False
+    return True
+
+
+def _columns(rows: NDArray[np.uint8], lay: Layout, path: str) -> NDArray:
+    offset, n, dtype = lay.fields[path]
+    size = np.dtype(dtype).itemsize
+    block = np.ascontiguousarray(rows[:, offset:offset + size * n])
+    return block.view(dtype).reshape(len(rows), n).astype(
+        np.dtype(dtype).newbyteorder('='), copy=False)
+
+
+@dataclass
+class _Template:
+    layout: Layout
+    fixed: NDArray[np.int64]
+    values: NDArray[np.uint8]
+
+
+class Decoder:
+    """Accumulate the numeric fields ``paths`` of many messages of ``type_name``, in order.
+
+    Feed message bytes with :meth:`add` (a buffer plus per-message starts and lengths), then
+    take the arrays with :meth:`columns`. Layouts are cached per message length, so the template
+    walk and its rclpy cross-check run once per distinct layout.
+
+    Attributes
+    ----------
+    fast, slow : int
+        Messages decoded by the vectorized path and by ``deserialize_message``.
+    """
+
+    def __init__(self, type_name: str, paths: Sequence[str]) -> None:
+        self.type_name = type_name
+        self.paths = tuple(paths)
+        self.fast = 0
+        self.slow = 0
+        self._n = 0
+        self._templates: dict[int, _Template | None] = {}
+        self._parts: dict[str, list[tuple[NDArray[np.int64], NDArray]]] = {
+            p: [] for p in self.paths}
+
+    def __len__(self) -> int:
+        return self._n
+
+    def add(self, buffer: NDArray[np.uint8], starts: NDArray[np.int64],
+            lengths: NDArray[np.int64]) -> None:
+        """Decode the messages ``buffer[starts[i]:starts[i] + lengths[i]]``.
+
+        All or nothing: if a message cannot be decoded (:class:`UndecodableMessage`), none of
+        this call's messages are kept.
+        """
+        if len(starts) == 0:
+            return
+        staged: dict[str, list[tuple[NDArray[np.int64], NDArray]]] = {p: [] for p in self.paths}
+        counts = [0, 0]
+        uniq = np.unique(lengths)
+        for length in uniq:
+            sel = np.flatnonzero(lengths == length) if len(uniq) > 1 else None
+            sub = starts if sel is None else starts[sel]
+            pos = (np.arange(len(starts)) if sel is None else sel) + self._n
+            rows = sliding_window_view(buffer, int(length))[sub]      # (n, length) copy
+            self._add_rows(rows, pos, staged, counts)
+        for path in self.paths:
+            self._parts[path].extend(staged[path])
+        self.fast += counts[0]
+        self.slow += counts[1]
+        self._n += len(starts)
+
+    def columns(self) -> dict[str, NDArray]:
+        """``{path: array of shape (N, width)}``; NaN-padded where widths differ."""
+        return {p: _assemble(self._parts[p], self._n) for p in self.paths}
+
+    def _template(self, row: NDArray[np.uint8]) -> _Template | None:
+        data = row.tobytes()
+        try:
+            lay = layout(data, self.type_name)
+        except LayoutError:
+            return None
+        if not all(p in lay.fields for p in self.paths) or not _template_ok(
+                data, lay, self.type_name, self.paths):
+            return None
+        fixed = np.array(lay.fixed, dtype=np.int64)
+        return _Template(lay, fixed, row[fixed].copy())
+
+    def _add_rows(self, rows: NDArray[np.uint8], positions: NDArray[np.int64],
+                  staged: dict[str, list], counts: list[int]) -> None:
+        length = rows.shape[1]
+        if length not in self._templates:
+            self._templates[length] = self._template(rows[0])
+        template = self._templates[length]
+        if template is not None:
+            match = np.all(rows[:, template.fixed] == template.values, axis=1)
+            if match.all():
+                fast_rows, fast_pos, slow = rows, positions, np.zeros(0, np.int64)
+            else:
+                fast = np.flatnonzero(match)
+                fast_rows, fast_pos, slow = rows[fast], positions[fast], np.flatnonzero(~match)
+            for path in self.paths:
+                staged[path].append((fast_pos, _columns(fast_rows, template.layout, path)))
+            counts[0] += len(fast_pos)
+        else:
+            slow = np.arange(len(rows))
+        for i in slow:
+            values = _slow(rows[i].tobytes(), self.type_name, self.paths)
+            for path in self.paths:
+                staged[path].append((positions[i:i + 1], values[path][None, :]))
+        counts[1] += len(slow)
+
+
+def _assemble(parts: list[tuple[NDArray[np.int64], NDArray]], total: int) -> NDArray:
+    if not parts:
+        return np.zeros((total, 0))
+    width = max(values.shape[1] for _, values in parts)
+    dtypes = {values.dtype for _, values in parts}
+    ragged = any(values.shape[1] != width for _, values in parts)
+    dtype = np.result_type(*dtypes, np.float64) if ragged else np.result_type(*dtypes)
+    if not ragged:
+        positions = np.concatenate([pos for pos, _ in parts])
+        if len(positions) == total and np.array_equal(positions, np.arange(total)):
+            return np.concatenate([values for _, values in parts]).astype(dtype, copy=False)
+    out = (np.full((total, width), np.nan, dtype=dtype) if ragged
+           else np.empty((total, width), dtype))
+    for positions, values in parts:
+        out[positions, :values.shape[1]] = values
+    return out

@@ -1,0 +1,45 @@
+"""Time conversion: the only place that turns seconds into integer nanoseconds and back.
+
+MCAP and rosbag2 stamp every message with an unsigned 64-bit count of nanoseconds. The
+simulator works in float seconds of *sim time*; :func:`to_ns` is the one conversion point
+(round half to even, for scalars and arrays alike), and :func:`to_seconds` is its inverse up to
+0.5 ns.
+"""
+from __future__ import annotations
+
+from typing import overload
+
+import numpy as np
+from numpy.typing import NDArray
+
+NS_PER_S = 1_000_000_000
+
+
+@overload
+def to_ns(t: float) -> int: ...
+
+
+@overload
+def to_ns(t: NDArray[np.floating]) -> NDArray[np.int64]: ...
+
+
+def to_ns(t):
+    """Sim time ``t`` [s] as integer nanoseconds [ns], rounded to nearest (ties to even).
+
+    A float (or numpy scalar) gives a Python ``int``; an array gives an ``int64`` array.
+    """
+    if isinstance(t, np.ndarray):
+        return np.rint(np.asarray(t, dtype=np.float64) * 1e9).astype(np.int64)
+    return int(round(float(t) * 1e9))
+
+
+def to_seconds(t_ns: NDArray[np.integer] | int) -> NDArray[np.float64] | float:
+    """Integer nanoseconds [ns] as float seconds [s]."""
+    if isinstance(t_ns, np.ndarray):
+        return t_ns.astype(np.float64) / 1e9
+    return int(t_ns) / 1e9
+
+
+def stamp(t_ns: int) -> tuple[int, int]:
+    """``(sec, nanosec)`` of a ``builtin_interfaces/Time`` for ``t_ns`` [ns] >= 0."""
+    return divmod(int(t_ns), NS_PER_S)

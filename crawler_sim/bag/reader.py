@@ -1,0 +1,448 @@
+"""``load``: a crawler_sim bag (directory or bare .mcap) as numpy arrays.
+
+Topics are matched by suffix (``/body_states``, ``/crawler1/body_states``...), see
+:mod:`crawler_sim.bag.topics`. The hot topics are decoded by :class:`crawler_sim.bag.cdr.Decoder`
+(vectorized, checked against rclpy), chunk by chunk while the file is scanned.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import json
+import os
+from pathlib import Path
+import re
+from typing import Any, Callable, NamedTuple
+import warnings
+
+from mcap.records import Channel, Schema
+import numpy as np
+from numpy.typing import NDArray
+import yaml
+
+from .cdr import Decoder
+from .clock import NS_PER_S, to_seconds
+from .errors import BagError
+from .mcapfile import Batch, Scan, scan
+from .schema import message_class
+from .topics import (BODY_STATES, CONTACT_STATES, EVENTS, JOINT_STATES, LINKAGE_CMD,
+                     SCENE, SCENE_METADATA, normalize_namespace, split_topic)
+
+_JOINT_FIELDS = ('header.stamp.sec', 'header.stamp.nanosec', 'position', 'velocity', 'effort')
+_APPLIED = 'applied_command'
+_FILE_NUMBER = re.compile(r'_(\d+)\.mcap$')
+
+
+class BagWarning(UserWarning):
+    """A bag was read only in part (truncated file, dropped incomplete steps)."""
+
+
+class TopicSummary(NamedTuple):
+    """Type and message count of one topic."""
+
+    type: str
+    count: int
+
+
+class Commands(NamedTuple):
+    """Commands as applied: ``t`` (K,) [s] and ``values`` (K, p-1)."""
+
+    t: NDArray[np.float64]
+    values: NDArray[np.float64]
+
+
+class Events(NamedTuple):
+    """Contact changes: ``t`` (K,) [s], ``body`` (K,), ``old`` and ``new`` states (K,) int8."""
+
+    t: NDArray[np.float64]
+    body: NDArray[np.int64]
+    old: NDArray[np.int8]
+    new: NDArray[np.int8]
+
+
+@dataclass(frozen=True, eq=False)
+class Run:
+    """A recorded run.
+
+    Attributes
+    ----------
+    t : ndarray, shape (N,)
+        Sim time [s] of each state (``body_states`` header stamps).
+    x, v, friction : ndarray, shape (N, p)
+        Body positions [m], velocities [m/s], friction force of the ground on each body [N].
+    contact : ndarray, shape (N, p), int8
+        +1 sliding forward, 0 stuck, -1 sliding backward.
+    lengths, rates, linkage_force : ndarray, shape (N, p-1)
+        Linkage lengths [m], rates [m/s] and forces [N] (``joint_states``).
+    commands : Commands
+        Applied commands (``linkage_cmd``, else ``applied_command``): (K,) and (K, p-1).
+    events : Events
+        Recorded contact changes (empty if none were recorded).
+    scene : dict
+        Simulation parameters (from the scene topic, else the ``crawler_sim.scene`` record).
+    topics : dict
+        ``{topic: TopicSummary(type, count)}`` for every topic of the bag.
+    namespace : str
+        Robot namespace that was read ('' for the root namespace).
+    bodies, linkages : tuple of str
+        Joint names of ``body_states`` and ``joint_states``.
+    truncated : bool
+        True when the file was incomplete and only its readable part was loaded.
+    """
+
+    path: Path
+    t: NDArray[np.float64]
+    x: NDArray[np.float64]
+    v: NDArray[np.float64]
+    friction: NDArray[np.float64]
+    contact: NDArray[np.int8]
+    lengths: NDArray[np.float64]
+    rates: NDArray[np.float64]
+    linkage_force: NDArray[np.float64]
+    commands: Commands
+    events: Events
+    scene: dict[str, Any]
+    topics: dict[str, TopicSummary]
+    namespace: str = ''
+    bodies: tuple[str, ...] = ()
+    linkages: tuple[str, ...] = ()
+    truncated: bool = False
+
+    @property
+    def p(self) -> int:
+        """Number of bodies."""
+        return self.x.shape[1]
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    @property
+    def duration(self) -> float:
+        """``t[-1] - t[0]`` [s] (0 for fewer than two states)."""
+        return float(self.t[-1] - self.t[0]) if len(self.t) > 1 else 0.0
+
+
+# ---------------------------------------------------------------- files of a bag
+
+def bag_files(path: os.PathLike | str) -> list[Path]:
+    """The .mcap files of a bag directory (from metadata.yaml if present) or ``[path]``."""
+    path = Path(path)
+    if path.is_file():
+        return [path]
+    if not path.exists():
+        raise BagError(f'{path}: no such file or directory')
+    if not path.is_dir():
+        raise BagError(f'{path}: not a file or directory')
+    meta = path / 'metadata.yaml'
+    files: list[Path] = []
+    if meta.is_file():
+        try:
+            info = yaml.safe_load(meta.read_text(encoding='utf-8'))['rosbag2_bagfile_information']
+            files = [path / Path(rel).name for rel in info['relative_file_paths']]
+        except (yaml.YAMLError, KeyError, TypeError, ValueError, OSError):
+            files = []
+        files = [f for f in files if f.is_file()]
+    if not files:
+        files = sorted(path.glob('*.mcap'), key=_file_order)
+    if not files:
+        raise BagError(f'{path}: no .mcap file in this directory')
+    return files
+
+
+def _file_order(path: Path) -> tuple[int, str]:
+    match = _FILE_NUMBER.search(path.name)
+    return (int(match.group(1)) if match else -1, path.name)
+
+
+# ---------------------------------------------------------------- collecting messages
+
+@dataclass
+class _TopicData:
+    """Messages of one topic collected from one file."""
+
+    type: str
+    decoder: Decoder | None
+    log_times: list[NDArray[np.int64]] = field(default_factory=list)
+    first: bytes | None = None
+
+    def sink(self, batch: Batch) -> None:
+        if self.decoder is not None:          # first: it raises on damaged data
+            self.decoder.add(batch.buffer, batch.starts, batch.lengths)
+        if self.first is None and len(batch):
+            self.first = batch.data(0)
+        self.log_times.append(batch.log_times)
+
+    def times(self) -> NDArray[np.int64]:
+        return np.concatenate(self.log_times) if self.log_times else np.zeros(0, np.int64)
+
+
+_FIELDS = {
+    'sensor_msgs/msg/JointState': _JOINT_FIELDS,
+    'std_msgs/msg/Int8MultiArray': ('data',),
+    'std_msgs/msg/Float64MultiArray': ('data',),
+    'std_msgs/msg/Int32MultiArray': ('data',),
+}
+
+
+_LOADED = (BODY_STATES, JOINT_STATES, CONTACT_STATES, LINKAGE_CMD, EVENTS, SCENE)
+
+
+def _interesting(topic: str) -> bool:
+    """Whether :func:`load` reads ``topic`` (in any namespace)."""
+    return (any(split_topic(topic, t.suffix) is not None for t in _LOADED)
+            or topic.endswith('/' + _APPLIED))
+
+
+def _scan_file(path: Path) -> tuple[Scan, dict[str, _TopicData]]:
+    """Scan one file, decoding the crawler_sim topics on the way."""
+    store: dict[str, _TopicData] = {}
+
+    def want(channel: Channel, schema: Schema | None) -> Callable[[Batch], None] | None:
+        if not _interesting(channel.topic):
+            return None
+        type_name = schema.name if schema is not None else ''
+        fields = _FIELDS.get(type_name)
+        data = _TopicData(type_name, Decoder(type_name, fields) if fields else None)
+        store[channel.topic] = data          # a re-scan of the file replaces the first attempt
+        return data.sink
+
+    return scan(path, want), store
+
+
+@dataclass
+class _Series:
+    """One topic merged over all files: log times [ns], decoded columns, first message."""
+
+    type: str
+    log_times: NDArray[np.int64]
+    columns: dict[str, NDArray]
+    first: bytes | None
+
+    def __len__(self) -> int:
+        return len(self.log_times)
+
+    def column(self, path: str, width: int, dtype: Any = np.float64) -> NDArray:
+        """Column ``path`` as shape (N, width); missing entries NaN (or 0 for integers)."""
+        values = self.columns.get(path, np.zeros((len(self), 0)))
+        if values.shape[1] == width:
+            return values.astype(dtype, copy=False)
+        fill = np.nan if np.dtype(dtype).kind == 'f' else 0
+        out = np.full((len(self), width), fill, dtype=dtype)
+        w = min(width, values.shape[1])
+        out[:, :w] = values[:, :w]
+        return out
+
+
+def _merged(stores: list[dict[str, _TopicData]], topic: str) -> _Series | None:
+    parts = [store[topic] for store in stores if topic in store]
+    if not parts:
+        return None
+    columns: dict[str, NDArray] = {}
+    decoded = [p.decoder.columns() for p in parts if p.decoder is not None]
+    for key in (decoded[0] if decoded else {}):
+        arrays = [d[key] for d in decoded]
+        width = max(a.shape[1] for a in arrays)
+        if any(a.shape[1] != width for a in arrays):
+            arrays = [np.pad(a.astype(np.float64), ((0, 0), (0, width - a.shape[1])),
+                             constant_values=np.nan) for a in arrays]
+        columns[key] = np.concatenate(arrays) if len(arrays) > 1 else arrays[0]
+    first = next((p.first for p in parts if p.first is not None), None)
+    times = [p.times() for p in parts]
+    return _Series(parts[0].type, np.concatenate(times) if len(times) > 1 else times[0],
+                   columns, first)
+
+
+def _topic_summary(scans: list[Scan]) -> dict[str, TopicSummary]:
+    out: dict[str, TopicSummary] = {}
+    for sc in scans:
+        for cid, channel in sorted(sc.channels.items()):
+            schema = sc.schemas.get(channel.schema_id)
+            old = out.get(channel.topic, TopicSummary(schema.name if schema else '', 0))
+            out[channel.topic] = TopicSummary(old.type, old.count + sc.counts.get(cid, 0))
+    return out
+
+
+def _namespace(path: Path, topics: dict[str, TopicSummary], namespace: str | None) -> str:
+    found = sorted(ns for topic, info in topics.items()
+                   if (ns := split_topic(topic, BODY_STATES.suffix)) is not None
+                   and info.type == BODY_STATES.type)
+    shown = ', '.join(n or '/' for n in found)
+    if namespace is not None:
+        ns = normalize_namespace(namespace)
+        if ns not in found:
+            raise BagError(f'{path}: no {BODY_STATES.name(ns)} topic; crawler_sim namespaces '
+                           f'in this bag: {shown or "none"}')
+        return ns
+    if not found:
+        names = sorted(topics)
+        listed = ', '.join(names[:8]) + (' ...' if len(names) > 8 else '')
+        raise BagError(f'{path}: no crawler_sim topics (…/{BODY_STATES.suffix} of type '
+                       f'{BODY_STATES.type}); topics: {listed or "none"}')
+    if len(found) > 1:
+        raise BagError(f'{path}: several crawler_sim namespaces ({shown}); '
+                       'choose one with namespace=')
+    return found[0]
+
+
+Rows = 'slice | NDArray[np.int64]'
+
+
+def _align(series: list[_Series | None], stacklevel: int) -> list[Rows | None]:
+    """Rows of each present topic that put them on common time steps.
+
+    Topics with equal message counts are taken row by row (also when recorded live, where log
+    times differ between topics); otherwise only the log times present in all are kept.
+    """
+    present = [s for s in series if s is not None]
+    if len({len(s) for s in present}) <= 1:
+        return [slice(None) if s is not None else None for s in series]
+    common = present[0].log_times
+    for s in present[1:]:
+        common = np.intersect1d(common, s.log_times)
+    out = []
+    for s in series:
+        out.append(None if s is None else np.flatnonzero(np.isin(s.log_times, common)))
+    dropped = len(present[0]) - len(common)
+    warnings.warn(f'{dropped} time steps without all of body, joint and contact states '
+                  'were dropped', BagWarning, stacklevel=stacklevel)
+    return out
+
+
+def _stamps_ns(series: _Series) -> NDArray[np.int64]:
+    sec = series.column('header.stamp.sec', 1, np.int64)[:, 0]
+    nanosec = series.column('header.stamp.nanosec', 1, np.int64)[:, 0]
+    return sec * NS_PER_S + nanosec
+
+
+def _names(series: _Series | None) -> tuple[str, ...]:
+    if series is None or series.first is None:
+        return ()
+    from rclpy.serialization import deserialize_message
+    try:
+        return tuple(deserialize_message(series.first, message_class(series.type)).name)
+    except Exception:  # noqa: BLE001 - names are informative only
+        return ()
+
+
+def _scene(stores: list[dict[str, _TopicData]], scans: list[Scan], ns: str) -> dict[str, Any]:
+    series = _merged(stores, SCENE.name(ns))
+    if series is not None and series.first is not None and series.type == SCENE.type:
+        from rclpy.serialization import deserialize_message
+        try:
+            text = deserialize_message(series.first, message_class(SCENE.type)).data
+            value = yaml.safe_load(text)
+            if isinstance(value, dict):
+                return value
+        except Exception:  # noqa: BLE001 - fall back to the metadata record
+            pass
+    for sc in scans:
+        for record in sc.metadata:
+            if record.name == SCENE_METADATA:
+                return {key: _json_or_text(text) for key, text in record.metadata.items()}
+    return {}
+
+
+def _json_or_text(text: str) -> Any:
+    try:
+        return json.loads(text)
+    except ValueError:
+        return text
+
+
+def _commands(stores: list[dict[str, _TopicData]], topics: dict[str, TopicSummary], ns: str,
+              width: int) -> Commands:
+    series = _merged(stores, LINKAGE_CMD.name(ns))
+    if series is not None and series.type == LINKAGE_CMD.type:
+        return Commands(to_seconds(series.log_times), series.column('data', width))
+    for topic in sorted(topics):
+        if topic.startswith(ns + '/') and topic.endswith('/' + _APPLIED):
+            series = _merged(stores, topic)
+            if series is not None and series.type == JOINT_STATES.type:
+                return Commands(to_seconds(_stamps_ns(series)), series.column('position', width))
+    return Commands(np.zeros(0), np.zeros((0, width)))
+
+
+def _events(stores: list[dict[str, _TopicData]], ns: str) -> Events:
+    series = _merged(stores, EVENTS.name(ns))
+    if series is None or series.type != EVENTS.type:
+        return Events(np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.int8),
+                      np.zeros(0, np.int8))
+    data = series.column('data', 3, np.int64)
+    return Events(to_seconds(series.log_times), data[:, 0], data[:, 1].astype(np.int8),
+                  data[:, 2].astype(np.int8))
+
+
+def load(path: os.PathLike | str, *, namespace: str | None = None) -> Run:
+    """Load a crawler_sim recording.
+
+    Parameters
+    ----------
+    path : path-like
+        A bag directory (``metadata.yaml`` optional) or a bare ``.mcap`` file.
+    namespace : str, optional
+        Robot namespace to read when the bag holds several (``'crawler1'``).
+
+    Raises :class:`BagError` (one-line message) for a missing, empty or non-MCAP file and for a
+    bag without crawler_sim topics. A truncated file loads up to the damage with a
+    :class:`BagWarning`.
+    """
+    files = bag_files(path)
+    scans: list[Scan] = []
+    stores: list[dict[str, _TopicData]] = []
+    for file in files:
+        result, store = _scan_file(file)
+        if result.truncated:
+            warnings.warn(f'{file}: {result.stop_reason}; loaded the {result.message_count} '
+                          'messages before that point (crawler_sim.bag.recover repairs the file)',
+                          BagWarning, stacklevel=2)
+        scans.append(result)
+        stores.append(store)
+    topics = _topic_summary(scans)
+    ns = _namespace(Path(path), topics, namespace)
+    return _build_run(Path(path), ns, scans, stores, topics)
+
+
+def _build_run(path: Path, ns: str, scans: list[Scan], stores: list[dict[str, _TopicData]],
+               topics: dict[str, TopicSummary]) -> Run:
+    body = _merged(stores, BODY_STATES.name(ns))
+    joint = _merged(stores, JOINT_STATES.name(ns))
+    contact = _merged(stores, CONTACT_STATES.name(ns))
+    joint = joint if joint is not None and joint.type == JOINT_STATES.type else None
+    contact = contact if contact is not None and contact.type == CONTACT_STATES.type else None
+    if body is None:               # _namespace saw the channel, but it has no readable data
+        raise BagError(f'{path}: {BODY_STATES.name(ns)} could not be read')
+    p = body.columns['position'].shape[1] if len(body) else len(_names(body))
+    ib, ij, ic = _align([body, joint, contact], stacklevel=4)
+    missing = [t.suffix for t, s in ((JOINT_STATES, joint), (CONTACT_STATES, contact))
+               if s is None]
+    if missing:
+        warnings.warn(f'{path}: no {" or ".join(missing)} topic in namespace {ns or "/"}',
+                      BagWarning, stacklevel=3)
+    n_links = max(p - 1, 0)
+
+    t_ns = _stamps_ns(body)[ib]
+    n = len(t_ns)
+
+    def rows(series: _Series | None, idx: Rows | None, field_path: str, width: int,
+             dtype: Any = np.float64) -> NDArray:
+        if series is None:        # missing topic: NaN floats, no contact columns
+            return (np.full((n, width), np.nan) if np.dtype(dtype).kind == 'f'
+                    else np.zeros((n, 0), dtype))
+        return series.column(field_path, width, dtype)[idx]
+
+    return Run(
+        path=path,
+        t=to_seconds(t_ns),
+        x=rows(body, ib, 'position', p), v=rows(body, ib, 'velocity', p),
+        friction=rows(body, ib, 'effort', p),
+        contact=rows(contact, ic, 'data', p, np.int8),
+        lengths=rows(joint, ij, 'position', n_links), rates=rows(joint, ij, 'velocity', n_links),
+        linkage_force=rows(joint, ij, 'effort', n_links),
+        commands=_commands(stores, topics, ns, n_links),
+        events=_events(stores, ns),
+        scene=_scene(stores, scans, ns),
+        topics=topics,
+        namespace=ns,
+        bodies=_names(body),
+        linkages=_names(joint),
+        truncated=any(sc.truncated for sc in scans),
+    )

@@ -1,0 +1,512 @@
+"""``BagWriter``: rosbag2-compatible (Jazzy, MCAP storage) recording from Python.
+
+A bag is a directory ``NAME/`` holding ``NAME_0.mcap`` and, once closed, ``metadata.yaml``
+(version 9), laid out as ``ros2 bag record -o NAME`` lays it out:
+
+* MCAP header profile ``ros2``; zstd chunks of about 1 MiB; summary with statistics and indexes.
+* one ``ros2msg`` schema per type, named ``pkg/msg/Type``, holding the concatenated definitions
+  (:func:`crawler_sim.bag.schema.full_text`);
+* one ``cdr`` channel per topic with metadata ``offered_qos_profiles`` (version-9 YAML) and
+  ``topic_type_hash`` (``RIHS01_...``);
+* message data from ``rclpy.serialization.serialize_message``; ``log_time = publish_time`` = sim
+  time in integer ns; ``sequence = 0``;
+* a Metadata record ``rosbag2`` / ``serialized_metadata`` written at open (no topics) and at close.
+
+The scene (simulation parameters plus ``crawler_sim_version``) goes in twice: as the MCAP Metadata
+record ``crawler_sim.scene`` (one JSON string per top-level key) and as one latched
+(transient local) ``std_msgs/msg/String`` message of YAML on ``/crawler_sim/scene``, stamped with
+the time of the first message, for ``ros2 bag play`` users.
+
+Failure policy: an ``OSError`` while writing (disk full, I/O error) stops the recording. The
+writer sets :attr:`BagWriter.error`, closes the file and turns later calls into no-ops, so a
+simulation that records keeps running. The partial ``.mcap`` can be repaired with
+:func:`crawler_sim.bag.recover`.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, is_dataclass
+import io
+import json
+import os
+from pathlib import Path
+import time
+from typing import Any, BinaryIO, Callable, Mapping
+import warnings
+
+from mcap.writer import CompressionType, Writer
+import numpy as np
+import yaml
+
+from . import schema as schemas
+from .errors import BagError
+from .topics import SCENE, SCENE_METADATA
+
+ROS_DISTRO = 'jazzy'
+METADATA_VERSION = 9
+ROSBAG2_METADATA = 'rosbag2'
+ROSBAG2_METADATA_KEY = 'serialized_metadata'
+CHUNK_SIZE = 1 << 20          # bytes of uncompressed chunk data before a chunk is written
+FLUSH_INTERVAL = 1.0          # s of wall time between automatic flushes
+_EMPTY_START = 2**63 - 1      # rosbag2's starting_time of a bag without messages
+
+Opener = Callable[[Path], BinaryIO]
+
+
+def package_version() -> str:
+    """Version of the installed crawler_sim package ('unknown' if it cannot be found)."""
+    try:
+        from crawler_sim import __version__
+        return str(__version__)
+    except ImportError:
+        pass
+    try:
+        from importlib.metadata import version
+        return version('crawler_sim')
+    except Exception:  # noqa: BLE001 - any failure means "unknown"
+        return 'unknown'
+
+
+def plain(value: Any) -> Any:
+    """``value`` turned into YAML/JSON-safe builtins (numpy arrays and scalars, tuples, paths)."""
+    if isinstance(value, Mapping):
+        return {str(k): plain(v) for k, v in value.items()}
+    if is_dataclass(value) and not isinstance(value, type):
+        return plain(asdict(value))
+    if isinstance(value, np.ndarray):
+        return plain(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, (list, tuple, set, frozenset)):
+        return [plain(v) for v in value]
+    if isinstance(value, (str, int, float, bool)) or value is None:
+        return value
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    return str(value)
+
+
+def scene_record(scene: Mapping[str, Any]) -> dict[str, str]:
+    """The ``crawler_sim.scene`` Metadata record: each top-level key maps to a JSON string."""
+    return {key: json.dumps(value) for key, value in plain(scene).items()}
+
+
+def _ns_span(start: int | None, end: int | None) -> tuple[int, int]:
+    if start is None or end is None:
+        return _EMPTY_START, 0
+    return start, end - start
+
+
+@dataclass
+class _Topic:
+    """One recorded topic: its channel and what metadata.yaml needs to know about it."""
+
+    name: str
+    type: str
+    channel_id: int
+    qos: list[dict[str, Any]]
+    type_hash: str
+    cls: type | None
+    serialization_format: str = 'cdr'
+    count: int = 0
+
+    def metadata(self) -> dict[str, Any]:
+        """``topics_with_message_count`` entry (version 9)."""
+        return {
+            'topic_metadata': {
+                'name': self.name,
+                'type': self.type,
+                'serialization_format': self.serialization_format,
+                'offered_qos_profiles': self.qos,
+                'type_description_hash': self.type_hash,
+            },
+            'message_count': self.count,
+        }
+
+
+@dataclass
+class _Stats:
+    count: int = 0
+    start: int | None = None
+    end: int | None = None
+
+    def add(self, t_ns: int) -> None:
+        self.count += 1
+        if self.start is None or t_ns < self.start:
+            self.start = t_ns
+        if self.end is None or t_ns > self.end:
+            self.end = t_ns
+
+
+def _default_open(path: Path) -> BinaryIO:
+    return open(path, 'xb')   # 'x': never overwrite
+
+
+@dataclass
+class _Schema:
+    id: int
+    name: str
+
+
+class BagWriter:
+    """Write one rosbag2 bag directory (MCAP storage) with sim-time stamps.
+
+    Parameters
+    ----------
+    path : path-like
+        Bag directory to create; it must not exist (nothing is overwritten or written then).
+        The MCAP file is ``path/<name>_0.mcap``.
+    scene : dict, optional
+        Simulation parameters, recorded as Metadata ``crawler_sim.scene`` and on ``scene_topic``.
+        ``crawler_sim_version`` is added.
+    qos : dict, optional
+        Offered QoS per topic, keyed by absolute topic name or by suffix (``'odom'``): either a
+        dict of :func:`crawler_sim.bag.schema.qos_profile` arguments or a full list of profiles.
+        Default: reliable/volatile; the scene topic is transient local (latched).
+    custom_data : dict of str, optional
+        ``custom_data`` of metadata.yaml.
+    scene_topic : str
+        Topic of the scene message (default ``/crawler_sim/scene``).
+    chunk_size : int
+        Uncompressed chunk size [bytes] before a chunk is compressed and written.
+    flush_interval : float
+        Wall time [s] after which :meth:`write` flushes on its own (``0`` flushes every write).
+
+    Attributes
+    ----------
+    error : str or None
+        Why recording stopped (disk full...), or None while all is well.
+    """
+
+    def __init__(self, path: os.PathLike | str, *, scene: Mapping[str, Any] | None = None,
+                 qos: Mapping[str, Any] | None = None,
+                 custom_data: Mapping[str, str] | None = None,
+                 scene_topic: str = SCENE.name(),
+                 chunk_size: int = CHUNK_SIZE, flush_interval: float = FLUSH_INTERVAL,
+                 _opener: Opener | None = None,
+                 _clock: Callable[[], float] = time.monotonic) -> None:
+        self.path = Path(path)
+        self.name = self.path.name
+        self.file_name = f'{self.name}_0.mcap'
+        self.mcap_path = self.path / self.file_name
+        self.error: str | None = None
+        self._qos = dict(qos or {})
+        self._custom = {str(k): str(v) for k, v in (custom_data or {}).items()} or None
+        self._flush_interval = float(flush_interval)
+        self._clock = _clock
+        self._topics: dict[str, _Topic] = {}
+        self._schemas: dict[str, _Schema] = {}
+        self._stats = _Stats()
+        self._closed = False
+        self._scene: dict[str, Any] | None = None
+        self._scene_pending = False           # the scene message waits for the first time stamp
+        self._scene_topic = scene_topic
+        self._make_directory()
+        try:
+            self._stream = (_opener or _default_open)(self.mcap_path)
+        except OSError as exc:
+            self.path.rmdir()
+            raise BagError(f'cannot create {self.mcap_path}: {exc.strerror or exc}') from None
+        self._fileno = _fileno(self._stream)
+        self._writer = Writer(self._stream, chunk_size=chunk_size,
+                              compression=CompressionType.ZSTD)
+        self._last_flush = self._clock()
+        self._guard(self._start)
+        if scene is not None:
+            self._scene = plain(dict(scene))
+            self._scene.setdefault('crawler_sim_version', package_version())
+            self._scene_pending = True
+            self._guard(self._writer.add_metadata, SCENE_METADATA, scene_record(self._scene))
+
+    # ------------------------------------------------------------ public API
+
+    @property
+    def message_count(self) -> int:
+        """Messages written so far (those for which :meth:`write` returned True)."""
+        return self._stats.count
+
+    @property
+    def topics(self) -> dict[str, tuple[str, int]]:
+        """``{topic: (type, message count)}`` of the topics written so far."""
+        return {name: (t.type, t.count) for name, t in self._topics.items()}
+
+    def write(self, topic: str, type_name: str, msg: Any, t_ns: int) -> bool:
+        """Record ``msg`` on ``topic`` at sim time ``t_ns`` [ns] (log and publish time).
+
+        ``msg`` is an rclpy message of ``type_name`` (``'sensor_msgs/msg/JointState'``) or its
+        CDR serialisation (bytes). Returns False, without raising, once recording has stopped
+        (see :attr:`error`). Raises ``ValueError`` for a negative time or a message whose type
+        differs from ``type_name``, :class:`BagError` if ``type_name`` is not installed, and
+        ``RuntimeError`` after :meth:`close`.
+        """
+        if self._closed:
+            raise RuntimeError(f'{self.path}: write() after close()')
+        if self.error is not None:
+            return False
+        t_ns = int(t_ns)
+        if t_ns < 0:
+            raise ValueError(f'`t_ns` must be >= 0 (MCAP times are unsigned), got {t_ns}')
+        entry = self._topics.get(topic)
+        if entry is None or entry.type != type_name:
+            entry = self._topic(topic, type_name)
+            if self.error is not None:
+                return False
+        data = self._serialize(entry, msg)
+        if self._scene_pending:
+            self._write_scene(t_ns)
+        return self._add(entry, data, t_ns)
+
+    def flush(self) -> None:
+        """Write the open chunk and everything buffered to disk (``fsync``)."""
+        if self._closed or self.error is not None:
+            return
+        self._guard(self._flush)
+
+    def close(self) -> None:
+        """Finish the MCAP file (summary, footer) and write metadata.yaml. Idempotent.
+
+        After a write error only the file handle is closed: no summary and no metadata.yaml,
+        as for a killed ``ros2 bag record``; :func:`crawler_sim.bag.recover` repairs the file.
+        """
+        if self._closed:
+            return
+        if self.error is None and self._scene_pending:
+            self._write_scene(0)
+        if self.error is None:
+            self._guard(self._finish)
+        if self.error is None:
+            self._guard(self._write_metadata_yaml)
+        self._closed = True
+        self._close_stream()
+
+    def __enter__(self) -> BagWriter:
+        return self
+
+    def __exit__(self, *exc_info: Any) -> None:
+        self.close()
+
+    # ------------------------------------------------------------ raw API (used by recover)
+
+    def add_metadata(self, name: str, data: Mapping[str, str]) -> None:
+        """Add an MCAP Metadata record ``name`` with string keys and values."""
+        if self.error is None and not self._closed:
+            self._guard(self._writer.add_metadata, name, dict(data))
+
+    def add_channel(self, topic: str, *, schema_name: str, schema_encoding: str,
+                    schema_data: bytes, message_encoding: str,
+                    metadata: Mapping[str, str]) -> _Topic:
+        """Register ``topic`` with an explicit schema and channel metadata (no lookups)."""
+        if topic in self._topics:
+            raise BagError(f'{self.path}: topic {topic} registered twice')
+        key = f'{schema_name}\0{schema_encoding}\0{schema_data!r}'
+        if key not in self._schemas:
+            sid = self._guard(self._writer.register_schema, schema_name, schema_encoding,
+                              schema_data)
+            self._schemas[key] = _Schema(_id(sid), schema_name)
+        cid = self._guard(self._writer.register_channel, topic, message_encoding,
+                          self._schemas[key].id, dict(metadata))
+        entry = _Topic(topic, schema_name, _id(cid),
+                       schemas.parse_qos_yaml(metadata.get('offered_qos_profiles', '')),
+                       metadata.get('topic_type_hash', ''), None, message_encoding)
+        self._topics[topic] = entry
+        return entry
+
+    def registered(self, topic: str) -> _Topic | None:
+        """The entry of ``topic`` if it has been registered (for :meth:`write_raw`)."""
+        return self._topics.get(topic)
+
+    def write_raw(self, entry: _Topic, data: bytes, log_time: int, publish_time: int,
+                  sequence: int = 0) -> bool:
+        """Write already-serialised ``data`` on a topic from :meth:`add_channel`."""
+        if self._closed or self.error is not None:
+            return False
+        return self._add(entry, data, log_time, publish_time, sequence)
+
+    # ------------------------------------------------------------ internals
+
+    def _make_directory(self) -> None:
+        if self.path.exists() or self.path.is_symlink():
+            raise BagError(f'{self.path} exists already, not overwriting')
+        try:
+            self.path.mkdir(parents=True, exist_ok=False)
+        except FileExistsError:
+            raise BagError(f'{self.path} exists already, not overwriting') from None
+        except OSError as exc:
+            raise BagError(f'cannot create bag directory {self.path}: {exc.strerror}') from None
+
+    def _start(self) -> None:
+        self._writer.start(profile='ros2', library=f'crawler_sim {package_version()}')
+        self._writer.add_metadata(ROSBAG2_METADATA, self._rosbag2_record())
+
+    def _topic(self, topic: str, type_name: str) -> _Topic:
+        canonical = schemas.canonical_type(type_name)
+        entry = self._topics.get(topic)
+        if entry is not None:
+            if entry.type != canonical:
+                raise ValueError(f'topic {topic} is recorded as {entry.type}, not {canonical}')
+            return entry
+        if not topic.startswith('/'):
+            raise ValueError(f'topic {topic!r} must be absolute (start with /)')
+        if canonical not in self._schemas:
+            text = schemas.full_text(canonical).encode()
+            sid = self._guard(self._writer.register_schema, canonical, 'ros2msg', text)
+            self._schemas[canonical] = _Schema(_id(sid), canonical)
+        qos = self._qos_for(topic)
+        try:
+            type_hash = schemas.type_hash(canonical)
+        except BagError:                # no .json type description: rosbag2 leaves it empty
+            type_hash = ''
+        cid = self._guard(self._writer.register_channel, topic, 'cdr',
+                          self._schemas[canonical].id,
+                          {'offered_qos_profiles': schemas.qos_yaml(qos),
+                           'topic_type_hash': type_hash})
+        entry = _Topic(topic, canonical, _id(cid), qos, type_hash,
+                       schemas.message_class(canonical))
+        self._topics[topic] = entry
+        return entry
+
+    def _qos_for(self, topic: str) -> list[dict[str, Any]]:
+        latched = topic == self._scene_topic
+        spec = None
+        for key in (topic, topic.lstrip('/'), topic.rsplit('/', 1)[-1]):
+            if key in self._qos:
+                spec = self._qos[key]
+                break
+        if isinstance(spec, list):
+            return [dict(p) for p in spec]
+        options = {'durability': 'transient_local'} if latched else {}
+        options.update(spec or {})
+        return [schemas.qos_profile(**options)]
+
+    @staticmethod
+    def _serialize(entry: _Topic, msg: Any) -> bytes:
+        if isinstance(msg, (bytes, bytearray, memoryview)):
+            data = bytes(msg)
+            if len(data) < 4:
+                raise ValueError(f'{entry.name}: {len(data)} bytes is not a CDR message')
+            return data
+        if entry.cls is not None and type(msg) is not entry.cls:
+            raise ValueError(
+                f'{entry.name}: message of type {schemas.type_of(msg)}, expected {entry.type}')
+        from rclpy.serialization import serialize_message
+        return serialize_message(msg)
+
+    def _write_scene(self, t_ns: int) -> None:
+        from . import msgs
+        self._scene_pending = False
+        entry = self._topic(self._scene_topic, SCENE.type)
+        self._add(entry, self._serialize(entry, msgs.scene_string(self._scene)), t_ns)
+
+    def _add(self, entry: _Topic, data: bytes, log_time: int, publish_time: int | None = None,
+             sequence: int = 0) -> bool:
+        publish_time = log_time if publish_time is None else publish_time
+        if self._guard(self._writer.add_message, entry.channel_id, log_time, data,
+                       publish_time, sequence) is _FAILED:
+            return False
+        if self._clock() - self._last_flush >= self._flush_interval:
+            self.flush()
+            if self.error is not None:
+                return False           # this message went down with the chunk being written
+        entry.count += 1
+        self._stats.add(log_time)
+        return True
+
+    def _flush(self) -> None:
+        self._writer.flush()
+        if self._fileno is not None:
+            os.fsync(self._fileno)
+        self._last_flush = self._clock()
+
+    def _finish(self) -> None:
+        self._writer.add_metadata(ROSBAG2_METADATA, self._rosbag2_record())
+        self._writer.finish()
+        self._stream.flush()
+        if self._fileno is not None:
+            os.fsync(self._fileno)
+
+    def _guard(self, func: Callable[..., Any], *args: Any) -> Any:
+        """Call ``func``; on OSError stop recording (set :attr:`error`) and return _FAILED."""
+        if self.error is not None:
+            return _FAILED
+        try:
+            return func(*args)
+        except OSError as exc:
+            self._fail(exc)
+            return _FAILED
+
+    def _fail(self, exc: OSError) -> None:
+        reason = exc.strerror or str(exc) or type(exc).__name__
+        self.error = (f'recording to {self.mcap_path} stopped after {self._stats.count} messages: '
+                      f'{reason}; the file is incomplete (crawler_sim.bag.recover repairs it)')
+        warnings.warn(self.error, RuntimeWarning, stacklevel=3)
+        self._close_stream()
+
+    def _close_stream(self) -> None:
+        stream, self._stream = getattr(self, '_stream', None), None
+        if stream is not None:
+            try:
+                stream.close()
+            except OSError:
+                pass   # the buffered tail cannot be written either; the error is recorded
+
+    def _bag_metadata(self) -> dict[str, Any]:
+        """The version-9 BagMetadata map, fields in rosbag2's order."""
+        start, duration = _ns_span(self._stats.start, self._stats.end)
+        return {
+            'version': METADATA_VERSION,
+            'storage_identifier': 'mcap',
+            'duration': {'nanoseconds': duration},
+            'starting_time': {'nanoseconds_since_epoch': start},
+            'message_count': self._stats.count,
+            'topics_with_message_count': [t.metadata() for t in self._unique_topics()],
+            'compression_format': '',
+            'compression_mode': '',
+            'relative_file_paths': [self.file_name],
+            'files': [{
+                'path': self.file_name,
+                'starting_time': {'nanoseconds_since_epoch': start},
+                'duration': {'nanoseconds': duration},
+                'message_count': self._stats.count,
+            }],
+            'custom_data': self._custom,
+            'ros_distro': ROS_DISTRO,
+        }
+
+    def _unique_topics(self) -> list[_Topic]:
+        seen: dict[int, _Topic] = {}
+        for entry in self._topics.values():
+            seen.setdefault(id(entry), entry)
+        return list(seen.values())
+
+    def _rosbag2_record(self) -> dict[str, str]:
+        return {ROSBAG2_METADATA_KEY: _yaml(self._bag_metadata())}
+
+    def _write_metadata_yaml(self) -> None:
+        text = _yaml({'rosbag2_bagfile_information': self._bag_metadata()})
+        tmp = self.path / '.metadata.yaml.tmp'
+        with open(tmp, 'w', encoding='utf-8') as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, self.path / 'metadata.yaml')
+
+
+_FAILED = object()
+
+
+def _id(value: Any) -> int:
+    """A schema/channel id returned through :meth:`BagWriter._guard` (0 after a failure)."""
+    return value if isinstance(value, int) else 0
+
+
+def _yaml(data: Any) -> str:
+    return yaml.safe_dump(data, sort_keys=False, default_flow_style=False)
+
+
+def _fileno(stream: Any) -> int | None:
+    try:
+        return stream.fileno()
+    except (AttributeError, io.UnsupportedOperation, ValueError):
+        return None
+
+
+__all__ = ['BagWriter', 'package_version', 'plain', 'scene_record']

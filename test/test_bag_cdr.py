@@ -1,0 +1,145 @@
+"""The vectorized CDR decoder agrees with rclpy message by message.
+
+It falls back to rclpy whenever a message does not share its template's layout.
+"""
+from __future__ import annotations
+
+from mcap_ros2._dynamic import serialize_dynamic
+import numpy as np
+from numpy.testing import assert_array_equal
+import pytest
+from rclpy.serialization import serialize_message
+
+from crawler_sim.bag import schema as bag_schema
+from crawler_sim.bag.cdr import Decoder, field_value, layout
+
+JOINT_FIELDS = ('header.stamp.sec', 'header.stamp.nanosec', 'position', 'velocity', 'effort')
+
+
+def pack(messages: list[bytes]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One buffer holding the messages back to back, with their starts and lengths."""
+    lengths = np.array([len(m) for m in messages], dtype=np.int64)
+    starts = np.concatenate(([0], np.cumsum(lengths)[:-1])).astype(np.int64)
+    return np.frombuffer(b''.join(messages), dtype=np.uint8), starts, lengths
+
+
+def joint_state(i: int, *, frame: str = '', names=('body_0', 'body_1', 'body_2'),
+                position=None, velocity=None, effort=None):
+    from sensor_msgs.msg import JointState
+    n = len(names)
+    msg = JointState(name=list(names))
+    msg.header.stamp.sec, msg.header.stamp.nanosec = i, 1000 * i + 7
+    msg.header.frame_id = frame
+    msg.position = [0.5 * i + j for j in range(n)] if position is None else position
+    msg.velocity = [-1.0 * i - j for j in range(n)] if velocity is None else velocity
+    msg.effort = [i / 3 + j for j in range(n)] if effort is None else effort
+    return msg
+
+
+def expected(messages, paths) -> dict[str, list]:
+    return {p: [np.atleast_1d(np.asarray(field_value(m, p))) for m in messages] for p in paths}
+
+
+def check(decoder: Decoder, messages, paths) -> None:
+    columns = decoder.columns()
+    want = expected(messages, paths)
+    for path in paths:
+        assert columns[path].shape[0] == len(messages)
+        for row, value in zip(columns[path], want[path]):
+            assert_array_equal(row[:len(value)], value)
+            assert np.isnan(row[len(value):]).all()
+
+
+def test_uniform_joint_states_are_all_decoded_by_the_fast_path():
+    messages = [joint_state(i) for i in range(50)]
+    decoder = Decoder('sensor_msgs/msg/JointState', JOINT_FIELDS)
+    decoder.add(*pack([serialize_message(m) for m in messages]))
+    assert (decoder.fast, decoder.slow) == (50, 0)
+    check(decoder, messages, JOINT_FIELDS)
+
+
+@pytest.mark.parametrize('frame', ['', 'a', 'abcde', 'odom_frame'])
+@pytest.mark.parametrize('sizes', [(3, 3, 3), (0, 1, 1), (2, 2, 0), (0, 0, 0), (1, 0, 2)])
+def test_layouts_with_empty_sequences_and_odd_strings_match_rclpy(frame, sizes):
+    """Fast CDR aligns an empty float64 sequence to 8 too; the walker must do the same."""
+    messages = [joint_state(i, frame=frame, position=[1.0 * i] * sizes[0],
+                            velocity=[2.0 * i] * sizes[1], effort=[3.0 * i] * sizes[2])
+                for i in range(5)]
+    decoder = Decoder('sensor_msgs/msg/JointState', JOINT_FIELDS)
+    decoder.add(*pack([serialize_message(m) for m in messages]))
+    assert decoder.fast == 5
+    check(decoder, messages, JOINT_FIELDS)
+
+
+def test_same_length_but_different_names_go_through_rclpy():
+    messages = [joint_state(i, names=('body_0', 'body_1') if i % 3 else ('left_0', 'right'))
+                for i in range(9)]
+    raw = [serialize_message(m) for m in messages]
+    assert len({len(r) for r in raw}) == 1            # same byte length, different content
+    decoder = Decoder('sensor_msgs/msg/JointState', JOINT_FIELDS)
+    decoder.add(*pack(raw))
+    assert decoder.fast == 3 and decoder.slow == 6      # message 0 ('left_0', ...) is the template
+    check(decoder, messages, JOINT_FIELDS)
+
+
+def test_mixed_lengths_are_decoded_in_order_and_nan_padded():
+    messages = [joint_state(i, names=[f'body_{j}' for j in range(1 + i % 3)]) for i in range(12)]
+    decoder = Decoder('sensor_msgs/msg/JointState', JOINT_FIELDS)
+    buffer, starts, lengths = pack([serialize_message(m) for m in messages])
+    decoder.add(buffer, starts[:5], lengths[:5])           # in two batches
+    decoder.add(buffer, starts[5:], lengths[5:])
+    assert decoder.fast == 12
+    check(decoder, messages, JOINT_FIELDS)
+
+
+def test_messages_encoded_by_mcap_ros2_decode_like_rclpy_ones():
+    """mcap_ros2's encoder pads differently after empty sequences; results must not differ."""
+    type_name = 'sensor_msgs/msg/JointState'
+    encoder = serialize_dynamic(type_name, bag_schema.full_text(type_name))[type_name]
+    messages = [joint_state(i, frame='abcde', position=[], velocity=[1.0 * i], effort=[2.0])
+                for i in range(6)]
+    decoder = Decoder(type_name, JOINT_FIELDS)
+    decoder.add(*pack([encoder(m) for m in messages]))
+    assert decoder.fast + decoder.slow == 6
+    check(decoder, messages, JOINT_FIELDS)
+
+
+def test_odometry_and_multiarray_fields_decode_like_rclpy():
+    from nav_msgs.msg import Odometry
+    from std_msgs.msg import Float64MultiArray, Int8MultiArray, MultiArrayDimension
+    odoms = []
+    for i in range(4):
+        m = Odometry()
+        m.header.frame_id, m.child_frame_id = 'odom', 'base_link'
+        m.pose.pose.position.x = 0.1 * i
+        m.pose.covariance = [float(k + i) for k in range(36)]
+        m.twist.twist.linear.x = -0.2 * i
+        odoms.append(m)
+    paths = ('pose.pose.position.x', 'pose.covariance', 'twist.twist.linear.x')
+    decoder = Decoder('nav_msgs/msg/Odometry', paths)
+    decoder.add(*pack([serialize_message(m) for m in odoms]))
+    assert decoder.fast == 4
+    check(decoder, odoms, paths)
+
+    arrays = [Float64MultiArray(data=[1.0 * i, 2.0]) for i in range(3)]
+    arrays[1].layout.dim = [MultiArrayDimension(label='x', size=2, stride=2)]
+    decoder = Decoder('std_msgs/msg/Float64MultiArray', ('data',))
+    decoder.add(*pack([serialize_message(m) for m in arrays]))
+    check(decoder, arrays, ('data',))
+    contacts = [Int8MultiArray(data=[-1, 0, 1, i]) for i in range(3)]
+    decoder = Decoder('std_msgs/msg/Int8MultiArray', ('data',))
+    decoder.add(*pack([serialize_message(m) for m in contacts]))
+    assert decoder.columns()['data'].dtype == np.int8
+    check(decoder, contacts, ('data',))
+
+
+def test_layout_records_fixed_bytes_and_numeric_field_offsets():
+    raw = serialize_message(joint_state(3, frame='ab'))
+    lay = layout(raw, 'sensor_msgs/msg/JointState')
+    assert lay.length == len(raw)
+    assert lay.fields['header.stamp.sec'] == (4, 1, '<i4')
+    offset, n, dtype = lay.fields['position']
+    assert n == 3 and dtype == '<f8' and (offset - 4) % 8 == 0
+    assert np.frombuffer(raw, '<f8', count=3, offset=offset).tolist() == [1.5, 2.5, 3.5]
+    assert 0 in lay.fixed and 1 in lay.fixed            # encapsulation kind is fixed
+    assert 4 not in lay.fixed                           # the stamp is data

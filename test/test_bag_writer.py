@@ -1,0 +1,245 @@
+"""BagWriter and Recorder behaviour: refusals, disk full, flushing, namespaces."""
+from __future__ import annotations
+
+import errno
+import io
+from pathlib import Path
+import warnings
+
+from mcap.exceptions import EndOfFile
+from mcap.reader import NonSeekingReader
+import numpy as np
+from numpy.testing import assert_array_equal
+import pytest
+
+from crawler_sim.bag import BagError, BagWarning, BagWriter, Recorder, load, record_arrays
+from crawler_sim.bag.synthetic import synthetic_arrays
+
+JOINT_STATE = 'sensor_msgs/msg/JointState'
+
+
+def joint_state(i: int):
+    from sensor_msgs.msg import JointState
+    return JointState(name=['body_0'], position=[float(i)], velocity=[0.0], effort=[0.0])
+
+
+def record(path: Path, n: int, **options) -> dict:
+    a = synthetic_arrays(n, 3, seed=1)
+    masses = a.pop('masses')
+    writer = record_arrays(path, **a, masses=masses, **options)
+    assert writer.error is None
+    return a
+
+
+# ---------------------------------------------------------------- never overwrite
+
+def test_recording_into_an_existing_directory_refuses_and_writes_nothing(tmp_path):
+    target = tmp_path / 'run'
+    target.mkdir()
+    (target / 'keep.txt').write_text('data')
+    with pytest.raises(BagError, match='exists already'):
+        BagWriter(target)
+    assert sorted(p.name for p in target.iterdir()) == ['keep.txt']
+    assert (target / 'keep.txt').read_text() == 'data'
+
+
+def test_recording_onto_an_existing_file_refuses_and_leaves_it_unchanged(tmp_path):
+    target = tmp_path / 'run'
+    target.write_bytes(b'precious')
+    with pytest.raises(BagError, match='exists already'):
+        record_arrays(target, **{k: v for k, v in synthetic_arrays(3).items()
+                                 if k != 'masses'})
+    assert target.read_bytes() == b'precious'
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['run']
+
+
+# ---------------------------------------------------------------- disk full
+
+class FullDisk(io.BytesIO):
+    """A file whose writes fail with ENOSPC once ``capacity`` bytes have been written."""
+
+    def __init__(self, capacity: int) -> None:
+        super().__init__()
+        self.capacity = capacity
+
+    def write(self, data) -> int:
+        if self.tell() + len(data) > self.capacity:
+            raise OSError(errno.ENOSPC, 'No space left on device')
+        return super().write(data)
+
+
+def test_disk_full_stops_recording_without_raising_and_later_writes_are_no_ops(tmp_path):
+    disk = FullDisk(capacity=20_000)
+    writer = BagWriter(tmp_path / 'full', flush_interval=0.0, _opener=lambda path: disk)
+    accepted = 0
+    with pytest.warns(RuntimeWarning, match='No space left on device'):
+        for i in range(2_000):
+            if writer.write('/body_states', JOINT_STATE, joint_state(i), i * 1000):
+                accepted += 1
+    assert writer.error is not None and 'No space left on device' in writer.error
+    assert 0 < accepted < 2_000
+    assert writer.message_count == accepted
+    assert disk.closed                                   # the file was closed
+    assert writer.write('/body_states', JOINT_STATE, joint_state(0), 10**9) is False
+    writer.flush()                                       # no-ops, no exceptions
+    writer.close()
+    writer.close()
+    assert not (tmp_path / 'full' / 'metadata.yaml').exists()
+
+
+def test_disk_full_while_opening_keeps_the_writer_usable_as_a_no_op(tmp_path):
+    with pytest.warns(RuntimeWarning):
+        writer = BagWriter(tmp_path / 'full', scene={'a': 1}, _opener=lambda path: FullDisk(5))
+    assert writer.error is not None
+    assert writer.write('/body_states', JOINT_STATE, joint_state(0), 0) is False
+    writer.close()
+
+
+def test_recorder_reports_the_writer_error(tmp_path):
+    with pytest.warns(RuntimeWarning):
+        rec = Recorder(tmp_path / 'r', masses=[1.0, 1.0], flush_interval=0.0,
+                       _opener=lambda path: FullDisk(30_000))
+        ok = [rec.record_state(0.01 * i, [0.0, 0.1], [0.0, 0.0], [0.0, 0.0], [0, 0], [0.1],
+                               [0.0], [0.0]) for i in range(200)]
+    assert rec.error is not None and not ok[-1] and ok[0]
+    rec.close()
+
+
+# ---------------------------------------------------------------- argument errors
+
+def test_write_rejects_a_message_of_another_type(tmp_path):
+    from std_msgs.msg import String
+    with BagWriter(tmp_path / 'b') as w:
+        with pytest.raises(ValueError, match='std_msgs/msg/String'):
+            w.write('/body_states', JOINT_STATE, String(data='x'), 0)
+
+
+def test_write_rejects_negative_times_relative_topics_and_retyped_topics(tmp_path):
+    from std_msgs.msg import String
+    with BagWriter(tmp_path / 'b') as w:
+        with pytest.raises(ValueError, match='>= 0'):
+            w.write('/body_states', JOINT_STATE, joint_state(0), -1)
+        with pytest.raises(ValueError, match='absolute'):
+            w.write('body_states', JOINT_STATE, joint_state(0), 0)
+        w.write('/x', 'std_msgs/msg/String', String(data='x'), 0)
+        with pytest.raises(ValueError, match='recorded as std_msgs/msg/String'):
+            w.write('/x', JOINT_STATE, joint_state(0), 0)
+
+
+def test_unknown_message_type_gives_a_bag_error(tmp_path):
+    with BagWriter(tmp_path / 'b') as w:
+        with pytest.raises(BagError, match='no_such_msgs'):
+            w.write('/x', 'no_such_msgs/msg/Thing', b'\x00\x01\x00\x00', 0)
+
+
+def test_write_after_close_is_a_runtime_error(tmp_path):
+    w = BagWriter(tmp_path / 'b')
+    w.close()
+    with pytest.raises(RuntimeError, match='after close'):
+        w.write('/body_states', JOINT_STATE, joint_state(0), 0)
+
+
+# ---------------------------------------------------------------- flushing
+
+def count_messages_on_disk(path: Path) -> int:
+    """Messages a crash right now would keep (stream read of the unfinished file)."""
+    count = 0
+    with open(path, 'rb') as f:
+        try:
+            for _ in NonSeekingReader(f).iter_messages(log_time_order=False):
+                count += 1
+        except EndOfFile:
+            pass
+    return count
+
+
+def test_write_flushes_to_disk_once_per_flush_interval_of_wall_time(tmp_path):
+    now = [100.0]
+    w = BagWriter(tmp_path / 'b', flush_interval=1.0, _clock=lambda: now[0])
+    for i in range(10):
+        w.write('/body_states', JOINT_STATE, joint_state(i), i)
+    assert count_messages_on_disk(w.mcap_path) == 0           # still in the open chunk
+    now[0] += 1.5
+    w.write('/body_states', JOINT_STATE, joint_state(10), 10)
+    assert count_messages_on_disk(w.mcap_path) == 11
+    w.write('/body_states', JOINT_STATE, joint_state(11), 11)
+    assert count_messages_on_disk(w.mcap_path) == 11
+    w.flush()
+    assert count_messages_on_disk(w.mcap_path) == 12
+    w.close()
+
+
+def test_an_unclosed_flushed_bag_loads_partially_with_a_warning(tmp_path):
+    a = synthetic_arrays(40, 3, seed=3)
+    rec = Recorder(tmp_path / 'open', masses=a['masses'])
+    for i in range(40):
+        rec.record_state(a['t'][i], a['x'][i], a['v'][i], a['friction'][i], a['contact'][i],
+                         a['lengths'][i], a['rates'][i], a['linkage_force'][i])
+    rec.flush()
+    with pytest.warns(BagWarning, match='no MCAP footer'):
+        run = load(tmp_path / 'open')
+    assert run.truncated and len(run) == 40
+    assert_array_equal(run.x, a['x'])
+    rec.close()
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        assert not load(tmp_path / 'open').truncated
+
+
+# ---------------------------------------------------------------- namespaces and QoS
+
+def test_namespaced_topics_are_matched_by_suffix(tmp_path):
+    a = record(tmp_path / 'ns', 20, namespace='crawler1', scene={'p': 3})
+    run = load(tmp_path / 'ns')
+    assert run.scene['p'] == 3
+    assert run.namespace == '/crawler1'
+    assert '/crawler1/body_states' in run.topics and '/crawler1/crawler_sim/scene' in run.topics
+    assert_array_equal(run.x, a['x'])
+
+
+def test_several_namespaces_need_an_explicit_choice(tmp_path):
+    path = tmp_path / 'two'
+    first = synthetic_arrays(5, 2, seed=1)
+    second = synthetic_arrays(5, 2, seed=2)
+    w = BagWriter(path)
+    for ns, a in (('/a', first), ('/b', second)):
+        rec = Recorder(writer=w, namespace=ns)
+        for i in range(5):
+            rec.record_state(a['t'][i], a['x'][i], a['v'][i], a['friction'][i],
+                             a['contact'][i], a['lengths'][i], a['rates'][i],
+                             a['linkage_force'][i])
+        rec.close()                                   # does not close the shared writer
+    w.close()
+    with pytest.raises(BagError, match=r'several crawler_sim namespaces \(/a, /b\)'):
+        load(path)
+    assert_array_equal(load(path, namespace='b').x, second['x'])
+    assert_array_equal(load(path, namespace='/a').v, first['v'])
+    with pytest.raises(BagError, match='no /c/body_states'):
+        load(path, namespace='c')
+
+
+def test_qos_overrides_are_recorded_per_topic(tmp_path):
+    import yaml
+    record(tmp_path / 'q', 3, qos={'odom': {'reliability': 'best_effort', 'depth': 5,
+                                            'history': 'keep_last'}})
+    meta = yaml.safe_load((tmp_path / 'q' / 'metadata.yaml').read_text())
+    topics = {t['topic_metadata']['name']: t['topic_metadata']['offered_qos_profiles'][0]
+              for t in meta['rosbag2_bagfile_information']['topics_with_message_count']}
+    assert topics['/odom']['reliability'] == 'best_effort' and topics['/odom']['depth'] == 5
+    assert topics['/body_states']['reliability'] == 'reliable'
+
+
+def test_scene_with_numpy_values_is_stored_as_plain_data(tmp_path):
+    record(tmp_path / 's', 3, scene={'masses': np.array([1.0, 2.0, 3.0]), 'p': np.int64(3),
+                                     'path': tmp_path, 'pair': (1, 2)})
+    scene = load(tmp_path / 's').scene
+    assert scene['masses'] == [1.0, 2.0, 3.0] and scene['p'] == 3
+    assert scene['path'] == str(tmp_path) and scene['pair'] == [1, 2]
+
+
+def test_empty_bag_closes_to_a_valid_file_with_the_scene(tmp_path):
+    with BagWriter(tmp_path / 'e', scene={'p': 2}) as w:
+        pass
+    assert w.topics == {'/crawler_sim/scene': ('std_msgs/msg/String', 1)}
+    with pytest.raises(BagError, match='no crawler_sim topics'):
+        load(tmp_path / 'e')
