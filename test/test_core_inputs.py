@@ -104,9 +104,6 @@ def test_a_gait_returning_non_finite_values_is_rejected_naming_the_gait(which, b
             cs.simulate(_ok_crawler(), g, 1.0, method)
 
 
-@pytest.mark.xfail(strict=True, reason='core bug: the gait is checked only at t0; a NaN later gives '
-                                       'RuntimeError "stalled at t = 0.0" (exact) or silently NaN '
-                                       'velocities with state 0 (implicit, penalty)')
 @pytest.mark.filterwarnings('ignore:invalid value encountered')
 @pytest.mark.parametrize('method', ['exact', 'implicit', 'penalty'])
 def test_a_gait_that_turns_non_finite_during_the_run_is_rejected_not_propagated(method):

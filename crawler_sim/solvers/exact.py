@@ -43,6 +43,16 @@ _AMBIGUOUS = 1e-10   # relative slack below which a mode choice is decided by lo
 _EPS = np.finfo(float).eps
 
 
+def check_finite_gait(vals, t) -> None:
+    """Raise ValueError if a gait evaluation (l, l', l'') holds a non-finite value."""
+    for name, arr in zip(('length', 'velocity', 'acceleration'), vals):
+        if not np.all(np.isfinite(arr)):
+            bad = np.atleast_1d(t)[np.nonzero(~np.isfinite(np.reshape(
+                arr, (np.size(t), -1))).any(axis=1))[0][0]]
+            raise ValueError(f'gait {name} must be finite, got a non-finite value at t = '
+                             f'{float(bad)!r} s')
+
+
 def offset_matrices(masses: NDArray) -> tuple[NDArray, NDArray]:
     """Matrices C (p, p-1) and W (p, p-1) with s = C l (offsets from body 0) and e = W l
     (offsets from the centre of mass), so that derivatives follow by the same product."""
@@ -361,6 +371,7 @@ class ExactSolver:
     def _segment(self, t_stop: float, left_limit: bool = False) -> None:
         t0 = self.t
         l, ld, ldd = self.gait.at(t0)
+        check_finite_gait((l, ld, ldd), t0)
         W = self._W
         e, ep, epp = W @ l, W @ ld, W @ ldd
         if self.ref >= 0:
@@ -477,7 +488,9 @@ class ExactSolver:
     def _event_values(self, seg: Segment, tau: NDArray):
         """Values G (N, k) and derivatives D (N, k; NaN where unknown) at times tau (N,)."""
         M = self._M
-        _, ld, ldd = seg.gait(tau)
+        vals = seg.gait(tau)
+        check_finite_gait(vals, tau)
+        _, ld, ldd = vals
         if seg.ref < 0:
             sg = seg.contact.astype(float)
             V = seg.V0 + seg.a * (tau - seg.t0)

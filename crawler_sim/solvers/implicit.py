@@ -18,7 +18,7 @@ from ..gaits import Gait
 from ..model import Crawler, kinematics
 from ..trajectory import Event
 from .contact import solve_inclusion, solve_inclusion_batch, split_friction
-from .exact import ExactSolver
+from .exact import ExactSolver, check_finite_gait
 
 __all__ = ['ImplicitSolver', 'ImplicitBatch', 'TimeStepper']
 
@@ -76,6 +76,7 @@ class TimeStepper:
     def _step(self, t_new: float) -> None:
         h = t_new - self.t
         l, ld, ldd = self.gait(t_new)
+        check_finite_gait((l, ld, ldd), t_new)
         e, ep, epp = kinematics(self._m, l, ld, ldd)
         V_new, R, contact = self._velocity(h, ep)
         self.A = (V_new - self.V) / h
