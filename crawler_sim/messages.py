@@ -1,0 +1,246 @@
+"""Builders of the node's ROS messages from a core ``State`` (docs/ARCHITECTURE.md).
+
+Every builder takes the sim time as integer nanoseconds ``t_ns``; :func:`stamp_from_ns` is the
+one conversion point to ``builtin_interfaces/Time``. Float arrays go in as ``array.array('d')``
+(no per-element checks even with ``ROS_PYTHON_CHECK_FIELDS=1``). The core ``State`` is duck-typed:
+``x, v, friction, contact, linkage_force, lengths, rates`` (numpy arrays).
+"""
+from __future__ import annotations
+
+from array import array
+from functools import lru_cache
+from typing import Iterable, Mapping, Sequence
+
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Point
+from nav_msgs.msg import Odometry
+import numpy as np
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import ColorRGBA, Float64MultiArray, Int8MultiArray, Int32MultiArray
+from visualization_msgs.msg import Marker, MarkerArray
+
+__all__ = ['stamp_from_ns', 'ns_from_stamp', 'linkage_names', 'body_names', 'joint_states_msg',
+           'body_states_msg', 'contact_states_msg', 'odom_msg', 'markers_msg', 'MarkersBuilder',
+           'diagnostics_msg', 'clock_msg', 'applied_command_msg', 'float64_array_msg', 'event_msg',
+           'CONTACT_COLOURS',
+           'ODOM_FRAME', 'BASE_FRAME']
+
+ODOM_FRAME = 'odom'
+BASE_FRAME = 'base_link'
+
+#: RGBA per contact state: +1 sliding forward (blue), 0 stuck (green), -1 sliding backward (red).
+CONTACT_COLOURS = {1: (0.15, 0.35, 0.95, 1.0), 0: (0.1, 0.75, 0.2, 1.0),
+                   -1: (0.9, 0.15, 0.1, 1.0)}
+_LINK_COLOUR = (0.6, 0.6, 0.6, 1.0)
+BODY_SIZE = 0.04       # marker cube edge [m]
+LINK_WIDTH = 0.008     # marker line width [m]
+
+
+def stamp_from_ns(t_ns: int) -> Time:
+    """Sim time in integer nanoseconds to ``builtin_interfaces/Time`` (the one conversion)."""
+    sec, nanosec = divmod(int(t_ns), 1_000_000_000)
+    return Time(sec=sec, nanosec=nanosec)
+
+
+def ns_from_stamp(stamp: Time) -> int:
+    """Inverse of :func:`stamp_from_ns`."""
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+@lru_cache(maxsize=None)
+def linkage_names(n: int) -> tuple[str, ...]:
+    """``linkage_0`` ... ``linkage_{n-1}``."""
+    return tuple(f'linkage_{j}' for j in range(n))
+
+
+@lru_cache(maxsize=None)
+def body_names(p: int) -> tuple[str, ...]:
+    """``body_0`` ... ``body_{p-1}``."""
+    return tuple(f'body_{i}' for i in range(p))
+
+
+def _f64(values: np.ndarray | Sequence[float]) -> array:
+    if isinstance(values, np.ndarray):
+        out = array('d')
+        out.frombytes(np.ascontiguousarray(values, dtype=np.float64).tobytes())
+        return out
+    return array('d', values)
+
+
+def _joint_state(t_ns: int, names: Sequence[str], position, velocity, effort) -> JointState:
+    msg = JointState()
+    msg.header.stamp = stamp_from_ns(t_ns)
+    msg.name = list(names)
+    msg.position = _f64(position)
+    msg.velocity = _f64(velocity)
+    msg.effort = _f64(effort)
+    return msg
+
+
+def joint_states_msg(state, t_ns: int) -> JointState:
+    """``joint_states``: names linkage_j, position l_j [m], velocity l_j' [m/s], effort = linkage
+    force [N] (positive pushes the bodies apart)."""
+    return _joint_state(t_ns, linkage_names(len(state.lengths)), state.lengths, state.rates,
+                        state.linkage_force)
+
+
+def body_states_msg(state, t_ns: int) -> JointState:
+    """``body_states``: names body_i, position x_i [m], velocity v_i [m/s], effort = friction
+    force the ground exerts on body i [N]."""
+    return _joint_state(t_ns, body_names(len(state.x)), state.x, state.v, state.friction)
+
+
+def contact_states_msg(state) -> Int8MultiArray:
+    """``contact_states``: +1 sliding forward, 0 stuck, -1 sliding backward, per body (no stamp:
+    Int8MultiArray has no header; it is published in the same tick as ``body_states``)."""
+    msg = Int8MultiArray()
+    msg.data = array('b', np.asarray(state.contact, dtype=np.int8).tobytes())
+    return msg
+
+
+def odom_msg(state, masses: np.ndarray, t_ns: int) -> Odometry:
+    """``odom``: centre of mass X = sum m_i x_i / M and V along x, frame ``odom``, child
+    ``base_link``. The line is the odom x axis (along the incline); orientation is identity."""
+    total = float(masses.sum())
+    msg = Odometry()
+    msg.header.stamp = stamp_from_ns(t_ns)
+    msg.header.frame_id = ODOM_FRAME
+    msg.child_frame_id = BASE_FRAME
+    msg.pose.pose.position.x = float(masses @ state.x) / total
+    msg.pose.pose.orientation.w = 1.0
+    msg.twist.twist.linear.x = float(masses @ state.v) / total
+    return msg
+
+
+def _colour(rgba: tuple[float, float, float, float]) -> ColorRGBA:
+    return ColorRGBA(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
+
+
+def markers_msg(state, t_ns: int, *, frame_id: str = ODOM_FRAME) -> MarkerArray:
+    """``markers``: one CUBE per body (ns ``bodies``, id i) coloured by contact state (see
+    :data:`CONTACT_COLOURS`), one LINE_STRIP per linkage (ns ``linkages``, id j) from body j to
+    body j+1, slightly above the boxes' centres."""
+    stamp = stamp_from_ns(t_ns)
+    xs = state.x.tolist()
+    contact = state.contact.tolist()
+    out = MarkerArray()
+    markers = []
+    for i, x in enumerate(xs):
+        m = Marker()
+        m.header.stamp = stamp
+        m.header.frame_id = frame_id
+        m.ns = 'bodies'
+        m.id = i
+        m.type = Marker.CUBE
+        m.action = Marker.ADD
+        m.pose.position.x = x
+        m.pose.position.z = 0.5 * BODY_SIZE
+        m.pose.orientation.w = 1.0
+        m.scale.x = m.scale.y = m.scale.z = BODY_SIZE
+        m.color = _colour(CONTACT_COLOURS.get(int(contact[i]), _LINK_COLOUR))
+        markers.append(m)
+    for j in range(len(xs) - 1):
+        m = Marker()
+        m.header.stamp = stamp
+        m.header.frame_id = frame_id
+        m.ns = 'linkages'
+        m.id = j
+        m.type = Marker.LINE_STRIP
+        m.action = Marker.ADD
+        m.pose.orientation.w = 1.0
+        m.scale.x = LINK_WIDTH
+        m.color = _colour(_LINK_COLOUR)
+        m.points = [Point(x=xs[j], z=0.75 * BODY_SIZE), Point(x=xs[j + 1], z=0.75 * BODY_SIZE)]
+        markers.append(m)
+    out.markers = markers
+    return out
+
+
+class MarkersBuilder:
+    """:func:`markers_msg` for repeated use: the MarkerArray is built once per body count and
+    then only its stamps, positions and colours are updated (building a Marker costs ~30 us).
+
+    The returned message is reused by the next call: publish or serialize it before that.
+    """
+
+    def __init__(self, frame_id: str = ODOM_FRAME) -> None:
+        self.frame_id = frame_id
+        self._msg: MarkerArray | None = None
+        self._p = -1
+        self._colours = {k: _colour(v) for k, v in CONTACT_COLOURS.items()}
+
+    def __call__(self, state, t_ns: int) -> MarkerArray:
+        p = len(state.x)
+        if p != self._p:
+            self._msg = markers_msg(state, t_ns, frame_id=self.frame_id)
+            self._p = p
+            return self._msg
+        stamp = stamp_from_ns(t_ns)
+        xs = state.x.tolist()
+        contact = state.contact.tolist()
+        markers = self._msg.markers
+        for i, x in enumerate(xs):
+            m = markers[i]
+            m.header.stamp = stamp
+            m.pose.position.x = x
+            m.color = self._colours.get(int(contact[i]), m.color)
+        for j in range(p - 1):
+            m = markers[p + j]
+            m.header.stamp = stamp
+            m.points[0].x = xs[j]
+            m.points[1].x = xs[j + 1]
+        return self._msg
+
+
+def diagnostics_msg(t_ns: int, values: Mapping[str, object], *, warn: Iterable[str] = (),
+                    name: str = 'crawler_sim: simulation',
+                    hardware_id: str = 'crawler_sim') -> DiagnosticArray:
+    """``/diagnostics``: one status; level WARN with the reasons in ``message`` when ``warn`` is
+    non-empty, else OK. Values are stringified in the given order."""
+    reasons = list(warn)
+    status = DiagnosticStatus()
+    status.level = DiagnosticStatus.WARN if reasons else DiagnosticStatus.OK
+    status.name = name
+    status.hardware_id = hardware_id
+    status.message = '; '.join(reasons) if reasons else 'running'
+    status.values = [KeyValue(key=str(k), value=_fmt(v)) for k, v in values.items()]
+    msg = DiagnosticArray()
+    msg.header.stamp = stamp_from_ns(t_ns)
+    msg.status = [status]
+    return msg
+
+
+def _fmt(value: object) -> str:
+    if isinstance(value, float):
+        return f'{value:.6g}'
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    return str(value)
+
+
+def clock_msg(t_ns: int) -> Clock:
+    """``/clock``: the sim time."""
+    return Clock(clock=stamp_from_ns(t_ns))
+
+
+def applied_command_msg(t_ns: int, lengths: Sequence[float]) -> JointState:
+    """``~/applied_command``: the target lengths [m] that took effect at the tick starting at
+    ``t_ns`` (names linkage_j, position = targets; velocity and effort are zeros, filled because
+    rosbags cannot read a JointState whose trailing arrays are empty)."""
+    zeros = [0.0] * len(lengths)
+    return _joint_state(t_ns, linkage_names(len(lengths)), lengths, zeros, zeros)
+
+
+def event_msg(body: int, old: int, new: int) -> Int32MultiArray:
+    """A contact event for the bag's ``events`` topic: ``[body, old, new]`` (its log time is the
+    event time)."""
+    return Int32MultiArray(data=[int(body), int(old), int(new)])
+
+
+def float64_array_msg(values: Sequence[float]) -> Float64MultiArray:
+    """A ``Float64MultiArray`` of ``values`` (as ``linkage_cmd`` expects)."""
+    msg = Float64MultiArray()
+    msg.data = _f64(values)
+    return msg
