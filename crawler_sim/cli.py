@@ -334,15 +334,15 @@ def _commands(commands: Any) -> tuple[list[float], list[list[float]]]:
 
 
 def _replay_node(run: Any, method: str | None) -> tuple[Any, Any]:
-    """Re-run the node's ticks: commands take effect at the tick starting at their time, each
-    tick is one actuator Cubic piece handed to ``Stepper.advance`` (see sim_node.SimNode.tick).
-    Returns the states (x, v) at the recorded times."""
+    """Re-run the node's ticks with the node's own integration loop (``engine.Engine``):
+    commands take effect at the tick starting at their recorded time and the queued ticks are
+    integrated on the same publish grid, so the arithmetic is the node's. Returns the states
+    (x, v) at the recorded times."""
     import numpy as np
 
-    from .actuator import Actuator, ActuatorLimits
-    from .gaits import Cubic
+    from .actuator import ActuatorLimits
+    from .engine import Engine, EngineConfig
     from .model import Crawler
-    from .stepper import Stepper
 
     sc = run.scene
     c = sc['crawler']
@@ -351,49 +351,39 @@ def _replay_node(run: Any, method: str | None) -> tuple[Any, Any]:
     p = crawler.p
     lengths = [float(x) for x in sc['initial_lengths']]
     lengths = lengths * (p - 1) if len(lengths) == 1 else lengths
-    dt_ns = max(1, round(1e9 / float(sc['integration_rate'])))
-    dt = dt_ns * 1e-9
+    rate = float(sc['integration_rate'])
+    dt_ns = max(1, round(1e9 / rate))
     limits = ActuatorLimits(float(sc['actuator_bandwidth']), float(sc['actuator_max_speed']),
                             float(sc['actuator_max_acceleration']))
     method = method or sc['method']
-    actuator = Actuator(lengths, dt, limits)
-    stepper = Stepper(crawler, Cubic(0.0, lengths, 0.0, 0.0, 0.0), method,
-                      x0=float(sc['initial_position']), dt=dt)
+    penalty = [float(n) for n in sc.get('penalty', [1e6])] if method == 'penalty' else None
+    engine = Engine(EngineConfig(crawler, method, dt_ns,
+                                 max(1, round(rate / float(sc['publish_rate']))), lengths,
+                                 float(sc['initial_position']), limits, penalty))
     cmd_t, cmd_v = _commands(getattr(run, 'commands', None))
     cmd_ns = [round(t * 1e9) for t in cmd_t]
     want_ns = np.rint(np.asarray(run.t, dtype=float) * 1e9).astype(np.int64)
     x = np.empty((want_ns.size, p))
     v = np.empty((want_ns.size, p))
     k = i = 0
-    t_ns = 0
+    reported = 0
     while True:
-        while i < want_ns.size and want_ns[i] <= t_ns:
-            if want_ns[i] == t_ns:
-                st = stepper.state
+        while i < want_ns.size and want_ns[i] <= engine.t_ns:
+            if want_ns[i] == engine.t_ns:
+                st = engine.state
                 x[i], v[i] = st.x, st.v
             else:
                 x[i] = v[i] = np.nan     # not on the tick grid: the node cannot have sent it
             i += 1
         if i >= want_ns.size:
             break
-        while k < len(cmd_ns) and cmd_ns[k] <= t_ns:
-            actuator.set_target(cmd_v[k])
+        while k < len(cmd_ns) and cmd_ns[k] <= engine.t_ns:
+            engine.set_target(cmd_v[k])
             k += 1
-        t1_ns = t_ns + dt_ns
-        piece = actuator.step(t_ns / 1e9, t1_ns / 1e9)
-        try:
-            stepper.advance(t1_ns / 1e9, piece)
-        except (ValueError, RuntimeError, ArithmeticError) as exc:
-            if stepper.method == 'implicit':
-                raise
-            # as SimNode._advance: go on with the implicit method from the current state
-            _info(f'{stepper.method} solver failed at t = {t1_ns / 1e9} s ({exc}); continuing '
-                  'with method implicit, as the node does')
-            st = stepper.state
-            stepper = Stepper(crawler, piece, 'implicit', t0=float(st.t), x0=float(st.x[0]),
-                              v0=float(st.v[0]), dt=dt)
-            stepper.advance(t1_ns / 1e9, piece)
-        t_ns = t1_ns
+        engine.tick()
+        if len(engine.failures) > reported:
+            reported = len(engine.failures)
+            _info(engine.failures[-1] + '; continuing with method implicit, as the node does')
     return x, v
 
 

@@ -17,13 +17,14 @@ Gaits in this module:
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from typing import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = ['Gait', 'Custom', 'Sinusoid', 'Fourier', 'Scallop', 'PiecewiseParabolic', 'Spline',
-           'Cubic']
+           'Cubic', 'PiecewiseCubic']
 
 Triple = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
 
@@ -667,3 +668,60 @@ class Cubic(Gait):
 
     def is_constant(self, t0: float, t1: float) -> bool:
         return not (np.any(self.v0) or np.any(self.a0) or np.any(self.jerk))
+
+
+class PiecewiseCubic(Gait):
+    """Consecutive ``Cubic`` pieces, piece k valid on [starts[k], starts[k+1]) (the last one
+    from its start on), as the node's actuator hands them out tick by tick.
+
+    The node integrates many ticks in one exact solve with this gait. Joins where l'' does not
+    continue exactly (a cubic's end value differs from the next piece's a0) are reported as
+    breakpoints, so the exact solver places events there precisely.
+    """
+
+    def __init__(self, starts: ArrayLike, pieces: list[Cubic]) -> None:
+        starts = np.asarray(starts, dtype=float)
+        if starts.ndim != 1 or starts.size != len(pieces) or starts.size == 0:
+            raise ValueError('starts must list one start time [s] per piece')
+        if np.any(np.diff(starts) <= 0):
+            raise ValueError('starts must be strictly increasing')
+        self.n_links = pieces[0].n_links
+        if any(pc.n_links != self.n_links for pc in pieces):
+            raise ValueError('every piece must have the same number of linkages')
+        self.starts = starts
+        self._starts = starts.tolist()
+        self.pieces = list(pieces)
+        self._t0 = np.array([pc.t0 for pc in pieces])
+        self._c = [np.array([pc.l0 for pc in pieces]), np.array([pc.v0 for pc in pieces]),
+                   np.array([pc.a0 for pc in pieces]), np.array([pc.jerk for pc in pieces])]
+        jumps = [starts[k] for k in range(1, len(pieces))
+                 if pieces[k] is not pieces[k - 1]
+                 and np.any(pieces[k - 1](starts[k])[2] != pieces[k].a0)]
+        self._jumps = np.array(jumps)
+        self._constant = [pc.is_constant(0.0, 0.0) for pc in pieces]
+
+    def _index(self, t: float) -> int:
+        return max(bisect_right(self._starts, t) - 1, 0)
+
+    def at(self, t: float) -> Triple:
+        return self.pieces[self._index(t)](t)
+
+    def __call__(self, t: float | ArrayLike) -> Triple:
+        if np.ndim(t) == 0:
+            return self.at(float(t))
+        return super().__call__(t)
+
+    def _eval(self, t: NDArray[np.float64]) -> Triple:
+        k = np.clip(np.searchsorted(self.starts, t, side='right') - 1, 0, len(self.pieces) - 1)
+        l0, v0, a0, j = (c[k] for c in self._c)
+        d = (t - self._t0[k])[:, None]
+        return (l0 + d * (v0 + d * (0.5 * a0 + d * j / 6.0)),
+                v0 + d * (a0 + 0.5 * d * j), a0 + d * j)
+
+    def breakpoints(self, t0: float, t1: float) -> NDArray[np.float64]:
+        b = self._jumps
+        return b[(b > t0) & (b < t1)] if b.size else b
+
+    def is_constant(self, t0: float, t1: float) -> bool:
+        k0, k1 = self._index(t0), self._index(t1)
+        return all(self._constant[k0:k1 + 1])

@@ -1,7 +1,7 @@
 """``sim_node``: the crawler as a ROS 2 node driven by commanded linkage lengths.
 
-The node is a thin layer around the core (``crawler_sim.Stepper``) and the actuator model
-(``crawler_sim.actuator``). Interface (relative names unless they start with ``/``):
+The node is a thin layer around ``crawler_sim.engine.Engine`` (the actuator model and the
+core's exact ``Stepper``, no ROS). Interface (relative names unless they start with ``/``):
 
 - subscribes ``linkage_cmd`` (std_msgs/Float64MultiArray): target length of each linkage [m];
   ``linkage_trajectory`` (trajectory_msgs/JointTrajectory, joints ``linkage_0``...);
@@ -17,8 +17,11 @@ Timing. Sim time is an integer number of nanoseconds that advances by ``dt = 1/i
 per tick, so a run is deterministic: the same commands taking effect at the same ticks give
 bit-identical states. A tick: apply pending parameter changes, then the pending command
 (commands and trajectories take effect at the next tick boundary after they arrive), ask the
-actuator for one constant-jerk piece on [t, t + dt], ``Stepper.advance(t + dt, piece)``, and
-every ``N = round(integration_rate / publish_rate)`` ticks publish ``/clock`` and the outputs.
+actuator for one constant-jerk piece on [t, t + dt] (l is C2 across ticks), and every
+``N = round(integration_rate / publish_rate)`` ticks integrate the N queued pieces exactly in one
+``Stepper.advance`` and publish ``/clock`` and the outputs. Queuing changes no physics (the
+solution of the same l(t) is the same), only where the exact solver cuts its segments, which the
+publish grid fixes; ``crawler-sim replay`` runs the same engine and reproduces a run bit for bit.
 
 One loop (:meth:`SimNode.run`) drives the ticks in both clock modes; ROS callbacks run in an
 executor thread and only take a lock to store what they received, so every change lands
@@ -59,10 +62,10 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import MarkerArray
 
 from crawler_sim import messages as M
-from crawler_sim.actuator import Actuator, ActuatorLimits, TrajectoryReference
-from crawler_sim.gaits import Cubic
+from crawler_sim.actuator import ActuatorLimits, TrajectoryReference
+from crawler_sim.engine import Engine, EngineConfig
 from crawler_sim.model import Crawler
-from crawler_sim.stepper import METHODS, Stepper
+from crawler_sim.stepper import METHODS
 
 __all__ = ['SimNode', 'SimConfig', 'PARAMETERS', 'main', 'validate_command']
 
@@ -149,6 +152,12 @@ class SimConfig:
     @property
     def n_links(self) -> int:
         return self.crawler.p - 1
+
+    def engine_config(self) -> EngineConfig:
+        """The part of the configuration the integration loop (``engine.Engine``) uses."""
+        return EngineConfig(self.crawler, self.method, self.dt_ns, self.publish_every,
+                            self.initial_lengths, self.initial_position, self.limits,
+                            self.penalty_n)
 
     @property
     def penalty_n(self) -> list[float] | None:
@@ -288,6 +297,7 @@ class SimNode(Node):
         self._build(self._cfg, t_ns=0)
         if self._cfg.record:      # last: nothing below can fail and leave the bag open
             self._open_bag()
+            self._publish_outputs()   # the initial state, so a recording starts at t = 0
 
     # ------------------------------------------------------------------ configuration
     def _param_values(self) -> dict:
@@ -317,13 +327,7 @@ class SimNode(Node):
         """(Re)build actuator and stepper at rest in the initial configuration at sim time t_ns."""
         self._cfg = cfg
         self._t_ns = t_ns
-        dt = cfg.dt_ns * 1e-9
-        self._actuator = Actuator(cfg.initial_lengths, dt, cfg.limits)
-        t = t_ns / 1e9
-        rest = Cubic(t, list(cfg.initial_lengths), 0.0, 0.0, 0.0)
-        self._stepper = Stepper(cfg.crawler, rest, cfg.method, t0=t, x0=cfg.initial_position,
-                                v0=0.0, dt=dt, penalty=cfg.penalty_n)
-        self._stepper.pop_events()
+        self._engine = Engine(cfg.engine_config(), t_ns)
         self._pending_cmd = None
         self._pending_traj = None
         self._anchor_needed = True
@@ -337,18 +341,14 @@ class SimNode(Node):
             self._sync_publishers()
             return
         self._cfg = new
-        if new.dt_ns != old.dt_ns or new.limits != old.limits:
-            self._actuator.configure(dt=new.dt_ns * 1e-9, limits=new.limits)
         if (new.crawler.to_dict() != old.crawler.to_dict() or new.method != old.method
                 or new.dt_ns != old.dt_ns or new.penalty_n != old.penalty_n):
-            st = self._stepper.state
-            t = self._t_ns / 1e9
-            ls, vs, as_ = zip(*self._actuator.state())
-            here = Cubic(t, list(ls), list(vs), list(as_), 0.0)
-            self._stepper = Stepper(new.crawler, here, new.method, t0=t, x0=float(st.x[0]),
-                                    v0=float(st.v[0]), dt=new.dt_ns * 1e-9,
-                                    penalty=new.penalty_n)
-            self._stepper.pop_events()
+            self._engine.restart_stepper(new.engine_config())
+        else:
+            self._engine.sync()
+            self._engine.cfg = new.engine_config()
+            if new.limits != old.limits:
+                self._engine.actuator.configure(limits=new.limits)
         self._sync_publishers()
         self._anchor_needed = True
 
@@ -493,7 +493,7 @@ class SimNode(Node):
     @property
     def state(self):
         """The core ``State`` now."""
-        return self._stepper.state
+        return self._engine.state
 
     @property
     def config(self) -> SimConfig:
@@ -510,43 +510,30 @@ class SimNode(Node):
                 self._apply_command(t0_ns)
             elif self._pending_traj is not None:
                 self._apply_trajectory(t0_ns)
-            t1_ns = t0_ns + self._cfg.dt_ns
-            t0, t1 = t0_ns / 1e9, t1_ns / 1e9
-            piece = self._actuator.step(t0, t1)
-            self._advance(t1, piece)
-            self._t_ns = t1_ns
+            engine = self._engine
+            synced = engine.tick()     # integrates the queued ticks on the publish grid
+            self._t_ns = engine.t_ns
             self.counters['ticks'] += 1
-            events = self._stepper.pop_events()
+            if not synced:
+                return
+            if engine.failures:
+                # the engine redid the interval with method implicit and goes on with it
+                self.counters['solver_failures'] += len(engine.failures)
+                self._solver_error = engine.failures[-1] + '; continuing with method implicit'
+                self._log.error(self._solver_error, throttle_duration_sec=WARN_THROTTLE)
+                engine.failures.clear()
+            events = engine.pop_events()
             if events:
                 self.counters['solver_events'] += len(events)
                 if self._bag is not None:
                     for ev in events:
                         self._record('events', 'std_msgs/msg/Int32MultiArray',
                                      M.event_msg(ev.body, ev.old, ev.new), round(ev.time * 1e9))
-            if (t1_ns // self._cfg.dt_ns) % self._cfg.publish_every == 0:
-                self._publish_outputs()        # on the sim-time grid of the publish period
-
-    def _advance(self, t1: float, piece: Cubic) -> None:
-        """``Stepper.advance``; if the solver fails, log it, fall back to the implicit method at
-        the current state and retry, so one bad tick never stops the node."""
-        try:
-            self._stepper.advance(t1, piece)
-            return
-        except (ValueError, RuntimeError, ArithmeticError) as exc:
-            if self._stepper.method == 'implicit':
-                raise
-            self.counters['solver_failures'] += 1
-            self._solver_error = f'{self._stepper.method} solver failed at t = {t1} s: {exc}'
-            self._log.error(self._solver_error + '; continuing with method implicit',
-                            throttle_duration_sec=WARN_THROTTLE)
-        st = self._stepper.state
-        self._stepper = Stepper(self._cfg.crawler, piece, 'implicit', t0=float(st.t),
-                                x0=float(st.x[0]), v0=float(st.v[0]), dt=self._cfg.dt_ns * 1e-9)
-        self._stepper.advance(t1, piece)
+            self._publish_outputs()        # on the sim-time grid of the publish period
 
     def _apply_command(self, t_ns: int) -> None:
         cmd, self._pending_cmd = self._pending_cmd, None
-        self._actuator.set_target(cmd)
+        self._engine.actuator.set_target(cmd)
         msg = M.applied_command_msg(t_ns, cmd)
         self._applied_pub.publish(msg)
         if self._bag is not None:
@@ -557,7 +544,7 @@ class SimNode(Node):
     def _apply_trajectory(self, t_ns: int) -> None:
         msg, self._pending_traj = self._pending_traj, None
         if not msg.points:
-            self._actuator.set_trajectory(None)
+            self._engine.actuator.set_trajectory(None)
             return
         t_a = t_ns / 1e9
         stamp_ns = M.ns_from_stamp(msg.header.stamp)
@@ -573,7 +560,7 @@ class SimNode(Node):
         has_a = has_v and all(len(pt.accelerations) for pt in keep)
         vel = [[pt.velocities[i] for i in order] for pt in keep] if has_v else None
         acc = [[pt.accelerations[i] for i in order] for pt in keep] if has_a else None
-        self._actuator.set_trajectory(TrajectoryReference(t_a, self._actuator.state(), times,
+        self._engine.actuator.set_trajectory(TrajectoryReference(t_a, self._engine.actuator.state(), times,
                                                           pos, vel, acc))
         if self._bag is not None:        # the trajectory as applied: stamp = t_a, times from t_a
             out = JointTrajectory()
@@ -598,7 +585,7 @@ class SimNode(Node):
         pubs = self._pubs
         if not (pubs.keys() - {'diagnostics'}):
             return
-        st = self._last_state = self._stepper.state
+        st = self._last_state = self._engine.state
         builders = (('joint_states', 'sensor_msgs/msg/JointState', M.joint_states_msg),
                     ('body_states', 'sensor_msgs/msg/JointState', M.body_states_msg))
         for name, type_name, build in builders:
@@ -639,7 +626,7 @@ class SimNode(Node):
                 **c,
                 'last_rejection': self._last_rejection,
                 'indeterminate': bool(getattr(self._last_state, 'indeterminate', False)),
-                'solver_method_now': self._stepper.method,
+                'solver_method_now': self._engine.stepper.method,
                 'solver_error': self._solver_error,
                 'linkage_cmd_publishers': _count(self._cmd_sub.get_publisher_count),
                 'linkage_trajectory_publishers': _count(self._traj_sub.get_publisher_count),

@@ -460,8 +460,9 @@ def test_the_same_commands_at_the_same_ticks_give_bit_identical_states_and_match
 def test_at_rest_the_stepper_gets_constant_pieces(ros, monkeypatch):
     sim = ros.sim()
     pieces = []
-    advance = sim._stepper.advance
-    monkeypatch.setattr(sim._stepper, 'advance', lambda t1, g: (pieces.append(g), advance(t1, g)))
+    stepper = sim._engine.stepper
+    advance = stepper.advance
+    monkeypatch.setattr(stepper, 'advance', lambda t1, g: (pieces.append(g), advance(t1, g)))
     ticks(sim, 20)
     assert all(p.is_constant(0.0, 1.0) for p in pieces)
 

@@ -75,7 +75,7 @@ class TimeStepper:
 
     def _step(self, t_new: float) -> None:
         h = t_new - self.t
-        l, ld, ldd = self.gait(t_new)
+        l, ld, ldd = self.gait.at(t_new)
         check_finite_gait((l, ld, ldd), t_new)
         e, ep, epp = kinematics(self._m, l, ld, ldd)
         V_new, R, contact = self._velocity(h, ep)

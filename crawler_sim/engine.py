@@ -1,0 +1,135 @@
+"""The node's integration loop without ROS: actuator ticks, lazy exact integration, fallback.
+
+``sim_node`` and ``crawler-sim replay`` both run this, so a replay repeats the node's
+arithmetic exactly. Each tick the actuator model emits one constant-jerk piece of l(t)
+(``actuator.py``); the pieces are queued and the core ``Stepper`` integrates them exactly in one
+call at each publish tick (``sync``). The physics does not depend on where the integration is
+cut, only the rounding does, so sync points are part of the determinism contract: the publish
+grid (every ``publish_every`` ticks) and explicit ``sync()`` calls.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+from .actuator import Actuator, ActuatorLimits
+from .gaits import Cubic, PiecewiseCubic
+from .model import Crawler
+from .stepper import Stepper
+from .trajectory import Event, State
+
+__all__ = ['Engine', 'EngineConfig']
+
+
+@dataclass(frozen=True)
+class EngineConfig:
+    """What the engine needs from the node's parameters (units: s, m, ns)."""
+
+    crawler: Crawler
+    method: str
+    dt_ns: int                           # tick length [ns]
+    publish_every: int                   # sync every this many ticks
+    initial_lengths: Sequence[float]     # [m]
+    initial_position: float              # body 0 [m]
+    limits: ActuatorLimits
+    penalty: Sequence[float] | None = None
+
+
+class Engine:
+    """Actuator + core stepper on a fixed tick grid in integer nanoseconds."""
+
+    def __init__(self, cfg: EngineConfig, t_ns: int = 0) -> None:
+        self.cfg = cfg
+        self.failures: list[str] = []
+        self.build(cfg, t_ns)
+
+    def build(self, cfg: EngineConfig, t_ns: int) -> None:
+        """(Re)start at rest in the initial configuration at sim time ``t_ns``."""
+        self.cfg = cfg
+        self.t_ns = t_ns
+        dt = cfg.dt_ns * 1e-9
+        self.actuator = Actuator(list(cfg.initial_lengths), dt, cfg.limits)
+        t = t_ns / 1e9
+        rest = Cubic(t, list(cfg.initial_lengths), 0.0, 0.0, 0.0)
+        self.stepper = Stepper(cfg.crawler, rest, cfg.method, t0=t, x0=cfg.initial_position,
+                               v0=0.0, dt=dt, penalty=cfg.penalty)
+        self.stepper.pop_events()
+        self._starts: list[float] = []
+        self._pieces: list[Cubic] = []
+        self._events: list[Event] = []
+
+    def restart_stepper(self, cfg: EngineConfig) -> None:
+        """New crawler, method or step from the current state on (bodies keep x and v)."""
+        self.sync()
+        st = self.stepper.state
+        t = self.t_ns / 1e9
+        self.actuator.configure(dt=cfg.dt_ns * 1e-9, limits=cfg.limits)
+        ls, vs, as_ = zip(*self.actuator.state())
+        here = Cubic(t, list(ls), list(vs), list(as_), 0.0)
+        self._events.extend(self.stepper.pop_events())
+        self.stepper = Stepper(cfg.crawler, here, cfg.method, t0=t, x0=float(st.x[0]),
+                               v0=float(st.v[0]), dt=cfg.dt_ns * 1e-9, penalty=cfg.penalty)
+        self.stepper.pop_events()
+        self.cfg = cfg
+
+    @property
+    def t(self) -> float:
+        """Sim time [s] at the current tick boundary."""
+        return self.t_ns / 1e9
+
+    def tick(self) -> bool:
+        """One tick of the actuator; integrates (syncs) on the publish grid.
+
+        Returns True when this tick ended on the publish grid (the state is then current).
+        """
+        t0_ns = self.t_ns
+        t1_ns = t0_ns + self.cfg.dt_ns
+        t0 = t0_ns / 1e9
+        self._starts.append(t0)
+        self._pieces.append(self.actuator.step(t0, t1_ns / 1e9))
+        self.t_ns = t1_ns
+        if (t1_ns // self.cfg.dt_ns) % self.cfg.publish_every == 0:
+            self.sync()
+            return True
+        return False
+
+    def sync(self) -> None:
+        """Integrate the queued pieces up to the current tick boundary."""
+        if not self._pieces:
+            return
+        pieces, starts = self._pieces, self._starts
+        self._pieces, self._starts = [], []
+        gait = pieces[0] if len(pieces) == 1 or all(pc is pieces[0] for pc in pieces) \
+            else PiecewiseCubic(starts, pieces)
+        t1 = self.t_ns / 1e9
+        try:
+            self.stepper.advance(t1, gait)
+        except (ValueError, RuntimeError, ArithmeticError) as exc:
+            if self.stepper.method == 'implicit':
+                raise
+            self._fallback(t1, gait, starts[0], exc)
+        self._events.extend(self.stepper.pop_events())
+
+    def _fallback(self, t1: float, gait, t0: float, exc: Exception) -> None:
+        """Redo the interval with the implicit method from its start, so one failure never
+        stops the node; the failure is kept in ``failures``."""
+        self.failures.append(f'{self.stepper.method} solver failed before t = {t1} s: {exc}')
+        st = self.stepper.state
+        self.stepper = Stepper(self.cfg.crawler, gait, 'implicit', t0=float(st.t),
+                               x0=float(st.x[0]), v0=float(st.v[0]), dt=self.cfg.dt_ns * 1e-9)
+        self.stepper.advance(t1, gait)
+
+    @property
+    def state(self) -> State:
+        """The crawler now (integrates what is queued first)."""
+        self.sync()
+        return self.stepper.state
+
+    def pop_events(self) -> list[Event]:
+        """Contact events integrated so far and not yet popped, in time order."""
+        out, self._events = self._events, []
+        return out
+
+    def set_target(self, lengths: Sequence[float]) -> None:
+        """A step command for the actuator, effective from the current tick boundary."""
+        self.actuator.set_target(lengths)
