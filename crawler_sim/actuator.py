@@ -367,7 +367,7 @@ class Actuator:
                          lim.max_speed, lim.max_acceleration)
             jerk[i] = j
             self.l[i], self.v[i], self.a[i] = cubic_end(l0[i], v0[i], a0[i], j, d)
-        piece = Cubic(t0, l0, v0, a0, jerk)
+        piece = Cubic.trusted(t0, l0, v0, a0, jerk)
         if traj is None and all(self._settled):
             self._rest_piece = piece      # constant: valid at any time, reused until a command
         return piece

@@ -651,6 +651,20 @@ class Cubic(Gait):
         self.v0 = _per_link('v0', v0, self.n_links)
         self.a0 = _per_link('a0', a0, self.n_links)
         self.jerk = _per_link('jerk', jerk, self.n_links)
+        self._constant = not (np.any(self.v0) or np.any(self.a0) or np.any(self.jerk))
+
+    @classmethod
+    def trusted(cls, t0: float, l0: list[float], v0: list[float], a0: list[float],
+                jerk: list[float]) -> Cubic:
+        """Build from lists of finite floats of equal length without validation (the
+        actuator's hot path, one piece per tick; it produces only finite values)."""
+        self = cls.__new__(cls)
+        self.t0 = float(t0)
+        self.l0, self.v0, self.a0, self.jerk = (np.array(x, dtype=float)
+                                                for x in (l0, v0, a0, jerk))
+        self.n_links = len(l0)
+        self._constant = not (any(v0) or any(a0) or any(jerk))
+        return self
 
     def __call__(self, t: float | ArrayLike) -> Triple:
         if np.ndim(t) == 0:
@@ -667,7 +681,7 @@ class Cubic(Gait):
                 v0 + d * (a0 + 0.5 * d * j), a0 + d * j)
 
     def is_constant(self, t0: float, t1: float) -> bool:
-        return not (np.any(self.v0) or np.any(self.a0) or np.any(self.jerk))
+        return self._constant
 
 
 class PiecewiseCubic(Gait):
@@ -694,10 +708,9 @@ class PiecewiseCubic(Gait):
         self._t0 = np.array([pc.t0 for pc in pieces])
         self._c = [np.array([pc.l0 for pc in pieces]), np.array([pc.v0 for pc in pieces]),
                    np.array([pc.a0 for pc in pieces]), np.array([pc.jerk for pc in pieces])]
-        jumps = [starts[k] for k in range(1, len(pieces))
-                 if pieces[k] is not pieces[k - 1]
-                 and np.any(pieces[k - 1](starts[k])[2] != pieces[k].a0)]
-        self._jumps = np.array(jumps)
+        # l'' at the end of piece k (the Cubic's own expression) against a0 of piece k+1
+        a_end = self._c[2][:-1] + (starts[1:] - self._t0[:-1])[:, None] * self._c[3][:-1]
+        self._jumps = starts[1:][np.any(a_end != self._c[2][1:], axis=1)]
         self._constant = [pc.is_constant(0.0, 0.0) for pc in pieces]
 
     def _index(self, t: float) -> int:

@@ -297,7 +297,7 @@ class SimNode(Node):
         self._build(self._cfg, t_ns=0)
         if self._cfg.record:      # last: nothing below can fail and leave the bag open
             self._open_bag()
-            self._publish_outputs()   # the initial state, so a recording starts at t = 0
+        self._publish_outputs()       # the initial state at t = 0 (a recording starts there)
 
     # ------------------------------------------------------------------ configuration
     def _param_values(self) -> dict:
@@ -733,9 +733,6 @@ class SimNode(Node):
         next_diag = anchor_wall + self._cfg.diagnostics_period
         ok = self.context.ok
         self._stop = False
-        if self.counters['ticks'] == 0:
-            with self._lock:
-                self._publish_outputs()       # the initial state, at t = 0
         while ok() and not self._stop:
             t = now()
             if t >= next_diag:

@@ -132,13 +132,7 @@ class Stepper:
         self._solver.advance(t1, gait)
 
     def _row(self) -> dict:
-        s = self._solver
-        if self.method != 'exact':
-            return s.current()
-        seg = s.last if (s.last is not None and s.last.t1 == s.t) else s.provisional()
-        row = {k: v[0] for k, v in seg.evaluate(self.crawler, np.array([s.t])).items()}
-        row['indeterminate'] = bool(seg.group.sum() > 1)
-        return row
+        return self._solver.current()
 
     @property
     def state(self) -> State:

@@ -423,6 +423,41 @@ class ExactSolver:
         return Segment(t0, t0, self.gait, contact, R, self.K.copy(), X, V, float(a), ref, x_ref,
                        group)
 
+    def current(self) -> dict:
+        """The state at the current time as one output row (left limit at an event): the
+        same closed form as ``Segment.evaluate``, for one time, without array overhead."""
+        seg = self.last if (self.last is not None and self.last.t1 == self.t) else \
+            self.provisional()
+        t = self.t
+        l, ld, ldd = seg.gait.at(t)
+        W, C, m, M = self._W, self._C, self._m, self._M
+        epp = W @ ldd
+        d = t - seg.t0
+        if seg.ref < 0:
+            X = seg.X0 + d * (seg.V0 + 0.5 * seg.a * d)
+            V = seg.V0 + seg.a * d
+            x, v, A = X + W @ l, V + W @ ld, seg.a
+            R = seg.R.copy()
+            K = seg.K0 + seg.R * d
+        else:
+            r, g = seg.ref, seg.group
+            s, sd = C @ l, C @ ld
+            x, v, A = seg.x_ref + (s - s[r]), sd - sd[r], -epp[r]
+            slide_R = np.where(g, 0.0, seg.R)
+            f_slide = self._fext + slide_R.sum()
+            R = slide_R.copy()
+            R[g] = -split_friction(f_slide - M * A, self._fp[g], self._fm[g])
+            imp = M * (-(W[r] @ ld) - seg.V0) - f_slide * d
+            K = seg.K0 + slide_R * d
+            K[g] += _split_impulse(np.array([imp]), np.array([d]), self._fp[g], self._fm[g])[0]
+        contact = seg.contact.copy()
+        if self._free.any():
+            contact[self._free] = np.sign(v[self._free])
+        lam = np.cumsum(R + self.crawler.gravity_forces - m * (A + epp))[:-1]
+        return {'x': x, 'v': v, 'friction': R, 'impulse': K, 'linkage_force': lam,
+                'lengths': l, 'rates': ld, 'contact': contact,
+                'indeterminate': bool(seg.group.sum() > 1)}
+
     def _record_contact_change(self, t: float, contact: NDArray) -> None:
         old = self.contact
         for i in np.nonzero(contact != old)[0]:
