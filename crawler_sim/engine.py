@@ -99,18 +99,23 @@ class Engine:
             return
         pieces, starts = self._pieces, self._starts
         self._pieces, self._starts = [], []
+        t1 = self.t_ns / 1e9
+        if self.stepper.method != 'exact':
+            # time stepping: one call per tick keeps its steps on the tick grid
+            ends = starts[1:] + [t1]
+            for end, piece in zip(ends, pieces):
+                self.stepper.advance(end, piece)
+            self._events.extend(self.stepper.pop_events())
+            return
         gait = pieces[0] if len(pieces) == 1 or all(pc is pieces[0] for pc in pieces) \
             else PiecewiseCubic(starts, pieces)
-        t1 = self.t_ns / 1e9
         try:
             self.stepper.advance(t1, gait)
         except (ValueError, RuntimeError, ArithmeticError) as exc:
-            if self.stepper.method == 'implicit':
-                raise
-            self._fallback(t1, gait, starts[0], exc)
+            self._fallback(t1, gait, exc)
         self._events.extend(self.stepper.pop_events())
 
-    def _fallback(self, t1: float, gait, t0: float, exc: Exception) -> None:
+    def _fallback(self, t1: float, gait, exc: Exception) -> None:
         """Redo the interval with the implicit method from its start, so one failure never
         stops the node; the failure is kept in ``failures``."""
         self.failures.append(f'{self.stepper.method} solver failed before t = {t1} s: {exc}')

@@ -582,8 +582,12 @@ class SimNode(Node):
         t_ns = self._t_ns
         if self._clock_pub is not None:
             self._clock_pub.publish(M.clock_msg(t_ns))
-        pubs = self._pubs
-        if not (pubs.keys() - {'diagnostics'}):
+        # An output is built only when it is switched on and someone takes it: a subscriber,
+        # or the bag. Nobody listening costs nothing (a late subscriber gets the next one).
+        recording = self._bag is not None
+        pubs = {name: pub for name, pub in self._pubs.items()
+                if name != 'diagnostics' and (recording or pub.get_subscription_count() > 0)}
+        if not pubs:
             return
         st = self._last_state = self._engine.state
         builders = (('joint_states', 'sensor_msgs/msg/JointState', M.joint_states_msg),
