@@ -221,6 +221,7 @@ class ExactSolver:
         self.n_skipped_periods = 0
         self.last: Segment | None = None
         self._checkpoint = None
+        self._mode_cache = None
 
     # ------------------------------------------------------------- mode choice
     def _mode(self, t: float, ep: NDArray, epp: NDArray, t_limit: float):
@@ -358,14 +359,15 @@ class ExactSolver:
     def _switch_gait(self, gait: Gait) -> None:
         """Continue with a new gait: keep the bodies' positions, velocities and contact state."""
         self._checkpoint = None
-        if self.ref >= 0:
-            self.gait = gait
-            return
-        l0, ld0, _ = self.gait.at(self.t)
-        l1, ld1, _ = gait.at(self.t)
-        # body 0 keeps its position and velocity
-        self.X += float(self._W[0] @ (l0 - l1))
-        self.V += float(self._W[0] @ (ld0 - ld1))
+        l0, ld0, ldd0 = self.gait.at(self.t)
+        l1, ld1, ldd1 = gait.at(self.t)
+        if not (np.array_equal(l0, l1) and np.array_equal(ld0, ld1)
+                and np.array_equal(ldd0, ldd1)):
+            self._mode_cache = None     # not a C2 continuation: choose the mode anew
+        if self.ref < 0:
+            # body 0 keeps its position and velocity
+            self.X += float(self._W[0] @ (l0 - l1))
+            self.V += float(self._W[0] @ (ld0 - ld1))
         self.gait = gait
 
     def _segment(self, t_stop: float, left_limit: bool = False) -> None:
@@ -378,7 +380,12 @@ class ExactSolver:
             # Stuck reference body: exact velocity of the centre of mass from the gait.
             self.V = float(-ep[self.ref])
             self.X = float(self.x_ref - e[self.ref])
-        contact, a, ref, group = self._mode(t0, ep, epp, t_stop)
+        if self._mode_cache is not None:
+            # the previous segment ended on a smooth boundary, not at an event: same mode
+            contact, a, ref, group = self._mode_cache
+        else:
+            contact, a, ref, group = self._mode(t0, ep, epp, t_stop)
+        self._mode_cache = None
         if ref >= 0:
             x_ref = self.x_ref if (self.ref == ref) else float(self.X + e[ref])
         else:
@@ -403,7 +410,7 @@ class ExactSolver:
                 # no sliver segment with the old piece's acceleration
                 t_ev = t_stop
         seg.t1 = t_ev
-        self._close(seg, t_ev, hits)
+        self._close(seg, t_ev, hits, left_limit)
 
     def provisional(self) -> Segment:
         """A zero-length segment at the current time with the mode the next segment would use."""
@@ -464,7 +471,8 @@ class ExactSolver:
             self.events.append(Event(t, int(i), int(old[i]), int(contact[i])))
         self.contact = contact
 
-    def _close(self, seg: Segment, t_ev: float, hits: list[tuple[str, int]]) -> None:
+    def _close(self, seg: Segment, t_ev: float, hits: list[tuple[str, int]],
+               left_limit: bool = False) -> None:
         """Move the state to the end of ``seg`` and mark bodies now at zero velocity."""
         d = t_ev - seg.t0
         if seg.ref < 0:
@@ -492,6 +500,10 @@ class ExactSolver:
         self.zero = zero
         self.ref = seg.ref
         self.x_ref = seg.x_ref
+        if not hits and not left_limit:
+            # ended on a smooth boundary: the next segment starts in the same mode unless the
+            # gait switch there is not C2 (``_switch_gait`` drops this)
+            self._mode_cache = (seg.contact, seg.a, seg.ref, seg.group)
         self.t = t_ev
         self.n_segments += 1
         self.last = seg
