@@ -15,13 +15,15 @@ is chosen by the acceleration-level inclusion (``contact.solve_inclusion``); whe
 degenerate (a tie at a kink or at a bound, e.g. right at a stick-to-slip transition or a grazing
 contact) it is decided by the same inclusion a short look-ahead later.
 
-How brackets are chosen (so no event is missed): every segment is scanned on a grid whose spacing
-is at most ``max_step`` (default: gait period / 64, or 1/8 of the segment for aperiodic gaits), in
-chunks, vectorised. An event is bracketed by a sign change on the grid; for velocity events the
-derivative is known in closed form, so a velocity that dips to zero and back between two grid
-points is caught as well (a sign change of its derivative is refined and the minimum checked).
-Two force events closer than ``max_step`` on the same body can be missed: lower ``max_step``.
-Roots are refined with Brent's method (``scipy.optimize.brentq``) to ``tol`` seconds.
+How brackets are chosen (so no event is missed): every segment is scanned on a grid whose
+spacing is the gait period / 64 (1/8 of the interval for aperiodic gaits) or the user's
+``max_step`` if that is smaller, in chunks, vectorised. An event is bracketed by a sign change on
+the grid; for velocity events the derivative is known in closed form, so a velocity that dips to
+zero and back between two grid points is caught as well (a sign change of its derivative is
+refined and the minimum checked). A stuck body's force that crosses its bound and comes back
+between two grid points can be missed: lower ``max_step`` for gaits with sharp features.
+Velocity roots are refined by safeguarded Newton, force roots by Brent's method
+(``scipy.optimize.brentq``), to ``tol`` seconds, and reported on the crossed side.
 """
 from __future__ import annotations
 
@@ -618,11 +620,10 @@ class ExactSolver:
         return fd_rel
 
     def _grid_step(self, t0: float, t_stop: float) -> float:
-        if self.max_step is not None:
-            return float(self.max_step)
-        if self.gait.period:
-            return self.gait.period / 64.0
-        return max((t_stop - t0) / 8.0, 1e-300)
+        """Spacing of the event-check grid: period / 64 (1/8 of the interval for an aperiodic
+        gait), never more than the user's ``max_step``."""
+        h = self.gait.period / 64.0 if self.gait.period else max((t_stop - t0) / 8.0, 1e-300)
+        return min(h, float(self.max_step)) if self.max_step is not None else h
 
     def _find_event(self, seg: Segment, t_stop: float,
                     left_limit: bool = False) -> tuple[float, list[tuple[str, int]]]:
@@ -672,8 +673,24 @@ class ExactSolver:
         return None
 
     def _root(self, f, a: float, b: float) -> float:
+        """Root of f in [a, b] (f(a) > 0 >= f(b)) to ``tol``, returned on the crossed side
+        (f <= 0 there), so the mode chosen at the event sees the condition violated."""
         from scipy.optimize import brentq   # lazy: keeps `import crawler_sim` light
-        return brentq(f, a, b, xtol=self.tol, rtol=4 * _EPS)
+        r = brentq(f, a, b, xtol=self.tol, rtol=4 * _EPS)
+        step = max(self.tol, 4 * _EPS * abs(r))
+        while r < b and f(r) > 0.0:
+            r = min(r + step, b)
+            step *= 2.0
+        return r
+
+    def _min_of(self, seg: Segment, col: int, a: float, b: float) -> float | None:
+        """Time of the minimum of velocity function ``col`` in (a, b) where its derivative
+        turns from negative to positive; None if the scalar derivative does not confirm it."""
+        from scipy.optimize import brentq
+        df = self._scalar(seg, col, deriv=True)
+        if not (df(a) < 0.0 < df(b)):
+            return None
+        return brentq(df, a, b, xtol=self.tol, rtol=4 * _EPS)
 
     def _newton(self, fd, a: float, b: float, fa: float, fb: float) -> float:
         """Root of a function with known derivative in [a, b] (fa > 0 >= fb): Newton from the
@@ -705,7 +722,9 @@ class ExactSolver:
         turn = (D[:-1] < 0.0) & (D[1:] > 0.0) & (G[:-1] > 0.0) & (G[1:] > 0.0)
         if turn.any():
             for k, c in zip(*np.nonzero(turn)):
-                t_min = self._root(self._scalar(seg, int(c), deriv=True), tau[k], tau[k + 1])
+                t_min = self._min_of(seg, int(c), tau[k], tau[k + 1])
+                if t_min is None:
+                    continue
                 # a dip counts when it goes below rounding level (a velocity that only touches
                 # zero, e.g. right after leaving rest, is not an event)
                 noise = 1e-13 * float(np.max(np.abs(G[:, c])))
@@ -721,7 +740,7 @@ class ExactSolver:
         roots = []
         if k_cross == k:
             for c in np.nonzero(nonpos[k])[0]:
-                leaving = k == 0 and self._leaves_rest(seg, int(c))
+                leaving = k == 0 and tau[0] == seg.t0 and self._leaves_rest(seg, int(c))
                 if G[k, c] <= 0.0 or leaving:
                     if leaving:
                         # a body just left zero velocity and comes back before the next grid
@@ -732,8 +751,17 @@ class ExactSolver:
                     else:
                         roots.append((lo, int(c)))   # started at or below zero: event now
                 elif np.isfinite(D[k, c]):
-                    roots.append((self._newton(self._scalar_pair(seg, int(c)), lo, tau[k + 1],
-                                               G[k, c], G[k + 1, c]), int(c)))
+                    hi, g_hi = tau[k + 1], G[k + 1, c]
+                    if D[k, c] < 0.0 < D[k + 1, c]:
+                        # rising again at the right end: the first crossing is before the
+                        # minimum (a short slip can end right at a grid point)
+                        t_min = self._min_of(seg, int(c), lo, hi)
+                        if t_min is not None:
+                            g_min = self._scalar(seg, int(c))(t_min)
+                            if g_min <= 0.0:
+                                hi, g_hi = t_min, g_min
+                    roots.append((self._newton(self._scalar_pair(seg, int(c)), lo, hi,
+                                               G[k, c], g_hi), int(c)))
                 else:
                     roots.append((self._root(self._scalar(seg, int(c)), lo, tau[k + 1]),
                                   int(c)))

@@ -52,8 +52,8 @@ class TimeStepper:
         # The state at t0 (contact, friction, acceleration) is the instantaneous mode, the same
         # one the exact method starts from.
         seg = ExactSolver(self.crawler, self.gait, t0=t0, x0=x0, v0=v0).provisional()
-        self.contact = seg.contact.copy()
         first = seg.evaluate(self.crawler, np.array([float(t0)]))
+        self.contact = first['contact'][0].copy()
         self.R = first['friction'][0]
         self.A = float(seg.a) if seg.ref < 0 else float(-epp[seg.ref])
         self.K = np.zeros(self._m.size)
