@@ -297,7 +297,6 @@ class SimNode(Node):
         self._build(self._cfg, t_ns=0)
         if self._cfg.record:      # last: nothing below can fail and leave the bag open
             self._open_bag()
-        self._publish_outputs()       # the initial state at t = 0 (a recording starts there)
 
     # ------------------------------------------------------------------ configuration
     def _param_values(self) -> dict:
@@ -592,23 +591,25 @@ class SimNode(Node):
         st = self._last_state = self._engine.state
         builders = (('joint_states', 'sensor_msgs/msg/JointState', M.joint_states_msg),
                     ('body_states', 'sensor_msgs/msg/JointState', M.body_states_msg))
+        # each message goes to the bag before it is published: whatever a subscriber has seen
+        # is in the bag, even if a signal ends the process right after
         for name, type_name, build in builders:
             if name in pubs:
                 msg = build(st, t_ns)
-                pubs[name].publish(msg)
                 self._record(name, type_name, msg, t_ns)
+                pubs[name].publish(msg)
         if 'contact_states' in pubs:
             msg = M.contact_states_msg(st)
-            pubs['contact_states'].publish(msg)
             self._record('contact_states', 'std_msgs/msg/Int8MultiArray', msg, t_ns)
+            pubs['contact_states'].publish(msg)
         if 'odom' in pubs:
             msg = M.odom_msg(st, self._cfg.crawler.masses, t_ns)
-            pubs['odom'].publish(msg)
             self._record('odom', 'nav_msgs/msg/Odometry', msg, t_ns)
+            pubs['odom'].publish(msg)
         if 'markers' in pubs:
             msg = self._markers(st, t_ns)
-            pubs['markers'].publish(msg)
             self._record('markers', 'visualization_msgs/msg/MarkerArray', msg, t_ns)
+            pubs['markers'].publish(msg)
 
     def diagnostics(self, wall_now: float | None = None) -> DiagnosticArray:
         """Build the /diagnostics message (figures since the previous call)."""
@@ -737,6 +738,9 @@ class SimNode(Node):
         next_diag = anchor_wall + self._cfg.diagnostics_period
         ok = self.context.ok
         self._stop = False
+        if self.counters['ticks'] == 0:
+            with self._lock:
+                self._publish_outputs()       # the initial state at t = 0 (a bag starts there)
         while ok() and not self._stop:
             t = now()
             if t >= next_diag:

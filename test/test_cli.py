@@ -373,6 +373,7 @@ def test_replay_of_a_node_recording_reproduces_its_ticks_bit_for_bit(tmp_path, c
         rclpy.try_shutdown(context=context)
     proc = run_inprocess(capsys, 'replay', str(tmp_path / 'node_run'))
     assert proc.returncode == 0, proc.stderr
-    assert '(node run, 101 samples, 3 commands)' in proc.stdout
+    # ticks driven directly (no run loop, so no sample at t = 0): one sample per publish tick
+    assert '(node run, 100 samples, 3 commands)' in proc.stdout
     assert 'max |dx|  0 m' in proc.stdout and 'max |dv|  0 m/s' in proc.stdout
     assert np.any(final.x != 0.0)      # the crawler did move
