@@ -1,6 +1,6 @@
 """Benchmark of the colcon-installed sim_node (prints figures; not a test).
 
-    python tools/node_bench.py [--seconds 15] [--method exact]
+    python tools/node_bench.py [--seconds 15] [--method exact] [--record]
 
 (with the environment of ``make``: AMENT_PREFIX_PATH=install/crawler_sim:.venv, or a sourced
 workspace). Three runs of the default 3-body scene, integration at 1 kHz, every output at 100 Hz:
@@ -12,7 +12,9 @@ workspace). Three runs of the default 3-body scene, integration at 1 kHz, every 
 For 1 and 2: CPU use of the sim_node process in % of one core (from /proc, after a 3 s warm-up)
 and tick lateness (p99 per diagnostics period, from /diagnostics: median and worst period; late
 ticks counted as starting more than one tick period after their deadline). For 3: the speed-up
-over real time (sim seconds per wall second, measured on /clock).
+over real time (sim seconds per wall second, measured on /clock). With ``--record``: two more
+real-time runs with a subscriber on every output, without and with the bag, and the CPU time
+that recording adds (issue 5's floor: at most 10 %).
 """
 from __future__ import annotations
 
@@ -54,7 +56,8 @@ def stop(*procs: subprocess.Popen) -> None:
             p.kill()
 
 
-def run(label: str, seconds: float, method: str, *, rtf: float, gait: bool, env: dict) -> dict:
+def run(label: str, seconds: float, method: str, *, rtf: float, gait: bool, env: dict,
+        extra: tuple[str, ...] = (), listen: bool = False) -> dict:
     import rclpy
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.node import Node
@@ -67,7 +70,7 @@ def run(label: str, seconds: float, method: str, *, rtf: float, gait: bool, env:
                 '-p', f'method:={method}', '-p', f'real_time_factor:={rtf}',
                 '-p', f'publish_clock:={"true" if fast else "false"}',
                 '-p', 'integration_rate:=1000.0', '-p', 'publish_rate:=100.0',
-                '-p', 'start_paused:=true', '-p', 'diagnostics_period:=1.0')
+                '-p', 'start_paused:=true', '-p', 'diagnostics_period:=1.0', *extra)
     procs = [sim]
     if gait:
         procs.append(start('gait_node', env, '-p', f'use_sim_time:={"true" if fast else "false"}'))
@@ -79,6 +82,15 @@ def run(label: str, seconds: float, method: str, *, rtf: float, gait: bool, env:
         {kv.key: kv.value for kv in m.status[0].values}), 100)
     node.create_subscription(Clock, '/clock', lambda m: clock.append(
         (time.monotonic(), m.clock.sec * 10**9 + m.clock.nanosec)), qos_profile_sensor_data)
+    if listen:     # every output has a subscriber, so every message is built and sent
+        from nav_msgs.msg import Odometry
+        from sensor_msgs.msg import JointState
+        from std_msgs.msg import Int8MultiArray
+        from visualization_msgs.msg import MarkerArray
+        for typ, topic in ((JointState, 'body_states'), (JointState, 'joint_states'),
+                           (Int8MultiArray, 'contact_states'), (Odometry, 'odom'),
+                           (MarkerArray, 'markers')):
+            node.create_subscription(typ, topic, lambda m: None, 10)
     pause = node.create_client(SetBool, '/crawler_sim/pause')
     try:
         end = time.monotonic() + 60
@@ -122,6 +134,8 @@ def main() -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--seconds', type=float, default=15.0, help='wall seconds per run')
     parser.add_argument('--method', default='exact', help='exact | implicit | penalty')
+    parser.add_argument('--record', action='store_true',
+                        help='also measure the CPU cost of recording every output to a bag')
     args = parser.parse_args()
     os.environ['ROS_DOMAIN_ID'] = str(os.getpid() % 100 + 1)
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
@@ -131,6 +145,15 @@ def main() -> int:
     rows = [run('real time, at rest', args.seconds, args.method, rtf=1.0, gait=False, env=env),
             run('real time, gait_node', args.seconds, args.method, rtf=1.0, gait=True, env=env),
             run('flat out, gait_node', args.seconds, args.method, rtf=0.0, gait=True, env=env)]
+    if args.record:
+        import tempfile
+        with tempfile.TemporaryDirectory() as tmp:
+            base = run('outputs listened', args.seconds, args.method, rtf=1.0, gait=True,
+                       env=env, listen=True)
+            rec = run('outputs listened + bag', args.seconds, args.method, rtf=1.0, gait=True,
+                      env=env, listen=True,
+                      extra=('-p', 'record:=true', '-p', f'record_dir:={tmp}'))
+        rows += [base, rec]
     for r in rows:
         parts = [f'{r["label"]:22s}', f'CPU {r["cpu_percent"]:5.1f} % of one core']
         if 'p99_median_ms' in r and not r['label'].startswith('flat'):
@@ -141,6 +164,9 @@ def main() -> int:
         if 'speedup' in r:
             parts.append(f'speed-up {r["speedup"]:.2f}x (on /clock)')
         print('  ' + ' | '.join(parts))
+    if args.record:
+        extra = rows[-1]['cpu_percent'] / rows[-2]['cpu_percent'] - 1.0
+        print(f'  recording adds {100 * extra:.1f} % to the node\'s CPU time (floor: 10 %)')
     return 0
 
 
