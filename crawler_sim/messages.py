@@ -69,7 +69,8 @@ def _f64(values: np.ndarray | Sequence[float]) -> array:
     return array('d', values)
 
 
-def _joint_state(t_ns: int, names: Sequence[str], position, velocity, effort) -> JointState:
+def joint_state(t_ns: int, names: Sequence[str], position, velocity, effort) -> JointState:
+    """A JointState stamped ``t_ns`` [ns]; all arrays have ``len(names)`` entries."""
     msg = JointState()
     msg.header.stamp = stamp_from_ns(t_ns)
     msg.name = list(names)
@@ -79,39 +80,62 @@ def _joint_state(t_ns: int, names: Sequence[str], position, velocity, effort) ->
     return msg
 
 
-def joint_states_msg(state, t_ns: int) -> JointState:
-    """``joint_states``: names linkage_j, position l_j [m], velocity l_j' [m/s], effort = linkage
-    force [N] (positive pushes the bodies apart)."""
-    return _joint_state(t_ns, linkage_names(len(state.lengths)), state.lengths, state.rates,
-                        state.linkage_force)
+# Array-level builders: the node (from a core ``State``) and offline recording (from arrays)
+# both go through these, so online and offline bags hold the same messages.
 
-
-def body_states_msg(state, t_ns: int) -> JointState:
+def body_states(t_ns: int, x, v, friction) -> JointState:
     """``body_states``: names body_i, position x_i [m], velocity v_i [m/s], effort = friction
     force the ground exerts on body i [N]."""
-    return _joint_state(t_ns, body_names(len(state.x)), state.x, state.v, state.friction)
+    return joint_state(t_ns, body_names(len(x)), x, v, friction)
 
 
-def contact_states_msg(state) -> Int8MultiArray:
+def joint_states(t_ns: int, lengths, rates, linkage_force) -> JointState:
+    """``joint_states``: names linkage_j, position l_j [m], velocity l_j' [m/s], effort = linkage
+    force [N] (positive pushes the bodies apart)."""
+    return joint_state(t_ns, linkage_names(len(lengths)), lengths, rates, linkage_force)
+
+
+def contact_states(contact) -> Int8MultiArray:
     """``contact_states``: +1 sliding forward, 0 stuck, -1 sliding backward, per body (no stamp:
     Int8MultiArray has no header; it is published in the same tick as ``body_states``)."""
     msg = Int8MultiArray()
-    msg.data = array('b', np.asarray(state.contact, dtype=np.int8).tobytes())
+    msg.data = array('b', np.asarray(contact, dtype=np.int8).tobytes())
     return msg
 
 
-def odom_msg(state, masses: np.ndarray, t_ns: int) -> Odometry:
+def odometry(t_ns: int, x, v, masses) -> Odometry:
     """``odom``: centre of mass X = sum m_i x_i / M and V along x, frame ``odom``, child
     ``base_link``. The line is the odom x axis (along the incline); orientation is identity."""
-    total = float(masses.sum())
+    m = np.asarray(masses, dtype=np.float64)
+    total = float(m.sum())
     msg = Odometry()
     msg.header.stamp = stamp_from_ns(t_ns)
     msg.header.frame_id = ODOM_FRAME
     msg.child_frame_id = BASE_FRAME
-    msg.pose.pose.position.x = float(masses @ state.x) / total
+    msg.pose.pose.position.x = float(m @ np.asarray(x, dtype=np.float64)) / total
     msg.pose.pose.orientation.w = 1.0
-    msg.twist.twist.linear.x = float(masses @ state.v) / total
+    msg.twist.twist.linear.x = float(m @ np.asarray(v, dtype=np.float64)) / total
     return msg
+
+
+def joint_states_msg(state, t_ns: int) -> JointState:
+    """``joint_states`` from a core ``State``."""
+    return joint_states(t_ns, state.lengths, state.rates, state.linkage_force)
+
+
+def body_states_msg(state, t_ns: int) -> JointState:
+    """``body_states`` from a core ``State``."""
+    return body_states(t_ns, state.x, state.v, state.friction)
+
+
+def contact_states_msg(state) -> Int8MultiArray:
+    """``contact_states`` from a core ``State``."""
+    return contact_states(state.contact)
+
+
+def odom_msg(state, masses: np.ndarray, t_ns: int) -> Odometry:
+    """``odom`` from a core ``State``."""
+    return odometry(t_ns, state.x, state.v, masses)
 
 
 def _colour(rgba: tuple[float, float, float, float]) -> ColorRGBA:
@@ -230,17 +254,19 @@ def applied_command_msg(t_ns: int, lengths: Sequence[float]) -> JointState:
     ``t_ns`` (names linkage_j, position = targets; velocity and effort are zeros, filled because
     rosbags cannot read a JointState whose trailing arrays are empty)."""
     zeros = [0.0] * len(lengths)
-    return _joint_state(t_ns, linkage_names(len(lengths)), lengths, zeros, zeros)
+    return joint_state(t_ns, linkage_names(len(lengths)), lengths, zeros, zeros)
 
 
 def event_msg(body: int, old: int, new: int) -> Int32MultiArray:
     """A contact event for the bag's ``events`` topic: ``[body, old, new]`` (its log time is the
     event time)."""
-    return Int32MultiArray(data=[int(body), int(old), int(new)])
+    msg = Int32MultiArray()
+    msg.data = array('i', [int(body), int(old), int(new)])
+    return msg
 
 
 def float64_array_msg(values: Sequence[float]) -> Float64MultiArray:
     """A ``Float64MultiArray`` of ``values`` (as ``linkage_cmd`` expects)."""
     msg = Float64MultiArray()
-    msg.data = _f64(values)
+    msg.data = _f64(np.atleast_1d(np.asarray(values, dtype=np.float64)))
     return msg
