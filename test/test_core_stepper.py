@@ -13,22 +13,13 @@ import pytest
 
 import crawler_sim as cs
 from crawler_sim import gaits
+from core_helpers import random_crawler as _crawler, wave as _wave  # noqa: E402
 
 G = 9.81
 
 
-def _wave(p, amp=0.02, freq=1.0, lag=0.7, mean=0.1):
-    n = p - 1
-    return gaits.Sinusoid(mean + 0.01 * np.arange(n), amp * (1 + 0.1 * np.arange(n)), freq,
-                          -lag * np.arange(n))
 
 
-def _crawler(p, slope=0.0, seed=0):
-    rng = np.random.default_rng(seed)
-    m = rng.uniform(0.5, 1.5, p)
-    f = rng.uniform(0.5, 1.5, p)
-    fb = f * rng.uniform(1.0, 2.5, p)
-    return cs.Crawler(m, f, fb, slope=slope)
 
 
 def _state_arrays(s):
