@@ -769,6 +769,9 @@ class SimNode(Node):
             with self._lock:              # a pause that arrived meanwhile wins
                 if not self.paused:
                     self.tick()
+            # Running flat out or catching up, the loop never sleeps: yield the GIL for a moment
+            # so the executor thread's callbacks (commands, services) are not starved.
+            time.sleep(0)
 
 
     def stop(self) -> None:

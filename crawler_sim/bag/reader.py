@@ -301,9 +301,10 @@ def _align(series: list[_Series | None], stacklevel: int) -> list[Rows | None]:
     out = []
     for s in series:
         out.append(None if s is None else np.flatnonzero(np.isin(s.log_times, common)))
-    dropped = len(present[0]) - len(common)
-    warnings.warn(f'{dropped} time steps without all of body, joint and contact states '
-                  'were dropped', BagWarning, stacklevel=stacklevel)
+    dropped = max(len(s) for s in present) - len(common)
+    if dropped:
+        warnings.warn(f'{dropped} time steps without all of body, joint and contact states '
+                      'were dropped', BagWarning, stacklevel=stacklevel)
     return out
 
 
