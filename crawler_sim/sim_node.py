@@ -769,9 +769,10 @@ class SimNode(Node):
             with self._lock:              # a pause that arrived meanwhile wins
                 if not self.paused:
                     self.tick()
-            # Running flat out or catching up, the loop never sleeps: yield the GIL for a moment
-            # so the executor thread's callbacks (commands, services) are not starved.
-            time.sleep(0)
+            if self.counters['ticks'] % self._cfg.publish_every == 0:
+                # Flat out or catching up the loop never sleeps: once per publish period, yield
+                # the GIL so the executor thread's callbacks (commands, services) get their turn.
+                time.sleep(0)
 
 
     def stop(self) -> None:
