@@ -470,7 +470,7 @@ class ExactSolver:
     def _record_contact_change(self, t: float, contact: NDArray) -> None:
         old = self.contact
         for i in np.nonzero(contact != old)[0]:
-            self.events.append(Event(t, int(i), int(old[i]), int(contact[i])))
+            self.events.append(Event(float(t), int(i), int(old[i]), int(contact[i])))
         self.contact = contact
 
     def _close(self, seg: Segment, t_ev: float, hits: list[tuple[str, int]],

@@ -86,7 +86,7 @@ class TimeStepper:
         self.R = R
         old = self.contact
         for i in np.nonzero(contact != old)[0]:
-            self.events.append(Event(t_new, int(i), int(old[i]), int(contact[i])))
+            self.events.append(Event(float(t_new), int(i), int(old[i]), int(contact[i])))
         self.contact = contact
         self.t = t_new
         self.n_steps += 1
