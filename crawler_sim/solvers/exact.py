@@ -47,6 +47,9 @@ _EPS = np.finfo(float).eps
 
 def check_finite_gait(vals, t) -> None:
     """Raise ValueError if a gait evaluation (l, l', l'') holds a non-finite value."""
+    # a sum is finite only if every term is (finite values this large do not occur in gaits)
+    if math.isfinite(float(vals[0].sum() + vals[1].sum() + vals[2].sum())):
+        return
     for name, arr in zip(('length', 'velocity', 'acceleration'), vals):
         if not np.all(np.isfinite(arr)):
             bad = np.atleast_1d(t)[np.nonzero(~np.isfinite(np.reshape(
@@ -266,6 +269,38 @@ class ExactSolver:
     def _timescale(self) -> float:
         return self.gait.period if self.gait.period else (self.max_step or 1.0)
 
+    def _solve_mode_one(self, j: int, force: float, epp: NDArray, contact: NDArray,
+                        slack: float):
+        """``_solve_mode`` when body j alone is at rest: the inclusion in plain floats.
+
+        M A in force - dphi_j(A + e_j''): body j sticks (A = -e_j'') when the ground force it
+        needs, M A - force with A = -e_j'', lies in [-f_plus_j, f_minus_j]; otherwise it slides
+        the way that force points."""
+        M = self._M
+        fp, fm = float(self._fp[j]), float(self._fm[j])
+        e2 = float(epp[j])
+        need = -M * e2 - force                 # ground force on j if it sticks
+        new = contact.copy()
+        group = np.zeros(self._m.size, dtype=bool)
+        acc_scale = max(float(np.max(np.abs(epp))), (float(self._fp.sum() + self._fm.sum())
+                                                     + abs(force)) / M, 1e-300)
+        if need < -fp:                         # cannot hold it back: slides forward
+            A = (force - fp) / M
+            new[j] = 1
+        elif need > fm:                        # cannot hold it forward: slides backward
+            A = (force + fm) / M
+            new[j] = -1
+        else:
+            A = -e2
+            new[j] = 0
+            group[j] = True
+            f_scale = max(float(self._fp.sum() + self._fm.sum()), abs(force), M * acc_scale,
+                          1e-300)
+            ambiguous = fp + fm > 0 and min(need + fp, fm - need) <= slack * f_scale
+            return new, A, j, group, bool(ambiguous)
+        ambiguous = abs(A + e2) <= slack * acc_scale
+        return new, A, -1, group, bool(ambiguous)
+
     def _solve_mode(self, ep: NDArray, epp: NDArray, contact: NDArray,
                     slack: float = _AMBIGUOUS):
         zero = self.zero
@@ -273,11 +308,13 @@ class ExactSolver:
         slide = ~zero
         R_slide = np.where(contact > 0, -fp, fm)[slide]
         force = self._fext + R_slide.sum()
+        idx = np.nonzero(zero)[0]
+        if idx.size == 1:
+            return self._solve_mode_one(int(idx[0]), float(force), epp, contact, slack)
         acc_scale = max(float(np.max(np.abs(epp))), (fp.sum() + fm.sum() + abs(force)) / M,
                         1e-300)
         kinks = _merge_ties(-epp[zero], 1e-13 * acc_scale)
         A, s = solve_inclusion(M, 0.0, force, kinks, fp[zero], fm[zero])
-        idx = np.nonzero(zero)[0]
         rel = np.zeros_like(epp)
         rel[idx] = A - kinks                 # body accelerations (ties merged)
         new = contact.copy()
@@ -632,14 +669,17 @@ class ExactSolver:
         t0 = seg.t0
         h = self._grid_step(t0, t_stop)
         start = t0
+        chunk = _CHUNK // 4        # most segments end within a quarter period: start short
         while start < t_stop:
             n = int(math.ceil((t_stop - start) / h * (1 - 4 * _EPS))) + 1
-            if n > _CHUNK:
-                n = _CHUNK
+            if n > chunk:
+                n = chunk
                 end = start + h * (n - 1)
             else:
                 n, end = max(n, 2), t_stop
-            tau = np.linspace(start, end, n)
+            tau = start + h * np.arange(n)
+            tau[-1] = end
+            chunk = _CHUNK
             if left_limit and end == t_stop:
                 tau[-1] = np.nextafter(t_stop, -math.inf)
             G, D = self._event_values(seg, tau)
