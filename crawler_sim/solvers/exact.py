@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..gaits import Gait
-from ..model import Crawler, kinematics, offsets
+from ..model import Crawler
 from ..trajectory import Event
 from .contact import solve_inclusion, split_friction
 
@@ -103,12 +103,15 @@ class Segment:
     group: NDArray[np.bool_]      # stick: bodies stuck with ref
     leaving: NDArray[np.bool_] | None = None   # bodies that start the segment leaving rest
 
-    def evaluate(self, crawler: Crawler, tau: NDArray[np.float64]) -> dict:
-        """Exact state at the times ``tau`` (shape (N,), inside [t0, t1])."""
+    def evaluate(self, crawler: Crawler, tau: NDArray[np.float64],
+                 mats: tuple[NDArray, NDArray] | None = None) -> dict:
+        """Exact state at the times ``tau`` (shape (N,), inside [t0, t1]); ``mats`` are the
+        crawler's ``offset_matrices`` (computed if not given)."""
         m = crawler.masses
         M = m.sum()
         l, ld, ldd = self.gait(tau)
-        e, ep, epp = kinematics(m, l, ld, ldd)
+        C, W = mats if mats is not None else offset_matrices(m)
+        e, ep, epp = l @ W.T, ld @ W.T, ldd @ W.T
         d = tau - self.t0
         n = tau.size
         if self.ref < 0:
@@ -121,7 +124,7 @@ class Segment:
             K = self.K0 + np.multiply.outer(d, self.R)
         else:
             r = self.ref
-            s, sd = offsets(l), offsets(ld)
+            s, sd = l @ C.T, ld @ C.T
             x = self.x_ref + (s - s[:, r:r + 1])
             v = sd - sd[:, r:r + 1]
             A = -epp[:, r]
@@ -814,46 +817,57 @@ class ExactSolver:
 
     # ---------------------------------------------------------------- output
     def sample(self, times: NDArray[np.float64]) -> dict:
-        """Exact states at ``times`` (sorted, within the integrated span) from kept segments."""
+        """Exact states at ``times`` (sorted, within the integrated span) from kept segments.
+
+        Times inside a ``PeriodicBlock`` are mapped onto its template period and shifted, so
+        every segment is evaluated once, for all the times that fall on it.
+        """
         segs = self.segments
-        starts = np.array([s.t0 for s in segs])
+        n_t = times.size
+        starts = np.array([sg.t0 for sg in segs])
         idx = np.clip(np.searchsorted(starts, times, side='right') - 1, 0, len(segs) - 1)
-        out: dict = {}
+        local = times.astype(float).copy()
+        shift_x = np.zeros(n_t)
+        shift_k = np.zeros((n_t, self._m.size))
+        owner = np.empty(n_t, dtype=np.int64)
+        pieces: list[Segment] = []
+        number: dict[int, int] = {}
+
+        def key(seg: Segment) -> int:
+            if id(seg) not in number:
+                number[id(seg)] = len(pieces)
+                pieces.append(seg)
+            return number[id(seg)]
+
         for k in np.unique(idx):
             sel = np.nonzero(idx == k)[0]
             piece = segs[k]
-            if isinstance(piece, PeriodicBlock):
-                res, indet = self._sample_block(piece, times[sel])
-            else:
-                res = piece.evaluate(self.crawler, times[sel])
-                indet = np.full(sel.size, piece.group.sum() > 1)
-            if not out:
-                out = {key: np.empty((times.size,) + val.shape[1:], val.dtype)
-                       for key, val in res.items()}
-                out['indeterminate'] = np.zeros(times.size, bool)
-            for key, val in res.items():
-                out[key][sel] = val
-            out['indeterminate'][sel] = indet
-        return out
-
-    def _sample_block(self, block: PeriodicBlock, times: NDArray):
-        """Sample repeated periods: evaluate the template one period earlier, then shift."""
-        j = np.clip(np.floor((times - block.t0) / block.T).astype(int) + 1, 1, block.n)
-        local = times - j * block.T            # falls in the template period
-        tpl = block.template
-        starts = np.array([s.t0 for s in tpl])
-        idx = np.clip(np.searchsorted(starts, local, side='right') - 1, 0, len(tpl) - 1)
+            if not isinstance(piece, PeriodicBlock):
+                owner[sel] = key(piece)
+                continue
+            j = np.clip(np.floor((times[sel] - piece.t0) / piece.T).astype(int) + 1, 1, piece.n)
+            loc = times[sel] - j * piece.T             # falls in the template period
+            tpl = piece.template
+            t_starts = np.array([sg.t0 for sg in tpl])
+            sub = np.clip(np.searchsorted(t_starts, loc, side='right') - 1, 0, len(tpl) - 1)
+            for m in np.unique(sub):
+                these = sel[sub == m]
+                owner[these] = key(tpl[m])
+                local[these] = np.clip(loc[sub == m], tpl[m].t0, tpl[m].t1)
+            shift_x[sel] = j * piece.D
+            shift_k[sel] = np.multiply.outer(j, piece.dK)
         out: dict = {}
-        indet = np.zeros(times.size, bool)
-        for k in np.unique(idx):
-            sel = np.nonzero(idx == k)[0]
-            res = tpl[k].evaluate(self.crawler, np.clip(local[sel], tpl[k].t0, tpl[k].t1))
+        indet = np.zeros(n_t, bool)
+        for u, seg in enumerate(pieces):
+            sel = np.nonzero(owner == u)[0]
+            res = seg.evaluate(self.crawler, local[sel], (self._C, self._W))
             if not out:
-                out = {key: np.empty((times.size,) + val.shape[1:], val.dtype)
-                       for key, val in res.items()}
-            for key, val in res.items():
-                out[key][sel] = val
-            indet[sel] = tpl[k].group.sum() > 1
-        out['x'] = out['x'] + (j * block.D)[:, None]
-        out['impulse'] = out['impulse'] + np.multiply.outer(j, block.dK)
-        return out, indet
+                out = {name: np.empty((n_t,) + val.shape[1:], val.dtype)
+                       for name, val in res.items()}
+            for name, val in res.items():
+                out[name][sel] = val
+            indet[sel] = seg.group.sum() > 1
+        out['x'] += shift_x[:, None]
+        out['impulse'] += shift_k
+        out['indeterminate'] = indet
+        return out
