@@ -54,6 +54,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, Int8MultiArray
@@ -591,25 +592,29 @@ class SimNode(Node):
         st = self._last_state = self._engine.state
         builders = (('joint_states', 'sensor_msgs/msg/JointState', M.joint_states_msg),
                     ('body_states', 'sensor_msgs/msg/JointState', M.body_states_msg))
-        # each message goes to the bag before it is published: whatever a subscriber has seen
-        # is in the bag, even if a signal ends the process right after
         for name, type_name, build in builders:
             if name in pubs:
-                msg = build(st, t_ns)
-                self._record(name, type_name, msg, t_ns)
-                pubs[name].publish(msg)
+                self._emit(pubs[name], name, type_name, build(st, t_ns), t_ns)
         if 'contact_states' in pubs:
-            msg = M.contact_states_msg(st)
-            self._record('contact_states', 'std_msgs/msg/Int8MultiArray', msg, t_ns)
-            pubs['contact_states'].publish(msg)
+            self._emit(pubs['contact_states'], 'contact_states', 'std_msgs/msg/Int8MultiArray',
+                       M.contact_states_msg(st), t_ns)
         if 'odom' in pubs:
-            msg = M.odom_msg(st, self._cfg.crawler.masses, t_ns)
-            self._record('odom', 'nav_msgs/msg/Odometry', msg, t_ns)
-            pubs['odom'].publish(msg)
+            self._emit(pubs['odom'], 'odom', 'nav_msgs/msg/Odometry',
+                       M.odom_msg(st, self._cfg.crawler.masses, t_ns), t_ns)
         if 'markers' in pubs:
-            msg = self._markers(st, t_ns)
-            self._record('markers', 'visualization_msgs/msg/MarkerArray', msg, t_ns)
-            pubs['markers'].publish(msg)
+            self._emit(pubs['markers'], 'markers', 'visualization_msgs/msg/MarkerArray',
+                       self._markers(st, t_ns), t_ns)
+
+    def _emit(self, pub, name: str, type_name: str, msg: Any, t_ns: int) -> None:
+        """Record (when recording) then publish one output. The message is serialised once for
+        both, and it goes to the bag first: whatever a subscriber has seen is in the bag, even if
+        a signal ends the process right after."""
+        if self._bag is None:
+            pub.publish(msg)
+            return
+        data = serialize_message(msg)
+        self._record(name, type_name, data, t_ns)
+        pub.publish(data)
 
     def diagnostics(self, wall_now: float | None = None) -> DiagnosticArray:
         """Build the /diagnostics message (figures since the previous call)."""
