@@ -42,6 +42,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 import os
+import signal
 import sys
 import threading
 import time
@@ -292,6 +293,7 @@ class SimNode(Node):
         self._diag_prev = (0, time.perf_counter(), dict(self.counters))
 
         self._last_state = None
+        self._stop = False        # set by stop() (signals); run() returns at the next tick
         self._bag = None
         self.bag_path = ''
         self._recording_error = ''
@@ -742,7 +744,6 @@ class SimNode(Node):
         anchor_tick = 0
         next_diag = anchor_wall + self._cfg.diagnostics_period
         ok = self.context.ok
-        self._stop = False
         if self.counters['ticks'] == 0:
             with self._lock:
                 self._publish_outputs()       # the initial state at t = 0 (a bag starts there)
@@ -801,6 +802,10 @@ def main(args: list[str] | None = None) -> None:
         executor = SingleThreadedExecutor()
         node = SimNode()
         executor.add_node(node)
+        # From here a signal only asks the loop to stop between two ticks: an exception raised
+        # at an arbitrary point (e.g. inside a bag write) could leave the MCAP file inconsistent.
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, lambda signum, frame, n=node: n.stop())
         failure: list[BaseException] = []
         spin_thread = threading.Thread(target=_spin, args=(executor, stop_spin, node, failure),
                                        daemon=True)
