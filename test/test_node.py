@@ -6,7 +6,7 @@ import math
 import os
 import threading
 import time
-from typing import Any, Callable
+from typing import Any
 
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -34,12 +34,15 @@ from crawler_sim.gait_node import GaitNode
 from crawler_sim.gaits import Cubic
 from crawler_sim.messages import CONTACT_COLOURS, ns_from_stamp
 from crawler_sim.sim_node import SimConfig, SimNode
+from ros_helpers import Spinning  # noqa: E402
 
 DEADLINE = 10.0   # wall s for any single wait (discovery, a service call)
 
 
-class Harness:
+class Harness(Spinning):
     """One context, one executor, the node under test and an observer node."""
+
+    deadline = DEADLINE
 
     def __init__(self) -> None:
         self.ctx = Context()
@@ -52,7 +55,7 @@ class Harness:
         finally:
             os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = saved or 'LOCALHOST'
         self.ex = SingleThreadedExecutor(context=self.ctx)
-        self.obs = Node('observer', context=self.ctx)
+        self.obs = self.client_node = Node('observer', context=self.ctx)
         self.ex.add_node(self.obs)
         self.nodes: list[SimNode] = []
         self.others: list[Node] = []
@@ -76,20 +79,6 @@ class Harness:
         self.until(lambda: pub.get_subscription_count() > 0, f'a subscriber on {topic}')
         return pub
 
-    def until(self, cond: Callable[[], bool], what: str, timeout: float = DEADLINE) -> None:
-        end = time.monotonic() + timeout
-        while not cond():
-            if time.monotonic() > end:
-                raise AssertionError(f'timed out after {timeout} s waiting for {what}')
-            self.ex.spin_once(timeout_sec=0.01)
-
-    def call(self, srv_type, name: str, request):
-        client = self.obs.create_client(srv_type, name)
-        self.until(client.service_is_ready, f'service {name}')
-        future = client.call_async(request)
-        self.ex.spin_until_future_complete(future, timeout_sec=DEADLINE)
-        assert future.done(), f'no response from {name}'
-        return future.result()
 
     def send(self, pub, msg, node: SimNode, counter: str, before: int | None = None) -> None:
         """Publish and spin until the node counted it under ``counter``."""

@@ -11,7 +11,6 @@ from pathlib import Path
 import signal
 import subprocess
 import time
-from typing import Callable
 import warnings
 
 from ament_index_python.packages import get_package_prefix, get_package_share_directory
@@ -35,6 +34,7 @@ from crawler_sim.actuator import Actuator
 from crawler_sim.gaits import Cubic
 from crawler_sim.messages import ns_from_stamp
 from crawler_sim.sim_node import PARAMETERS, SimConfig
+from ros_helpers import Spinning  # noqa: E402
 
 DEADLINE = 20.0
 
@@ -81,30 +81,18 @@ class Proc:
             self.popen.wait()
 
 
-class Peer:
+class Peer(Spinning):
     """The test's own node, in the session domain with host-wide discovery."""
+
+    deadline = DEADLINE
 
     def __init__(self) -> None:
         self.ctx = Context()
         rclpy.init(context=self.ctx, domain_id=int(os.environ['ROS_DOMAIN_ID']))
-        self.node = Node('test_peer', context=self.ctx)
+        self.node = self.client_node = Node('test_peer', context=self.ctx)
         self.ex = SingleThreadedExecutor(context=self.ctx)
         self.ex.add_node(self.node)
 
-    def until(self, cond: Callable[[], bool], what: str, timeout: float = DEADLINE) -> None:
-        end = time.monotonic() + timeout
-        while not cond():
-            if time.monotonic() > end:
-                raise AssertionError(f'timed out after {timeout} s waiting for {what}')
-            self.ex.spin_once(timeout_sec=0.01)
-
-    def call(self, srv_type, name: str, request):
-        client = self.node.create_client(srv_type, name)
-        self.until(client.service_is_ready, f'service {name}')
-        future = client.call_async(request)
-        self.ex.spin_until_future_complete(future, timeout_sec=DEADLINE)
-        assert future.done(), f'no response from {name}'
-        return future.result()
 
     def close(self) -> None:
         self.ex.shutdown()
