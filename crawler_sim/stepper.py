@@ -10,7 +10,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .gaits import Gait
+from .gaits import Gait, _positive as positive
 from .model import Crawler
 from .solvers.exact import ExactSolver
 from .solvers.implicit import ImplicitSolver
@@ -30,13 +30,7 @@ def _check_method(method: str) -> str:
 
 
 def _check_positive(name: str, value, unit: str = 's') -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f'{name} must be a finite number > 0 {unit}, got {value!r}') from None
-    if not (math.isfinite(x) and x > 0):
-        raise ValueError(f'{name} must be finite and > 0 {unit}, got {value!r}')
-    return x
+    return positive(name, value, unit)
 
 
 def _check_finite(name: str, value) -> float:
