@@ -313,3 +313,40 @@ def test_the_stepper_state_reports_the_same_forces_as_the_trajectory():
     np.testing.assert_allclose(s.friction, tr.friction[-1], atol=1e-10)
     np.testing.assert_allclose(s.linkage_force, tr.linkage_force[-1], atol=1e-10)
     np.testing.assert_array_equal(s.contact, tr.state[-1])
+
+
+# ----------------------------------------------------------------------------------------------
+# Sampling: the batched evaluation of many segments (ExactSolver.sample) against each segment's
+# own closed form (Segment.evaluate), one time at a time: the two are separate code paths.
+@pytest.mark.parametrize('scene', ['wave4', 'slope_rest', 'free_body', 'periodic_skip'])
+def test_batched_sampling_equals_each_segments_own_closed_form(scene):
+    from crawler_sim.solvers.exact import ExactSolver, PeriodicBlock, Segment
+    if scene == 'wave4':
+        crawler, gait, t_end = _crawler(4, seed=3), _wave(4), 2.0
+    elif scene == 'slope_rest':       # stroke, then a rest on a slope: stuck groups of 2 and 3
+        crawler = cs.Crawler([1.0, 0.9, 1.2], [2.0, 2.5, 3.0], slope=0.05)
+        gait = gaits.PiecewiseParabolic([0.0, 0.2, 0.4], [[1.0, 0.5], [-1.0, -0.5]],
+                                        [0.1, 0.1], periodic=False)
+        t_end = 1.0
+    elif scene == 'free_body':        # body 1 without friction
+        crawler, gait, t_end = cs.Crawler([1.0, 0.5, 1.0], [1.0, 0.0, 2.0]), _wave(3), 2.0
+    else:
+        crawler, gait, t_end = _crawler(2, seed=1), _wave(2, freq=2.0), 5.0
+    solver = ExactSolver(crawler, gait)
+    solver.advance(t_end)
+    times = np.linspace(0.0, t_end, 301)
+    got = solver.sample(times)
+    segs = [sg for sg in solver.segments if isinstance(sg, Segment)]
+    if scene == 'periodic_skip':
+        assert any(isinstance(sg, PeriodicBlock) for sg in solver.segments)
+        times = times[times <= segs[-1].t1]     # before the skipped periods
+    assert any(sg.ref >= 0 for sg in segs) and any(sg.ref < 0 for sg in segs)
+    starts = np.array([sg.t0 for sg in segs])
+    for i, t in enumerate(times):
+        sg = segs[max(int(np.searchsorted(starts, t, side='right')) - 1, 0)]
+        one = sg.evaluate(crawler, np.array([t]))
+        for name in ('x', 'v', 'friction', 'impulse', 'linkage_force', 'lengths', 'rates'):
+            scale = 1.0 + np.max(np.abs(one[name]))
+            assert np.allclose(got[name][i], one[name][0], rtol=0, atol=1e-12 * scale), (name, t)
+        assert np.array_equal(got['contact'][i], one['contact'][0]), t
+        assert got['indeterminate'][i] == (sg.group.sum() > 1)

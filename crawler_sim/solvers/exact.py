@@ -153,6 +153,94 @@ class Segment:
                 'lengths': l, 'rates': ld, 'contact': contact}
 
 
+def evaluate_rows(crawler: Crawler, pieces: list, owner: NDArray[np.int64],
+                  tau: NDArray[np.float64], mats: tuple[NDArray, NDArray]) -> dict:
+    """Exact states of many segments at once: row i is ``pieces[owner[i]]`` at time ``tau[i]``.
+
+    The same closed forms as ``Segment.evaluate`` (slide: X quadratic in t; stick: the reference
+    body fixed, the group's friction the affine split of what holds it), with every per-segment
+    quantity gathered per row, so sampling a run costs a fixed number of array operations
+    instead of a fixed number per segment. ``mats``: the crawler's ``offset_matrices``.
+    """
+    C, W = mats
+    m = crawler.masses
+    M = float(m.sum())
+    p, n = m.size, tau.size
+    fp, fm = crawler.friction, crawler.friction_backward
+    l, ld, ldd = _gait_rows(pieces, owner, tau)
+    e, ep, epp = l @ W.T, ld @ W.T, ldd @ W.T
+    rows = np.arange(n)
+    t0, X0, V0, a, ref, x_ref = (np.array(v, dtype=float)[owner] for v in zip(
+        *((sg.t0, sg.X0, sg.V0, sg.a, sg.ref, sg.x_ref) for sg in pieces)))
+    stick = ref >= 0
+    r = np.where(stick, ref, 0).astype(np.int64)
+    d = tau - t0
+    group = np.array([sg.group for sg in pieces])[owner]              # (n, p)
+    contact = np.array([sg.contact for sg in pieces])[owner]          # (n, p)
+    R = np.where(group, 0.0, np.array([sg.R for sg in pieces])[owner])  # sliding bodies' force
+    K0 = np.array([sg.K0 for sg in pieces])[owner]
+    # slide rows
+    X = X0 + d * (V0 + 0.5 * a * d)
+    V = V0 + a * d
+    x = X[:, None] + e
+    v = V[:, None] + ep
+    A = a.copy()
+    if stick.any():
+        s, sd = l @ C.T, ld @ C.T
+        st = np.nonzero(stick)[0]
+        rs = r[st]
+        x[st] = x_ref[st, None] + (s[st] - s[st, rs][:, None])
+        v[st] = sd[st] - sd[st, rs][:, None]
+        A[st] = -epp[st, rs]
+        V[st] = -ep[st, rs]
+    f_slide = crawler.external_force + R.sum(axis=1)
+    K = K0 + d[:, None] * R
+    if stick.any():
+        # the group's friction: each member at the same fraction of its interval
+        # (``contact.split_friction``), and its impulse, the integral of that affine split
+        width = fp + fm
+        g = group[st]
+        wg = (g * width).sum(axis=1)
+        fm_g = (g * fm).sum(axis=1)
+        ok = wg > 0
+        wsafe = np.where(ok, wg, 1.0)
+        total = M * A[st] - f_slide[st]
+        theta = np.where(ok, np.clip((-total + fm_g) / wsafe, 0.0, 1.0), 0.0)
+        Rg = fm - theta[:, None] * width
+        imp = M * (V[st] - V0[st]) - f_slide[st] * d[st]
+        Kg = fm * d[st, None] - ((-imp + fm_g * d[st]) / wsafe)[:, None] * width
+        Kg = np.where(ok[:, None], Kg, 0.0)
+        R[st] = np.where(g, Rg, R[st])
+        K[st] = np.where(g, K0[st] + Kg, K[st])
+    body_force = R + crawler.gravity_forces - m * (A[:, None] + epp)
+    lam = np.cumsum(body_force, axis=1)[:, :-1]
+    contact = contact.copy()
+    free = (fp + fm) == 0.0
+    if free.any():
+        # no friction, no stick: these bodies' state is just the sign of their velocity
+        contact[:, free] = np.sign(v[:, free])
+    return {'x': x, 'v': v, 'friction': R, 'impulse': K, 'linkage_force': lam,
+            'lengths': l, 'rates': ld, 'contact': contact,
+            'indeterminate': group.sum(axis=1) > 1}
+
+
+def _gait_rows(pieces: list, owner: NDArray[np.int64], tau: NDArray[np.float64]):
+    """(l, l', l'') at ``tau[i]`` from the gait of ``pieces[owner[i]]`` (one call per gait)."""
+    gaits = {id(sg.gait): sg.gait for sg in pieces}
+    if len(gaits) == 1:
+        return pieces[0].gait(tau)
+    which = np.array([id(sg.gait) for sg in pieces], dtype=object)[owner]
+    out = None
+    for key, gait in gaits.items():
+        sel = np.nonzero(which == key)[0]
+        vals = gait(tau[sel])
+        if out is None:
+            out = tuple(np.empty((tau.size,) + v.shape[1:]) for v in vals)
+        for o, v in zip(out, vals):
+            o[sel] = v
+    return out
+
+
 def _split_impulse(imp: NDArray, d: NDArray, fp: NDArray, fm: NDArray) -> NDArray:
     """Integral of the affine split of ``split_friction`` (ground-force sign), shape (N, n)."""
     width = fp + fm
@@ -856,18 +944,7 @@ class ExactSolver:
                 local[these] = np.clip(loc[sub == m], tpl[m].t0, tpl[m].t1)
             shift_x[sel] = j * piece.D
             shift_k[sel] = np.multiply.outer(j, piece.dK)
-        out: dict = {}
-        indet = np.zeros(n_t, bool)
-        for u, seg in enumerate(pieces):
-            sel = np.nonzero(owner == u)[0]
-            res = seg.evaluate(self.crawler, local[sel], (self._C, self._W))
-            if not out:
-                out = {name: np.empty((n_t,) + val.shape[1:], val.dtype)
-                       for name, val in res.items()}
-            for name, val in res.items():
-                out[name][sel] = val
-            indet[sel] = seg.group.sum() > 1
+        out = evaluate_rows(self.crawler, pieces, owner, local, (self._C, self._W))
         out['x'] += shift_x[:, None]
         out['impulse'] += shift_k
-        out['indeterminate'] = indet
         return out
