@@ -98,6 +98,30 @@ def test_array_evaluation_equals_scalar_evaluation(name):
             assert_allclose(from_array[k], from_scalar, rtol=1e-13, atol=1e-14)
 
 
+ONE_LINK = {
+    'scallop1': lambda: Scallop(0.1, 0.02, 2.0, 0.2, 0.3),
+    'sinusoid1': lambda: Sinusoid(0.1, 0.02, 1.5, 0.4),
+    'spline_periodic': CASES['spline_periodic'][0],
+    'parabolic_open': CASES['parabolic_open'][0],
+}
+
+
+@pytest.mark.parametrize('name', ONE_LINK)
+def test_the_float_fast_paths_at_and_at1_equal_array_evaluation_of_a_one_linkage_gait(name):
+    # at() and at1() are scalar-math rewrites the exact solver relies on (at1 in its root
+    # finders); the array path (_eval, numpy ufuncs) is the independent reference.
+    gait = ONE_LINK[name]()
+    assert gait.n_links == 1
+    t = np.array([-0.7, 0.0, 0.13, 0.5, 1.01, 2.345, 7.9])
+    arrays = gait(t)
+    for k, tk in enumerate(t):
+        l, ld, ldd = gait.at1(float(tk))
+        assert all(isinstance(v, float) for v in (l, ld, ldd))
+        for from_array, one, arr in zip(arrays, (l, ld, ldd), gait.at(float(tk))):
+            assert_allclose(one, from_array[k, 0], rtol=1e-13, atol=1e-14)
+            assert one == float(arr[0])       # at() and at1() are the same arithmetic
+
+
 @pytest.mark.parametrize('name', CASES)
 def test_scalar_call_gives_n_links_and_array_call_gives_n_by_n_links(name):
     gait = _make(name)

@@ -43,12 +43,13 @@ __all__ = ['ExactSolver', 'Segment']
 _CHUNK = 64          # grid points evaluated at once
 _AMBIGUOUS = 1e-10   # relative slack below which a mode choice is decided by look-ahead
 _EPS = np.finfo(float).eps
+_add = np.add.reduce   # ndarray.sum without its Python wrapper (the arrays here are tiny)
 
 
 def check_finite_gait(vals, t) -> None:
     """Raise ValueError if a gait evaluation (l, l', l'') holds a non-finite value."""
     # a sum is finite only if every term is (finite values this large do not occur in gaits)
-    if math.isfinite(float(vals[0].sum() + vals[1].sum() + vals[2].sum())):
+    if math.isfinite(_add(vals[0], None) + _add(vals[1], None) + _add(vals[2], None)):
         return
     for name, arr in zip(('length', 'velocity', 'acceleration'), vals):
         if not np.all(np.isfinite(arr)):
@@ -294,6 +295,10 @@ class ExactSolver:
         self._C, self._W = offset_matrices(crawler.masses)
         # Frictionless bodies never stick and never change the dynamics: no events for them.
         self._free = (self._fp + self._fm) == 0.0
+        self._any_free = bool(self._free.any())
+        self._fp_list, self._fm_list = self._fp.tolist(), self._fm.tolist()
+        self._f_total = float(self._fp.sum() + self._fm.sum())   # [N], scales of the tests
+        self._WT, self._CT = self._W.T.copy(), self._C.T.copy()
         self.reset(t0=t0, x0=x0, v0=v0)
 
     # ------------------------------------------------------------------ state
@@ -373,8 +378,7 @@ class ExactSolver:
         need = -M * e2 - force                 # ground force on j if it sticks
         new = contact.copy()
         group = np.zeros(self._m.size, dtype=bool)
-        acc_scale = max(float(np.max(np.abs(epp))), (float(self._fp.sum() + self._fm.sum())
-                                                     + abs(force)) / M, 1e-300)
+        acc_scale = max(max(map(abs, epp.tolist())), (self._f_total + abs(force)) / M, 1e-300)
         if need < -fp:                         # cannot hold it back: slides forward
             A = (force - fp) / M
             new[j] = 1
@@ -385,8 +389,7 @@ class ExactSolver:
             A = -e2
             new[j] = 0
             group[j] = True
-            f_scale = max(float(self._fp.sum() + self._fm.sum()), abs(force), M * acc_scale,
-                          1e-300)
+            f_scale = max(self._f_total, abs(force), M * acc_scale, 1e-300)
             ambiguous = fp + fm > 0 and min(need + fp, fm - need) <= slack * f_scale
             return new, A, j, group, bool(ambiguous)
         ambiguous = abs(A + e2) <= slack * acc_scale
@@ -396,10 +399,19 @@ class ExactSolver:
                     slack: float = _AMBIGUOUS):
         zero = self.zero
         fp, fm, M = self._fp, self._fm, self._M
+        idx = zero.nonzero()[0]
+        if idx.size == 1 and zero.size <= 8:
+            # one body at rest (the common case): plain floats, summed in numpy's order
+            j = int(idx[0])
+            total = 0.0
+            for i, (c, fpi, fmi) in enumerate(zip(contact.tolist(), self._fp_list,
+                                                  self._fm_list)):
+                if i != j:
+                    total += -fpi if c > 0 else fmi
+            return self._solve_mode_one(j, self._fext + total, epp, contact, slack)
         slide = ~zero
         R_slide = np.where(contact > 0, -fp, fm)[slide]
         force = self._fext + R_slide.sum()
-        idx = np.nonzero(zero)[0]
         if idx.size == 1:
             return self._solve_mode_one(int(idx[0]), float(force), epp, contact, slack)
         acc_scale = max(float(np.max(np.abs(epp))), (fp.sum() + fm.sum() + abs(force)) / M,
@@ -523,7 +535,7 @@ class ExactSolver:
             # bodies leaving zero velocity start exactly from zero
             leaving = self.zero & (contact != 0)
             if leaving.any():
-                j = int(np.nonzero(leaving)[0][0])
+                j = int(leaving.nonzero()[0][0])
                 self.V = float(-ep[j])
         R = np.where(contact > 0, -self._fp, np.where(contact < 0, self._fm, 0.0))
         V0 = float(-ep[ref]) if ref >= 0 else self.V
@@ -597,7 +609,7 @@ class ExactSolver:
 
     def _record_contact_change(self, t: float, contact: NDArray) -> None:
         old = self.contact
-        for i in np.nonzero(contact != old)[0]:
+        for i in (contact != old).nonzero()[0]:
             self.events.append(Event(float(t), int(i), int(old[i]), int(contact[i])))
         self.contact = contact
 
@@ -626,7 +638,8 @@ class ExactSolver:
                 zero[i] = True
                 if seg.ref < 0:
                     # the body's velocity is exactly zero at the event
-                    self.V = float(-(self._W[i] @ self.gait.at(t_ev)[1]))
+                    self.V = (-(float(self._W[i, 0]) * self.gait.at1(t_ev)[1])
+                              if self._m.size == 2 else float(-(self._W[i] @ self.gait.at(t_ev)[1])))
         self.zero = zero
         self.ref = seg.ref
         self.x_ref = seg.x_ref
@@ -653,11 +666,11 @@ class ExactSolver:
             for i in range(self._m.size):
                 labels.append(('vel', i))
         else:
-            for i in np.nonzero(~seg.group)[0]:
+            for i in (~seg.group).nonzero()[0]:
                 labels.append(('vel', int(i)))
             labels.append(('force', seg.ref))
             labels.append(('force', seg.ref))
-            for j in np.nonzero(seg.group)[0]:
+            for j in seg.group.nonzero()[0]:
                 if j != seg.ref:
                     labels.append(('rigid', int(j)))
         return labels
@@ -665,15 +678,15 @@ class ExactSolver:
     def _event_values(self, seg: Segment, tau: NDArray):
         """Values G (N, k) and derivatives D (N, k; NaN where unknown) at times tau (N,)."""
         M = self._M
-        vals = seg.gait(tau)
+        vals = seg.gait._eval(tau)    # tau is a 1-D float array: skip __call__'s checks
         check_finite_gait(vals, tau)
         _, ld, ldd = vals
         if seg.ref < 0:
             sg = seg.contact.astype(float)
             V = seg.V0 + seg.a * (tau - seg.t0)
-            G = sg * (V[:, None] + ld @ self._W.T)
-            D = sg * (seg.a + ldd @ self._W.T)
-            if self._free.any():
+            G = sg * (V[:, None] + ld @ self._WT)
+            D = sg * (seg.a + ldd @ self._WT)
+            if self._any_free:
                 G[:, self._free] = math.inf
                 D[:, self._free] = math.nan
             return G, D
@@ -691,7 +704,7 @@ class ExactSolver:
         total = -M * (ldd @ self._W[r]) - f_slide    # ground force the group needs
         lo, hi = -self._fp[g].sum(), self._fm[g].sum()
         cols = [Gv, (total - lo)[:, None], (hi - total)[:, None]]
-        others = [j for j in np.nonzero(g)[0] if j != r]
+        others = [j for j in g.nonzero()[0] if j != r]
         if others:
             sd = ld @ C.T
             vscale = np.max(np.abs(sd), axis=1, keepdims=True) + 1e-300
@@ -709,20 +722,34 @@ class ExactSolver:
             i = col
             sg, w = float(seg.contact[i]), self._W[i]
             V0, a, t0 = seg.V0, seg.a, seg.t0
+            if gait.n_links == 1:       # plain floats (two bodies)
+                at1, w0 = gait.at1, float(w[0])
+                if deriv:
+                    return lambda tt: sg * (a + w0 * at1(tt)[2])
+                return lambda tt: sg * (V0 + a * (tt - t0) + w0 * at1(tt)[1])
             if deriv:
                 return lambda tt: sg * (a + w @ gait.at(tt)[2])
             return lambda tt: sg * (V0 + a * (tt - t0) + w @ gait.at(tt)[1])
         r, g = seg.ref, seg.group
         n_vel = int((~g).sum())
+        one = gait.n_links == 1
         if col < n_vel:
             i = int(np.nonzero(~g)[0][col])
             sg, w = float(seg.contact[i]), self._C[i] - self._C[r]
             k = 2 if deriv else 1
+            if one:
+                at1, w0 = gait.at1, float(w[0])
+                return lambda tt: sg * (w0 * at1(tt)[k])
             return lambda tt: sg * (w @ gait.at(tt)[k])
         if col < n_vel + 2:
             f_slide = self._fext + seg.R[~g].sum()
             lo, hi = -self._fp[g].sum(), self._fm[g].sum()
             wr = self._W[r]
+            if one:
+                at1, w0 = gait.at1, float(wr[0])
+                if col == n_vel:
+                    return lambda tt: -M * (w0 * at1(tt)[2]) - f_slide - lo
+                return lambda tt: hi + M * (w0 * at1(tt)[2]) + f_slide
             if col == n_vel:
                 return lambda tt: -M * (wr @ gait.at(tt)[2]) - f_slide - lo
             return lambda tt: hi + M * (wr @ gait.at(tt)[2]) + f_slide
@@ -734,6 +761,13 @@ class ExactSolver:
         if seg.ref < 0:
             sg, w = float(seg.contact[col]), self._W[col]
             V0, a, t0 = seg.V0, seg.a, seg.t0
+            if gait.n_links == 1:       # plain floats (two bodies)
+                at1, w0 = gait.at1, float(w[0])
+
+                def fd1(tt: float) -> tuple[float, float]:
+                    _, ld, ldd = at1(tt)
+                    return sg * (V0 + a * (tt - t0) + w0 * ld), sg * (a + w0 * ldd)
+                return fd1
 
             def fd(tt: float) -> tuple[float, float]:
                 _, ld, ldd = gait.at(tt)
@@ -741,6 +775,13 @@ class ExactSolver:
             return fd
         i = int(np.nonzero(~seg.group)[0][col])
         sg, w = float(seg.contact[i]), self._C[i] - self._C[seg.ref]
+        if gait.n_links == 1:
+            at1, w0 = gait.at1, float(w[0])
+
+            def fd_rel1(tt: float) -> tuple[float, float]:
+                _, ld, ldd = at1(tt)
+                return sg * (w0 * ld), sg * (w0 * ldd)
+            return fd_rel1
 
         def fd_rel(tt: float) -> tuple[float, float]:
             _, ld, ldd = gait.at(tt)
@@ -852,7 +893,7 @@ class ExactSolver:
         dip_at: dict[int, list] = {}
         turn = (D[:-1] < 0.0) & (D[1:] > 0.0) & (G[:-1] > 0.0) & (G[1:] > 0.0)
         if turn.any():
-            for k, c in zip(*np.nonzero(turn)):
+            for k, c in zip(*turn.nonzero()):
                 t_min = self._min_of(seg, int(c), tau[k], tau[k + 1])
                 if t_min is None:
                     continue
@@ -861,7 +902,7 @@ class ExactSolver:
                 noise = 1e-13 * float(np.max(np.abs(G[:, c])))
                 if self._scalar(seg, int(c))(t_min) < -noise:
                     dip_at.setdefault(int(k), []).append((int(c), t_min))
-        rows = np.nonzero(nonpos.any(axis=1))[0]
+        rows = nonpos.any(axis=1).nonzero()[0]
         k_cross = int(rows[0]) if rows.size else None
         k_dip = min(dip_at) if dip_at else None
         if k_cross is None and k_dip is None:
@@ -870,7 +911,7 @@ class ExactSolver:
         lo = tau[k]
         roots = []
         if k_cross == k:
-            for c in np.nonzero(nonpos[k])[0]:
+            for c in nonpos[k].nonzero()[0]:
                 leaving = k == 0 and tau[0] == seg.t0 and self._leaves_rest(seg, int(c))
                 if G[k, c] <= 0.0 or leaving:
                     if leaving:
