@@ -167,6 +167,13 @@ class Gait:
         """True only when l' and l'' are exactly zero on all of [t0, t1]."""
         return False
 
+    def jerk_bound(self, t0: float, t1: float) -> NDArray[np.float64] | None:
+        """Upper bounds of the jerk |d l''/dt| [m/s^3] per linkage on [t0, t1] between
+        breakpoints (where l'' is continuous), or None if unknown (the default). The exact
+        solver uses them to rule out, without a root search, a velocity that dips to zero
+        between two grid points; a bound that is too small makes it miss such dips."""
+        return None
+
 
 class Custom(Gait):
     """A gait from three user callables of one float time.
@@ -232,6 +239,9 @@ class Sinusoid(Gait):
         s, c = np.sin(arg), np.cos(arg)
         a = self.amplitude
         return self.mean + a * s, a * self._w * c, -a * self._w ** 2 * s
+
+    def jerk_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
+        return np.abs(self.amplitude) * self._w ** 3
 
     def at(self, t: float) -> Triple:
         if self.n_links == 1:
@@ -310,6 +320,10 @@ class Fourier(Gait):
 
     def is_constant(self, t0: float, t1: float) -> bool:
         return not (np.any(self.cos) or np.any(self.sin))
+
+    def jerk_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
+        wk3 = (2.0 * math.pi * self.frequency * self._k) ** 3
+        return (np.abs(self.cos) + np.abs(self.sin)) @ wk3
 
 
 class Scallop(Gait):
@@ -584,6 +598,9 @@ class PiecewiseParabolic(Gait):
         j1 = j0 if t1 == t0 else int(np.searchsorted(knots, s1, side='left')) - 1
         return bool(np.all(twice[j0:max(j0, j1) + 1]))
 
+    def jerk_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
+        return np.zeros(self.n_links)      # l'' is constant between breakpoints
+
 
 class Spline(Gait):
     """A C2 cubic spline through sampled lengths (scipy.interpolate.CubicSpline).
@@ -663,13 +680,25 @@ class Cubic(Gait):
 
     def __init__(self, t0: float, l0: ArrayLike, v0: ArrayLike, a0: ArrayLike,
                  jerk: ArrayLike) -> None:
-        self.l0 = _per_link('l0', l0, None)
-        self.n_links = self.l0.size
+        l0 = _per_link('l0', l0, None)
+        self.n_links = l0.size
         self.t0 = float(t0)
-        self.v0 = _per_link('v0', v0, self.n_links)
-        self.a0 = _per_link('a0', a0, self.n_links)
-        self.jerk = _per_link('jerk', jerk, self.n_links)
-        self._constant = not (np.any(self.v0) or np.any(self.a0) or np.any(self.jerk))
+        self._arrays = (l0, _per_link('v0', v0, self.n_links), _per_link('a0', a0, self.n_links),
+                        _per_link('jerk', jerk, self.n_links))
+        self._constant = not any(np.any(x) for x in self._arrays[1:])
+        self._rows = list(zip(*(x.tolist() for x in self._arrays)))
+
+    # the coefficients as arrays [m, m/s, m/s^2, m/s^3], shape (n_links,); a trusted piece
+    # (one per node tick) makes them only if asked
+    l0 = property(lambda self: self._coefficients()[0])
+    v0 = property(lambda self: self._coefficients()[1])
+    a0 = property(lambda self: self._coefficients()[2])
+    jerk = property(lambda self: self._coefficients()[3])
+
+    def _coefficients(self) -> tuple[NDArray[np.float64], ...]:
+        if self._arrays is None:
+            self._arrays = tuple(np.array(x) for x in zip(*self._rows))
+        return self._arrays
 
     @classmethod
     def trusted(cls, t0: float, l0: list[float], v0: list[float], a0: list[float],
@@ -678,28 +707,44 @@ class Cubic(Gait):
         actuator's hot path, one piece per tick; it produces only finite values)."""
         self = cls.__new__(cls)
         self.t0 = float(t0)
-        self.l0, self.v0, self.a0, self.jerk = (np.array(x, dtype=float)
-                                                for x in (l0, v0, a0, jerk))
         self.n_links = len(l0)
+        self._arrays = None
         self._constant = not (any(v0) or any(a0) or any(jerk))
+        self._rows = list(zip(l0, v0, a0, jerk))
         return self
 
     def __call__(self, t: float | ArrayLike) -> Triple:
         if np.ndim(t) == 0:
-            d = float(t) - self.t0
-            j, a0, v0 = self.jerk, self.a0, self.v0
-            return (self.l0 + d * (v0 + d * (0.5 * a0 + d * j / 6.0)),
-                    v0 + d * (a0 + 0.5 * d * j), a0 + d * j)
+            return self.at(float(t))
         return super().__call__(t)
+
+    def at(self, t: float) -> Triple:
+        # _eval's expressions in Python floats (IEEE, same operation order: bit-identical)
+        d = t - self.t0
+        l, v, a = [], [], []
+        for l0, v0, a0, j in self._rows:
+            l.append(l0 + d * (v0 + d * (0.5 * a0 + d * j / 6.0)))
+            v.append(v0 + d * (a0 + 0.5 * d * j))
+            a.append(a0 + d * j)
+        return np.array(l), np.array(v), np.array(a)
+
+    def at1(self, t: float) -> tuple[float, float, float]:
+        d = t - self.t0
+        l0, v0, a0, j = self._rows[0]
+        return l0 + d * (v0 + d * (0.5 * a0 + d * j / 6.0)), v0 + d * (a0 + 0.5 * d * j), \
+            a0 + d * j
 
     def _eval(self, t: NDArray[np.float64]) -> Triple:
         d = (t - self.t0)[:, None]
-        j, a0, v0 = self.jerk, self.a0, self.v0
-        return (self.l0 + d * (v0 + d * (0.5 * a0 + d * j / 6.0)),
+        l0, v0, a0, j = self._coefficients()
+        return (l0 + d * (v0 + d * (0.5 * a0 + d * j / 6.0)),
                 v0 + d * (a0 + 0.5 * d * j), a0 + d * j)
 
     def is_constant(self, t0: float, t1: float) -> bool:
         return self._constant
+
+    def jerk_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
+        return np.array([abs(r[3]) for r in self._rows])
 
 
 class PiecewiseCubic(Gait):
@@ -712,30 +757,37 @@ class PiecewiseCubic(Gait):
     """
 
     def __init__(self, starts: ArrayLike, pieces: list[Cubic]) -> None:
+        # built once per publish tick by the node: checks and joins in plain Python floats
         starts = np.asarray(starts, dtype=float)
         if starts.ndim != 1 or starts.size != len(pieces) or starts.size == 0:
             raise ValueError('starts must list one start time [s] per piece')
-        if np.any(np.diff(starts) <= 0):
-            raise ValueError('starts must be strictly increasing')
+        sl = starts.tolist()
+        if any(b <= a for a, b in zip(sl, sl[1:])) or not all(map(math.isfinite, sl)):
+            raise ValueError('starts must be finite and strictly increasing')
         self.n_links = pieces[0].n_links
         if any(pc.n_links != self.n_links for pc in pieces):
             raise ValueError('every piece must have the same number of linkages')
         self.starts = starts
-        self._starts = starts.tolist()
+        self._starts = sl
         self.pieces = list(pieces)
-        self._t0 = np.array([pc.t0 for pc in pieces])
-        self._c = [np.array([pc.l0 for pc in pieces]), np.array([pc.v0 for pc in pieces]),
-                   np.array([pc.a0 for pc in pieces]), np.array([pc.jerk for pc in pieces])]
-        # l'' at the end of piece k (the Cubic's own expression) against a0 of piece k+1
-        a_end = self._c[2][:-1] + (starts[1:] - self._t0[:-1])[:, None] * self._c[3][:-1]
-        self._jumps = starts[1:][np.any(a_end != self._c[2][1:], axis=1)]
-        self._constant = [pc.is_constant(0.0, 0.0) for pc in pieces]
+        self._arrays = None       # stacked coefficients for array evaluation, made on demand
+        # l'' at the end of piece k (the Cubic's own expression a0 + d j) against a0 of k+1
+        jumps = []
+        for k in range(len(pieces) - 1):
+            d = sl[k + 1] - pieces[k].t0
+            if any(r[2] + d * r[3] != n[2] for r, n in zip(pieces[k]._rows, pieces[k + 1]._rows)):
+                jumps.append(sl[k + 1])
+        self._jumps = np.array(jumps)
+        self._constant = [pc._constant for pc in pieces]
 
     def _index(self, t: float) -> int:
         return max(bisect_right(self._starts, t) - 1, 0)
 
     def at(self, t: float) -> Triple:
-        return self.pieces[self._index(t)](t)
+        return self.pieces[self._index(t)].at(t)
+
+    def at1(self, t: float) -> tuple[float, float, float]:
+        return self.pieces[self._index(t)].at1(t)
 
     def __call__(self, t: float | ArrayLike) -> Triple:
         if np.ndim(t) == 0:
@@ -743,9 +795,14 @@ class PiecewiseCubic(Gait):
         return super().__call__(t)
 
     def _eval(self, t: NDArray[np.float64]) -> Triple:
+        if self._arrays is None:
+            rows = np.array([pc._rows for pc in self.pieces])     # (K, n_links, 4)
+            self._arrays = (np.array([pc.t0 for pc in self.pieces]),
+                            [rows[:, :, i] for i in range(4)])
+        t0s, c = self._arrays
         k = np.clip(np.searchsorted(self.starts, t, side='right') - 1, 0, len(self.pieces) - 1)
-        l0, v0, a0, j = (c[k] for c in self._c)
-        d = (t - self._t0[k])[:, None]
+        l0, v0, a0, j = (x[k] for x in c)
+        d = (t - t0s[k])[:, None]
         return (l0 + d * (v0 + d * (0.5 * a0 + d * j / 6.0)),
                 v0 + d * (a0 + 0.5 * d * j), a0 + d * j)
 
@@ -756,3 +813,8 @@ class PiecewiseCubic(Gait):
     def is_constant(self, t0: float, t1: float) -> bool:
         k0, k1 = self._index(t0), self._index(t1)
         return all(self._constant[k0:k1 + 1])
+
+    def jerk_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
+        k0, k1 = self._index(t0), self._index(t1)
+        return np.array([max(abs(pc._rows[i][3]) for pc in self.pieces[k0:k1 + 1])
+                         for i in range(self.n_links)])

@@ -350,3 +350,79 @@ def test_batched_sampling_equals_each_segments_own_closed_form(scene):
             assert np.allclose(got[name][i], one[name][0], rtol=0, atol=1e-12 * scale), (name, t)
         assert np.array_equal(got['contact'][i], one['contact'][0]), t
         assert got['indeterminate'][i] == (sg.group.sum() > 1)
+
+
+# ----------------------------------------------------------------------------------------------
+# The jerk-bound shortcut of the exact solver's dip search (Gait.jerk_bound): where the bound
+# proves a velocity stays positive between two grid points the root search is skipped. A run
+# with the bound must find exactly the events of a run whose gait hides it (None: the search
+# always runs), while searching less.
+def _no_jerk_bound(gait):
+    class Hidden(type(gait)):
+        def jerk_bound(self, t0, t1):
+            return None
+    hidden = object.__new__(Hidden)
+    hidden.__dict__.update(gait.__dict__)
+    return hidden
+
+
+def _actuator_windows(seed, n_windows=300, per=10, dt=1e-3):
+    """PiecewiseCubic windows as the node hands them to the solver: an actuator chasing
+    random step targets, ``per`` ticks per window."""
+    from crawler_sim.actuator import Actuator, ActuatorLimits
+    rng = np.random.default_rng(seed)
+    act = Actuator([0.1, 0.1], dt, ActuatorLimits(bandwidth=8.0, max_speed=0.4,
+                                                   max_acceleration=6.0))
+    windows = []
+    for w in range(n_windows):
+        if w % 7 == 0:
+            act.set_target(list(rng.uniform(0.07, 0.13, 2)))
+        starts = [(w * per + k) * dt for k in range(per)]
+        pieces = [act.step(t, t + dt) for t in starts]
+        windows.append((starts, pieces))
+    return windows
+
+
+@pytest.mark.parametrize('scene', ['actuator_p3', 'sinusoid_p4', 'parabolic_p2'])
+def test_the_jerk_bound_shortcut_finds_the_same_events_with_fewer_root_searches(scene, monkeypatch):
+    from crawler_sim.solvers.exact import ExactSolver
+    searches = {'n': 0}
+    original = ExactSolver._min_of
+
+    def counted(self, *args):
+        searches['n'] += 1
+        return original(self, *args)
+    monkeypatch.setattr(ExactSolver, '_min_of', counted)
+
+    def run(hide: bool):
+        searches['n'] = 0
+        if scene == 'actuator_p3':
+            crawler = cs.Crawler([1.0, 0.8, 1.2], [2.9, 2.4, 3.5])
+            windows = _actuator_windows(seed=4)
+            wrap = _no_jerk_bound if hide else (lambda g: g)
+            st = cs.Stepper(crawler, wrap(gaits.PiecewiseCubic(*windows[0])))
+            for k, (starts, pieces) in enumerate(windows):
+                end = windows[k + 1][0][0] if k + 1 < len(windows) else starts[-1] + 1e-3
+                st.advance(end, wrap(gaits.PiecewiseCubic(starts, pieces)))
+        else:
+            if scene == 'sinusoid_p4':
+                crawler, gait, t_end = _crawler(4, seed=5), _wave(4, amp=0.03, freq=1.5), 3.0
+            else:
+                crawler = cs.Crawler([0.5, 1.0], [1.5, 3.0])
+                gait, t_end = gaits.PiecewiseParabolic.stroke(0.1, 0.02, 2.0, 0.3), 2.0
+            st = cs.Stepper(crawler, _no_jerk_bound(gait) if hide else gait,
+                            periodic_skip=False)
+            st.advance(t_end)
+        return st.pop_events(), st.state, searches['n']
+
+    ev_a, state_a, n_a = run(hide=False)
+    ev_b, state_b, n_b = run(hide=True)
+    assert len(ev_a) == len(ev_b) > 5
+    for a, b in zip(ev_a, ev_b):
+        assert (a.body, a.old, a.new) == (b.body, b.old, b.new)
+        assert abs(a.time - b.time) <= 1e-12
+    assert np.allclose(state_a.x, state_b.x, rtol=0, atol=1e-12)
+    assert np.array_equal(state_a.contact, state_b.contact)
+    assert n_a <= n_b
+    if scene == 'actuator_p3':
+        assert n_a < n_b      # the node's case: most dip searches are ruled out

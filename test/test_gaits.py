@@ -8,8 +8,8 @@ from numpy.testing import assert_allclose, assert_array_equal
 import pytest
 
 from crawler_sim import gaits
-from crawler_sim.gaits import (Cubic, Custom, Fourier, Gait, PiecewiseParabolic, Scallop,
-                               Sinusoid, Spline)
+from crawler_sim.gaits import (Cubic, Custom, Fourier, Gait, PiecewiseCubic, PiecewiseParabolic,
+                               Scallop, Sinusoid, Spline)
 
 TWO_PI = 2.0 * math.pi
 
@@ -435,3 +435,31 @@ def test_value_errors_state_the_allowed_range():
         Scallop(0.1, 0.02, 1.0, 1.2)
     with pytest.raises(ValueError, match='frequency must be finite and > 0 Hz'):
         Fourier(0.1, ([0.01], [0.0]), 0.0)
+
+
+@pytest.mark.parametrize('name', ['sinusoid', 'fourier', 'fourier_shared', 'parabolic_stroke',
+                                  'parabolic_open', 'cubic'])
+def test_jerk_bound_holds_for_the_finite_difference_jerk_between_breakpoints(name):
+    # The exact solver skips a dip search when the jerk bound proves a velocity stays positive;
+    # a bound below the true jerk would make it miss events. Central differences of l'' are
+    # the independent estimate of the jerk.
+    gait = _make(name)
+    h = 1e-5
+    t = np.linspace(-1.3, 3.1, 2001)
+    kinks = _kinks(gait, -2.0, 4.0)
+    if kinks.size:
+        t = t[np.min(np.abs(t[:, None] - kinks[None, :]), axis=1) > 10 * h]
+    jerk = (gait(t + h)[2] - gait(t - h)[2]) / (2 * h)
+    bound = gait.jerk_bound(-1.3, 3.1)
+    assert bound.shape == (gait.n_links,)
+    assert np.all(np.abs(jerk) <= bound * (1 + 1e-6) + 1e-9), (np.abs(jerk).max(axis=0), bound)
+
+
+def test_jerk_bound_of_piecewise_cubic_is_the_largest_jerk_of_the_pieces_it_spans():
+    pieces = [Cubic(0.0, [0.1, 0.2], 0.0, 0.0, [1.0, -2.0]),
+              Cubic(1.0, [0.1, 0.2], 0.0, 0.0, [-3.0, 0.5]),
+              Cubic(2.0, [0.1, 0.2], 0.0, 0.0, [0.25, 4.0])]
+    pc = PiecewiseCubic([0.0, 1.0, 2.0], pieces)
+    assert pc.jerk_bound(0.1, 0.9).tolist() == [1.0, 2.0]
+    assert pc.jerk_bound(0.5, 1.5).tolist() == [3.0, 2.0]
+    assert pc.jerk_bound(0.5, 2.5).tolist() == [3.0, 4.0]

@@ -416,6 +416,11 @@ class RampCosine(gaits.Gait):
         return (np.array([self.l0 + A * (c * t + math.sin(w * t) / w)]),
                 np.array([A * (c + math.cos(w * t))]), np.array([-A * w * math.sin(w * t)]))
 
+    def jerk_bound(self, t0: float, t1: float) -> np.ndarray:
+        # l''' = -A w^2 cos(w t): the bound lets the exact solver skip dip searches it can
+        # rule out, so the grazing and close-event checks exercise that shortcut too
+        return np.array([abs(self.A) * self.w ** 2])
+
 
 def _kinematic_pair(A: float, c: float, w: float, f0: float = 0.05, m=(0.3, 0.7),
                     f1: tuple | None = None) -> tuple[Crawler, RampCosine, float]:

@@ -299,6 +299,9 @@ class ExactSolver:
         self._fp_list, self._fm_list = self._fp.tolist(), self._fm.tolist()
         self._f_total = float(self._fp.sum() + self._fm.sum())   # [N], scales of the tests
         self._WT, self._CT = self._W.T.copy(), self._C.T.copy()
+        # Import the root finder now, not at the first force event: scipy.optimize takes
+        # ~0.4 s to import, which in the middle of a real-time run is a burst of late ticks.
+        import scipy.optimize  # noqa: F401
         self.reset(t0=t0, x0=x0, v0=v0)
 
     # ------------------------------------------------------------------ state
@@ -885,6 +888,27 @@ class ExactSolver:
             t = t_new
         return 0.5 * (a + b)
 
+    def _dip_floor(self, seg: Segment, tau: NDArray, G: NDArray) -> NDArray | None:
+        """Lower bounds (N-1, k) of the velocity functions between grid points, or None.
+
+        A velocity function is G = sigma (V + w . l') (w: W_i sliding, C_i - C_ref relative to
+        a stuck body), so |G''| <= J = |w| . max|l'''|; where the gait bounds its jerk, G stays
+        above the chord minus J h^2 / 8 on each grid interval (h its length).
+        """
+        jerk = seg.gait.jerk_bound(float(tau[0]), float(tau[-1]))
+        if jerk is None:
+            return None
+        if seg.ref < 0:
+            w = self._W
+        else:
+            w = self._C[~seg.group] - self._C[seg.ref]
+        J = np.abs(w) @ jerk                                   # (k_vel,)
+        h = np.diff(tau)[:, None]
+        floor = np.full((tau.size - 1, G.shape[1]), -math.inf)
+        k = J.size
+        floor[:, :k] = np.minimum(G[:-1, :k], G[1:, :k]) - J * h * h / 8.0
+        return floor
+
     def _first_bracket(self, seg, tau, G, D):
         if G.shape[1] == 0:
             return None
@@ -893,7 +917,10 @@ class ExactSolver:
         dip_at: dict[int, list] = {}
         turn = (D[:-1] < 0.0) & (D[1:] > 0.0) & (G[:-1] > 0.0) & (G[1:] > 0.0)
         if turn.any():
+            floor = self._dip_floor(seg, tau, G)
             for k, c in zip(*turn.nonzero()):
+                if floor is not None and floor[k, c] > 0.0:
+                    continue     # provably positive between the two grid points
                 t_min = self._min_of(seg, int(c), tau[k], tau[k + 1])
                 if t_min is None:
                     continue
