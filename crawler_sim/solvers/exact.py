@@ -103,6 +103,7 @@ class Segment:
     x_ref: float                  # stick: its fixed position
     group: NDArray[np.bool_]      # stick: bodies stuck with ref
     leaving: NDArray[np.bool_] | None = None   # bodies that start the segment leaving rest
+    consts: tuple | None = None   # the solver's per-segment constants of its event functions
 
     def evaluate(self, crawler: Crawler, tau: NDArray[np.float64],
                  mats: tuple[NDArray, NDArray] | None = None) -> dict:
@@ -506,8 +507,8 @@ class ExactSolver:
         self._checkpoint = None
         l0, ld0, ldd0 = self.gait.at(self.t)
         l1, ld1, ldd1 = gait.at(self.t)
-        if not (np.array_equal(l0, l1) and np.array_equal(ld0, ld1)
-                and np.array_equal(ldd0, ldd1)):
+        if not (l0.tolist() == l1.tolist() and ld0.tolist() == ld1.tolist()
+                and ldd0.tolist() == ldd1.tolist()):
             self._mode_cache = None     # not a C2 continuation: choose the mode anew
         if self.ref < 0:
             # body 0 keeps its position and velocity
@@ -631,9 +632,12 @@ class ExactSolver:
             self.X = float(seg.x_ref - self._W[seg.ref] @ l)
             g = seg.group
             K = seg.K0 + np.where(g, 0.0, seg.R) * d
-            f_slide = self._fext + seg.R[~g].sum()
+            f_slide = self._stick_consts(seg)[3]
             imp = self._M * (self.V - seg.V0) - f_slide * d
-            K[g] += _split_impulse(np.array([imp]), np.array([d]), self._fp[g], self._fm[g])[0]
+            fp, fm = self._fp[g], self._fm[g]
+            w = (fp + fm).sum()
+            if w > 0:     # _split_impulse for one time, without building arrays
+                K[g] += fm * d - ((-imp + fm.sum() * d) / w) * (fp + fm)
             self.K = K
             zero = g.copy()
         for kind, i in hits:
@@ -693,29 +697,41 @@ class ExactSolver:
                 G[:, self._free] = math.inf
                 D[:, self._free] = math.nan
             return G, D
-        r, g = seg.ref, seg.group
-        C = self._C
-        rel = C[~g] - C[r]                          # (k, n): relative offsets to the ref body
-        sg = seg.contact[~g].astype(float)
-        Gv = sg * (ld @ rel.T)
-        Dv = sg * (ldd @ rel.T)
-        free = self._free[~g]
-        if free.any():
+        r = seg.ref
+        relT, sg, free, f_slide, lo, hi, others = self._stick_consts(seg)
+        Gv = sg * (ld @ relT)
+        Dv = sg * (ldd @ relT)
+        if free is not None:
             Gv[:, free] = math.inf
             Dv[:, free] = math.nan
-        f_slide = self._fext + seg.R[~g].sum()
         total = -M * (ldd @ self._W[r]) - f_slide    # ground force the group needs
-        lo, hi = -self._fp[g].sum(), self._fm[g].sum()
-        cols = [Gv, (total - lo)[:, None], (hi - total)[:, None]]
-        others = [j for j in g.nonzero()[0] if j != r]
+        k = Gv.shape[1]
+        G = np.empty((tau.size, k + 2 + len(others)))
+        G[:, :k] = Gv
+        G[:, k] = total - lo
+        G[:, k + 1] = hi - total
         if others:
-            sd = ld @ C.T
+            sd = ld @ self._CT
             vscale = np.max(np.abs(sd), axis=1, keepdims=True) + 1e-300
-            cols.append(1e-13 * vscale - np.abs(sd[:, others] - sd[:, [r]]))
-        G = np.concatenate(cols, axis=1)
+            G[:, k + 2:] = 1e-13 * vscale - np.abs(sd[:, others] - sd[:, [r]])
         D = np.full_like(G, np.nan)
-        D[:, :Gv.shape[1]] = Dv
+        D[:, :k] = Dv
         return G, D
+
+    def _stick_consts(self, seg: Segment) -> tuple:
+        """What a stick segment's event functions need besides the gait, computed once per
+        segment: relative offsets (transposed) and signs of the sliding bodies, their
+        frictionless ones (or None), the sliding bodies' force, the group's friction bounds
+        [-f_plus, f_minus] summed, and the other members of the group."""
+        if seg.consts is None:
+            r, g = seg.ref, seg.group
+            slide = ~g
+            free = self._free[slide]
+            seg.consts = ((self._C[slide] - self._C[r]).T, seg.contact[slide].astype(float),
+                          free if free.any() else None, self._fext + seg.R[slide].sum(),
+                          -self._fp[g].sum(), self._fm[g].sum(),
+                          [j for j in g.nonzero()[0] if j != r])
+        return seg.consts
 
     def _scalar(self, seg: Segment, col: int, deriv: bool = False):
         """Fast scalar closure for one event function (or its derivative), for root finding."""
