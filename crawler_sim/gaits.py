@@ -795,6 +795,8 @@ class PiecewiseCubic(Gait):
         return super().__call__(t)
 
     def _eval(self, t: NDArray[np.float64]) -> Triple:
+        if t.size * self.n_links <= 64:
+            return self._eval_small(t)
         if self._arrays is None:
             rows = np.array([pc._rows for pc in self.pieces])     # (K, n_links, 4)
             self._arrays = (np.array([pc.t0 for pc in self.pieces]),
@@ -805,6 +807,20 @@ class PiecewiseCubic(Gait):
         d = (t - t0s[k])[:, None]
         return (l0 + d * (v0 + d * (0.5 * a0 + d * j / 6.0)),
                 v0 + d * (a0 + 0.5 * d * j), a0 + d * j)
+
+    def _eval_small(self, t: NDArray[np.float64]) -> Triple:
+        # The node's event grid (a few points per publish window): Python floats beat numpy's
+        # per-call overhead here; same expressions, so the same bits as the array path.
+        out_l, out_v, out_a = [], [], []
+        starts, pieces = self._starts, self.pieces
+        for tt in t.tolist():
+            pc = pieces[max(bisect_right(starts, tt) - 1, 0)]
+            d = tt - pc.t0
+            out_l.append([l0 + d * (v0 + d * (0.5 * a0 + d * j / 6.0))
+                          for l0, v0, a0, j in pc._rows])
+            out_v.append([v0 + d * (a0 + 0.5 * d * j) for _, v0, a0, j in pc._rows])
+            out_a.append([a0 + d * j for _, _, a0, j in pc._rows])
+        return np.array(out_l), np.array(out_v), np.array(out_a)
 
     def breakpoints(self, t0: float, t1: float) -> NDArray[np.float64]:
         b = self._jumps

@@ -463,3 +463,21 @@ def test_jerk_bound_of_piecewise_cubic_is_the_largest_jerk_of_the_pieces_it_span
     assert pc.jerk_bound(0.1, 0.9).tolist() == [1.0, 2.0]
     assert pc.jerk_bound(0.5, 1.5).tolist() == [3.0, 2.0]
     assert pc.jerk_bound(0.5, 2.5).tolist() == [3.0, 4.0]
+
+
+def test_piecewise_cubic_small_and_large_evaluations_agree_bit_for_bit():
+    # few points are evaluated in Python floats, many with numpy: the same IEEE expressions
+    rng = np.random.default_rng(7)
+    starts = np.cumsum(rng.uniform(1e-3, 2e-3, 12))
+    pieces = [Cubic(t0, rng.uniform(0.05, 0.15, 2), rng.normal(0, 0.1, 2), rng.normal(0, 1, 2),
+                    rng.normal(0, 10, 2)) for t0 in starts]
+    pc = PiecewiseCubic(starts, pieces)
+    t = np.sort(rng.uniform(starts[0] - 1e-3, starts[-1] + 3e-3, 200))
+    big = pc(t)                      # 200 points: the numpy path
+    for k in range(0, 200, 8):
+        small = pc(t[k:k + 8])       # 8 points: the float path
+        for a, b in zip(big, small):
+            assert np.array_equal(a[k:k + 8], b)
+        one = pc.at(float(t[k]))
+        for a, b in zip(big, one):
+            assert np.array_equal(a[k], b)
