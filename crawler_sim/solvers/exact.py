@@ -1001,7 +1001,6 @@ class ExactSolver:
         local = times.astype(float).copy()
         shift_x = np.zeros(n_t)
         shift_k = np.zeros((n_t, self._m.size))
-        owner = np.empty(n_t, dtype=np.int64)
         pieces: list[Segment] = []
         number: dict[int, int] = {}
 
@@ -1011,21 +1010,28 @@ class ExactSolver:
                 pieces.append(seg)
             return number[id(seg)]
 
-        for k in np.unique(idx):
-            sel = np.nonzero(idx == k)[0]
+        seg_key = np.full(len(segs), -1, dtype=np.int64)
+        blocks = []
+        for k in np.unique(idx).tolist():
+            if isinstance(segs[k], PeriodicBlock):
+                blocks.append(k)
+            else:
+                seg_key[k] = key(segs[k])
+        owner = seg_key[idx]
+        for k in blocks:
+            sel = (idx == k).nonzero()[0]
             piece = segs[k]
-            if not isinstance(piece, PeriodicBlock):
-                owner[sel] = key(piece)
-                continue
             j = np.clip(np.floor((times[sel] - piece.t0) / piece.T).astype(int) + 1, 1, piece.n)
             loc = times[sel] - j * piece.T             # falls in the template period
             tpl = piece.template
             t_starts = np.array([sg.t0 for sg in tpl])
+            t_ends = np.array([sg.t1 for sg in tpl])
             sub = np.clip(np.searchsorted(t_starts, loc, side='right') - 1, 0, len(tpl) - 1)
-            for m in np.unique(sub):
-                these = sel[sub == m]
-                owner[these] = key(tpl[m])
-                local[these] = np.clip(loc[sub == m], tpl[m].t0, tpl[m].t1)
+            tpl_key = np.full(len(tpl), -1, dtype=np.int64)
+            for m in np.unique(sub).tolist():
+                tpl_key[m] = key(tpl[m])
+            owner[sel] = tpl_key[sub]
+            local[sel] = np.clip(loc, t_starts[sub], t_ends[sub])
             shift_x[sel] = j * piece.D
             shift_k[sel] = np.multiply.outer(j, piece.dK)
         out = evaluate_rows(self.crawler, pieces, owner, local, (self._C, self._W))
