@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from array import array
 from functools import lru_cache
+import struct
 from typing import Iterable, Mapping, Sequence
 
 from builtin_interfaces.msg import Time
@@ -23,7 +24,8 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 __all__ = ['stamp_from_ns', 'ns_from_stamp', 'linkage_names', 'body_names', 'joint_states_msg',
            'body_states_msg', 'contact_states_msg', 'odom_msg', 'markers_msg', 'MarkersBuilder',
-           'diagnostics_msg', 'clock_msg', 'applied_command_msg', 'float64_array_msg', 'event_msg',
+           'diagnostics_msg', 'clock_msg', 'clock_cdr', 'applied_command_msg',
+           'float64_array_msg', 'event_msg',
            'CONTACT_COLOURS',
            'ODOM_FRAME', 'BASE_FRAME']
 
@@ -247,6 +249,18 @@ def _fmt(value: object) -> str:
 def clock_msg(t_ns: int) -> Clock:
     """``/clock``: the sim time."""
     return Clock(clock=stamp_from_ns(t_ns))
+
+
+#: CDR of rosgraph_msgs/Clock: encapsulation (plain CDR, little-endian), int32 sec, uint32 nanosec
+_CLOCK_CDR = struct.Struct('<4siI')
+_CDR_LE = b'\x00\x01\x00\x00'
+
+
+def clock_cdr(t_ns: int) -> bytes:
+    """``/clock`` already serialised (what ``serialize_message(clock_msg(t_ns))`` returns):
+    a publisher sends bytes without converting a Python message."""
+    sec, nanosec = divmod(int(t_ns), 1_000_000_000)
+    return _CLOCK_CDR.pack(_CDR_LE, sec, nanosec)
 
 
 def applied_command_msg(t_ns: int, lengths: Sequence[float]) -> JointState:

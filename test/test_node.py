@@ -81,10 +81,12 @@ class Harness(Spinning):
 
 
     def send(self, pub, msg, node: SimNode, counter: str, before: int | None = None) -> None:
-        """Publish and spin until the node counted it under ``counter``."""
+        """Publish and wait until the node counted it under ``counter``. The node's loop takes
+        commands at every tick; here, without a loop, they are taken as they arrive."""
         start = node.counters[counter] if before is None else before
         pub.publish(msg)
-        self.until(lambda: node.counters[counter] > start, f'{counter} to increase')
+        self.until(lambda: node.take_inputs() >= 0 and node.counters[counter] > start,
+                   f'{counter} to increase')
 
     def close(self) -> None:
         for node in self.nodes:
@@ -220,6 +222,44 @@ def test_a_command_takes_effect_at_the_next_tick_and_is_echoed_with_that_time(ro
     assert sim.state.rates[0] > 0 and sim.state.rates[1] > 0
     ticks(sim, 2000)
     np.testing.assert_allclose(sim.state.lengths, [0.15, 0.12], atol=1e-9)
+
+
+def test_commands_are_taken_by_the_tick_never_by_the_executor(ros):
+    sim = ros.sim()
+    applied = ros.listen(JointState, '/crawler_sim/applied_command')
+    pub = ros.publisher(Float64MultiArray, 'linkage_cmd')
+    ticks(sim, 3)
+    assert not any(ros.ex.can_execute(sub) for sub in (sim._cmd_sub, sim._traj_sub))
+    assert not any(ros.ex.can_execute(h) for sub in (sim._cmd_sub, sim._traj_sub)
+                   for h in sub.event_handlers)
+    pub.publish(cmd(0.15, 0.12))
+    end = time.monotonic() + 0.3
+    ros.until(lambda: time.monotonic() > end, '0.3 s of spinning')   # delivered, not taken
+    assert sim.counters['commands_accepted'] == 0
+    sim.tick()                                  # takes it and applies it at its start (3 ms)
+    assert sim.counters['commands_accepted'] == 1
+    ros.until(lambda: applied, 'the applied command')
+    assert ns_from_stamp(applied[0].header.stamp) == 3_000_000
+    assert sim._engine.actuator.target == [0.15, 0.12]
+
+
+@pytest.mark.parametrize('last', ['command', 'trajectory'])
+def test_of_a_command_and_a_trajectory_in_one_tick_the_later_arrival_wins(ros, last):
+    sim = ros.sim()
+    cmd_pub = ros.publisher(Float64MultiArray, 'linkage_cmd')
+    traj_pub = ros.publisher(JointTrajectory, 'linkage_trajectory')
+    traj = trajectory(['linkage_0', 'linkage_1'], [point(0.5, [0.12, 0.13])])
+    sends = [lambda: cmd_pub.publish(cmd(0.15, 0.12)), lambda: traj_pub.publish(traj)]
+    if last == 'command':
+        sends.reverse()
+    for send in sends:
+        send()
+        end = time.monotonic() + 0.1
+        ros.until(lambda: time.monotonic() > end, '0.1 s')
+    sim.tick()
+    assert sim.counters['commands_accepted'] == sim.counters['trajectories_accepted'] == 1
+    following = sim._engine.actuator.trajectory is not None
+    assert following == (last == 'trajectory')
 
 
 @pytest.mark.parametrize('data,problem', [
