@@ -10,7 +10,7 @@ from __future__ import annotations
 from array import array
 from functools import lru_cache
 import struct
-from typing import Iterable, Mapping, Sequence
+from typing import Any, Iterable, Mapping, Sequence
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -25,7 +25,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 __all__ = ['stamp_from_ns', 'ns_from_stamp', 'linkage_names', 'body_names', 'joint_states_msg',
            'body_states_msg', 'contact_states_msg', 'odom_msg', 'markers_msg', 'MarkersBuilder',
            'diagnostics_msg', 'clock_msg', 'clock_cdr', 'applied_command_msg',
-           'float64_array_msg', 'event_msg',
+           'float64_array_msg', 'event_msg', 'centre_of_mass', 'OutputEncoder', 'OUTPUT_TYPES',
            'CONTACT_COLOURS',
            'ODOM_FRAME', 'BASE_FRAME']
 
@@ -105,18 +105,23 @@ def contact_states(contact) -> Int8MultiArray:
     return msg
 
 
+def centre_of_mass(x, v, masses) -> tuple[float, float]:
+    """Centre of mass position X = sum m_i x_i / M [m] and velocity V [m/s]."""
+    m = np.asarray(masses, dtype=np.float64)
+    total = float(m.sum())
+    return (float(m @ np.asarray(x, dtype=np.float64)) / total,
+            float(m @ np.asarray(v, dtype=np.float64)) / total)
+
+
 def odometry(t_ns: int, x, v, masses) -> Odometry:
     """``odom``: centre of mass X = sum m_i x_i / M and V along x, frame ``odom``, child
     ``base_link``. The line is the odom x axis (along the incline); orientation is identity."""
-    m = np.asarray(masses, dtype=np.float64)
-    total = float(m.sum())
     msg = Odometry()
     msg.header.stamp = stamp_from_ns(t_ns)
     msg.header.frame_id = ODOM_FRAME
     msg.child_frame_id = BASE_FRAME
-    msg.pose.pose.position.x = float(m @ np.asarray(x, dtype=np.float64)) / total
+    msg.pose.pose.position.x, msg.twist.twist.linear.x = centre_of_mass(x, v, masses)
     msg.pose.pose.orientation.w = 1.0
-    msg.twist.twist.linear.x = float(m @ np.asarray(v, dtype=np.float64)) / total
     return msg
 
 
@@ -284,3 +289,129 @@ def float64_array_msg(values: Sequence[float]) -> Float64MultiArray:
     msg = Float64MultiArray()
     msg.data = _f64(np.atleast_1d(np.asarray(values, dtype=np.float64)))
     return msg
+
+
+#: ROS type of each output of the node (and of the inputs it records)
+OUTPUT_TYPES = {
+    'joint_states': 'sensor_msgs/msg/JointState',
+    'body_states': 'sensor_msgs/msg/JointState',
+    'contact_states': 'std_msgs/msg/Int8MultiArray',
+    'odom': 'nav_msgs/msg/Odometry',
+    'markers': 'visualization_msgs/msg/MarkerArray',
+    'applied_command': 'sensor_msgs/msg/JointState',
+    'linkage_cmd': 'std_msgs/msg/Float64MultiArray',
+}
+_STAMP = ('header.stamp.sec', 'header.stamp.nanosec')
+_JOINTS = (_STAMP, ('position',), ('velocity',), ('effort',))
+_MISSING = object()
+
+
+class OutputEncoder:
+    """The node's outputs as CDR bytes, ready to publish and to record.
+
+    Building an rclpy message and converting it to C (``publish`` or ``serialize_message``) costs
+    tens of microseconds per message; the outputs of a run differ only in numbers. So the first
+    message of each shape (output and number of bodies) is built with the builders above and
+    serialised, and becomes the template of a :class:`crawler_sim.bag.cdr.Encoder`; later
+    messages of that shape are the template with their numbers packed in. The bytes equal
+    ``serialize_message`` of the builder's message (padding bytes aside, zero here); where a
+    template cannot be made, every message of that shape goes through the builder.
+    ``fast`` and ``slow`` count the messages made each way.
+    """
+
+    def __init__(self) -> None:
+        from rclpy.serialization import serialize_message
+        from crawler_sim.bag.cdr import Encoder, LayoutError
+        self._serialize, self._encoder_class, self._layout_error = (
+            serialize_message, Encoder, LayoutError)
+        self._encoders: dict[tuple, Any] = {}
+        self.fast = 0
+        self.slow = 0
+
+    def encode(self, name: str, state, t_ns: int, masses=None) -> bytes:
+        """CDR bytes of output ``name`` (``joint_states``, ``body_states``, ``contact_states``,
+        ``odom``, ``markers``) of core ``State`` at sim time ``t_ns`` [ns]; ``odom`` needs the
+        body ``masses`` [kg]."""
+        return getattr(self, name)(state, t_ns, masses)
+
+    def joint_states(self, state, t_ns: int, masses=None) -> bytes:
+        return self._joints('joint_states', t_ns, state.lengths, state.rates,
+                            state.linkage_force, lambda: joint_states_msg(state, t_ns))
+
+    def body_states(self, state, t_ns: int, masses=None) -> bytes:
+        return self._joints('body_states', t_ns, state.x, state.v, state.friction,
+                            lambda: body_states_msg(state, t_ns))
+
+    def applied_command(self, lengths: Sequence[float], t_ns: int) -> bytes:
+        """``~/applied_command`` (see :func:`applied_command_msg`)."""
+        zeros = [0.0] * len(lengths)
+        return self._joints('applied_command', t_ns, lengths, zeros, zeros,
+                            lambda: applied_command_msg(t_ns, lengths))
+
+    def linkage_cmd(self, lengths: Sequence[float]) -> bytes:
+        """A ``linkage_cmd`` as recorded (see :func:`float64_array_msg`)."""
+        values = [float(x) for x in lengths]
+        return self._encode(('linkage_cmd', len(values)), (('data',),), (values,),
+                            lambda: float64_array_msg(values))
+
+    def contact_states(self, state, t_ns: int = 0, masses=None) -> bytes:
+        contact = np.asarray(state.contact, dtype=np.int8).tolist()
+        return self._encode(('contact_states', len(contact)), (('data',),), (contact,),
+                            lambda: contact_states_msg(state))
+
+    def odom(self, state, t_ns: int, masses=None) -> bytes:
+        com_x, com_v = centre_of_mass(state.x, state.v, masses)
+        groups = (_STAMP, ('pose.pose.position.x',), ('twist.twist.linear.x',))
+        return self._encode(('odom',), groups, (divmod(t_ns, 1_000_000_000), (com_x,), (com_v,)),
+                            lambda: odom_msg(state, masses, t_ns))
+
+    def markers(self, state, t_ns: int, masses=None) -> bytes:
+        xs = state.x.tolist()
+        contact = state.contact.tolist()
+        p = len(xs)
+        stamp = divmod(t_ns, 1_000_000_000)
+        values: list = []
+        for i in range(p):
+            values += (stamp, (xs[i],), CONTACT_COLOURS.get(int(contact[i]), _LINK_COLOUR))
+        for j in range(p - 1):
+            values += (stamp, (xs[j],), (xs[j + 1],))
+        return self._encode(('markers', p), _marker_groups(p), values,
+                            lambda: markers_msg(state, t_ns))
+
+    def _joints(self, kind: str, t_ns: int, position, velocity, effort, build) -> bytes:
+        values = (divmod(t_ns, 1_000_000_000), _floats(position), _floats(velocity),
+                  _floats(effort))
+        return self._encode((kind, len(values[1])), _JOINTS, values, build)
+
+    def _encode(self, key: tuple, groups, values, build) -> bytes:
+        encoder = self._encoders.get(key, _MISSING)
+        if encoder is _MISSING:                   # first message of this shape: the template
+            try:
+                encoder = self._encoder_class(build(), OUTPUT_TYPES[key[0]], groups)
+            except self._layout_error:
+                encoder = None                    # this shape always goes through the builder
+            self._encoders[key] = encoder
+        if encoder is None:
+            self.slow += 1
+            return self._serialize(build())
+        self.fast += 1
+        return encoder.encode(*values)
+
+
+def _floats(values) -> list[float]:
+    return values.tolist() if isinstance(values, np.ndarray) else [float(x) for x in values]
+
+
+@lru_cache(maxsize=None)
+def _marker_groups(p: int) -> tuple[tuple[str, ...], ...]:
+    """Changing fields of :func:`markers_msg` for p bodies: per cube its stamp, x and colour; per
+    line its stamp and the x of both ends."""
+    groups: list[tuple[str, ...]] = []
+    for i in range(p):
+        m = f'markers.{i}.'
+        groups += [tuple(m + f for f in _STAMP), (m + 'pose.position.x',),
+                   tuple(m + 'color.' + c for c in 'rgba')]
+    for j in range(p - 1):
+        m = f'markers.{p + j}.'
+        groups += [tuple(m + f for f in _STAMP), (m + 'points.0.x',), (m + 'points.1.x',)]
+    return tuple(groups)

@@ -27,7 +27,8 @@ One loop (:meth:`SimNode.run`) drives the ticks in both clock modes. It takes th
 ``linkage_cmd`` and ``linkage_trajectory`` messages itself at the start of every tick
 (:meth:`SimNode.take_inputs`; the executor never runs those subscriptions, see
 :class:`LoopTakenGroup`); services and parameter callbacks run in an executor thread and only
-take a lock to store what they received, so every change lands between two ticks. ``real_time_factor`` paces the loop against the wall clock (1 = real time,
+take a lock to store what they received, so every change lands between two ticks.
+``real_time_factor`` paces the loop against the wall clock (1 = real time,
 10 = ten times faster, 0 = as fast as possible). A tick that starts more than one tick period
 after its wall deadline is counted as late, and the loop catches up by running the due ticks
 back to back (beyond 0.5 s of lag it gives up on the lost time and re-anchors).
@@ -58,7 +59,6 @@ from rclpy.callback_groups import CallbackGroup
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, Int8MultiArray
@@ -296,7 +296,7 @@ class SimNode(Node):
         self._log = self.get_logger()
         self._pubs: dict[str, Any] = {}
         self._clock_pub = None
-        self._markers = M.MarkersBuilder()
+        self._outputs = M.OutputEncoder()
         self._applied_pub = self.create_publisher(JointState, '~/applied_command', 10)
         self._sync_publishers()
         # commands are taken by the simulation loop (take_inputs), not by the executor
@@ -398,6 +398,9 @@ class SimNode(Node):
                 self._pubs[name] = self.create_publisher(types[name], topic, 10)
             elif not on and name in self._pubs:
                 self.destroy_publisher(self._pubs.pop(name))
+        # the outputs in interface order, as _publish_outputs sends them (not diagnostics)
+        self._output_pubs = [(name, self._pubs[name]) for name in OUTPUTS[:-1]
+                             if name in self._pubs]
         if self._cfg.publish_clock and self._clock_pub is None:
             self._clock_pub = self.create_publisher(Clock, '/clock', 10)
         elif not self._cfg.publish_clock and self._clock_pub is not None:
@@ -600,12 +603,15 @@ class SimNode(Node):
     def _apply_command(self, t_ns: int) -> None:
         cmd, self._pending_cmd = self._pending_cmd, None
         self._engine.actuator.set_target(cmd)
-        msg = M.applied_command_msg(t_ns, cmd)
-        self._applied_pub.publish(msg)
-        if self._bag is not None:
-            self._record('linkage_cmd', 'std_msgs/msg/Float64MultiArray',
-                         M.float64_array_msg(cmd), t_ns)
-            self._record('~/applied_command', 'sensor_msgs/msg/JointState', msg, t_ns)
+        recording = self._bag is not None
+        if not recording and self._applied_pub.get_subscription_count() == 0:
+            return
+        data = self._outputs.applied_command(cmd, t_ns)
+        self._applied_pub.publish(data)
+        if recording:
+            self._record('linkage_cmd', M.OUTPUT_TYPES['linkage_cmd'],
+                         self._outputs.linkage_cmd(cmd), t_ns)
+            self._record('~/applied_command', M.OUTPUT_TYPES['applied_command'], data, t_ns)
 
     def _apply_trajectory(self, t_ns: int) -> None:
         msg, self._pending_traj = self._pending_traj, None
@@ -651,36 +657,19 @@ class SimNode(Node):
         # An output is built only when it is switched on and someone takes it: a subscriber,
         # or the bag. Nobody listening costs nothing (a late subscriber gets the next one).
         recording = self._bag is not None
-        pubs = {name: pub for name, pub in self._pubs.items()
-                if name != 'diagnostics' and (recording or pub.get_subscription_count() > 0)}
+        pubs = [(name, pub) for name, pub in self._output_pubs
+                if recording or pub.get_subscription_count() > 0]
         if not pubs:
             return
         st = self._last_state = self._engine.state
-        builders = (('joint_states', 'sensor_msgs/msg/JointState', M.joint_states_msg),
-                    ('body_states', 'sensor_msgs/msg/JointState', M.body_states_msg))
-        for name, type_name, build in builders:
-            if name in pubs:
-                self._emit(pubs[name], name, type_name, build(st, t_ns), t_ns)
-        if 'contact_states' in pubs:
-            self._emit(pubs['contact_states'], 'contact_states', 'std_msgs/msg/Int8MultiArray',
-                       M.contact_states_msg(st), t_ns)
-        if 'odom' in pubs:
-            self._emit(pubs['odom'], 'odom', 'nav_msgs/msg/Odometry',
-                       M.odom_msg(st, self._cfg.crawler.masses, t_ns), t_ns)
-        if 'markers' in pubs:
-            self._emit(pubs['markers'], 'markers', 'visualization_msgs/msg/MarkerArray',
-                       self._markers(st, t_ns), t_ns)
-
-    def _emit(self, pub, name: str, type_name: str, msg: Any, t_ns: int) -> None:
-        """Record (when recording) then publish one output. The message is serialised once for
-        both, and it goes to the bag first: whatever a subscriber has seen is in the bag, even if
-        a signal ends the process right after."""
-        if self._bag is None:
-            pub.publish(msg)
-            return
-        data = serialize_message(msg)
-        self._record(name, type_name, data, t_ns)
-        pub.publish(data)
+        masses = self._cfg.crawler.masses
+        for name, pub in pubs:
+            # CDR bytes from a per-shape template (messages.OutputEncoder): one serialisation
+            # for the bag and the publisher, without building an rclpy message
+            data = self._outputs.encode(name, st, t_ns, masses)
+            if recording:       # the bag first: what a subscriber has seen is in the bag
+                self._record(name, M.OUTPUT_TYPES[name], data, t_ns)
+            pub.publish(data)
 
     def diagnostics(self, wall_now: float | None = None) -> DiagnosticArray:
         """Build the /diagnostics message (figures since the previous call)."""

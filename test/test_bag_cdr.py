@@ -4,14 +4,16 @@ It falls back to rclpy whenever a message does not share its template's layout.
 """
 from __future__ import annotations
 
+import struct
+
 from mcap_ros2._dynamic import serialize_dynamic
 import numpy as np
 from numpy.testing import assert_array_equal
 import pytest
-from rclpy.serialization import serialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 
 from crawler_sim.bag import schema as bag_schema
-from crawler_sim.bag.cdr import Decoder, field_value, layout
+from crawler_sim.bag.cdr import Decoder, Encoder, field_value, layout, LayoutError, zero_padding
 
 JOINT_FIELDS = ('header.stamp.sec', 'header.stamp.nanosec', 'position', 'velocity', 'effort')
 
@@ -143,3 +145,38 @@ def test_layout_records_fixed_bytes_and_numeric_field_offsets():
     assert np.frombuffer(raw, '<f8', count=3, offset=offset).tolist() == [1.5, 2.5, 3.5]
     assert 0 in lay.fixed and 1 in lay.fixed            # encapsulation kind is fixed
     assert 4 not in lay.fixed                           # the stamp is data
+
+
+# --------------------------------------------------------------------------- encoder
+
+@pytest.mark.parametrize('frame,sizes', [('', (3, 3, 3)), ('odom', (2, 2, 2)), ('ab', (1, 0, 0)),
+                                         ('abc', (0, 0, 0)), ('a', (4, 4, 0))])
+def test_the_encoder_packs_numbers_into_a_template_like_serialize_message(frame, sizes):
+    n_pos, n_vel, n_eff = sizes
+    names = [f'j{k}' for k in range(n_pos)]
+    groups = [('header.stamp.sec', 'header.stamp.nanosec')] + [
+        (f,) for f, n in zip(('position', 'velocity', 'effort'), sizes) if n]
+    proto = joint_state(1, frame=frame, names=names, position=[0.1] * n_pos,
+                        velocity=[0.2] * n_vel, effort=[0.3] * n_eff)
+    enc = Encoder(proto, 'sensor_msgs/msg/JointState', groups)
+    for i in (0, 5, 2**20):
+        msg = joint_state(i, frame=frame, names=names,
+                          position=[i + 0.5 * k for k in range(n_pos)],
+                          velocity=[-i - 1e-300 * k for k in range(n_vel)],
+                          effort=[i / 7 for _ in range(n_eff)])
+        values = [(msg.header.stamp.sec, msg.header.stamp.nanosec)] + [
+            list(getattr(msg, g[0])) for g in groups[1:]]
+        data = enc.encode(*values)
+        assert data == zero_padding(serialize_message(msg), 'sensor_msgs/msg/JointState')
+        assert deserialize_message(data, type(msg)) == msg
+
+
+def test_the_encoder_refuses_what_it_cannot_template():
+    proto = joint_state(1)
+    with pytest.raises(LayoutError, match='not a numeric field'):
+        Encoder(proto, 'sensor_msgs/msg/JointState', [('name',)])
+    with pytest.raises(LayoutError, match='does not follow'):
+        Encoder(proto, 'sensor_msgs/msg/JointState', [('position', 'effort')])
+    enc = Encoder(proto, 'sensor_msgs/msg/JointState', [('position',)])
+    with pytest.raises(struct.error):
+        enc.encode([1.0, 2.0])                   # one length short: never silently wrong

@@ -6,10 +6,12 @@ import math
 import os
 import threading
 import time
+from types import SimpleNamespace
 from typing import Any
 
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from mcap.reader import make_reader
 from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
@@ -19,6 +21,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data
+from rclpy.serialization import deserialize_message, serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, Int8MultiArray
@@ -29,7 +32,9 @@ from visualization_msgs.msg import Marker, MarkerArray
 from conftest import next_domain_id
 from crawler_sim import Stepper
 import crawler_sim.bag
+from crawler_sim import messages as M
 from crawler_sim.actuator import Actuator
+from crawler_sim.bag.cdr import LayoutError, zero_padding
 from crawler_sim.gait_node import GaitNode
 from crawler_sim.gaits import Cubic
 from crawler_sim.messages import CONTACT_COLOURS, ns_from_stamp
@@ -195,7 +200,7 @@ def test_clock_is_published_at_every_publish_tick_only_when_asked(ros):
 def test_a_switched_off_output_has_no_publisher_and_builds_no_message(ros, monkeypatch):
     sim = ros.sim(publish_markers=False, publish_odom=False, method='implicit')
     built = []
-    monkeypatch.setattr(sim, '_markers', lambda *a: built.append(a))
+    monkeypatch.setattr(sim._outputs, 'markers', lambda *a: built.append(a))
     ticks(sim, 50)
     assert ros.obs.count_publishers('/markers') == 0
     assert ros.obs.count_publishers('/odom') == 0
@@ -592,3 +597,76 @@ def test_gait_node_plays_its_gait_on_sim_time(ros, mode, tolerance):
     assert sim.counters[counter] > (100 if mode == 'command' else 3)
     assert sim.counters['commands_rejected'] == sim.counters['trajectories_rejected'] == 0
     assert max(errors) < tolerance, max(errors)
+
+
+# --------------------------------------------------------------------------- output bytes
+
+def random_state(rng: np.random.Generator, p: int) -> SimpleNamespace:
+    """A duck-typed core State with awkward numbers (signed zeros, huge, tiny, inf, NaN)."""
+    def f(n: int) -> np.ndarray:
+        x = rng.normal(size=n) * 10.0 ** rng.integers(-300, 300, size=n)
+        x[rng.random(n) < 0.2] = rng.choice([0.0, -0.0, np.inf, np.nan])
+        return x
+    return SimpleNamespace(x=f(p), v=f(p), friction=f(p), lengths=f(p - 1), rates=f(p - 1),
+                           linkage_force=f(p - 1),
+                           contact=rng.integers(-1, 2, size=p).astype(np.int8))
+
+
+@pytest.mark.parametrize('p', [2, 3, 7])
+def test_output_bytes_equal_serialize_message_of_the_builders(p):
+    rng = np.random.default_rng(p)
+    enc = M.OutputEncoder()
+    masses = rng.uniform(0.1, 10.0, size=p)
+    builders = {'joint_states': lambda s, t: M.joint_states_msg(s, t),
+                'body_states': lambda s, t: M.body_states_msg(s, t),
+                'contact_states': lambda s, t: M.contact_states_msg(s),
+                'odom': lambda s, t: M.odom_msg(s, masses, t),
+                'markers': lambda s, t: M.markers_msg(s, t)}
+    for k in range(6):
+        st, t_ns = random_state(rng, p), int(rng.integers(0, 2**31 * 10**9))
+        for name, build in builders.items():
+            ref = serialize_message(build(st, t_ns))
+            assert enc.encode(name, st, t_ns, masses) == zero_padding(ref, M.OUTPUT_TYPES[name])
+        lengths = st.lengths.tolist()
+        assert enc.applied_command(lengths, t_ns) == zero_padding(
+            serialize_message(M.applied_command_msg(t_ns, lengths)), 'sensor_msgs/msg/JointState')
+        assert enc.linkage_cmd(lengths) == zero_padding(
+            serialize_message(M.float64_array_msg(lengths)), 'std_msgs/msg/Float64MultiArray')
+    assert enc.slow == 0 and enc.fast == 6 * 7
+
+
+def test_an_output_without_a_template_goes_through_the_builder(monkeypatch):
+    enc = M.OutputEncoder()
+    monkeypatch.setattr(enc, '_encoder_class', lambda *a: (_ for _ in ()).throw(
+        LayoutError('no template')))
+    st = random_state(np.random.default_rng(0), 3)
+    for _ in range(2):
+        assert enc.body_states(st, 5) == serialize_message(M.body_states_msg(st, 5))
+    assert enc.slow == 2 and enc.fast == 0
+
+
+def test_published_and_recorded_outputs_are_the_same_bytes_in_a_namespace(ros, tmp_path):
+    sim = SimNode(context=ros.ctx, namespace='robot1', parameter_overrides=[
+        Parameter('record', value=True), Parameter('record_dir', value=str(tmp_path)),
+        Parameter('record_name', value='ns'), Parameter('masses', value=[1.0, 2.0, 0.5]),
+        Parameter('friction', value=[1.0, 3.0, 2.0])])
+    ros.ex.add_node(sim)
+    ros.nodes.append(sim)
+    types = {'joint_states': JointState, 'body_states': JointState,
+             'contact_states': Int8MultiArray, 'odom': Odometry, 'markers': MarkerArray}
+    boxes = {name: ros.listen(typ, f'/robot1/{name}') for name, typ in types.items()}
+    ticks(sim, 5)
+    sim._on_command(cmd(0.16, 0.05))
+    ticks(sim, 300)
+    ros.until(lambda: all(len(b) >= 30 for b in boxes.values()), 'the outputs of 0.3 s')
+    sim.close()
+    recorded = {name: [] for name in types}
+    with open(tmp_path / 'ns' / 'ns_0.mcap', 'rb') as f:
+        for _, channel, message in make_reader(f).iter_messages():
+            name = channel.topic.rsplit('/', 1)[-1]
+            if channel.topic == f'/robot1/{name}' and name in types:
+                recorded[name].append(deserialize_message(message.data, types[name]))
+    for name, box in boxes.items():
+        assert len(recorded[name]) == 30                       # t = 10 ms, ..., 300 ms
+        assert box == recorded[name][-len(box):], name          # what was sent is what was kept
+    assert len({tuple(m.data) for m in boxes['contact_states']}) > 1   # the contacts changed
