@@ -169,6 +169,13 @@ class SimConfig:
         """The ``penalty`` argument of ``Stepper`` (None unless method is penalty)."""
         return [float(n) for n in self.values['penalty']] if self.method == 'penalty' else None
 
+    def __post_init__(self) -> None:
+        # parameter values as plain attributes (cfg.real_time_factor is read every loop
+        # iteration: an instance attribute is found without calling __getattr__)
+        for name, value in self.values.items():
+            if name not in self.__dict__ and not hasattr(type(self), name):
+                object.__setattr__(self, name, value)
+
     def __getattr__(self, name: str) -> Any:
         try:
             return self.__dict__['values'][name]
@@ -327,6 +334,7 @@ class SimNode(Node):
         self._last_state = None
         self._stop = False        # set by stop() (signals); run() returns at the next tick
         self._bag = None
+        self._bag_topics: dict[str, str] = {}     # topic as written in the code -> recorded name
         self.bag_path = ''
         self._recording_error = ''
         self._build(self._cfg, t_ns=0)
@@ -744,13 +752,9 @@ class SimNode(Node):
         bag = self._bag
         if bag is None:
             return
-        if topic.startswith('~/'):
-            name = self.get_fully_qualified_name() + topic[1:]
-        elif topic.startswith('/'):
-            name = topic
-        else:
-            ns = self.get_namespace().rstrip('/')
-            name = f'{ns}/{topic}'
+        name = self._bag_topics.get(topic)
+        if name is None:
+            name = self._bag_topics[topic] = self._absolute_topic(topic)
         try:
             bag.write(name, type_name, msg, t_ns)
             if getattr(bag, 'error', None):
@@ -763,6 +767,14 @@ class SimNode(Node):
             self._recording_error = f'{type(exc).__name__}: {exc}'
             self._log.error(f'recording stopped: {self._recording_error}')
             self._close_bag()
+
+    def _absolute_topic(self, topic: str) -> str:
+        """The recorded name of ``topic``: ``~/x`` and relative names resolved as ROS does."""
+        if topic.startswith('~/'):
+            return self.get_fully_qualified_name() + topic[1:]
+        if topic.startswith('/'):
+            return topic
+        return f'{self.get_namespace().rstrip("/")}/{topic}'
 
     def _close_bag(self) -> None:
         bag, self._bag = self._bag, None
@@ -800,7 +812,13 @@ class SimNode(Node):
         if self.counters['ticks'] == 0:
             with self._lock:
                 self._publish_outputs()       # the initial state at t = 0 (a bag starts there)
-        while ok() and not self._stop:
+        checks = 0
+        while not self._stop:
+            # context.ok() costs ~1 us: flat out, ask every 16th iteration (a tick on a context
+            # shut down meanwhile fails in publish, which run() treats as the end)
+            checks = (checks + 1) & 15
+            if checks == 0 and not ok():
+                break
             t = now()
             if t >= next_diag:
                 self._publish_diagnostics(t)
