@@ -243,3 +243,33 @@ def test_empty_bag_closes_to_a_valid_file_with_the_scene(tmp_path):
     assert w.topics == {'/crawler_sim/scene': ('std_msgs/msg/String', 1)}
     with pytest.raises(BagError, match='no crawler_sim topics'):
         load(tmp_path / 'e')
+
+
+# --------------------------------------------------------------------------- lean message path
+
+def _mcap_bytes(writer_class, *, lean: bool = True) -> bytes:
+    from mcap.writer import CompressionType
+    out = io.BytesIO()
+    w = writer_class(out, chunk_size=700, compression=CompressionType.ZSTD)
+    if not lean:
+        w._lean = None
+    w.start(profile='ros2', library='test')
+    sid = w.register_schema('a/msg/B', 'ros2msg', b'float64 x')
+    channels = [w.register_channel(f'/t{k}', 'cdr', sid, {'k': str(k)}) for k in range(3)]
+    rng = np.random.default_rng(1)
+    for i in range(200):                  # several chunks, log times not monotonic
+        t = int(rng.integers(0, 10**12)) if i % 17 == 0 else 10**9 + i * 10**6
+        w.add_message(channels[i % 3], t, bytes(rng.integers(0, 256, size=i % 50, dtype=np.uint8)),
+                      t + 5, sequence=i % 7)
+        if i == 120:
+            w.flush()
+    w.finish()
+    return out.getvalue()
+
+
+def test_the_lean_message_path_writes_the_same_file_as_mcap():
+    from mcap.writer import Writer
+    from crawler_sim.bag.writer import _LeanWriter
+    reference = _mcap_bytes(Writer)
+    assert _mcap_bytes(_LeanWriter) == reference
+    assert _mcap_bytes(_LeanWriter, lean=False) == reference       # the fallback path

@@ -29,10 +29,13 @@ import io
 import json
 import os
 from pathlib import Path
+import struct
 import time
 from typing import Any, BinaryIO, Callable, Mapping
 import warnings
 
+from mcap.opcode import Opcode
+from mcap.records import MessageIndex
 from mcap.writer import CompressionType, Writer
 import numpy as np
 import yaml
@@ -207,8 +210,8 @@ class BagWriter:
             self.path.rmdir()
             raise BagError(f'cannot create {self.mcap_path}: {exc.strerror or exc}') from None
         self._fileno = _fileno(self._stream)
-        self._writer = Writer(self._stream, chunk_size=chunk_size,
-                              compression=CompressionType.ZSTD)
+        self._writer = _LeanWriter(self._stream, chunk_size=chunk_size,
+                                   compression=CompressionType.ZSTD)
         self._last_flush = self._clock()
         self._guard(self._start)
         if scene is not None:
@@ -491,6 +494,60 @@ class BagWriter:
 
 
 _FAILED = object()
+
+#: MCAP Message record up to its data: opcode, record length, channel id, sequence, log time,
+#: publish time (the MCAP spec's field order; 22 bytes of fields before the data)
+_MESSAGE_HEAD = struct.Struct('<BQHIQQ')
+_MESSAGE_FIELDS = 22
+
+
+class _LeanWriter(Writer):
+    """``mcap.writer.Writer`` whose :meth:`add_message` appends the Message record with one
+    ``struct.pack`` (the library makes a dataclass and eight small writes: ~4 us of the ~5 us a
+    recorded message costs). Same bookkeeping, same bytes; a file written through it is
+    byte-identical to one written by the base class (tested). It reaches into the base class's
+    private state, so it checks that state once and otherwise falls back to the base method.
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        builder = getattr(self, '_Writer__chunk_builder', None)
+        lean = (builder is not None and hasattr(self, '_Writer__statistics')
+                and hasattr(self, '_Writer__maybe_finalize_chunk')
+                and hasattr(getattr(builder, 'record_writer', None), '_buffer')
+                and all(hasattr(builder, a) for a in (
+                    'message_indices', 'num_messages', 'message_start_time',
+                    'message_end_time')))
+        self._lean = builder if lean else None
+
+    def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
+                    sequence: int = 0) -> None:
+        builder = self._lean
+        if builder is None:
+            super().add_message(channel_id, log_time, data, publish_time, sequence)
+            return
+        stats = self._Writer__statistics
+        if stats.message_count == 0 or log_time < stats.message_start_time:
+            stats.message_start_time = log_time
+        if log_time > stats.message_end_time:
+            stats.message_end_time = log_time
+        stats.channel_message_counts[channel_id] += 1
+        stats.message_count += 1
+        if builder.num_messages == 0 or log_time < builder.message_start_time:
+            builder.message_start_time = log_time
+        if log_time > builder.message_end_time:
+            builder.message_end_time = log_time
+        index = builder.message_indices.get(channel_id)
+        if index is None:
+            index = builder.message_indices[channel_id] = MessageIndex(channel_id=channel_id,
+                                                                       records=[])
+        buffer = builder.record_writer._buffer
+        index.records.append((log_time, buffer.tell()))
+        builder.num_messages += 1
+        buffer.write(_MESSAGE_HEAD.pack(Opcode.MESSAGE, _MESSAGE_FIELDS + len(data), channel_id,
+                                        sequence, log_time, publish_time))
+        buffer.write(data)
+        self._Writer__maybe_finalize_chunk()
 
 
 def _id(value: Any) -> int:
