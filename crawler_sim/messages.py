@@ -23,7 +23,7 @@ from std_msgs.msg import ColorRGBA, Float64MultiArray, Int8MultiArray, Int32Mult
 from visualization_msgs.msg import Marker, MarkerArray
 
 __all__ = ['stamp_from_ns', 'ns_from_stamp', 'linkage_names', 'body_names', 'joint_states_msg',
-           'body_states_msg', 'contact_states_msg', 'odom_msg', 'markers_msg', 'MarkersBuilder',
+           'body_states_msg', 'contact_states_msg', 'odom_msg', 'markers_msg',
            'diagnostics_msg', 'clock_msg', 'clock_cdr', 'applied_command_msg',
            'float64_array_msg', 'event_msg', 'centre_of_mass', 'OutputEncoder', 'OUTPUT_TYPES',
            'CONTACT_COLOURS',
@@ -187,42 +187,6 @@ def markers_msg(state, t_ns: int, *, frame_id: str = ODOM_FRAME) -> MarkerArray:
         markers.append(m)
     out.markers = markers
     return out
-
-
-class MarkersBuilder:
-    """:func:`markers_msg` for repeated use: the MarkerArray is built once per body count and
-    then only its stamps, positions and colours are updated (building a Marker costs ~30 us).
-
-    The returned message is reused by the next call: publish or serialize it before that.
-    """
-
-    def __init__(self, frame_id: str = ODOM_FRAME) -> None:
-        self.frame_id = frame_id
-        self._msg: MarkerArray | None = None
-        self._p = -1
-        self._colours = {k: _colour(v) for k, v in CONTACT_COLOURS.items()}
-
-    def __call__(self, state, t_ns: int) -> MarkerArray:
-        p = len(state.x)
-        if p != self._p:
-            self._msg = markers_msg(state, t_ns, frame_id=self.frame_id)
-            self._p = p
-            return self._msg
-        stamp = stamp_from_ns(t_ns)
-        xs = state.x.tolist()
-        contact = state.contact.tolist()
-        markers = self._msg.markers
-        for i, x in enumerate(xs):
-            m = markers[i]
-            m.header.stamp = stamp
-            m.pose.position.x = x
-            m.color = self._colours.get(int(contact[i]), m.color)
-        for j in range(p - 1):
-            m = markers[p + j]
-            m.header.stamp = stamp
-            m.points[0].x = xs[j]
-            m.points[1].x = xs[j + 1]
-        return self._msg
 
 
 def diagnostics_msg(t_ns: int, values: Mapping[str, object], *, warn: Iterable[str] = (),
