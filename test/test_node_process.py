@@ -261,7 +261,10 @@ def test_invalid_parameters_at_start_give_one_line_and_exit_code_1(ament_env, tm
 
 
 def test_gait_node_drives_the_sim_on_sim_time(ament_env, peer, tmp_path):
-    sim = Proc(tmp_path, ament_env, 'sim_node', *sim_args('implicit'))
+    # paced at 4x real time, not flat out: a sim-time controller in Python gets fewer turns per
+    # sim second the faster the sim runs, and on a busy CI machine flat out can starve it
+    sim = Proc(tmp_path, ament_env, 'sim_node', *sim_args('implicit', '-p',
+                                                           'real_time_factor:=4.0'))
     gait = Proc(tmp_path, ament_env, 'gait_node', '-p', 'use_sim_time:=true')
     try:
         diags: list[DiagnosticArray] = []
@@ -283,9 +286,8 @@ def test_gait_node_drives_the_sim_on_sim_time(ament_env, peer, tmp_path):
     for code, err in codes:
         assert code == 0 and 'Traceback' not in err, err
     values = diagnostics_values(diags[-1])
-    # flat out, a sim-time controller gets fewer turns per sim second the faster the sim runs:
-    # what matters is that its commands drive the stroke (checked below), not how many landed
-    assert int(values['commands_accepted']) > 20 and values['commands_rejected'] == '0'
+    # 50 Hz of sim time for 6 s is 300 commands; some are lost to start-up and latency
+    assert int(values['commands_accepted']) > 100 and values['commands_rejected'] == '0'
     lengths = np.array([np.diff(m.position) for m in states])
     assert lengths.max() - lengths.min() > 0.04          # the stroke is played (2 x 0.03 m)
     x = np.array([m.position for m in states])
