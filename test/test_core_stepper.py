@@ -426,3 +426,38 @@ def test_the_jerk_bound_shortcut_finds_the_same_events_with_fewer_root_searches(
     assert n_a <= n_b
     if scene == 'actuator_p3':
         assert n_a < n_b      # the node's case: most dip searches are ruled out
+
+
+# ----------------------------------------------------------------------------------------------
+# The period table of the exact solver: a smooth periodic gait's grid values are read from one
+# table for every segment. The same run with the table switched off (every chunk evaluates the
+# gait) must give the same events and states, also far from t = 0, where a table read at a
+# later period and the gait evaluated at the actual time differ by phase rounding.
+@pytest.mark.parametrize('t0', [0.0, 3.7e4])
+@pytest.mark.parametrize('kind', ['scallop2', 'wave4', 'fourier3'])
+def test_the_period_table_gives_the_events_of_direct_gait_evaluation(kind, t0, monkeypatch):
+    from crawler_sim.solvers.exact import ExactSolver
+    if kind == 'scallop2':
+        crawler, gait = cs.Crawler([0.5, 1.0], [1.47, 2.94]), gaits.Scallop(0.1, 0.02, 2.0, 0.2)
+    elif kind == 'wave4':
+        crawler, gait = _crawler(4, seed=2), _wave(4, amp=0.03, freq=1.5)
+    else:
+        crawler = _crawler(3, slope=0.1, seed=8)
+        gait = gaits.Fourier([0.1, 0.12], ([[0.01, 0.004], [0.02, 0.0]],
+                                           [[0.0, 0.003], [0.01, 0.002]]), 0.8)
+
+    def run():
+        st = cs.Stepper(crawler, gait, t0=t0, periodic_skip=False)
+        st.advance(t0 + 4.0 * gait.period)
+        return st.pop_events(), st.state
+
+    ev_table, state_table = run()
+    assert ExactSolver(crawler, gait)._period_table(gait, gait.period / 64.0) is not None
+    monkeypatch.setattr(ExactSolver, '_period_table', lambda self, g, h: None)
+    ev_direct, state_direct = run()
+    assert len(ev_table) == len(ev_direct) > 4
+    for a, b in zip(ev_table, ev_direct):
+        assert (a.body, a.old, a.new) == (b.body, b.old, b.new)
+        assert abs(a.time - b.time) <= 1e-9
+    assert np.allclose(state_table.x, state_direct.x, rtol=0, atol=1e-9)
+    assert np.array_equal(state_table.contact, state_direct.contact)

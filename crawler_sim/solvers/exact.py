@@ -327,6 +327,7 @@ class ExactSolver:
         self.last: Segment | None = None
         self._checkpoint = None
         self._mode_cache = None
+        self._table = None
 
     # ------------------------------------------------------------- mode choice
     def _mode(self, t: float, ep: NDArray, epp: NDArray, t_limit: float):
@@ -682,11 +683,13 @@ class ExactSolver:
                     labels.append(('rigid', int(j)))
         return labels
 
-    def _event_values(self, seg: Segment, tau: NDArray):
-        """Values G (N, k) and derivatives D (N, k; NaN where unknown) at times tau (N,)."""
+    def _event_values(self, seg: Segment, tau: NDArray, vals=None):
+        """Values G (N, k) and derivatives D (N, k; NaN where unknown) at times tau (N,);
+        ``vals``: the gait's (l, l', l'') there if known (l unused)."""
         M = self._M
-        vals = seg.gait._eval(tau)    # tau is a 1-D float array: skip __call__'s checks
-        check_finite_gait(vals, tau)
+        if vals is None:
+            vals = seg.gait._eval(tau)    # tau is a 1-D float array: skip __call__'s checks
+            check_finite_gait(vals, tau)
         _, ld, ldd = vals
         if seg.ref < 0:
             sg = seg.contact.astype(float)
@@ -821,7 +824,17 @@ class ExactSolver:
         h = self._grid_step(t0, t_stop)
         start = t0
         chunk = _CHUNK // 4        # most segments end within a quarter period: start short
+        table = None if left_limit else self._period_table(seg.gait, h)
         while start < t_stop:
+            if table is not None:
+                tau, vals = self._table_chunk(table, seg.gait, start, t_stop, chunk)
+                chunk = _CHUNK
+                G, D = self._event_values(seg, tau, vals)
+                found = self._first_bracket(seg, tau, G, D)
+                if found is not None:
+                    return found
+                start = float(tau[-1])
+                continue
             n = int(math.ceil((t_stop - start) / h * (1 - 4 * _EPS))) + 1
             if n > chunk:
                 n = chunk
@@ -839,6 +852,52 @@ class ExactSolver:
                 return found
             start = end
         return t_stop, []
+
+    def _period_table(self, gait: Gait, h: float):
+        """(h, l', l'') of a smooth periodic gait at the times k h, k = 0 .. T/h - 1, when its
+        event grid is the period's (h = T / 64) and it has no breakpoints; else None.
+
+        Such a gait repeats on that grid, so every segment of a run reads its grid values from
+        this one table instead of evaluating the gait again (the grid is then anchored at
+        multiples of h, not at each segment's start)."""
+        cached = self._table
+        if cached is not None and cached[0] is gait:
+            return cached[1]
+        table = None
+        T = gait.period
+        if T and h == T / 64.0 and not gait.breakpoints(-T, 2.0 * T).size:
+            _, ld, ldd = gait._eval(np.arange(64) * h)
+            check_finite_gait((ld, ld, ldd), np.arange(64) * h)
+            table = (h, ld, ldd)
+        self._table = (gait, table)
+        return table
+
+    def _table_chunk(self, table, gait: Gait, start: float, t_stop: float, n: int):
+        """Grid times (start, then the multiples of h in (start, t_stop), then t_stop, at most
+        n points) and the gait's (l', l'') there: ends from the gait, the rest from the table."""
+        h, ld_t, ldd_t = table
+        k0 = math.floor(start / h) + 1
+        k1 = math.ceil(t_stop / h) - 1
+        while k1 >= k0 and k1 * h >= t_stop:
+            k1 -= 1
+        m = k1 - k0 + 1                       # multiples of h strictly inside (start, t_stop)
+        last = m <= n - 2
+        if not last:
+            m = n - 1
+        ks = np.arange(k0, k0 + m)
+        tau = np.empty(m + 1 + last)
+        tau[0] = start
+        tau[1:m + 1] = ks * h
+        rows = ks % ld_t.shape[0]
+        ld = np.empty((tau.size, ld_t.shape[1]))
+        ldd = np.empty_like(ld)
+        _, ld[0], ldd[0] = gait.at(start)
+        ld[1:m + 1], ldd[1:m + 1] = ld_t[rows], ldd_t[rows]
+        if last:
+            tau[-1] = t_stop
+            _, ld[-1], ldd[-1] = gait.at(t_stop)
+        check_finite_gait((ld[0], ld[-1], ldd[0] + ldd[-1]), tau[[0, -1]])
+        return tau, (None, ld, ldd)
 
     def _leaves_rest(self, seg: Segment, col: int) -> bool:
         """Whether velocity function ``col`` belongs to a body that starts the segment leaving
@@ -867,6 +926,12 @@ class ExactSolver:
         """Root of f in [a, b] (f(a) > 0 >= f(b)) to ``tol``, returned on the crossed side
         (f <= 0 there), so the mode chosen at the event sees the condition violated."""
         from scipy.optimize import brentq   # lazy: keeps `import crawler_sim` light
+        # The bracket comes from grid values; the scalar f can disagree with them at rounding
+        # level (e.g. a periodic table read at a later period): then the crossing is at an end.
+        if f(a) <= 0.0:
+            return a
+        if f(b) > 0.0:
+            return b
         r = brentq(f, a, b, xtol=self.tol, rtol=4 * _EPS)
         step = max(self.tol, 4 * _EPS * abs(r))
         while r < b and f(r) > 0.0:
