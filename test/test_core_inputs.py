@@ -207,3 +207,19 @@ def test_switching_to_a_gait_of_the_wrong_shape_between_calls_is_rejected():
 def test_the_batch_stepper_rejects_bad_parameters_naming_them(kw, name):
     with pytest.raises(ValueError, match=name):
         cs.ImplicitBatch(**kw)
+
+
+@pytest.mark.parametrize('which', [1, 2])
+def test_a_smooth_periodic_gait_turning_non_finite_mid_run_is_named_in_the_error(which):
+    # A periodic gait's event grid comes from a per-period table (exact solver); the values the
+    # gait gives at segment ends are still checked, and the error names the bad quantity.
+    class Broken(gaits.Sinusoid):
+        def at(self, t):
+            vals = list(super().at(t))
+            if t > 0.3:
+                vals[which] = vals[which] * NAN
+            return tuple(vals)
+
+    name = ('length', 'velocity', 'acceleration')[which]
+    with pytest.raises(ValueError, match=f'gait {name} must be finite'):
+        cs.simulate(cs.Crawler([1.0, 1.0], [1.0, 1.0]), Broken(0.1, 0.02, 1.0), 1.0)

@@ -896,7 +896,10 @@ class ExactSolver:
         if last:
             tau[-1] = t_stop
             _, ld[-1], ldd[-1] = gait.at(t_stop)
-        check_finite_gait((ld[0], ld[-1], ldd[0] + ldd[-1]), tau[[0, -1]])
+        if not math.isfinite(_add(ld[0], None) + _add(ld[-1], None) + _add(ldd[0], None)
+                             + _add(ldd[-1], None)):
+            ends = [0, -1]
+            check_finite_gait((np.zeros_like(ld[ends]), ld[ends], ldd[ends]), tau[ends])
         return tau, (None, ld, ldd)
 
     def _leaves_rest(self, seg: Segment, col: int) -> bool:
