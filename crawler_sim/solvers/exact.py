@@ -551,7 +551,7 @@ class ExactSolver:
         if ref >= 0 and group.all() and self.gait.is_constant(t0, t_stop):
             t_ev, hits = t_stop, []   # at rest under a constant command: nothing can happen
         else:
-            t_ev, hits = self._find_event(seg, t_stop, left_limit)
+            t_ev, hits = self._find_event(seg, t_stop, left_limit, (ld, ldd))
             if hits and t_stop - t_ev <= 4.0 * self.tol:
                 # an event within the root tolerance of a breakpoint happens at the breakpoint:
                 # no sliver segment with the old piece's acceleration
@@ -816,25 +816,29 @@ class ExactSolver:
         h = self.gait.period / 64.0 if self.gait.period else max((t_stop - t0) / 8.0, 1e-300)
         return min(h, float(self.max_step)) if self.max_step is not None else h
 
-    def _find_event(self, seg: Segment, t_stop: float,
-                    left_limit: bool = False) -> tuple[float, list[tuple[str, int]]]:
+    def _find_event(self, seg: Segment, t_stop: float, left_limit: bool = False,
+                    at_start: tuple | None = None) -> tuple[float, list[tuple[str, int]]]:
         """First event in (t0, t_stop]; at a gait breakpoint t_stop the functions are taken as
-        left limits (the gait returns the next piece's l'' there)."""
+        left limits (the gait returns the next piece's l'' there). ``at_start``: the gait's
+        (l', l'') at t0 if already known."""
         t0 = seg.t0
         h = self._grid_step(t0, t_stop)
         start = t0
         chunk = _CHUNK // 4        # most segments end within a quarter period: start short
         table = None if left_limit else self._period_table(seg.gait, h)
-        while start < t_stop:
-            if table is not None:
-                tau, vals = self._table_chunk(table, seg.gait, start, t_stop, chunk)
+        if table is not None:
+            first = at_start if at_start is not None else seg.gait.at(t0)[1:]
+            while start < t_stop:
+                tau, vals, first = self._table_chunk(table, seg.gait, start, first, t_stop,
+                                                     chunk)
                 chunk = _CHUNK
                 G, D = self._event_values(seg, tau, vals)
                 found = self._first_bracket(seg, tau, G, D)
                 if found is not None:
                     return found
                 start = float(tau[-1])
-                continue
+            return t_stop, []
+        while start < t_stop:
             n = int(math.ceil((t_stop - start) / h * (1 - 4 * _EPS))) + 1
             if n > chunk:
                 n = chunk
@@ -872,9 +876,11 @@ class ExactSolver:
         self._table = (gait, table)
         return table
 
-    def _table_chunk(self, table, gait: Gait, start: float, t_stop: float, n: int):
+    def _table_chunk(self, table, gait: Gait, start: float, first: tuple, t_stop: float,
+                     n: int):
         """Grid times (start, then the multiples of h in (start, t_stop), then t_stop, at most
-        n points) and the gait's (l', l'') there: ends from the gait, the rest from the table."""
+        n points), the gait's (l', l'') there (``first``: at start; t_stop from the gait; the
+        rest from the table), and (l', l'') at the last time (the next chunk's start)."""
         h, ld_t, ldd_t = table
         k0 = math.floor(start / h) + 1
         k1 = math.ceil(t_stop / h) - 1
@@ -891,7 +897,7 @@ class ExactSolver:
         rows = ks % ld_t.shape[0]
         ld = np.empty((tau.size, ld_t.shape[1]))
         ldd = np.empty_like(ld)
-        _, ld[0], ldd[0] = gait.at(start)
+        ld[0], ldd[0] = first
         ld[1:m + 1], ldd[1:m + 1] = ld_t[rows], ldd_t[rows]
         if last:
             tau[-1] = t_stop
@@ -900,7 +906,7 @@ class ExactSolver:
                              + _add(ldd[-1], None)):
             ends = [0, -1]
             check_finite_gait((np.zeros_like(ld[ends]), ld[ends], ldd[ends]), tau[ends])
-        return tau, (None, ld, ldd)
+        return tau, (None, ld, ldd), (ld[-1], ldd[-1])
 
     def _leaves_rest(self, seg: Segment, col: int) -> bool:
         """Whether velocity function ``col`` belongs to a body that starts the segment leaving
