@@ -73,7 +73,7 @@ from dataclasses import dataclass
 import math
 from typing import Sequence
 
-from crawler_sim.gaits import Cubic
+from crawler_sim.gaits import Cubic, cubic_values
 
 __all__ = ['ActuatorLimits', 'Actuator', 'TrajectoryReference', 'gains', 'jerk_law',
            'cubic_end', 'BANDWIDTH_TO_POLE']
@@ -149,10 +149,9 @@ def jerk_law(l: float, v: float, a: float, r: float, rd: float, rdd: float, dt: 
     return min(max(j, lo), hi)
 
 
-def cubic_end(l0: float, v0: float, a0: float, j: float, d: float) -> tuple[float, float, float]:
-    """(l, l', l'') of a constant-jerk piece after d seconds, with the same float expression as
-    ``gaits.Cubic`` so the next piece starts bit-identically where the previous ended."""
-    return (l0 + d * (v0 + d * (0.5 * a0 + d * j / 6.0)), v0 + d * (a0 + 0.5 * d * j), a0 + d * j)
+#: (l, l', l'') of a constant-jerk piece after d seconds: the expression of ``gaits.Cubic``
+#: itself, so the next piece starts bit-identically where the previous one ended
+cubic_end = cubic_values
 
 
 class TrajectoryReference:

@@ -671,6 +671,15 @@ class Spline(Gait):
         return t1 <= self.times[0] or t0 >= self.times[-1]
 
 
+def cubic_values(l0, v0, a0, jerk, d):
+    """(l, l', l'') of a constant-jerk piece d [s] after its start, for floats or arrays.
+
+    The one expression used by ``Cubic``, ``PiecewiseCubic`` and the node's actuator, so that a
+    piece evaluated at its end gives bit-identically the next piece's start."""
+    return (l0 + d * (v0 + d * (0.5 * a0 + d * jerk / 6.0)), v0 + d * (a0 + 0.5 * d * jerk),
+            a0 + d * jerk)
+
+
 class Cubic(Gait):
     """One cubic piece per linkage: constant jerk from (l0, v0, a0) at time t0.
 
@@ -719,26 +728,16 @@ class Cubic(Gait):
         return super().__call__(t)
 
     def at(self, t: float) -> Triple:
-        # _eval's expressions in Python floats (IEEE, same operation order: bit-identical)
+        # cubic_values in Python floats (IEEE, same operation order: the array path's bits)
         d = t - self.t0
-        l, v, a = [], [], []
-        for l0, v0, a0, j in self._rows:
-            l.append(l0 + d * (v0 + d * (0.5 * a0 + d * j / 6.0)))
-            v.append(v0 + d * (a0 + 0.5 * d * j))
-            a.append(a0 + d * j)
+        l, v, a = zip(*(cubic_values(*row, d) for row in self._rows))
         return np.array(l), np.array(v), np.array(a)
 
     def at1(self, t: float) -> tuple[float, float, float]:
-        d = t - self.t0
-        l0, v0, a0, j = self._rows[0]
-        return l0 + d * (v0 + d * (0.5 * a0 + d * j / 6.0)), v0 + d * (a0 + 0.5 * d * j), \
-            a0 + d * j
+        return cubic_values(*self._rows[0], t - self.t0)
 
     def _eval(self, t: NDArray[np.float64]) -> Triple:
-        d = (t - self.t0)[:, None]
-        l0, v0, a0, j = self._coefficients()
-        return (l0 + d * (v0 + d * (0.5 * a0 + d * j / 6.0)),
-                v0 + d * (a0 + 0.5 * d * j), a0 + d * j)
+        return cubic_values(*self._coefficients(), (t - self.t0)[:, None])
 
     def is_constant(self, t0: float, t1: float) -> bool:
         return self._constant
@@ -803,24 +802,18 @@ class PiecewiseCubic(Gait):
                             [rows[:, :, i] for i in range(4)])
         t0s, c = self._arrays
         k = np.clip(np.searchsorted(self.starts, t, side='right') - 1, 0, len(self.pieces) - 1)
-        l0, v0, a0, j = (x[k] for x in c)
-        d = (t - t0s[k])[:, None]
-        return (l0 + d * (v0 + d * (0.5 * a0 + d * j / 6.0)),
-                v0 + d * (a0 + 0.5 * d * j), a0 + d * j)
+        return cubic_values(*(x[k] for x in c), (t - t0s[k])[:, None])
 
     def _eval_small(self, t: NDArray[np.float64]) -> Triple:
         # The node's event grid (a few points per publish window): Python floats beat numpy's
         # per-call overhead here; same expressions, so the same bits as the array path.
-        out_l, out_v, out_a = [], [], []
         starts, pieces = self._starts, self.pieces
+        rows = []
         for tt in t.tolist():
             pc = pieces[max(bisect_right(starts, tt) - 1, 0)]
-            d = tt - pc.t0
-            out_l.append([l0 + d * (v0 + d * (0.5 * a0 + d * j / 6.0))
-                          for l0, v0, a0, j in pc._rows])
-            out_v.append([v0 + d * (a0 + 0.5 * d * j) for _, v0, a0, j in pc._rows])
-            out_a.append([a0 + d * j for _, _, a0, j in pc._rows])
-        return np.array(out_l), np.array(out_v), np.array(out_a)
+            rows.append([cubic_values(*row, tt - pc.t0) for row in pc._rows])
+        out = np.array(rows)                      # (N, n_links, 3)
+        return out[:, :, 0], out[:, :, 1], out[:, :, 2]
 
     def breakpoints(self, t0: float, t1: float) -> NDArray[np.float64]:
         b = self._jumps
