@@ -764,8 +764,7 @@ class ExactSolver:
                 return lambda tt: sg * (w0 * at1(tt)[k])
             return lambda tt: sg * (w @ gait.at(tt)[k])
         if col < n_vel + 2:
-            f_slide = self._fext + seg.R[~g].sum()
-            lo, hi = -self._fp[g].sum(), self._fm[g].sum()
+            _, _, _, f_slide, lo, hi, _ = self._stick_consts(seg)
             wr = self._W[r]
             if one:
                 at1, w0 = gait.at1, float(wr[0])
