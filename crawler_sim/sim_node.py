@@ -170,17 +170,11 @@ class SimConfig:
         return [float(n) for n in self.values['penalty']] if self.method == 'penalty' else None
 
     def __post_init__(self) -> None:
-        # parameter values as plain attributes (cfg.real_time_factor is read every loop
-        # iteration: an instance attribute is found without calling __getattr__)
+        # every parameter value is also a plain attribute (cfg.real_time_factor is read at every
+        # loop iteration), unless a field or property has that name
         for name, value in self.values.items():
             if name not in self.__dict__ and not hasattr(type(self), name):
                 object.__setattr__(self, name, value)
-
-    def __getattr__(self, name: str) -> Any:
-        try:
-            return self.__dict__['values'][name]
-        except KeyError:
-            raise AttributeError(name) from None
 
     @classmethod
     def from_values(cls, values: dict) -> SimConfig:
