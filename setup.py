@@ -26,9 +26,9 @@ setup(
     extras_require={'test': ['pytest', 'hypothesis', 'rosbags']},
     entry_points={
         'console_scripts': [
-            'sim_node = crawler_sim.sim_node:main',
-            'gait_node = crawler_sim.gait_node:main',
-            'replay_node = crawler_sim.replay_node:main',
+            'sim_node = crawler_sim.ros.sim_node:main',
+            'gait_node = crawler_sim.ros.gait_node:main',
+            'replay_node = crawler_sim.ros.replay_node:main',
             'crawler-sim = crawler_sim.cli:main',
         ],
     },

@@ -1,15 +1,22 @@
 """crawler_sim: exact simulation of friction-based crawling locomotion.
 
-The core (this package's ``model``, ``gaits``, ``solvers``, ``stepper``, ``trajectory``,
-``verify``) imports no ROS; the ROS node, bags and command line sit around it.
+Layers (docs/ARCHITECTURE.md), dependencies pointing one way, cli/ros/bench -> bag -> core:
+
+- ``crawler_sim.core``: model, gaits, solvers, stepper, trajectory, verify; no ROS import.
+- ``crawler_sim.bag``: rosbag2-compatible MCAP recording, loading, recovery (message classes, no node).
+- ``crawler_sim.ros``: the nodes (sim_node, gait_node, replay_node), their messages and the demo.
+- ``crawler_sim.bench``: work-precision benchmark and stress suite.
+- ``crawler_sim.cli``: the ``crawler-sim`` command.
+
+The public API is the core's, re-exported here: ``crawler_sim.Crawler``, ``simulate``, ``gaits``...
 """
-from . import gaits
-from .model import Crawler
-from .solvers.implicit import ImplicitBatch
-from .solvers.penalty import penalty_bound
-from .stepper import METHODS, Stepper, simulate
-from .trajectory import Event, State, Trajectory
-from .verify import VerifyReport, verify
+import sys as _sys
+
+from .core import (Crawler, Event, ImplicitBatch, METHODS, State, Stepper, Trajectory,
+                   VerifyReport, gaits, penalty_bound, simulate, verify)
+
+# `import crawler_sim.gaits` and `from crawler_sim.gaits import X` keep working (public API).
+_sys.modules[__name__ + '.gaits'] = gaits
 
 __version__ = '0.1.0'
 

@@ -2,7 +2,7 @@
 import numpy as np
 
 import crawler_sim as cs
-from crawler_sim import gaits
+from crawler_sim.core import gaits
 
 
 def wave(p, amp=0.02, freq=1.0, lag=0.7, mean=0.1):

@@ -33,7 +33,7 @@ import time
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from crawler_sim.demo import _executable, _share, _workspace_env  # noqa: E402
+from crawler_sim.ros.demo import _executable, _share, _workspace_env  # noqa: E402
 
 WARMUP = 3.0
 

@@ -91,11 +91,11 @@ class Recorder:
         """Record a command (``linkage_cmd``, p-1 values) applied at sim time ``t`` [s]."""
         t_ns = to_ns(t)
         return self.writer.write(self._names[LINKAGE_CMD], LINKAGE_CMD.type,
-                                 msgs.float64_array(values), t_ns)
+                                 msgs.float64_array_msg(values), t_ns)
 
     def record_event(self, t: float, body: int, old: int, new: int) -> bool:
         """Record a contact change of ``body`` from ``old`` to ``new`` at sim time ``t`` [s]."""
-        return self.writer.write(self._names[EVENTS], EVENTS.type, msgs.event(body, old, new),
+        return self.writer.write(self._names[EVENTS], EVENTS.type, msgs.event_msg(body, old, new),
                                  to_ns(t))
 
     def flush(self) -> None:

@@ -26,8 +26,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
-from .. import gaits
-from ..model import Crawler
+from ..core import gaits
+from ..core.model import Crawler
 
 __all__ = ['BaselineResult', 'rate_function', 'make_ode', 'run_baseline', 'baseline_history']
 
@@ -57,7 +57,7 @@ class BaselineResult:
 def rate_function(gait: gaits.Gait) -> Callable[[float], list[float]]:
     """l'(t) as a list of floats, in scalar math for the built-in periodic gaits.
 
-    Sinusoid, Scallop and Fourier are written out (the formulas of ``crawler_sim.gaits``); other
+    Sinusoid, Scallop and Fourier are written out (the formulas of ``crawler_sim.core.gaits``); other
     gaits use ``gait.at`` (or ``gait(t)``). The test suite checks these against ``gait(t)``.
     """
     if isinstance(gait, gaits.Sinusoid):

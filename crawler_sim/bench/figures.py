@@ -19,10 +19,10 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .. import gaits
-from ..model import Crawler
-from ..solvers.implicit import ImplicitBatch
-from ..stepper import Stepper, simulate
+from ..core import gaits
+from ..core.model import Crawler
+from ..core.solvers.implicit import ImplicitBatch
+from ..core.stepper import Stepper, simulate
 
 __all__ = ['exact_throughput', 'batch_throughput', 'rest_cost', 'output_cost']
 

@@ -31,8 +31,8 @@ from typing import Any, Callable
 import numpy as np
 import yaml
 
-from .. import gaits
-from ..model import Crawler
+from ..core import gaits
+from ..core.model import Crawler
 
 __all__ = ['BenchScene', 'bench_dir', 'load_bench_scene', 'load_bench_scenes', 'make_gait']
 

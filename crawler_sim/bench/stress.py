@@ -26,11 +26,11 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .. import gaits
-from ..model import Crawler
-from ..stepper import Stepper, simulate
-from ..trajectory import Trajectory
-from ..verify import verify
+from ..core import gaits
+from ..core.model import Crawler
+from ..core.stepper import Stepper, simulate
+from ..core.trajectory import Trajectory
+from ..core.verify import verify
 from . import metrics
 
 __all__ = ['CheckResult', 'random_spec', 'build', 'check_random_scene', 'EXTREMES', 'GRAZING',

@@ -25,8 +25,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..stepper import simulate
-from ..verify import verify
+from ..core.stepper import simulate
+from ..core.verify import verify
 from . import metrics
 from .baselines import baseline_history, run_baseline
 from .scenes import BenchScene

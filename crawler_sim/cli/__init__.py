@@ -1,0 +1,635 @@
+"""``crawler-sim``: the command line (simulate, bench, stress, replay, info, plot, recover).
+
+Exit codes: 0 success; 1 the work failed (solver failure, unreadable or damaged bag, write
+error, replay mismatch, failed stress run); 2 bad input (usage, missing file, invalid scene or
+YAML); 130 interrupted. Every error is one line on stderr, ``crawler-sim: error: ...``
+(``--debug`` shows the traceback instead). Progress goes to stderr, results to stdout.
+
+Heavy modules (the bag, matplotlib, the benchmark) are imported inside the subcommands, so
+``crawler-sim --help`` does not need ROS or matplotlib.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import threading
+import time
+import warnings
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+PROG = 'crawler-sim'
+METHODS = ('exact', 'implicit', 'penalty')   # crawler_sim.METHODS, without importing the core
+EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+REPLAY_TOL = 1e-9      # default replay tolerance on positions [m] and velocities [m/s]
+
+
+class UsageError(Exception):
+    """Bad input from the user (exit code 2)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors: ``crawler-sim: error: ... (see 'crawler-sim X --help')``."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        _say_error(f"{message} (see '{self.prog} --help')")
+        raise SystemExit(EXIT_USAGE)
+
+
+def _say_error(message: str) -> None:
+    line = ' '.join(str(message).split())
+    print(f'{PROG}: error: {line}', file=sys.stderr, flush=True)
+
+
+def _info(message: str) -> None:
+    print(f'{PROG}: {message}', file=sys.stderr, flush=True)
+
+
+def _positive(text: str) -> float:
+    try:
+        x = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'must be a number > 0, got {text!r}') from None
+    if not (math.isfinite(x) and x > 0):
+        raise argparse.ArgumentTypeError(f'must be finite and > 0, got {text!r}')
+    return x
+
+
+def _non_negative_int(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'must be an integer >= 0, got {text!r}') from None
+    if n < 0:
+        raise argparse.ArgumentTypeError(f'must be an integer >= 0, got {text!r}')
+    return n
+
+
+def _existing(path: str, what: str = 'file') -> Path:
+    """An input path that must exist (else a usage error, exit 2)."""
+    p = Path(path)
+    if not p.exists():
+        raise UsageError(f'{path}: no such {what}')
+    if what == 'file' and not p.is_file():
+        raise UsageError(f'{path}: not a file')
+    return p
+
+
+class _Progress:
+    """Shows that long work is alive: a line on stderr when it starts, then the elapsed wall
+    time every ``every`` seconds (rewritten in place on a terminal)."""
+
+    def __init__(self, label: str, every: float = 2.0) -> None:
+        self.label = label
+        self.tty = sys.stderr.isatty()
+        self.every = 0.25 if self.tty else every
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._beat, daemon=True)
+        self.start = 0.0
+        self.elapsed = 0.0
+
+    def _beat(self) -> None:
+        while not self._stop.wait(self.every):
+            dt = time.perf_counter() - self.start
+            if self.tty:
+                print(f'\r{PROG}: {self.label} ({dt:.1f} s)', end='', file=sys.stderr,
+                      flush=True)
+            else:
+                _info(f'{self.label}: {dt:.0f} s elapsed')
+
+    def __enter__(self) -> _Progress:
+        if not self.tty:
+            _info(self.label)
+        self.start = time.perf_counter()
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self._stop.set()
+        self._thread.join()
+        self.elapsed = time.perf_counter() - self.start
+        if self.tty:
+            print('\r\033[K', end='', file=sys.stderr, flush=True)
+
+
+def _progress_callback(*args: Any, **kwargs: Any) -> None:
+    """Progress hook handed to the benchmark and stress runs: prints what it is given.
+
+    Accepts a message, ``(done, total)`` or ``(done, total, label)``.
+    """
+    if len(args) >= 2 and all(isinstance(a, (int, float)) for a in args[:2]):
+        done, total = args[0], args[1]
+        label = ' '.join(str(a) for a in args[2:])
+        pct = f' {100.0 * done / total:3.0f}%' if total else ''
+        _info(f'[{done}/{total}]{pct} {label}'.rstrip())
+    else:
+        parts = [str(a) for a in args] + [f'{k}={v}' for k, v in kwargs.items()]
+        _info(' '.join(parts))
+
+
+def _finite_or_none(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+def _print_table(rows: list[tuple[str, str]]) -> None:
+    width = max(len(k) for k, _ in rows)
+    for key, value in rows:
+        print(f'{key:<{width}}  {value}')
+
+
+# ------------------------------------------------------------------------------- simulate
+
+def _figures(scene: Any, tr: Any, wall: float) -> dict:
+    """The run's figures as plain data (for the table and --json)."""
+    from ..core.verify import verify
+
+    report = verify(tr)
+    t_end = float(tr.t[-1] - tr.t[0])
+    period = scene.gait.period
+    steady = tr.mean_speed(period) if period and period <= t_end else None
+    return {
+        'scene': scene.name, 'method': tr.method, 't_end': t_end, 'bodies': scene.crawler.p,
+        'gait': scene.gait_spec['type'], 'period': period, 'samples': len(tr),
+        'displacement': tr.displacement, 'mean_speed': tr.mean_speed(),
+        'mean_speed_last_period': steady,
+        'stick_fraction': [float(s) for s in tr.stick_fraction], 'events': len(tr.events),
+        'dissipated_energy': tr.dissipated_energy, 'actuator_work': tr.actuator_work,
+        'positive_actuator_work': tr.positive_actuator_work,
+        'cost_of_transport': _finite_or_none(tr.cost_of_transport),
+        'verify_worst': report.worst, 'verify_contact_errors': report.contact,
+        'verify_ok': report.ok(1e-9), 'wall_time': wall,
+        'real_time_factor': t_end / wall if wall > 0 else None,
+    }
+
+
+def _figure_rows(f: dict) -> list[tuple[str, str]]:
+    period = f'{f["period"]:g} s' if f['period'] else 'not periodic'
+    speed = f'{f["mean_speed"]:.6g} m/s over the run'
+    if f['mean_speed_last_period'] is not None:
+        speed += f', {f["mean_speed_last_period"]:.6g} m/s over the last period'
+    stick = ', '.join(f'body_{i} {s:.3f}' for i, s in enumerate(f['stick_fraction']))
+    cot = 'inf (no net motion)' if f['cost_of_transport'] is None else (
+        f'{f["cost_of_transport"]:.4g}')
+    verdict = 'ok' if f['verify_ok'] else 'VIOLATED'
+    rtf = f['real_time_factor']
+    rows = [
+        ('scene', f'{f["scene"]} ({f["bodies"]} bodies, {f["gait"]} gait, period {period})'),
+        ('method', f'{f["method"]}, t_end {f["t_end"]:g} s, {f["samples"]} samples'),
+        ('displacement', f'{f["displacement"]:.6g} m'),
+        ('mean speed', speed),
+        ('stick fraction', stick),
+        ('events', str(f['events'])),
+        ('dissipated energy', f'{f["dissipated_energy"]:.6g} J'),
+        ('actuator work', f'{f["actuator_work"]:.6g} J (positive part '
+                          f'{f["positive_actuator_work"]:.6g} J)'),
+        ('cost of transport', cot),
+        ('verify', f'worst relative violation {f["verify_worst"]:.3g}, '
+                   f'{f["verify_contact_errors"]} contact errors ({verdict} at 1e-9)'),
+        ('wall time', f'{f["wall_time"]:.3f} s'
+                      + (f' (real-time factor {rtf:.4g})' if rtf else '')),
+    ]
+    for key in ('bag', 'plot'):
+        if key in f:
+            rows.append((key, f[key]))
+    return rows
+
+
+def _record(out: Path, scene: Any, tr: Any) -> None:
+    """Write the run (states, contact events, the scene) as a bag with the node's topics."""
+    from ..bag import BagError, record_trajectory
+    from ..core.scene import scene_to_dict
+
+    writer = record_trajectory(out, tr, scene=scene_to_dict(scene))
+    if getattr(writer, 'error', None):
+        raise BagError(f'{out}: {writer.error}')
+
+
+def plot_trajectory(tr: Any, png: Path, title: str = '') -> None:
+    """Body positions, contact states and linkage lengths against time, written to ``png``."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    fig, (ax_x, ax_c, ax_l) = plt.subplots(3, 1, sharex=True, figsize=(8, 7),
+                                           gridspec_kw={'height_ratios': [3, 1, 2]})
+    p = tr.x.shape[1]
+    for i in range(p):
+        ax_x.plot(tr.t, tr.x[:, i], lw=1, label=f'body_{i}')
+        ax_c.step(tr.t, tr.state[:, i] + 0.08 * (i - (p - 1) / 2), where='post', lw=1)
+    ax_x.plot(tr.t, tr.com, 'k--', lw=1, label='centre of mass')
+    ax_x.set_ylabel('x [m]')
+    ax_x.legend(loc='best', fontsize='small')
+    ax_c.set_yticks([-1, 0, 1], ['back', 'stick', 'fwd'])
+    ax_c.set_ylabel('contact')
+    for j in range(tr.lengths.shape[1]):
+        ax_l.plot(tr.t, tr.lengths[:, j], lw=1, label=f'linkage_{j}')
+    ax_l.set_ylabel('length [m]')
+    ax_l.set_xlabel('t [s]')
+    ax_l.legend(loc='best', fontsize='small')
+    if title:
+        ax_x.set_title(title)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from ..core.scene import load_scene
+
+    scene = load_scene(_existing(args.scene)).with_run(method=args.method, t_end=args.t_end,
+                                                       dt=args.dt)
+    if args.out and Path(args.out).exists():       # fail before a long run, not after it
+        raise UsageError(f'{args.out} exists already, not overwriting')
+    r = scene.run
+    with _Progress(f'simulating {scene.name}: {r.t_end:g} s with method {r.method}') as prog:
+        tr = scene.simulate()
+    figures = _figures(scene, tr, prog.elapsed)
+    if args.out:
+        with _Progress(f'recording to {args.out}'):
+            _record(Path(args.out), scene, tr)
+        figures['bag'] = str(args.out)
+    if args.plot:
+        if args.out:
+            from ..bag import plot
+            plot(args.out, args.plot)
+        else:
+            plot_trajectory(tr, Path(args.plot), f'{scene.name} ({r.method})')
+        figures['plot'] = str(args.plot)
+    if args.json:
+        print(json.dumps(figures, indent=2))
+    else:
+        _print_table(_figure_rows(figures))
+    return EXIT_OK
+
+
+# ------------------------------------------------------------------------------- bench, stress
+
+def _result_ok(result: Any) -> bool:
+    """Whether a benchmark or stress result reports success (True when it does not say)."""
+    if isinstance(result, bool):
+        return result
+    if isinstance(result, dict):
+        if 'ok' in result:
+            return bool(result['ok'])
+        return not result.get('failures')
+    ok = getattr(result, 'ok', None)
+    if ok is not None:
+        return bool(ok() if callable(ok) else ok)
+    return not getattr(result, 'failures', None)
+
+
+def _show_result(result: Any) -> None:
+    if result is None or isinstance(result, bool):
+        return
+    if isinstance(result, dict):
+        print(json.dumps(result, indent=2, default=str))
+    else:
+        print(result)
+
+
+def _finish(result: Any, what: str) -> int:
+    """Exit code of a benchmark or stress run, with one error line when it failed."""
+    if _result_ok(result):
+        return EXIT_OK
+    failures = result.get('failures') if isinstance(result, dict) else None
+    count = f'{len(failures)} failures' if failures else 'it failed'
+    first = f', first: {failures[0]}' if failures else ''
+    _say_error(f'{what}: {count}{first}')
+    return EXIT_FAILURE
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from ..bench import run_bench
+
+    result = run_bench(args.out, scenes=args.scenes, quick=args.quick,
+                       progress=_progress_callback)
+    markdown = result.get('markdown') if isinstance(result, dict) else None
+    if markdown and Path(markdown).is_file():
+        print(Path(markdown).read_text(encoding='utf-8'))
+    else:
+        _show_result(result)
+    _info(f'results in {args.out}')
+    return _finish(result, 'bench')
+
+
+def _cmd_stress(args: argparse.Namespace) -> int:
+    from ..bench import run_stress
+
+    result = run_stress(seconds=args.seconds, seed=args.seed, progress=_progress_callback)
+    _show_result(result)
+    return _finish(result, 'stress')
+
+
+# ------------------------------------------------------------------------------- replay
+
+def _commands(commands: Any) -> tuple[list[float], list[list[float]]]:
+    """(times [s], target lengths) from a bag's ``Commands(t, values)`` (or any such pair)."""
+    if commands is None:
+        return [], []
+    times, values = commands
+    return [float(t) for t in times], [[float(x) for x in row] for row in values]
+
+
+def _replay_node(run: Any, method: str | None) -> tuple[Any, Any]:
+    """Re-run the node's ticks with the node's own integration loop (``engine.Engine``):
+    commands take effect at the tick starting at their recorded time and the queued ticks are
+    integrated on the same publish grid, so the arithmetic is the node's. Returns the states
+    (x, v) at the recorded times."""
+    import numpy as np
+
+    from ..core.actuator import ActuatorLimits
+    from ..core.engine import Engine, EngineConfig
+    from ..core.model import Crawler
+
+    sc = run.scene
+    c = sc['crawler']
+    crawler = Crawler(c['masses'], c['friction'], c['friction_backward'], c['slope'],
+                      c['gravity'])
+    p = crawler.p
+    lengths = [float(x) for x in sc['initial_lengths']]
+    lengths = lengths * (p - 1) if len(lengths) == 1 else lengths
+    rate = float(sc['integration_rate'])
+    dt_ns = max(1, round(1e9 / rate))
+    limits = ActuatorLimits(float(sc['actuator_bandwidth']), float(sc['actuator_max_speed']),
+                            float(sc['actuator_max_acceleration']))
+    method = method or sc['method']
+    penalty = [float(n) for n in sc.get('penalty', [1e6])] if method == 'penalty' else None
+    engine = Engine(EngineConfig(crawler, method, dt_ns,
+                                 max(1, round(rate / float(sc['publish_rate']))), lengths,
+                                 float(sc['initial_position']), limits, penalty))
+    cmd_t, cmd_v = _commands(getattr(run, 'commands', None))
+    cmd_ns = [round(t * 1e9) for t in cmd_t]
+    want_ns = np.rint(np.asarray(run.t, dtype=float) * 1e9).astype(np.int64)
+    x = np.empty((want_ns.size, p))
+    v = np.empty((want_ns.size, p))
+    k = i = 0
+    reported = 0
+    while True:
+        while i < want_ns.size and want_ns[i] <= engine.t_ns:
+            if want_ns[i] == engine.t_ns:
+                st = engine.state
+                x[i], v[i] = st.x, st.v
+            else:
+                x[i] = v[i] = np.nan     # not on the tick grid: the node cannot have sent it
+            i += 1
+        if i >= want_ns.size:
+            break
+        while k < len(cmd_ns) and cmd_ns[k] <= engine.t_ns:
+            engine.set_target(cmd_v[k])
+            k += 1
+        engine.tick()
+        if len(engine.failures) > reported:
+            reported = len(engine.failures)
+            _info(engine.failures[-1] + '; continuing with method implicit, as the node does')
+    return x, v
+
+
+def _replay_scene(run: Any, method: str | None) -> tuple[Any, Any]:
+    """Re-simulate an offline run from its scene dict. When the recorded stamps are the default
+    sample times of that run (rounded to ns), compare at those exact times; otherwise sample the
+    re-simulation at the recorded times."""
+    import numpy as np
+
+    from ..core.scene import scene_from_dict
+
+    keys = ('name', 'description', 'crawler', 'gait', 'run', 'bench')   # not the recorder's
+    scene = scene_from_dict({k: v for k, v in run.scene.items() if k in keys})
+    scene = scene.with_run(method=method)
+    t = np.asarray(run.t, dtype=float)
+    tr = scene.simulate()
+    if tr.t.shape == t.shape and np.array_equal(np.rint(tr.t * 1e9), np.rint(t * 1e9)):
+        return tr.x, tr.v
+    tr = scene.with_run(t_end=max(float(t[-1]), scene.run.t_end)).simulate(t_eval=t)
+    return tr.x, tr.v
+
+
+def _replay(run: Any, method: str | None, tol: float) -> dict:
+    """Re-simulate a recorded run with the core and compare with the recorded states.
+
+    Node bags (scene = the node's parameters) replay the recorded commands tick by tick through
+    the actuator; offline bags (scene = a scene dict) re-run the scene.
+    """
+    import numpy as np
+
+    sc = run.scene if isinstance(run.scene, dict) else {}
+    node = 'integration_rate' in sc
+    if not node and 'gait' not in sc:
+        raise UsageError('the bag holds no scene (neither node parameters nor a scene dict); '
+                         'it cannot be replayed')
+    if any(name.endswith('linkage_trajectory') for name in getattr(run, 'topics', {})):
+        _info('warning: the bag holds linkage_trajectory commands, which replay does not '
+              're-apply (only linkage_cmd); expect a mismatch after the first one')
+    x, v = (_replay_node if node else _replay_scene)(run, method)
+    rx, rv = np.asarray(run.x, dtype=float), np.asarray(run.v, dtype=float)
+    if rx.shape != x.shape:
+        raise ValueError(f'recorded states have shape {rx.shape}, the replay {x.shape}')
+    dx, dv = np.abs(x - rx), np.abs(v - rv)
+    bad_x, bad_v = np.nan_to_num(dx, nan=np.inf), np.nan_to_num(dv, nan=np.inf)
+    ix = np.unravel_index(int(np.argmax(bad_x)), dx.shape) if dx.size else (0, 0)
+    iv = np.unravel_index(int(np.argmax(bad_v)), dv.shape) if dv.size else (0, 0)
+    max_dx = float(bad_x[ix]) if dx.size else 0.0
+    max_dv = float(bad_v[iv]) if dv.size else 0.0
+    return {'kind': 'node' if node else 'offline', 'method': method or sc.get('method') or
+            sc.get('run', {}).get('method', 'exact'), 'samples': int(rx.shape[0]),
+            'commands': len(_commands(getattr(run, 'commands', None))[0]) if node else 0,
+            'max_position_error': max_dx, 'at_position': (float(run.t[ix[0]]), int(ix[1])),
+            'max_velocity_error': max_dv, 'at_velocity': (float(run.t[iv[0]]), int(iv[1])),
+            'tolerance': tol, 'match': max_dx <= tol and max_dv <= tol}
+
+
+def _cmd_replay(args: argparse.Namespace) -> int:
+    path = _existing(args.bag, 'bag')
+    from ..bag import load
+
+    run = load(path)
+    with _Progress(f'replaying {args.bag}'):
+        res = _replay(run, args.method, args.tol)
+    t_x, body_x = res['at_position']
+    t_v, body_v = res['at_velocity']
+    _print_table([
+        ('bag', f'{args.bag} ({res["kind"]} run, {res["samples"]} samples, '
+                f'{res["commands"]} commands)'),
+        ('method', res['method']),
+        ('max |dx|', f'{res["max_position_error"]:.3g} m (body_{body_x} at t = {t_x:.9g} s)'),
+        ('max |dv|', f'{res["max_velocity_error"]:.3g} m/s (body_{body_v} at t = {t_v:.9g} s)'),
+        ('result', f'{"match" if res["match"] else "MISMATCH"} (tolerance {res["tolerance"]:g})'),
+    ])
+    if not res['match']:
+        _say_error(f'replay differs from the recording by {res["max_position_error"]:.3g} m / '
+                   f'{res["max_velocity_error"]:.3g} m/s (tolerance {res["tolerance"]:g})')
+        return EXIT_FAILURE
+    return EXIT_OK
+
+
+# ------------------------------------------------------------------------------- bag tools
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    path = _existing(args.bag, 'bag')
+    from ..bag import info
+
+    _show_result(info(path))
+    return EXIT_OK
+
+
+def _cmd_plot(args: argparse.Namespace) -> int:
+    path = _existing(args.bag, 'bag')
+    from ..bag import plot
+
+    plot(path, args.output)
+    print(args.output)
+    return EXIT_OK
+
+
+def _cmd_recover(args: argparse.Namespace) -> int:
+    source = _existing(args.source, 'bag or MCAP file')
+    from ..bag import recover
+
+    with _Progress(f'recovering {args.source}'):
+        res = recover(source, args.output)
+    topics = ', '.join(f'{name} {n}' for name, n in res.topics.items()) or 'none'
+    _print_table([('bag', str(res.bag)),
+                  ('status', 'complete' if res.complete else 'source was damaged; readable part '
+                   'recovered'),
+                  ('messages', f'{res.messages} ({topics})')]
+                 + [('problem', problem) for problem in res.problems])
+    return EXIT_OK
+
+
+# ------------------------------------------------------------------------------- parser
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``crawler-sim`` (every subcommand has --help)."""
+    parser = _Parser(
+        prog=PROG, description='Simulate friction-based crawling robots; record, inspect, '
+        'plot, replay and recover runs; benchmark the solvers.',
+        epilog='exit codes: 0 ok, 1 the work failed (solver, bag, replay mismatch), '
+        '2 bad input (usage, missing file, invalid scene), 130 interrupted',
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--debug', action='store_true',
+                        help='show the full traceback on errors')
+    parser.add_argument('--version', action='version', version=f'%(prog)s {_version()}')
+    sub = parser.add_subparsers(dest='command', metavar='COMMAND', parser_class=_Parser)
+
+    def add(name: str, func: Callable[[argparse.Namespace], int], help_: str,
+            description: str) -> argparse.ArgumentParser:
+        p = sub.add_parser(name, help=help_, description=description)
+        p.set_defaults(func=func)
+        return p
+
+    p = add('simulate', _cmd_simulate, 'run a scene offline and print its figures',
+            'Simulate SCENE.yaml (see config/*.yaml) and print displacement, mean speed, stick '
+            'fraction per body, events, dissipated energy, actuator work, cost of transport, '
+            'the verify check and the wall time.')
+    p.add_argument('scene', metavar='SCENE.yaml', help='scene file (top-level key "scene:")')
+    p.add_argument('--method', choices=METHODS, help='solver (overrides scene.run.method)')
+    p.add_argument('--t-end', type=_positive, metavar='T',
+                   help='simulated time [s] (overrides scene.run.t_end)')
+    p.add_argument('--dt', type=_positive, metavar='DT',
+                   help='step of implicit/penalty [s] (overrides scene.run.dt)')
+    p.add_argument('--out', metavar='BAG_DIR', help='record the run to a new bag directory')
+    p.add_argument('--plot', metavar='PNG', help='write a plot of the run')
+    p.add_argument('--json', action='store_true', help='print the figures as JSON')
+
+    p = add('bench', _cmd_bench, 'benchmark the solvers on the bench scenes',
+            'Run every solver on the bench scenes (config/bench/) and write tables and plots.')
+    p.add_argument('--out', default='bench_out', metavar='DIR',
+                   help='output directory (default: bench_out)')
+    p.add_argument('--quick', action='store_true', help='fewer scenes and shorter runs')
+    p.add_argument('--scenes', nargs='+', metavar='NAME', help='only these bench scenes')
+
+    p = add('stress', _cmd_stress, 'randomised robustness run of the solvers',
+            'Simulate random crawlers and gaits for a while and check every run with verify.')
+    p.add_argument('--seconds', type=_positive, default=30.0, metavar='S',
+                   help='wall time budget [s] (default: 30)')
+    p.add_argument('--seed', type=_non_negative_int, default=0, metavar='N',
+                   help='random seed (default: 0)')
+
+    p = add('replay', _cmd_replay, 're-simulate a recorded run and compare',
+            'Re-simulate a recorded run from its scene and recorded commands with the core and '
+            'report the largest difference from the recorded states. Exit 0 when within the '
+            'tolerance, 1 on a mismatch.')
+    p.add_argument('bag', metavar='BAG', help='bag directory or MCAP file')
+    p.add_argument('--method', choices=METHODS, help='solver (default: the recorded one)')
+    p.add_argument('--tol', type=_positive, default=REPLAY_TOL, metavar='TOL',
+                   help=f'largest allowed |dx| [m] and |dv| [m/s] (default: {REPLAY_TOL:g})')
+
+    p = add('info', _cmd_info, 'summarise a bag', 'Print topics, counts, duration and scene '
+            'of a bag.')
+    p.add_argument('bag', metavar='BAG', help='bag directory or MCAP file')
+
+    p = add('plot', _cmd_plot, 'plot a recorded run', 'Plot body positions, contact states and '
+            'linkage lengths of a recorded run.')
+    p.add_argument('bag', metavar='BAG', help='bag directory or MCAP file')
+    p.add_argument('-o', '--output', required=True, metavar='PNG', help='image file to write')
+
+    p = add('recover', _cmd_recover, 'recover a damaged or unfinished recording',
+            'Rewrite what can be read from a damaged or unfinished bag (e.g. after a crash) '
+            'into a valid bag.')
+    p.add_argument('source', metavar='BAG_OR_MCAP', help='damaged bag directory or MCAP file')
+    p.add_argument('-o', '--output', metavar='OUT',
+                   help='where to write the recovered bag (default: next to the source)')
+    return parser
+
+
+def _version() -> str:
+    try:
+        from importlib.metadata import version
+        return version('crawler_sim')
+    except Exception:  # not installed: the source tree
+        return '0.1.0'
+
+
+def _exit_code(exc: BaseException) -> int:
+    scene = sys.modules.get('crawler_sim.core.scene')
+    if isinstance(exc, UsageError) or (scene is not None and isinstance(exc, scene.SceneError)):
+        return EXIT_USAGE
+    return EXIT_FAILURE
+
+
+def _describe(exc: BaseException) -> str:
+    """One line for the user. Expected errors show their message; others their type too."""
+    if isinstance(exc, OSError) and exc.strerror:
+        where = f'{exc.filename}: ' if exc.filename else ''
+        return f'{where}{exc.strerror}'
+    if isinstance(exc, ImportError):
+        return f'a part of crawler_sim this command needs is missing: {exc}'
+    known = (UsageError, ValueError, RuntimeError, ArithmeticError)
+    if isinstance(exc, known) or type(exc).__name__ == 'BagError':
+        return str(exc) or type(exc).__name__
+    return f'internal error ({type(exc).__name__}: {exc}); rerun with --debug for the traceback'
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Warnings (e.g. a truncated bag was read in part) as one line on stderr."""
+    print(f'{PROG}: warning: {" ".join(str(message).split())}', file=sys.stderr, flush=True)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``crawler-sim``; returns the exit code."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:     # --help, --version, usage errors
+        return int(exc.code or 0) if not isinstance(exc.code, str) else EXIT_USAGE
+    if args.command is None:
+        parser.print_help(sys.stderr)
+        return EXIT_USAGE
+    try:
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning
+            return args.func(args)
+    except BrokenPipeError:       # stdout closed early (e.g. `| head`): stop quietly
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_OK
+    except KeyboardInterrupt:
+        _say_error('interrupted')
+        return EXIT_INTERRUPTED
+    except Exception as exc:
+        if args.debug:
+            raise
+        _say_error(_describe(exc))
+        return _exit_code(exc)

@@ -1,0 +1,16 @@
+"""The simulator's core: model, gaits, solvers, stepper, trajectory, verify (no ROS import).
+
+Nothing under ``crawler_sim.core`` imports rclpy, message packages or anything from
+``crawler_sim.ros``, ``crawler_sim.bag``, ``crawler_sim.bench`` or ``crawler_sim.cli``
+(test/core/test_layers.py enforces it); those layers import the core, never the other way.
+"""
+from . import gaits
+from .model import Crawler
+from .solvers.implicit import ImplicitBatch
+from .solvers.penalty import penalty_bound
+from .stepper import METHODS, Stepper, simulate
+from .trajectory import Event, State, Trajectory
+from .verify import VerifyReport, verify
+
+__all__ = ['Crawler', 'Event', 'ImplicitBatch', 'METHODS', 'State', 'Stepper', 'Trajectory',
+           'VerifyReport', 'gaits', 'penalty_bound', 'simulate', 'verify']

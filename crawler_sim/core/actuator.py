@@ -1,0 +1,372 @@
+"""Actuator model: step-like length commands in, a C2 linkage length l(t) with bounded l', l'' out.
+
+The node receives target lengths (``linkage_cmd``) or timed trajectories (``linkage_trajectory``)
+and must hand the core a gait that is at least C2. This module is pure Python (no ROS); the node
+calls :meth:`Actuator.step` once per integration tick.
+
+Model
+-----
+Each linkage is a third-order servo with state ``(l, v, a) = (l, l', l'')``. Per tick of length
+``dt`` (from ``t0`` to ``t1 = t0 + dt``) the actuator emits ONE constant-jerk piece
+``crawler_sim.core.gaits.Cubic(t0, l, v, a, j)``::
+
+    l(t0 + s) = l + v s + a s^2/2 + j s^3/6,   l' = v + a s + j s^2/2,   l'' = a + j s
+
+and the next tick starts from that piece evaluated at ``t1`` (same expression, so the value is
+bit-identical). Hence l, l' and l'' are continuous across ticks: **l is C2** (l''' = j is piecewise
+constant), which is what the core's exact solver needs (the body accelerations stay finite).
+
+Jerk law (cascaded, saturated; r, r', r'' is the reference, r' = r'' = 0 for a step command)::
+
+    e   = r - l
+    v_d = clip(r' + sqrtp(e), -V, V)          sqrtp: kp e near 0, sqrt(2 A_b (|e| - A_b/(2 kp^2)))
+                                              beyond |e| = A_b / kp^2 (braking curve, A_b = A/2)
+    a_d = clip(r'' + kv (v_d - v), -A, A)
+    j   = clip(ka (a_d - a), [j_lo, j_hi])    (feasible interval below)
+
+Gains: the linear, unsaturated loop is j = -ka kv kp (l - r) - ka kv v - ka a. Discrete pole
+placement (jerk held constant over dt) gives the sampled closed loop a *triple* pole at
+``q = exp(-w dt)``, i.e. exactly the samples of a critically damped continuous loop (s + w)^3,
+for every dt (no stability bound on w dt)::
+
+    c = 1 - q,  ka = c (2 q^2 + 5 q + 11) / (6 dt),  kv = 6 c (q + 2) / (dt (2 q^2 + 5 q + 11)),
+    kp = c / (dt (q + 2))          (dt -> 0: kp = w/3, kv = w, ka = 3 w, i.e. (s + w)^3)
+
+``w = 2 pi bandwidth / sqrt(2^(1/3) - 1)`` (about 12.3 x bandwidth) so that ``bandwidth`` [Hz] is
+the -3 dB frequency of the linear closed loop w^3 / (s + w)^3 from r to l.
+
+Limits, guaranteed at tick ends AND inside ticks (V = max_speed, A = max_acceleration):
+
+- l'' is linear in s, so |a + j dt| <= A at the end (with |a| <= A at the start) bounds it on the
+  whole tick: ``j in [(-A - a)/dt, (A - a)/dt]``.
+- l' is quadratic in s. The actuator keeps the *viability* invariant ``v + max(a, 0) dt/2 <= V``
+  and ``v - max(-a, 0) dt/2 >= -V`` at every tick start (true at rest). Under it, the maximum of
+  l' over the tick is at an end (the interior extremum s* = 2 (V - v)/a lies beyond dt), so
+  ``|l'| <= V`` on the whole tick reduces to linear bounds on j at s = dt, and requiring the
+  invariant again at t1 gives ``j <= (V - v - 1.5 a dt)/dt^2`` and ``j <= 2 (V - v - a dt)/dt^2``
+  (and the mirror images). ``j = -a/dt`` (bring l'' to zero) always satisfies every bound, so the
+  feasible interval is never empty; the desired jerk is clipped into it.
+
+Settling: the loop converges geometrically. Once |e| <= 1e-12 m, |v| <= 1e-10 m/s and
+|a| <= 1e-8 m/s^2 for a linkage, its v and a are set to exactly 0 and it holds its length (l is
+not moved, so l stays continuous; the residual offset from the target is <= 1e-12 m). A linkage at
+rest emits jerk 0, so a crawler at rest under a constant command gets ``Cubic`` pieces with
+``is_constant() == True`` and the core's stepper takes its cheap path.
+
+Determinism: :func:`jerk_law` is a pure function of (state, reference, dt, gains, limits) written
+with Python floats; the same commands at the same ticks give bit-identical pieces.
+
+Trajectories
+------------
+:class:`TrajectoryReference` turns JointTrajectory points (times from a start time, positions and
+optional velocities/accelerations) into a reference r(t), r'(t), r''(t), interpolated like
+ros2_control's joint_trajectory_controller: quintic per segment when accelerations are given,
+cubic Hermite when velocities are given, linear otherwise. The first segment starts at the
+actuator's state (l, l', l'') when the trajectory starts (unless the first point is at time 0);
+after the last point the reference holds the last position. The reference then goes through the
+same actuator (with r' and r'' as feedforward), so the limits above hold for trajectories too and
+a feasible, smooth trajectory is tracked with a lag of about one tick.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from typing import Sequence
+
+from crawler_sim.core.gaits import Cubic, cubic_values
+
+__all__ = ['ActuatorLimits', 'Actuator', 'TrajectoryReference', 'gains', 'jerk_law',
+           'cubic_end', 'BANDWIDTH_TO_POLE']
+
+#: w / (2 pi bandwidth): the triple pole that puts the -3 dB point of w^3/(s+w)^3 at bandwidth.
+BANDWIDTH_TO_POLE = 1.0 / math.sqrt(2.0 ** (1.0 / 3.0) - 1.0)
+
+_SETTLE_L = 1e-12   # m
+_SETTLE_V = 1e-10   # m/s
+_SETTLE_A = 1e-8    # m/s^2
+
+
+@dataclass(frozen=True)
+class ActuatorLimits:
+    """Actuator parameters: ``bandwidth`` [Hz] (-3 dB), ``max_speed`` [m/s], ``max_acceleration``
+    [m/s^2]. All must be finite and > 0."""
+
+    bandwidth: float = 5.0
+    max_speed: float = 0.5
+    max_acceleration: float = 5.0
+
+    def __post_init__(self) -> None:
+        for name in ('bandwidth', 'max_speed', 'max_acceleration'):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f'`{name}` must be finite and > 0, got {value!r}')
+
+
+def gains(bandwidth: float, dt: float) -> tuple[float, float, float]:
+    """(kp, kv, ka) of the cascade for a triple discrete pole at exp(-w dt) (see module doc)."""
+    if not (dt > 0 and math.isfinite(dt)):
+        raise ValueError(f'`dt` must be finite and > 0, got {dt!r}')
+    w = 2.0 * math.pi * bandwidth * BANDWIDTH_TO_POLE
+    q = math.exp(-w * dt)
+    c = -math.expm1(-w * dt)           # 1 - q, accurate for small w dt
+    den = 2.0 * q * q + 5.0 * q + 11.0
+    return c / (dt * (q + 2.0)), 6.0 * c * (q + 2.0) / (dt * den), c * den / (6.0 * dt)
+
+
+def _sqrt_p(e: float, kp: float, a_brake: float) -> float:
+    """Position-to-velocity law: linear (kp e) near zero, braking curve sqrt(2 A_b |e|) far away.
+
+    C1 at the junction |e| = A_b / kp^2 (ArduPilot's ``sqrt_controller``).
+    """
+    linear = a_brake / (kp * kp)
+    if e > linear:
+        return math.sqrt(2.0 * a_brake * (e - 0.5 * linear))
+    if e < -linear:
+        return -math.sqrt(2.0 * a_brake * (-e - 0.5 * linear))
+    return kp * e
+
+
+def jerk_law(l: float, v: float, a: float, r: float, rd: float, rdd: float, dt: float,
+             k: tuple[float, float, float], max_speed: float, max_acceleration: float) -> float:
+    """Jerk for one linkage over one tick: a pure function of state, reference and dt.
+
+    Assumes the viability invariant at the start (see module doc); the result keeps
+    |l'| <= max_speed and |l''| <= max_acceleration over the whole tick, and the invariant at
+    its end.
+    """
+    kp, kv, ka = k
+    vmax, amax = max_speed, max_acceleration
+    v_d = rd + _sqrt_p(r - l, kp, 0.5 * amax)
+    v_d = min(max(v_d, -vmax), vmax)
+    a_d = rdd + kv * (v_d - v)
+    a_d = min(max(a_d, -amax), amax)
+    j = ka * (a_d - a)
+    dt2 = dt * dt
+    hi = min((amax - a) / dt, 2.0 * (vmax - v - a * dt) / dt2, (vmax - v - 1.5 * a * dt) / dt2)
+    lo = max((-amax - a) / dt, 2.0 * (-vmax - v - a * dt) / dt2, (-vmax - v - 1.5 * a * dt) / dt2)
+    if lo > hi:            # only through rounding at the boundary; -a/dt is always admissible
+        return -a / dt
+    return min(max(j, lo), hi)
+
+
+#: (l, l', l'') of a constant-jerk piece after d seconds: the expression of ``gaits.Cubic``
+#: itself, so the next piece starts bit-identically where the previous one ended
+cubic_end = cubic_values
+
+
+class TrajectoryReference:
+    """Reference r(t), r'(t), r''(t) from timed points, interpolated like ros2_control's
+    joint_trajectory_controller.
+
+    Parameters
+    ----------
+    t_start : float
+        Sim time [s] the point times are measured from.
+    state : sequence of (l, v, a) per linkage
+        The actuator state at ``t_start`` (start knot of the first segment).
+    times : sequence of float, shape (N,)
+        Strictly increasing times from ``t_start`` [s], ``times[0] >= 0``.
+    positions : shape (N, n_links)
+        Lengths [m].
+    velocities, accelerations : shape (N, n_links) or None
+        Optional rates [m/s] and accelerations [m/s^2] (accelerations need velocities).
+    """
+
+    def __init__(self, t_start: float, state: Sequence[Sequence[float]], times: Sequence[float],
+                 positions: Sequence[Sequence[float]],
+                 velocities: Sequence[Sequence[float]] | None = None,
+                 accelerations: Sequence[Sequence[float]] | None = None) -> None:
+        n_pts = len(times)
+        if n_pts == 0 or len(positions) != n_pts:
+            raise ValueError('a trajectory needs at least one point and one position row per time')
+        if accelerations is not None and velocities is None:
+            raise ValueError('accelerations need velocities')
+        self.n_links = len(state)
+        self.t_start = float(t_start)
+        self.order = 5 if accelerations is not None else 3 if velocities is not None else 1
+        ts = [float(t) for t in times]
+        if ts[0] < 0 or any(b <= a for a, b in zip(ts, ts[1:])):
+            raise ValueError('trajectory times must be >= 0 and strictly increasing')
+        knots_t = ([] if ts[0] == 0.0 else [0.0]) + ts
+        zero = [0.0] * self.n_links
+        pos = [[float(x) for x in row] for row in positions]
+        vel = ([[float(x) for x in row] for row in velocities] if velocities is not None
+               else [zero] * n_pts)
+        acc = ([[float(x) for x in row] for row in accelerations] if accelerations is not None
+               else [zero] * n_pts)
+        if ts[0] != 0.0:
+            pos.insert(0, [s[0] for s in state])
+            vel.insert(0, [s[1] for s in state] if self.order >= 3 else zero)
+            acc.insert(0, [s[2] for s in state] if self.order >= 5 else zero)
+        self._t = knots_t
+        self._p, self._v, self._a = pos, vel, acc
+        self.end_time = self.t_start + knots_t[-1]
+
+    def __call__(self, t: float) -> tuple[list[float], list[float], list[float]]:
+        """(r, r', r'') per linkage at sim time t."""
+        tau = t - self.t_start
+        kt = self._t
+        if tau >= kt[-1]:
+            return list(self._p[-1]), [0.0] * self.n_links, [0.0] * self.n_links
+        if tau <= kt[0]:
+            return list(self._p[0]), list(self._v[0]), list(self._a[0])
+        k = 0
+        while kt[k + 1] <= tau:       # few points per message: a linear scan is fine
+            k += 1
+        h = kt[k + 1] - kt[k]
+        s = (tau - kt[k]) / h
+        r, rd, rdd = [], [], []
+        for i in range(self.n_links):
+            p0, p1 = self._p[k][i], self._p[k + 1][i]
+            if self.order == 1:
+                r.append(p0 + s * (p1 - p0))
+                rd.append((p1 - p0) / h)
+                rdd.append(0.0)
+                continue
+            v0, v1 = self._v[k][i] * h, self._v[k + 1][i] * h
+            a0, a1 = self._a[k][i] * h * h, self._a[k + 1][i] * h * h
+            c = _hermite(p0, v0, a0, p1, v1, a1, self.order)
+            x = c[0] + s * (c[1] + s * (c[2] + s * (c[3] + s * (c[4] + s * c[5]))))
+            xd = c[1] + s * (2 * c[2] + s * (3 * c[3] + s * (4 * c[4] + s * 5 * c[5])))
+            xdd = 2 * c[2] + s * (6 * c[3] + s * (12 * c[4] + s * 20 * c[5]))
+            r.append(x)
+            rd.append(xd / h)
+            rdd.append(xdd / (h * h))
+        return r, rd, rdd
+
+
+def _hermite(p0: float, v0: float, a0: float, p1: float, v1: float, a1: float,
+             order: int) -> tuple[float, ...]:
+    """Coefficients c0..c5 on s in [0, 1] of the cubic (order 3) or quintic (order 5) Hermite
+    polynomial with the given end values and (scaled) derivatives."""
+    dp = p1 - p0
+    if order == 3:
+        return (p0, v0, 3 * dp - 2 * v0 - v1, -2 * dp + v0 + v1, 0.0, 0.0)
+    return (p0, v0, 0.5 * a0,
+            10 * dp - 6 * v0 - 4 * v1 - 1.5 * a0 + 0.5 * a1,
+            -15 * dp + 8 * v0 + 7 * v1 + 1.5 * a0 - a1,
+            6 * dp - 3 * v0 - 3 * v1 - 0.5 * a0 + 0.5 * a1)
+
+
+class Actuator:
+    """The per-linkage servo of the module doc, stepping one tick at a time.
+
+    Parameters
+    ----------
+    lengths : sequence of float, shape (n_links,)
+        Initial lengths [m]; the actuator starts at rest with these as its target.
+    dt : float
+        Tick length [s].
+    limits : ActuatorLimits
+    """
+
+    def __init__(self, lengths: Sequence[float], dt: float, limits: ActuatorLimits) -> None:
+        self.n_links = len(lengths)
+        if self.n_links < 1:
+            raise ValueError('the actuator needs at least one linkage')
+        self.limits = limits
+        self.dt = float(dt)
+        self._k = gains(limits.bandwidth, self.dt)
+        self.reset(lengths)
+
+    def reset(self, lengths: Sequence[float]) -> None:
+        """Back to rest at ``lengths`` with them as target (no trajectory)."""
+        if len(lengths) != self.n_links:
+            raise ValueError(f'expected {self.n_links} lengths, got {len(lengths)}')
+        self.l = [float(x) for x in lengths]
+        self.v = [0.0] * self.n_links
+        self.a = [0.0] * self.n_links
+        self.target = list(self.l)
+        self.trajectory: TrajectoryReference | None = None
+        self._settled = [True] * self.n_links
+        self._rest_piece: Cubic | None = None
+
+    def configure(self, dt: float | None = None, limits: ActuatorLimits | None = None) -> None:
+        """Change the tick length and/or limits from the next tick; the state is kept.
+
+        If new limits are tighter than the current state, the state is clipped into them
+        (a discontinuity only when limits are lowered while moving, by the caller's choice).
+        """
+        if limits is not None:
+            self.limits = limits
+        if dt is not None:
+            self.dt = float(dt)
+        self._k = gains(self.limits.bandwidth, self.dt)
+        vmax, amax, h = self.limits.max_speed, self.limits.max_acceleration, self.dt
+        for i in range(self.n_links):
+            a = min(max(self.a[i], -amax), amax)
+            v = self.v[i]
+            v = min(v, vmax - max(a, 0.0) * 0.5 * h)
+            v = max(v, -vmax + max(-a, 0.0) * 0.5 * h)
+            self.v[i], self.a[i] = v, a
+
+    def set_target(self, lengths: Sequence[float]) -> None:
+        """A step command: target lengths [m] held until the next command; cancels a trajectory."""
+        if len(lengths) != self.n_links:
+            raise ValueError(f'expected {self.n_links} lengths, got {len(lengths)}')
+        new = [float(x) for x in lengths]
+        self.trajectory = None
+        self._rest_piece = None
+        for i in range(self.n_links):
+            if new[i] != self.target[i]:
+                self._settled[i] = False
+        self.target = new
+
+    def set_trajectory(self, trajectory: TrajectoryReference | None) -> None:
+        """Follow ``trajectory`` (None: hold the current length)."""
+        if trajectory is None:
+            self.trajectory = None
+            self.set_target(self.l)
+            return
+        if trajectory.n_links != self.n_links:
+            raise ValueError(f'expected {self.n_links} linkages, got {trajectory.n_links}')
+        self.trajectory = trajectory
+        self._rest_piece = None
+        self.target = list(trajectory._p[-1])
+        self._settled = [False] * self.n_links
+
+    def state(self) -> list[tuple[float, float, float]]:
+        """(l, l', l'') per linkage at the current tick start."""
+        return list(zip(self.l, self.v, self.a))
+
+    def step(self, t0: float, t1: float | None = None) -> Cubic:
+        """The constant-jerk piece on [t0, t1] (t1 defaults to t0 + dt); advances the state to t1.
+
+        The jerk uses the nominal ``dt``; pass ``t1`` so that the end state is computed with the
+        exact float ``t1 - t0`` the solver will use.
+        """
+        if t1 is None:
+            t1 = t0 + self.dt
+        d = t1 - t0
+        lim = self.limits
+        traj = self.trajectory
+        if traj is not None:
+            ref = traj(t0)
+            if t0 >= traj.end_time:
+                self.trajectory = None          # hold the last point as a plain target
+                self.target = list(ref[0])
+        elif self._rest_piece is not None:
+            return self._rest_piece
+        l0, v0, a0 = list(self.l), list(self.v), list(self.a)
+        jerk = [0.0] * self.n_links
+        for i in range(self.n_links):
+            if traj is None:
+                if self._settled[i]:
+                    continue
+                r, rd, rdd = self.target[i], 0.0, 0.0
+                if (abs(r - l0[i]) <= _SETTLE_L and abs(v0[i]) <= _SETTLE_V
+                        and abs(a0[i]) <= _SETTLE_A):
+                    self._settled[i] = True
+                    v0[i] = a0[i] = 0.0
+                    self.v[i] = self.a[i] = 0.0
+                    continue
+            else:
+                r, rd, rdd = ref[0][i], ref[1][i], ref[2][i]
+            j = jerk_law(l0[i], v0[i], a0[i], r, rd, rdd, self.dt, self._k,
+                         lim.max_speed, lim.max_acceleration)
+            jerk[i] = j
+            self.l[i], self.v[i], self.a[i] = cubic_end(l0[i], v0[i], a0[i], j, d)
+        piece = Cubic.trusted(t0, l0, v0, a0, jerk)
+        if traj is None and all(self._settled):
+            self._rest_piece = piece      # constant: valid at any time, reused until a command
+        return piece

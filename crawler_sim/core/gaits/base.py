@@ -1,0 +1,174 @@
+"""Gaits: the imposed linkage lengths l_j(t) and their first two time derivatives.
+
+Every gait returns ``(l, l', l'')`` in metres, m/s and m/s^2. For a float time each array has
+shape ``(n_links,)``; the built-in gaits also take an array of times of shape ``(N,)`` and then
+return arrays of shape ``(N, n_links)``. ``l_j = x_{j+1} - x_j`` (see docs/ARCHITECTURE.md).
+
+Gaits in this module:
+
+- `Sinusoid`: one harmonic per linkage, a phase lag makes a travelling wave.
+- `Fourier`: a truncated Fourier series per linkage.
+- `Scallop`: a smooth (analytic) stroke with a fast and a slow phase, set by ``asymmetry``.
+- `PiecewiseParabolic`: bang-bang strokes, piecewise-constant l'' (exact piecewise quadratics).
+- `Spline`: a C2 cubic spline through sampled lengths.
+- `Cubic`: one constant-jerk piece (the node's actuator model).
+- `Custom`: user callables of one float time (not vectorised).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = ['Gait', 'Custom', 'Sinusoid', 'Fourier', 'Scallop', 'PiecewiseParabolic', 'Spline',
+           'Cubic', 'PiecewiseCubic']
+
+Triple = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
+
+_EMPTY = np.empty(0)
+
+# Relative tolerance on the closure of a periodic PiecewiseParabolic stroke, and on the velocities
+# at breakpoints that are snapped to exactly zero (so rests are exact).
+CLOSURE_RTOL = 1e-12
+
+
+def _per_link(name: str, value: ArrayLike, n: int | None) -> NDArray[np.float64]:
+    """Broadcast a scalar or a per-linkage list to shape (n,), checking it is finite."""
+    arr = np.atleast_1d(np.asarray(value, dtype=float))
+    if arr.ndim != 1:
+        raise ValueError(f'{name} must be a float or a 1-D list, got shape {arr.shape}')
+    if n is not None and arr.size not in (1, n):
+        raise ValueError(f'{name} must have 1 or {n} entries (one per linkage), got {arr.size}')
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f'{name} must be finite, got {arr.tolist()}')
+    return arr if n is None or arr.size == n else np.full(n, arr[0])
+
+
+def _positive(name: str, value: float, unit: str) -> float:
+    """Return ``value`` as a float, checking it is finite and > 0."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f'{name} must be a finite float > 0 {unit}, got {value!r}') from None
+    if not (math.isfinite(v) and v > 0):
+        raise ValueError(f'{name} must be finite and > 0 {unit}, got {value!r}')
+    return v
+
+
+def _n_links(n_links: int | None, inferred: int) -> int:
+    """Number of linkages: ``n_links`` when given (an int >= 1), otherwise ``inferred``."""
+    if n_links is None:
+        return int(inferred)
+    if isinstance(n_links, bool) or int(n_links) != n_links or n_links < 1:
+        raise ValueError(f'n_links must be an integer >= 1, got {n_links!r}')
+    return int(n_links)
+
+
+def _finite(name: str, value: ArrayLike) -> NDArray[np.float64]:
+    """``value`` as a float array, checking every entry is finite."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f'{name} must be a finite numeric array, got {value!r}') from None
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f'{name} must be finite, got {arr.tolist()}')
+    return arr
+
+
+def _increasing(name: str, value: ArrayLike, min_size: int) -> NDArray[np.float64]:
+    """A 1-D, finite, strictly increasing array of at least ``min_size`` times [s]."""
+    arr = _finite(name, value)
+    if arr.ndim != 1 or arr.size < min_size:
+        raise ValueError(f'{name} must be a 1-D array of at least {min_size} times, '
+                         f'got shape {arr.shape}')
+    if not np.all(np.diff(arr) > 0):
+        raise ValueError(f'{name} must be strictly increasing, got {arr.tolist()}')
+    return arr
+
+
+def _interval(t0: float, t1: float) -> tuple[float, float]:
+    """Check a query interval [t0, t1] of `breakpoints` or `is_constant`."""
+    t0, t1 = float(t0), float(t1)
+    if not (math.isfinite(t0) and math.isfinite(t1)):
+        raise ValueError(f't0 and t1 must be finite, got {t0!r}, {t1!r}')
+    if t1 < t0:
+        raise ValueError(f't1 must be >= t0, got t0={t0!r}, t1={t1!r}')
+    return t0, t1
+
+
+class Gait:
+    """Base class of all gaits.
+
+    Contract for subclasses:
+
+    1. Set ``n_links`` (int, p - 1) and ``period`` [s] (None unless the gait is periodic).
+    2. Implement ``_eval(t)`` for an array of times ``t`` of shape (N,) [s], returning the three
+       arrays (l [m], l' [m/s], l'' [m/s^2]) of shape (N, n_links), without a Python loop over t.
+    3. l and l' must be continuous in t. If l'' jumps, override ``breakpoints`` so that it
+       returns every jump time in the open interval (t0, t1), sorted; the exact solver relies
+       on it.
+    4. Optionally override ``is_constant`` (rest intervals the solver can skip). It must return
+       True only when l' == 0 and l'' == 0 on all of [t0, t1].
+    """
+
+    n_links: int
+    period: float | None = None
+
+    def __call__(self, t: float | ArrayLike) -> Triple:
+        """Evaluate (l [m], l' [m/s], l'' [m/s^2]) at a time or an array of times [s].
+
+        For a float ``t`` each array has shape (n_links,); for ``t`` of shape (N,) each has
+        shape (N, n_links).
+        """
+        if np.ndim(t) == 0:
+            l, ld, ldd = self._eval(np.array([float(t)]))
+            return l[0], ld[0], ldd[0]
+        ta = np.asarray(t, dtype=float)
+        if ta.ndim != 1:
+            raise ValueError(f't must be a float or a 1-D array of times, got shape {ta.shape}')
+        return self._eval(ta)
+
+    def _eval(self, t: NDArray[np.float64]) -> Triple:
+        raise NotImplementedError
+
+    def at(self, t: float) -> Triple:
+        """(l, l', l'') at one float time, each of shape (n_links,): the solver's hot path.
+
+        Same values as ``self(t)`` to rounding; subclasses override it with scalar math.
+        """
+        return self(t)
+
+    def at1(self, t: float) -> tuple[float, float, float]:
+        """(l, l', l'') of linkage 0 at one float time, as floats: the root finders' hot path
+        for one-linkage (two-body) crawlers. Subclasses may override it with scalar math."""
+        l, ld, ldd = self.at(t)
+        return float(l[0]), float(ld[0]), float(ldd[0])
+
+    def length(self, t: float | ArrayLike) -> NDArray[np.float64]:
+        """Linkage lengths l(t) [m]."""
+        return self(t)[0]
+
+    def velocity(self, t: float | ArrayLike) -> NDArray[np.float64]:
+        """Linkage rates l'(t) [m/s]."""
+        return self(t)[1]
+
+    def acceleration(self, t: float | ArrayLike) -> NDArray[np.float64]:
+        """Linkage accelerations l''(t) [m/s^2]."""
+        return self(t)[2]
+
+    def breakpoints(self, t0: float, t1: float) -> NDArray[np.float64]:
+        """Sorted times in the open interval (t0, t1) where l'' may jump; none by default."""
+        return _EMPTY
+
+    def is_constant(self, t0: float, t1: float) -> bool:
+        """True only when l' and l'' are exactly zero on all of [t0, t1]."""
+        return False
+
+    def jerk_bound(self, t0: float, t1: float) -> NDArray[np.float64] | None:
+        """Upper bounds of the jerk |d l''/dt| [m/s^3] per linkage on [t0, t1] between
+        breakpoints (where l'' is continuous), or None if unknown (the default). The exact
+        solver uses them to rule out, without a root search, a velocity that dips to zero
+        between two grid points; a bound that is too small makes it miss such dips."""
+        return None
+

@@ -1,0 +1,420 @@
+"""Scenes: a crawler, a gait and run options described in YAML.
+
+A scene file has one top-level key ``scene``::
+
+    scene:
+      name: scallop_2body                 # optional; defaults to the file name
+      description: Two bodies, fast extension, slow contraction.
+      crawler:
+        masses: [1.0, 1.0]                # kg, p >= 2 entries, each > 0
+        mu: 0.3                           # friction coefficients (one, or one per body) ...
+        mu_backward: [0.6, 0.6]           # ... optional, defaults to mu
+        # friction: [2.9, 2.9]            # ... or friction forces [N] instead of mu
+        # friction_backward: [5.9, 5.9]
+        slope: 0.0                        # rad, uphill is +x (or slope_deg: degrees)
+        gravity: 9.81                     # m/s^2
+      gait:
+        type: scallop                     # sinusoid, fourier, scallop, piecewise_parabolic,
+        mean: 0.1                         # stroke (PiecewiseParabolic.stroke) or spline;
+        amplitude: 0.02                   # the other keys are the constructor's parameters
+        frequency: 1.0                    # (crawler_sim.core.gaits), e.g. fourier: mean,
+        asymmetry: 0.25                   # coefficients: [cos, sin], frequency
+      run:                                # every key optional
+        t_end: 20.0                       # s
+        method: exact                     # exact, implicit or penalty
+        dt: null                          # s (implicit, penalty; default 1e-3)
+        penalty: null                     # N s/m (penalty), one or one per body
+        tol: 1.0e-13                      # s (exact)
+        max_step: null                    # s (exact)
+        x0: 0.0                           # m, body 0
+        v0: 0.0                           # m/s, body 0
+      bench: {}                           # optional, options of crawler_sim.bench (not read here)
+
+Every invalid value raises :class:`SceneError` with one line naming the field and the allowed
+range, e.g. ``scene.crawler.masses[1]: must be finite and > 0, got -1.0``. Unknown keys are
+errors too (a typo must not silently fall back to a default).
+
+:func:`scene_to_dict` gives the plain-data form written into bags (friction as forces, so the
+crawler is rebuilt bit for bit); :func:`scene_from_dict` reads it back.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+import math
+from pathlib import Path
+import re
+from typing import Any, Mapping
+
+import numpy as np
+from numpy.typing import NDArray
+import yaml
+
+from . import gaits
+from .model import Crawler
+from .stepper import METHODS, simulate
+from .trajectory import Trajectory
+
+__all__ = ['SceneError', 'RunOptions', 'Scene', 'GAIT_TYPES', 'load_scene', 'scene_from_dict',
+           'scene_to_dict']
+
+
+class SceneError(ValueError):
+    """A scene is missing, malformed or out of range; the message is one line for the user."""
+
+
+class _Loader(yaml.SafeLoader):
+    """SafeLoader that also reads ``1e-3`` as a float (YAML 1.2; PyYAML's 1.1 needs ``1.0e-3``)."""
+
+
+_Loader.add_implicit_resolver(
+    'tag:yaml.org,2002:float',
+    re.compile(r'''^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+                   |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+                   |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+                   |[-+]?\.(?:inf|Inf|INF)
+                   |\.(?:nan|NaN|NAN))$''', re.X),
+    list('-+0123456789.'))
+
+
+# ---------------------------------------------------------------------------------------------
+# Field checks. Each takes the dotted path of the field for the error message.
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+
+
+def _number(path: str, value: Any, rule: str = 'finite', *, lo: float | None = None,
+            lo_open: bool = False) -> float:
+    """A finite float, optionally > lo (``lo_open``) or >= lo."""
+    if not _is_number(value):
+        raise SceneError(f'{path}: must be a number ({rule}), got {value!r}')
+    x = float(value)
+    if not math.isfinite(x) or (lo is not None and (x <= lo if lo_open else x < lo)):
+        raise SceneError(f'{path}: must be {rule}, got {value!r}')
+    return x
+
+
+def _optional(path: str, value: Any, rule: str, **kw: Any) -> float | None:
+    return None if value is None else _number(path, value, rule, **kw)
+
+
+def _array(path: str, value: Any) -> NDArray[np.float64]:
+    """A finite float array of any rectangular shape, from numbers and (nested) lists."""
+    if _is_number(value):
+        arr = np.array(float(value))
+    else:
+        if not isinstance(value, (list, tuple)) or len(value) == 0:
+            raise SceneError(f'{path}: must be a number or a non-empty list of numbers, '
+                             f'got {value!r}')
+        rows = [_array(f'{path}[{i}]', v) for i, v in enumerate(value)]
+        if any(r.shape != rows[0].shape for r in rows):
+            raise SceneError(f'{path}: rows must all have the same length, got '
+                             f'{[len(r) if r.ndim else 1 for r in rows]}')
+        return np.stack(rows)
+    if not math.isfinite(float(arr)):
+        raise SceneError(f'{path}: must be finite, got {value!r}')
+    return arr
+
+
+def _per_body(path: str, value: Any, p: int | None, *, positive: bool) -> NDArray[np.float64]:
+    """One number or a list of one number per body, each finite and > 0 (or >= 0)."""
+    rule = 'finite and > 0' if positive else 'finite and >= 0'
+    scalar = _is_number(value)
+    if not scalar and not isinstance(value, (list, tuple)):
+        raise SceneError(f'{path}: must be a number or a list of numbers ({rule}), '
+                         f'got {value!r}')
+    values = [value] if scalar else list(value)
+    if p is not None and len(values) not in (1, p):
+        raise SceneError(f'{path}: must have 1 or {p} entries (one per body), '
+                         f'got {len(values)}')
+    for i, v in enumerate(values):
+        _number(path if scalar else f'{path}[{i}]', v, rule, lo=0.0, lo_open=positive)
+    arr = np.array(values, dtype=float)
+    return np.full(p, arr[0]) if p is not None and arr.size == 1 else arr
+
+
+def _mapping(path: str, value: Any, allowed: tuple[str, ...], required: tuple[str, ...] = ()
+             ) -> dict:
+    """``value`` as a dict with only ``allowed`` keys and all ``required`` ones."""
+    if not isinstance(value, Mapping):
+        raise SceneError(f'{path}: must be a mapping with keys {", ".join(allowed)}, '
+                         f'got {type(value).__name__}')
+    for key in value:
+        if key not in allowed:
+            raise SceneError(f'{path}: unknown key {key!r}; allowed: {", ".join(allowed)}')
+    for key in required:
+        if key not in value:
+            raise SceneError(f'{path}.{key}: missing (required)')
+    return dict(value)
+
+
+def _plain(value: Any) -> Any:
+    """numpy values to plain Python lists and floats (for YAML, JSON and bags)."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    return value
+
+
+# ---------------------------------------------------------------------------------------------
+# Crawler
+
+_CRAWLER_KEYS = ('masses', 'mu', 'mu_backward', 'friction', 'friction_backward', 'slope',
+                 'slope_deg', 'gravity')
+
+
+def _crawler(spec: Any) -> Crawler:
+    path = 'scene.crawler'
+    d = _mapping(path, spec, _CRAWLER_KEYS, ('masses',))
+    masses = _per_body(f'{path}.masses', d['masses'], None, positive=True)
+    p = masses.size
+    if p < 2:
+        raise SceneError(f'{path}.masses: must list p >= 2 bodies, got {p}')
+    if 'slope' in d and 'slope_deg' in d:
+        raise SceneError(f'{path}: give slope [rad] or slope_deg [deg], not both')
+    if 'slope_deg' in d:
+        slope = math.radians(_number(f'{path}.slope_deg', d['slope_deg'],
+                                     'finite, in (-90, 90) deg'))
+        slope_path = f'{path}.slope_deg'
+    else:
+        slope = _number(f'{path}.slope', d.get('slope', 0.0), 'finite, in (-pi/2, pi/2) rad')
+        slope_path = f'{path}.slope'
+    if not abs(slope) < math.pi / 2:
+        raise SceneError(f'{slope_path}: must be in (-pi/2, pi/2) rad = (-90, 90) deg, '
+                         f'got {d.get("slope", d.get("slope_deg"))!r}')
+    gravity = _number(f'{path}.gravity', d.get('gravity', 9.81), 'finite and >= 0 m/s^2', lo=0.0)
+    has_mu, has_f = 'mu' in d, 'friction' in d
+    if has_mu == has_f:
+        raise SceneError(f'{path}: give exactly one of mu (coefficients) or friction '
+                         f'(forces [N]), got {"both" if has_mu else "neither"}')
+    if has_mu and 'friction_backward' in d or has_f and 'mu_backward' in d:
+        raise SceneError(f'{path}: do not mix mu/mu_backward with friction/friction_backward')
+    key = 'mu' if has_mu else 'friction'
+    fwd = _per_body(f'{path}.{key}', d[key], p, positive=False)
+    bwd = (_per_body(f'{path}.{key}_backward', d[f'{key}_backward'], p, positive=False)
+           if f'{key}_backward' in d else None)
+    if has_mu:
+        return Crawler.from_coefficients(masses, fwd, bwd, slope, gravity)
+    return Crawler(masses, fwd, bwd, slope, gravity)
+
+
+# ---------------------------------------------------------------------------------------------
+# Gaits: type -> (builder, required parameters, optional parameters with defaults)
+
+def _stroke(mean, amplitude, frequency, asymmetry, *, n_links=None):
+    return gaits.PiecewiseParabolic.stroke(mean, amplitude, frequency, asymmetry, n_links=n_links)
+
+
+#: type name -> (builder, required keys, optional keys with defaults, takes n_links)
+_GAITS: dict[str, tuple[Any, tuple[str, ...], dict[str, Any], bool]] = {
+    'sinusoid': (gaits.Sinusoid, ('mean', 'amplitude', 'frequency'), {'phase': 0.0}, True),
+    'fourier': (gaits.Fourier, ('mean', 'coefficients', 'frequency'), {}, True),
+    'scallop': (gaits.Scallop, ('mean', 'amplitude', 'frequency', 'asymmetry'),
+                {'phase': 0.0}, True),
+    'piecewise_parabolic': (gaits.PiecewiseParabolic, ('times', 'accelerations', 'l0'),
+                            {'v0': 0.0, 'periodic': True}, False),
+    'stroke': (_stroke, ('mean', 'amplitude', 'frequency', 'asymmetry'), {}, True),
+    'spline': (gaits.Spline, ('times', 'lengths'), {'periodic': False}, False),
+}
+GAIT_TYPES = tuple(_GAITS)
+_BOOL_KEYS = ('periodic',)
+_SCALAR_KEYS = ('frequency', 'asymmetry')
+_PER_LINK_KEYS = ('mean', 'amplitude', 'phase', 'l0', 'v0')
+
+
+def _gait_type(value: Any) -> str:
+    names = {t.replace('_', ''): t for t in GAIT_TYPES}
+    key = str(value).lower().replace('_', '').replace('-', '') if isinstance(value, str) else None
+    if key not in names:
+        raise SceneError(f'scene.gait.type: unknown gait {value!r}; expected one of '
+                         f'{", ".join(GAIT_TYPES)}')
+    return names[key]
+
+
+def _gait(spec: Any, p: int) -> tuple[gaits.Gait, dict]:
+    """The gait and its normalised description ({'type': ..., parameters as plain data})."""
+    path = 'scene.gait'
+    if not isinstance(spec, Mapping) or 'type' not in spec:
+        raise SceneError(f'{path}: must be a mapping with a type ({", ".join(GAIT_TYPES)}) '
+                         'and its parameters')
+    kind = _gait_type(spec['type'])
+    build, required, optional, takes_n = _GAITS[kind]
+    d = _mapping(path, spec, ('type',) + required + tuple(optional), required)
+    kwargs: dict[str, Any] = {}
+    for key in required + tuple(optional):
+        value = d.get(key, optional.get(key))
+        if key in _BOOL_KEYS:
+            if not isinstance(value, bool):
+                raise SceneError(f'{path}.{key}: must be true or false, got {value!r}')
+            kwargs[key] = value
+        elif key in _SCALAR_KEYS:
+            kwargs[key] = _number(f'{path}.{key}', value, 'finite')
+        else:
+            kwargs[key] = arr = _array(f'{path}.{key}', value)
+            if key in _PER_LINK_KEYS and arr.ndim == 1 and arr.size not in (1, p - 1):
+                count = '1 entry' if p == 2 else f'1 or {p - 1} entries'
+                raise SceneError(f'{path}.{key}: must have {count} (one per linkage; '
+                                 f'scene.crawler.masses lists {p} bodies), got {arr.size}')
+    if takes_n:
+        kwargs['n_links'] = p - 1
+    try:
+        gait = build(**kwargs)
+    except ValueError as exc:
+        raise SceneError(f'{path} ({kind}): {exc}') from None
+    if gait.n_links != p - 1:
+        raise SceneError(f'{path} ({kind}): drives {gait.n_links} linkages, but '
+                         f'scene.crawler.masses lists {p} bodies (needs p - 1 = {p - 1})')
+    kwargs.pop('n_links', None)
+    return gait, {'type': kind, **{k: _plain(v) for k, v in kwargs.items()}}
+
+
+# ---------------------------------------------------------------------------------------------
+# Run options
+
+@dataclass(frozen=True)
+class RunOptions:
+    """How to simulate a scene (the keyword arguments of `crawler_sim.simulate`).
+
+    t_end [s] > 0; method in METHODS; dt [s] > 0 or None; penalty [N s/m] one float or one per
+    body (required for "penalty"); tol [s] > 0; max_step [s] > 0 or None; x0 [m], v0 [m/s].
+    """
+
+    t_end: float = 10.0
+    method: str = 'exact'
+    dt: float | None = None
+    penalty: float | list[float] | None = None
+    tol: float = 1e-13
+    max_step: float | None = None
+    x0: float = 0.0
+    v0: float = 0.0
+
+    def to_dict(self) -> dict:
+        return {'t_end': self.t_end, 'method': self.method, 'dt': self.dt,
+                'penalty': self.penalty, 'tol': self.tol, 'max_step': self.max_step,
+                'x0': self.x0, 'v0': self.v0}
+
+
+_RUN_KEYS = tuple(RunOptions().to_dict())
+
+
+def _run(spec: Any, p: int) -> RunOptions:
+    path = 'scene.run'
+    d = _mapping(path, {} if spec is None else spec, _RUN_KEYS)
+    method = d.get('method', 'exact')
+    if method not in METHODS:
+        raise SceneError(f'{path}.method: unknown method {method!r}; expected one of '
+                         f'{", ".join(METHODS)}')
+    penalty = d.get('penalty')
+    if penalty is not None:
+        arr = _per_body(f'{path}.penalty', penalty, None, positive=True)
+        if arr.size not in (1, p):
+            raise SceneError(f'{path}.penalty: must have 1 or {p} entries (one per body), '
+                             f'got {arr.size}')
+        penalty = float(arr[0]) if _is_number(penalty) else arr.tolist()
+    elif method == 'penalty':
+        raise SceneError(f'{path}.penalty: required for method penalty (the seed\'s n, '
+                         'finite and > 0 N s/m)')
+    pos = 'finite and > 0 s'
+    return RunOptions(
+        t_end=_number(f'{path}.t_end', d.get('t_end', 10.0), pos, lo=0.0, lo_open=True),
+        method=method,
+        dt=_optional(f'{path}.dt', d.get('dt'), pos, lo=0.0, lo_open=True),
+        penalty=penalty,
+        tol=_number(f'{path}.tol', d.get('tol', 1e-13), pos, lo=0.0, lo_open=True),
+        max_step=_optional(f'{path}.max_step', d.get('max_step'), pos, lo=0.0, lo_open=True),
+        x0=_number(f'{path}.x0', d.get('x0', 0.0), 'finite [m]'),
+        v0=_number(f'{path}.v0', d.get('v0', 0.0), 'finite [m/s]'))
+
+
+# ---------------------------------------------------------------------------------------------
+# Scene
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """A validated scene: what to simulate (crawler, gait) and how (run)."""
+
+    name: str
+    crawler: Crawler
+    gait: gaits.Gait
+    run: RunOptions
+    gait_spec: dict
+    description: str = ''
+    bench: dict = field(default_factory=dict)
+
+    def with_run(self, **changes: Any) -> Scene:
+        """A copy with some run options replaced (None values are ignored), checked again."""
+        changes = {k: v for k, v in changes.items() if v is not None}
+        if not changes:
+            return self
+        merged = {**self.run.to_dict(), **changes}
+        return replace(self, run=_run(merged, self.crawler.p))
+
+    def simulate(self, **kwargs: Any) -> Trajectory:
+        """Run `crawler_sim.simulate` with the scene's options (``kwargs`` go to simulate)."""
+        r = self.run
+        return simulate(self.crawler, self.gait, r.t_end, r.method, dt=r.dt, v0=r.v0, x0=r.x0,
+                        penalty=r.penalty, tol=r.tol, max_step=r.max_step, **kwargs)
+
+
+_SCENE_KEYS = ('name', 'description', 'crawler', 'gait', 'run', 'bench')
+
+
+def scene_from_dict(data: Any, *, name: str = 'scene') -> Scene:
+    """Build a `Scene` from the mapping under ``scene:`` (or a mapping holding ``scene:``)."""
+    if isinstance(data, Mapping) and set(data) == {'scene'}:
+        data = data['scene']
+    d = _mapping('scene', data, _SCENE_KEYS, ('crawler', 'gait'))
+    name = d.get('name', name)
+    description = d.get('description', '')
+    for key, value in (('name', name), ('description', description)):
+        if not isinstance(value, str):
+            raise SceneError(f'scene.{key}: must be a string, got {value!r}')
+    bench = d.get('bench') or {}
+    if not isinstance(bench, Mapping):
+        raise SceneError(f'scene.bench: must be a mapping (options of crawler_sim.bench), '
+                         f'got {bench!r}')
+    crawler = _crawler(d['crawler'])
+    gait, gait_spec = _gait(d['gait'], crawler.p)
+    return Scene(name=name, crawler=crawler, gait=gait, run=_run(d.get('run'), crawler.p),
+                 gait_spec=gait_spec, description=description, bench=dict(bench))
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read and validate a scene YAML file.
+
+    Raises
+    ------
+    OSError
+        The file cannot be read (missing, a directory, no permission).
+    SceneError
+        Malformed YAML, no top-level ``scene:`` key, or an invalid field; the message starts
+        with the file name.
+    """
+    path = Path(path)
+    text = path.read_text(encoding='utf-8')
+    try:
+        data = yaml.load(text, Loader=_Loader)  # noqa: S506 (a SafeLoader subclass)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, 'problem_mark', None)
+        where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''
+        problem = getattr(exc, 'problem', None) or str(exc).splitlines()[0]
+        raise SceneError(f'{path}: invalid YAML{where}: {problem}') from None
+    if not isinstance(data, Mapping) or 'scene' not in data:
+        raise SceneError(f'{path}: not a scene file (no top-level "scene:" key)')
+    try:
+        return scene_from_dict(data['scene'], name=path.stem)
+    except SceneError as exc:
+        raise SceneError(f'{path}: {exc}') from None
+
+
+def scene_to_dict(scene: Scene) -> dict:
+    """Plain data (lists, floats, str, bool, None) that `scene_from_dict` turns back into an
+    equal scene; friction is given as forces so the crawler is rebuilt bit for bit."""
+    c = scene.crawler
+    return {'name': scene.name, 'description': scene.description,
+            'crawler': {'masses': c.masses.tolist(), 'friction': c.friction.tolist(),
+                        'friction_backward': c.friction_backward.tolist(),
+                        'slope': c.slope, 'gravity': c.gravity},
+            'gait': dict(scene.gait_spec), 'run': scene.run.to_dict(),
+            **({'bench': dict(scene.bench)} if scene.bench else {})}

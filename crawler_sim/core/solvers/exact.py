@@ -1,0 +1,1113 @@
+"""Method "exact": event-driven solution in closed form between stick/slip events (MODEL.md s. 2).
+
+Between events the motion is known exactly:
+
+* every body slides: the centre of mass X has constant acceleration a = (F_ext + sum R_i) / M, so
+  X and V = X' are a quadratic and a line in t, and x_i = X + e_i(t) with e_i from the gait;
+* a body r sticks (alone, or with a group Z of bodies momentarily rigidly linked to it):
+  x_r is constant, x_i = x_r + s_i(t) - s_r(t), and the group's total friction is whatever
+  keeps it still: R_Z = -M e_r''(t) - F_ext - sum of the sliding bodies' R_i.
+
+Events end a segment: a sliding body's velocity reaching zero, a stuck group's required force
+reaching its friction bound, the group losing rigidity, and the gait's own breakpoints (jumps of
+l''), which are placed exactly because the gait lists them. At each segment start the contact mode
+is chosen by the acceleration-level inclusion (``contact.solve_inclusion``); when that choice is
+degenerate (a tie at a kink or at a bound, e.g. right at a stick-to-slip transition or a grazing
+contact) it is decided by the same inclusion a short look-ahead later.
+
+How brackets are chosen (so no event is missed): every segment is scanned on a grid whose
+spacing is the gait period / 64 (1/8 of the interval for aperiodic gaits) or the user's
+``max_step`` if that is smaller, in chunks, vectorised. An event is bracketed by a sign change on
+the grid; for velocity events the derivative is known in closed form, so a velocity that dips to
+zero and back between two grid points is caught as well (a sign change of its derivative is
+refined and the minimum checked). A stuck body's force that crosses its bound and comes back
+between two grid points can be missed: lower ``max_step`` for gaits with sharp features.
+Velocity roots are refined by safeguarded Newton, force roots by Brent's method
+(``scipy.optimize.brentq``), to ``tol`` seconds, and reported on the crossed side.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..gaits import Gait
+from ..model import Crawler
+from ..trajectory import Event
+from .contact import solve_inclusion, split_friction
+
+__all__ = ['ExactSolver', 'Segment']
+
+_CHUNK = 64          # grid points evaluated at once
+_AMBIGUOUS = 1e-10   # relative slack below which a mode choice is decided by look-ahead
+_EPS = np.finfo(float).eps
+_add = np.add.reduce   # ndarray.sum without its Python wrapper (the arrays here are tiny)
+
+
+def check_finite_gait(vals, t) -> None:
+    """Raise ValueError if a gait evaluation (l, l', l'') holds a non-finite value."""
+    # a sum is finite only if every term is (finite values this large do not occur in gaits)
+    if math.isfinite(_add(vals[0], None) + _add(vals[1], None) + _add(vals[2], None)):
+        return
+    for name, arr in zip(('length', 'velocity', 'acceleration'), vals):
+        if not np.all(np.isfinite(arr)):
+            bad = np.atleast_1d(t)[np.nonzero(~np.isfinite(np.reshape(
+                arr, (np.size(t), -1))).any(axis=1))[0][0]]
+            raise ValueError(f'gait {name} must be finite, got a non-finite value at t = '
+                             f'{float(bad)!r} s')
+
+
+def offset_matrices(masses: NDArray) -> tuple[NDArray, NDArray]:
+    """Matrices C (p, p-1) and W (p, p-1) with s = C l (offsets from body 0) and e = W l
+    (offsets from the centre of mass), so that derivatives follow by the same product."""
+    p = masses.size
+    C = np.tril(np.ones((p, p - 1)), -1)
+    W = C - (masses / masses.sum()) @ C
+    return C, W
+
+
+@dataclass(slots=True)
+class PeriodicBlock:
+    """``n`` repetitions of one period of segments (``template``), each shifted forward by
+    ``D`` [m] in position and ``dK`` [N s] in impulse: the steady crawl, stored once."""
+
+    t0: float
+    n: int
+    T: float
+    D: float
+    dK: NDArray[np.float64]
+    template: list
+    template_t0: float
+
+    @property
+    def t1(self) -> float:
+        return self.t0 + self.n * self.T
+
+
+@dataclass(slots=True)
+class Segment:
+    """One closed-form piece of the solution on [t0, t1]."""
+
+    t0: float
+    t1: float
+    gait: Gait
+    contact: NDArray[np.int8]     # (p,)
+    R: NDArray[np.float64]        # (p,) ground force of the sliding bodies (group entries unused)
+    K0: NDArray[np.float64]       # (p,) impulse at t0
+    X0: float                     # slide: centre of mass at t0
+    V0: float                     # slide: its velocity at t0
+    a: float                      # slide: its acceleration
+    ref: int                      # stick: reference stuck body (-1 when all slide)
+    x_ref: float                  # stick: its fixed position
+    group: NDArray[np.bool_]      # stick: bodies stuck with ref
+    leaving: NDArray[np.bool_] | None = None   # bodies that start the segment leaving rest
+    consts: tuple | None = None   # the solver's per-segment constants of its event functions
+
+    def evaluate(self, crawler: Crawler, tau: NDArray[np.float64],
+                 mats: tuple[NDArray, NDArray] | None = None) -> dict:
+        """Exact state at the times ``tau`` (shape (N,), inside [t0, t1]); ``mats`` are the
+        crawler's ``offset_matrices`` (computed if not given)."""
+        m = crawler.masses
+        M = m.sum()
+        l, ld, ldd = self.gait(tau)
+        C, W = mats if mats is not None else offset_matrices(m)
+        e, ep, epp = l @ W.T, ld @ W.T, ldd @ W.T
+        d = tau - self.t0
+        n = tau.size
+        if self.ref < 0:
+            X = self.X0 + d * (self.V0 + 0.5 * self.a * d)
+            V = self.V0 + self.a * d
+            x = X[:, None] + e
+            v = V[:, None] + ep
+            A = np.full(n, self.a)
+            R = np.broadcast_to(self.R, (n, m.size)).copy()
+            K = self.K0 + np.multiply.outer(d, self.R)
+        else:
+            r = self.ref
+            s, sd = l @ C.T, ld @ C.T
+            x = self.x_ref + (s - s[:, r:r + 1])
+            v = sd - sd[:, r:r + 1]
+            A = -epp[:, r]
+            V = -ep[:, r]
+            slide = ~self.group
+            f_slide = crawler.external_force + self.R[slide].sum()
+            R = np.broadcast_to(np.where(slide, self.R, 0.0), (n, m.size)).copy()
+            K = self.K0 + np.multiply.outer(d, np.where(slide, self.R, 0.0))
+            g = self.group
+            fp, fm = crawler.friction[g], crawler.friction_backward[g]
+            total = M * A - f_slide                      # ground force on the group
+            R[:, g] = -split_friction(-total, fp, fm)
+            # Impulse of the group: integral of total = M (V - V(t0)) - f_slide d, split the same
+            # way (the split is affine in the total, so it commutes with the integral).
+            imp = M * (V - self.V0) - f_slide * d    # V0 = -e_r'(t0) for stick segments
+            K[:, g] = self.K0[g] + _split_impulse(imp, d, fp, fm)
+        grav = crawler.gravity_forces
+        body_force = R + grav - m * (A[:, None] + epp)
+        lam = np.cumsum(body_force, axis=1)[:, :-1]
+        contact = np.broadcast_to(self.contact, (n, m.size)).copy()
+        free = (crawler.friction + crawler.friction_backward) == 0.0
+        if free.any():
+            # no friction, no stick: these bodies' state is just the sign of their velocity
+            contact[:, free] = np.sign(v[:, free])
+        return {'x': x, 'v': v, 'friction': R, 'impulse': K, 'linkage_force': lam,
+                'lengths': l, 'rates': ld, 'contact': contact}
+
+
+def evaluate_rows(crawler: Crawler, pieces: list, owner: NDArray[np.int64],
+                  tau: NDArray[np.float64], mats: tuple[NDArray, NDArray]) -> dict:
+    """Exact states of many segments at once: row i is ``pieces[owner[i]]`` at time ``tau[i]``.
+
+    The same closed forms as ``Segment.evaluate`` (slide: X quadratic in t; stick: the reference
+    body fixed, the group's friction the affine split of what holds it), with every per-segment
+    quantity gathered per row, so sampling a run costs a fixed number of array operations
+    instead of a fixed number per segment. ``mats``: the crawler's ``offset_matrices``.
+    """
+    C, W = mats
+    m = crawler.masses
+    M = float(m.sum())
+    p, n = m.size, tau.size
+    fp, fm = crawler.friction, crawler.friction_backward
+    l, ld, ldd = _gait_rows(pieces, owner, tau)
+    e, ep, epp = l @ W.T, ld @ W.T, ldd @ W.T
+    rows = np.arange(n)
+    t0, X0, V0, a, ref, x_ref = (np.array(v, dtype=float)[owner] for v in zip(
+        *((sg.t0, sg.X0, sg.V0, sg.a, sg.ref, sg.x_ref) for sg in pieces)))
+    stick = ref >= 0
+    r = np.where(stick, ref, 0).astype(np.int64)
+    d = tau - t0
+    group = np.array([sg.group for sg in pieces])[owner]              # (n, p)
+    contact = np.array([sg.contact for sg in pieces])[owner]          # (n, p)
+    R = np.where(group, 0.0, np.array([sg.R for sg in pieces])[owner])  # sliding bodies' force
+    K0 = np.array([sg.K0 for sg in pieces])[owner]
+    # slide rows
+    X = X0 + d * (V0 + 0.5 * a * d)
+    V = V0 + a * d
+    x = X[:, None] + e
+    v = V[:, None] + ep
+    A = a.copy()
+    if stick.any():
+        s, sd = l @ C.T, ld @ C.T
+        st = np.nonzero(stick)[0]
+        rs = r[st]
+        x[st] = x_ref[st, None] + (s[st] - s[st, rs][:, None])
+        v[st] = sd[st] - sd[st, rs][:, None]
+        A[st] = -epp[st, rs]
+        V[st] = -ep[st, rs]
+    f_slide = crawler.external_force + R.sum(axis=1)
+    K = K0 + d[:, None] * R
+    if stick.any():
+        # the group's friction: each member at the same fraction of its interval
+        # (``contact.split_friction``), and its impulse, the integral of that affine split
+        width = fp + fm
+        g = group[st]
+        wg = (g * width).sum(axis=1)
+        fm_g = (g * fm).sum(axis=1)
+        ok = wg > 0
+        wsafe = np.where(ok, wg, 1.0)
+        total = M * A[st] - f_slide[st]
+        theta = np.where(ok, np.clip((-total + fm_g) / wsafe, 0.0, 1.0), 0.0)
+        Rg = fm - theta[:, None] * width
+        imp = M * (V[st] - V0[st]) - f_slide[st] * d[st]
+        Kg = fm * d[st, None] - ((-imp + fm_g * d[st]) / wsafe)[:, None] * width
+        Kg = np.where(ok[:, None], Kg, 0.0)
+        R[st] = np.where(g, Rg, R[st])
+        K[st] = np.where(g, K0[st] + Kg, K[st])
+    body_force = R + crawler.gravity_forces - m * (A[:, None] + epp)
+    lam = np.cumsum(body_force, axis=1)[:, :-1]
+    contact = contact.copy()
+    free = (fp + fm) == 0.0
+    if free.any():
+        # no friction, no stick: these bodies' state is just the sign of their velocity
+        contact[:, free] = np.sign(v[:, free])
+    return {'x': x, 'v': v, 'friction': R, 'impulse': K, 'linkage_force': lam,
+            'lengths': l, 'rates': ld, 'contact': contact,
+            'indeterminate': group.sum(axis=1) > 1}
+
+
+def _gait_rows(pieces: list, owner: NDArray[np.int64], tau: NDArray[np.float64]):
+    """(l, l', l'') at ``tau[i]`` from the gait of ``pieces[owner[i]]`` (one call per gait)."""
+    gaits = {id(sg.gait): sg.gait for sg in pieces}
+    if len(gaits) == 1:
+        return pieces[0].gait(tau)
+    which = np.array([id(sg.gait) for sg in pieces], dtype=object)[owner]
+    out = None
+    for key, gait in gaits.items():
+        sel = np.nonzero(which == key)[0]
+        vals = gait(tau[sel])
+        if out is None:
+            out = tuple(np.empty((tau.size,) + v.shape[1:]) for v in vals)
+        for o, v in zip(out, vals):
+            o[sel] = v
+    return out
+
+
+def _split_impulse(imp: NDArray, d: NDArray, fp: NDArray, fm: NDArray) -> NDArray:
+    """Integral of the affine split of ``split_friction`` (ground-force sign), shape (N, n)."""
+    width = fp + fm
+    w = width.sum()
+    if w <= 0:
+        return np.zeros((imp.size, fp.size))
+    # R_j = fm_j - theta width_j with theta = (sum fm - total) / w, affine in the total force.
+    return fm * d[:, None] - np.multiply.outer((-imp + fm.sum() * d) / w, width)
+
+
+def _merge_ties(kinks: NDArray, eps: float) -> NDArray:
+    """Snap kinks closer than ``eps`` to one value: bodies rigidly linked have equal relative
+    accelerations mathematically but not always bitwise, and must be seen as one group."""
+    if kinks.size < 2:
+        return kinks
+    order = np.argsort(kinks, kind='stable')
+    k = kinks[order]
+    out = k.copy()
+    for i in range(1, k.size):
+        if k[i] - out[i - 1] <= eps:
+            out[i] = out[i - 1]
+    res = np.empty_like(kinks)
+    res[order] = out
+    return res
+
+
+class ExactSolver:
+    """Event-driven integrator with a streaming interface (see ``crawler_sim.core.stepper``).
+
+    With a periodic gait the solver also checks, at every multiple of the period, whether the
+    state repeats the one a period earlier (same contact state and zero set, same centre-of-mass
+    velocity to the solver's accuracy, 16 (tol * max friction acceleration + eps |V|)). From then on the motion is the last period translated by its
+    displacement, so whole periods are skipped and stored as one ``PeriodicBlock``
+    (``periodic_skip=False`` turns this off).
+    """
+
+    def __init__(self, crawler: Crawler, gait: Gait, *, t0: float = 0.0, x0: float = 0.0,
+                 v0: float = 0.0, tol: float = 1e-13, max_step: float | None = None,
+                 keep_segments: bool = True, periodic_skip: bool = True) -> None:
+        self.crawler = crawler
+        self.gait = gait
+        self.tol = float(tol)
+        self.max_step = max_step
+        self.keep_segments = keep_segments
+        self.periodic_skip = periodic_skip
+        self._m = crawler.masses
+        self._M = float(crawler.masses.sum())
+        self._fp = crawler.friction
+        self._fm = crawler.friction_backward
+        self._fext = crawler.external_force
+        self._C, self._W = offset_matrices(crawler.masses)
+        # Frictionless bodies never stick and never change the dynamics: no events for them.
+        self._free = (self._fp + self._fm) == 0.0
+        self._any_free = bool(self._free.any())
+        self._fp_list, self._fm_list = self._fp.tolist(), self._fm.tolist()
+        self._f_total = float(self._fp.sum() + self._fm.sum())   # [N], scales of the tests
+        self._WT, self._CT = self._W.T.copy(), self._C.T.copy()
+        # Import the root finder now, not at the first force event: scipy.optimize takes
+        # ~0.4 s to import, which in the middle of a real-time run is a burst of late ticks.
+        import scipy.optimize  # noqa: F401
+        self.reset(t0=t0, x0=x0, v0=v0)
+
+    # ------------------------------------------------------------------ state
+    def reset(self, *, t0: float = 0.0, x0: float = 0.0, v0: float = 0.0) -> None:
+        """Start at time t0 with body 0 at x0 [m] moving at v0 [m/s]."""
+        l, ld, _ = self.gait.at(t0)
+        e, ep = self._W @ l, self._W @ ld
+        self.t = float(t0)
+        self.X = float(x0 - e[0])          # centre of mass
+        self.V = float(v0 - ep[0])
+        v = v0 + self._C @ ld              # body velocities, exact zeros stay zero
+        p = self._m.size
+        self.contact = np.where(self._free, 0, np.sign(v)).astype(np.int8)
+        self.zero = (v == 0.0) & ~self._free   # bodies known to be at zero velocity
+        self.K = np.zeros(p)
+        self.ref = -1
+        self.x_ref = 0.0
+        self.segments: list = []
+        self.events: list[Event] = []
+        self.n_segments = 0
+        self.n_skipped_periods = 0
+        self.last: Segment | None = None
+        self._checkpoint = None
+        self._mode_cache = None
+        self._table = None
+
+    # ------------------------------------------------------------- mode choice
+    def _mode(self, t: float, ep: NDArray, epp: NDArray, t_limit: float):
+        """Contact mode at t for the bodies in ``self.zero``; returns (contact, a, ref, group)."""
+        zero = self.zero
+        contact = self.contact.copy()
+        if not zero.any():
+            R = np.where(contact > 0, -self._fp, self._fm)
+            return contact, (self._fext + R.sum()) / self._M, -1, np.zeros_like(zero)
+        choice = self._solve_mode(ep, epp, contact)
+        span = max(t_limit - t, 0.0)
+        if choice[4] or (choice[3].sum() > 1 and not self._rigid(choice[3], t, span)):
+            # Degenerate tie, or bodies at rest together whose link is not rigid beyond this
+            # instant: decide by the inclusion a little later (same zero set).
+            # Near t the deciding quantities grow from zero, so only their sign matters: a
+            # tighter ambiguity threshold there, and the furthest look-ahead if still unsure.
+            for rel in (1e-9, 1e-7, 1e-5):
+                dt = min(rel * max(span, self._timescale()), 0.5 * span) if span > 0 else 0.0
+                if dt <= 0.0:
+                    break
+                _, ld2, ldd2 = self.gait.at(t + dt)
+                choice = self._solve_mode(self._W @ ld2, self._W @ ldd2, contact, slack=1e-14)
+                if not choice[4]:
+                    break
+        return choice[:4]
+
+    def _rigid(self, group: NDArray, t: float, span: float) -> bool:
+        """True if the group's relative velocities stay zero just after t (a rigid link)."""
+        if span <= 0.0:
+            return True
+        # two look-aheads: the nearer one can round a slowly growing rate to exactly zero
+        for rel_dt in (1e-9, 1e-6):
+            dt = min(rel_dt * max(span, self._timescale()), 0.5 * span)
+            sd = self._C @ self.gait.at(t + dt)[1]
+            rel = sd[group] - sd[group][0]
+            if np.any(np.abs(rel) > 1e-13 * (np.max(np.abs(sd)) + 1e-300)):
+                return False
+        return True
+
+    def _timescale(self) -> float:
+        return self.gait.period if self.gait.period else (self.max_step or 1.0)
+
+    def _solve_mode_one(self, j: int, force: float, epp: NDArray, contact: NDArray,
+                        slack: float):
+        """``_solve_mode`` when body j alone is at rest: the inclusion in plain floats.
+
+        M A in force - dphi_j(A + e_j''): body j sticks (A = -e_j'') when the ground force it
+        needs, M A - force with A = -e_j'', lies in [-f_plus_j, f_minus_j]; otherwise it slides
+        the way that force points."""
+        M = self._M
+        fp, fm = float(self._fp[j]), float(self._fm[j])
+        e2 = float(epp[j])
+        need = -M * e2 - force                 # ground force on j if it sticks
+        new = contact.copy()
+        group = np.zeros(self._m.size, dtype=bool)
+        acc_scale = max(max(map(abs, epp.tolist())), (self._f_total + abs(force)) / M, 1e-300)
+        if need < -fp:                         # cannot hold it back: slides forward
+            A = (force - fp) / M
+            new[j] = 1
+        elif need > fm:                        # cannot hold it forward: slides backward
+            A = (force + fm) / M
+            new[j] = -1
+        else:
+            A = -e2
+            new[j] = 0
+            group[j] = True
+            f_scale = max(self._f_total, abs(force), M * acc_scale, 1e-300)
+            ambiguous = fp + fm > 0 and min(need + fp, fm - need) <= slack * f_scale
+            return new, A, j, group, bool(ambiguous)
+        ambiguous = abs(A + e2) <= slack * acc_scale
+        return new, A, -1, group, bool(ambiguous)
+
+    def _solve_mode(self, ep: NDArray, epp: NDArray, contact: NDArray,
+                    slack: float = _AMBIGUOUS):
+        zero = self.zero
+        fp, fm, M = self._fp, self._fm, self._M
+        idx = zero.nonzero()[0]
+        if idx.size == 1 and zero.size <= 8:
+            # one body at rest (the common case): plain floats, summed in numpy's order
+            j = int(idx[0])
+            total = 0.0
+            for i, (c, fpi, fmi) in enumerate(zip(contact.tolist(), self._fp_list,
+                                                  self._fm_list)):
+                if i != j:
+                    total += -fpi if c > 0 else fmi
+            return self._solve_mode_one(j, self._fext + total, epp, contact, slack)
+        slide = ~zero
+        R_slide = np.where(contact > 0, -fp, fm)[slide]
+        force = self._fext + R_slide.sum()
+        if idx.size == 1:
+            return self._solve_mode_one(int(idx[0]), float(force), epp, contact, slack)
+        acc_scale = max(float(np.max(np.abs(epp))), (fp.sum() + fm.sum() + abs(force)) / M,
+                        1e-300)
+        kinks = _merge_ties(-epp[zero], 1e-13 * acc_scale)
+        A, s = solve_inclusion(M, 0.0, force, kinks, fp[zero], fm[zero])
+        rel = np.zeros_like(epp)
+        rel[idx] = A - kinks                 # body accelerations (ties merged)
+        new = contact.copy()
+        at = kinks == A
+        new[idx] = np.where(at, 0, np.sign(rel[idx])).astype(np.int8)
+        ambiguous = bool(np.any(~at & (np.abs(rel[idx]) <= slack * acc_scale)))
+        ref = -1
+        group = np.zeros_like(zero)
+        if at.any():
+            group[idx[at]] = True
+            ref = int(idx[at][0]) if not (self.ref >= 0 and group[self.ref]) else self.ref
+            lo, hi = -fm[group].sum(), fp[group].sum()
+            f_scale = max(fp.sum() + fm.sum(), abs(force), M * float(np.max(np.abs(epp))), 1e-300)
+            if hi - lo > 0 and min(s - lo, hi - s) <= slack * f_scale:
+                ambiguous = True
+        return new, A, ref, group, ambiguous
+
+    # ------------------------------------------------------------- integration
+    def advance(self, t1: float, gait: Gait | None = None) -> None:
+        """Integrate exactly to t1 with ``gait`` (default: the current one) valid on [t, t1]."""
+        if gait is not None and gait is not self.gait:
+            self._switch_gait(gait)
+        t1 = float(t1)
+        guard = 0
+        T = self.gait.period if self.periodic_skip else None
+        while self.t < t1:
+            t_stop = t1
+            if T:
+                k_next = math.floor(self.t / T * (1 + 4 * _EPS) + 4 * _EPS) + 1
+                t_stop = min(t_stop, k_next * T)
+            breaks = self.gait.breakpoints(self.t, t_stop)
+            if breaks.size:
+                t_stop = float(breaks[0])
+            t_before = self.t
+            self._segment(t_stop, left_limit=bool(breaks.size))
+            guard = guard + 1 if self.t == t_before else 0
+            if guard > 8:   # repeated zero-length segments: a degenerate mode loop
+                raise RuntimeError(f'exact solver stalled at t = {self.t!r} s; '
+                                   'report this scene (try method="implicit")')
+            if T and self.t == t_stop and t_stop == k_next * T:
+                self._period_boundary(k_next, T, t1)
+
+    def _signature(self):
+        return (self.contact.tobytes(), self.zero.tobytes(), self.ref)
+
+    def _period_boundary(self, k: int, T: float, t1: float) -> None:
+        """At t = k T: compare with the state one period earlier and skip repeated periods."""
+        sig = self._signature()
+        here = (k, sig, self.X, self.V, self.K.copy(), self.x_ref, len(self.segments),
+                len(self.events))
+        prev, self._checkpoint = self._checkpoint, here
+        if prev is None or prev[0] != k - 1 or prev[1] != sig:
+            return
+        # Repeated to the solver's own accuracy: event times are known to ``tol`` seconds, so
+        # velocities to about tol times the largest acceleration friction can produce.
+        acc = (self._fp.sum() + self._fm.sum() + abs(self._fext)) / self._M
+        v_tol = 16.0 * (self.tol * acc + _EPS * (abs(self.V) + abs(prev[3])))
+        if self.ref < 0 and abs(self.V - prev[3]) > v_tol:
+            return
+        n = math.floor((t1 - self.t) / T * (1 + 4 * _EPS))
+        if n < 1:
+            return
+        D = self.X - prev[2]
+        dK = self.K - prev[4]
+        new_events = self.events[prev[7]:]
+        if self.keep_segments:
+            template = [sg for sg in self.segments[prev[6]:] if isinstance(sg, Segment)]
+            self.segments.append(PeriodicBlock(self.t, n, T, D, dK, template, (k - 1) * T))
+        shifted = [Event(ev.time + j * T, ev.body, ev.old, ev.new)
+                   for j in range(1, n + 1) for ev in new_events]
+        self.events.extend(shifted)
+        self.X += n * D
+        self.x_ref += n * D
+        self.K = self.K + n * dK
+        self.t = (k + n) * T
+        self.n_skipped_periods += n
+        self.last = None
+        self._checkpoint = (k + n, sig, self.X, self.V, self.K.copy(), self.x_ref,
+                            len(self.segments), len(self.events))
+
+    def _switch_gait(self, gait: Gait) -> None:
+        """Continue with a new gait: keep the bodies' positions, velocities and contact state."""
+        self._checkpoint = None
+        l0, ld0, ldd0 = self.gait.at(self.t)
+        l1, ld1, ldd1 = gait.at(self.t)
+        if not (l0.tolist() == l1.tolist() and ld0.tolist() == ld1.tolist()
+                and ldd0.tolist() == ldd1.tolist()):
+            self._mode_cache = None     # not a C2 continuation: choose the mode anew
+        if self.ref < 0:
+            # body 0 keeps its position and velocity
+            self.X += float(self._W[0] @ (l0 - l1))
+            self.V += float(self._W[0] @ (ld0 - ld1))
+        self.gait = gait
+
+    def _segment(self, t_stop: float, left_limit: bool = False) -> None:
+        t0 = self.t
+        l, ld, ldd = self.gait.at(t0)
+        check_finite_gait((l, ld, ldd), t0)
+        W = self._W
+        e, ep, epp = W @ l, W @ ld, W @ ldd
+        if self.ref >= 0:
+            # Stuck reference body: exact velocity of the centre of mass from the gait.
+            self.V = float(-ep[self.ref])
+            self.X = float(self.x_ref - e[self.ref])
+        if self._mode_cache is not None:
+            # the previous segment ended on a smooth boundary, not at an event: same mode
+            contact, a, ref, group = self._mode_cache
+        else:
+            contact, a, ref, group = self._mode(t0, ep, epp, t_stop)
+        self._mode_cache = None
+        if ref >= 0:
+            x_ref = self.x_ref if (self.ref == ref) else float(self.X + e[ref])
+        else:
+            x_ref = 0.0
+            # bodies leaving zero velocity start exactly from zero
+            leaving = self.zero & (contact != 0)
+            if leaving.any():
+                j = int(leaving.nonzero()[0][0])
+                self.V = float(-ep[j])
+        R = np.where(contact > 0, -self._fp, np.where(contact < 0, self._fm, 0.0))
+        V0 = float(-ep[ref]) if ref >= 0 else self.V
+        seg = Segment(t0, t_stop, self.gait, contact, R, self.K.copy(), self.X, V0, float(a),
+                      ref, x_ref, group)
+        seg.leaving = self.zero & (contact != 0)
+        self._record_contact_change(t0, contact)
+        if ref >= 0 and group.all() and self.gait.is_constant(t0, t_stop):
+            t_ev, hits = t_stop, []   # at rest under a constant command: nothing can happen
+        else:
+            t_ev, hits = self._find_event(seg, t_stop, left_limit, (ld, ldd))
+            if hits and t_stop - t_ev <= 4.0 * self.tol:
+                # an event within the root tolerance of a breakpoint happens at the breakpoint:
+                # no sliver segment with the old piece's acceleration
+                t_ev = t_stop
+        seg.t1 = t_ev
+        self._close(seg, t_ev, hits, left_limit)
+
+    def provisional(self) -> Segment:
+        """A zero-length segment at the current time with the mode the next segment would use."""
+        t0 = self.t
+        l, ld, ldd = self.gait.at(t0)
+        W = self._W
+        e, ep, epp = W @ l, W @ ld, W @ ldd
+        X, V = self.X, self.V
+        if self.ref >= 0:
+            V = float(-ep[self.ref])
+            X = float(self.x_ref - e[self.ref])
+        contact, a, ref, group = self._mode(t0, ep, epp, t0)
+        x_ref = self.x_ref if (ref >= 0 and ref == self.ref) else float(X + e[max(ref, 0)])
+        if ref >= 0:
+            V = float(-ep[ref])
+        R = np.where(contact > 0, -self._fp, np.where(contact < 0, self._fm, 0.0))
+        return Segment(t0, t0, self.gait, contact, R, self.K.copy(), X, V, float(a), ref, x_ref,
+                       group)
+
+    def current(self) -> dict:
+        """The state at the current time as one output row (left limit at an event): the
+        same closed form as ``Segment.evaluate``, for one time, without array overhead."""
+        seg = self.last if (self.last is not None and self.last.t1 == self.t) else \
+            self.provisional()
+        t = self.t
+        l, ld, ldd = seg.gait.at(t)
+        W, C, m, M = self._W, self._C, self._m, self._M
+        epp = W @ ldd
+        d = t - seg.t0
+        if seg.ref < 0:
+            X = seg.X0 + d * (seg.V0 + 0.5 * seg.a * d)
+            V = seg.V0 + seg.a * d
+            x, v, A = X + W @ l, V + W @ ld, seg.a
+            R = seg.R.copy()
+            K = seg.K0 + seg.R * d
+        else:
+            r, g = seg.ref, seg.group
+            s, sd = C @ l, C @ ld
+            x, v, A = seg.x_ref + (s - s[r]), sd - sd[r], -epp[r]
+            slide_R = np.where(g, 0.0, seg.R)
+            f_slide = self._fext + slide_R.sum()
+            R = slide_R.copy()
+            R[g] = -split_friction(f_slide - M * A, self._fp[g], self._fm[g])
+            imp = M * (-(W[r] @ ld) - seg.V0) - f_slide * d
+            K = seg.K0 + slide_R * d
+            K[g] += _split_impulse(np.array([imp]), np.array([d]), self._fp[g], self._fm[g])[0]
+        contact = seg.contact.copy()
+        if self._free.any():
+            contact[self._free] = np.sign(v[self._free])
+        lam = np.cumsum(R + self.crawler.gravity_forces - m * (A + epp))[:-1]
+        return {'x': x, 'v': v, 'friction': R, 'impulse': K, 'linkage_force': lam,
+                'lengths': l, 'rates': ld, 'contact': contact,
+                'indeterminate': bool(seg.group.sum() > 1)}
+
+    def _record_contact_change(self, t: float, contact: NDArray) -> None:
+        old = self.contact
+        for i in (contact != old).nonzero()[0]:
+            self.events.append(Event(float(t), int(i), int(old[i]), int(contact[i])))
+        self.contact = contact
+
+    def _close(self, seg: Segment, t_ev: float, hits: list[tuple[str, int]],
+               left_limit: bool = False) -> None:
+        """Move the state to the end of ``seg`` and mark bodies now at zero velocity."""
+        d = t_ev - seg.t0
+        if seg.ref < 0:
+            self.X = seg.X0 + d * (seg.V0 + 0.5 * seg.a * d)
+            self.V = seg.V0 + seg.a * d
+            self.K = seg.K0 + seg.R * d
+            zero = np.zeros(self._m.size, bool)
+        else:
+            l, ld, _ = self.gait.at(t_ev)
+            self.V = float(-(self._W[seg.ref] @ ld))
+            self.X = float(seg.x_ref - self._W[seg.ref] @ l)
+            g = seg.group
+            K = seg.K0 + np.where(g, 0.0, seg.R) * d
+            f_slide = self._stick_consts(seg)[3]
+            imp = self._M * (self.V - seg.V0) - f_slide * d
+            fp, fm = self._fp[g], self._fm[g]
+            w = (fp + fm).sum()
+            if w > 0:     # _split_impulse for one time, without building arrays
+                K[g] += fm * d - ((-imp + fm.sum() * d) / w) * (fp + fm)
+            self.K = K
+            zero = g.copy()
+        for kind, i in hits:
+            if kind == 'vel':
+                zero[i] = True
+                if seg.ref < 0:
+                    # the body's velocity is exactly zero at the event
+                    self.V = (-(float(self._W[i, 0]) * self.gait.at1(t_ev)[1])
+                              if self._m.size == 2 else float(-(self._W[i] @ self.gait.at(t_ev)[1])))
+        self.zero = zero
+        self.ref = seg.ref
+        self.x_ref = seg.x_ref
+        if not hits and not left_limit:
+            # ended on a smooth boundary: the next segment starts in the same mode unless the
+            # gait switch there is not C2 (``_switch_gait`` drops this)
+            self._mode_cache = (seg.contact, seg.a, seg.ref, seg.group)
+        self.t = t_ev
+        self.n_segments += 1
+        self.last = seg
+        if self.keep_segments:
+            self.segments.append(seg)
+
+    # ------------------------------------------------------------ event search
+    def _functions(self, seg: Segment):
+        """The segment's event functions as (labels, rows, kind data).
+
+        Each function is positive while the segment's mode stays valid:
+        ``vel``: sigma_i v_i (derivative known); ``force``: slack of the group's required ground
+        force to each bound; ``rigid``: the group members' relative velocity staying zero.
+        """
+        labels = []
+        if seg.ref < 0:
+            for i in range(self._m.size):
+                labels.append(('vel', i))
+        else:
+            for i in (~seg.group).nonzero()[0]:
+                labels.append(('vel', int(i)))
+            labels.append(('force', seg.ref))
+            labels.append(('force', seg.ref))
+            for j in seg.group.nonzero()[0]:
+                if j != seg.ref:
+                    labels.append(('rigid', int(j)))
+        return labels
+
+    def _event_values(self, seg: Segment, tau: NDArray, vals=None):
+        """Values G (N, k) and derivatives D (N, k; NaN where unknown) at times tau (N,);
+        ``vals``: the gait's (l, l', l'') there if known (l unused)."""
+        M = self._M
+        if vals is None:
+            vals = seg.gait._eval(tau)    # tau is a 1-D float array: skip __call__'s checks
+            check_finite_gait(vals, tau)
+        _, ld, ldd = vals
+        if seg.ref < 0:
+            sg = seg.contact.astype(float)
+            V = seg.V0 + seg.a * (tau - seg.t0)
+            G = sg * (V[:, None] + ld @ self._WT)
+            D = sg * (seg.a + ldd @ self._WT)
+            if self._any_free:
+                G[:, self._free] = math.inf
+                D[:, self._free] = math.nan
+            return G, D
+        r = seg.ref
+        relT, sg, free, f_slide, lo, hi, others = self._stick_consts(seg)
+        Gv = sg * (ld @ relT)
+        Dv = sg * (ldd @ relT)
+        if free is not None:
+            Gv[:, free] = math.inf
+            Dv[:, free] = math.nan
+        total = -M * (ldd @ self._W[r]) - f_slide    # ground force the group needs
+        k = Gv.shape[1]
+        G = np.empty((tau.size, k + 2 + len(others)))
+        G[:, :k] = Gv
+        G[:, k] = total - lo
+        G[:, k + 1] = hi - total
+        if others:
+            sd = ld @ self._CT
+            vscale = np.max(np.abs(sd), axis=1, keepdims=True) + 1e-300
+            G[:, k + 2:] = 1e-13 * vscale - np.abs(sd[:, others] - sd[:, [r]])
+        D = np.full_like(G, np.nan)
+        D[:, :k] = Dv
+        return G, D
+
+    def _stick_consts(self, seg: Segment) -> tuple:
+        """What a stick segment's event functions need besides the gait, computed once per
+        segment: relative offsets (transposed) and signs of the sliding bodies, their
+        frictionless ones (or None), the sliding bodies' force, the group's friction bounds
+        [-f_plus, f_minus] summed, and the other members of the group."""
+        if seg.consts is None:
+            r, g = seg.ref, seg.group
+            slide = ~g
+            free = self._free[slide]
+            seg.consts = ((self._C[slide] - self._C[r]).T, seg.contact[slide].astype(float),
+                          free if free.any() else None, self._fext + seg.R[slide].sum(),
+                          -self._fp[g].sum(), self._fm[g].sum(),
+                          [j for j in g.nonzero()[0] if j != r])
+        return seg.consts
+
+    def _scalar(self, seg: Segment, col: int, deriv: bool = False):
+        """Fast scalar closure for one event function (or its derivative), for root finding."""
+        kind, _ = self._functions(seg)[col]
+        gait, M = seg.gait, self._M
+        if seg.ref < 0:
+            i = col
+            sg, w = float(seg.contact[i]), self._W[i]
+            V0, a, t0 = seg.V0, seg.a, seg.t0
+            if gait.n_links == 1:       # plain floats (two bodies)
+                at1, w0 = gait.at1, float(w[0])
+                if deriv:
+                    return lambda tt: sg * (a + w0 * at1(tt)[2])
+                return lambda tt: sg * (V0 + a * (tt - t0) + w0 * at1(tt)[1])
+            if deriv:
+                return lambda tt: sg * (a + w @ gait.at(tt)[2])
+            return lambda tt: sg * (V0 + a * (tt - t0) + w @ gait.at(tt)[1])
+        r, g = seg.ref, seg.group
+        n_vel = int((~g).sum())
+        one = gait.n_links == 1
+        if col < n_vel:
+            i = int(np.nonzero(~g)[0][col])
+            sg, w = float(seg.contact[i]), self._C[i] - self._C[r]
+            k = 2 if deriv else 1
+            if one:
+                at1, w0 = gait.at1, float(w[0])
+                return lambda tt: sg * (w0 * at1(tt)[k])
+            return lambda tt: sg * (w @ gait.at(tt)[k])
+        if col < n_vel + 2:
+            _, _, _, f_slide, lo, hi, _ = self._stick_consts(seg)
+            wr = self._W[r]
+            if one:
+                at1, w0 = gait.at1, float(wr[0])
+                if col == n_vel:
+                    return lambda tt: -M * (w0 * at1(tt)[2]) - f_slide - lo
+                return lambda tt: hi + M * (w0 * at1(tt)[2]) + f_slide
+            if col == n_vel:
+                return lambda tt: -M * (wr @ gait.at(tt)[2]) - f_slide - lo
+            return lambda tt: hi + M * (wr @ gait.at(tt)[2]) + f_slide
+        return lambda tt: float(self._event_values(seg, np.array([tt]))[0][0, col])
+
+    def _scalar_pair(self, seg: Segment, col: int):
+        """(value, derivative) closure of velocity event function ``col``, one gait call each."""
+        gait = seg.gait
+        if seg.ref < 0:
+            sg, w = float(seg.contact[col]), self._W[col]
+            V0, a, t0 = seg.V0, seg.a, seg.t0
+            if gait.n_links == 1:       # plain floats (two bodies)
+                at1, w0 = gait.at1, float(w[0])
+
+                def fd1(tt: float) -> tuple[float, float]:
+                    _, ld, ldd = at1(tt)
+                    return sg * (V0 + a * (tt - t0) + w0 * ld), sg * (a + w0 * ldd)
+                return fd1
+
+            def fd(tt: float) -> tuple[float, float]:
+                _, ld, ldd = gait.at(tt)
+                return sg * (V0 + a * (tt - t0) + w @ ld), sg * (a + w @ ldd)
+            return fd
+        i = int(np.nonzero(~seg.group)[0][col])
+        sg, w = float(seg.contact[i]), self._C[i] - self._C[seg.ref]
+        if gait.n_links == 1:
+            at1, w0 = gait.at1, float(w[0])
+
+            def fd_rel1(tt: float) -> tuple[float, float]:
+                _, ld, ldd = at1(tt)
+                return sg * (w0 * ld), sg * (w0 * ldd)
+            return fd_rel1
+
+        def fd_rel(tt: float) -> tuple[float, float]:
+            _, ld, ldd = gait.at(tt)
+            return sg * (w @ ld), sg * (w @ ldd)
+        return fd_rel
+
+    def _grid_step(self, t0: float, t_stop: float) -> float:
+        """Spacing of the event-check grid: period / 64 (1/8 of the interval for an aperiodic
+        gait), never more than the user's ``max_step``."""
+        h = self.gait.period / 64.0 if self.gait.period else max((t_stop - t0) / 8.0, 1e-300)
+        return min(h, float(self.max_step)) if self.max_step is not None else h
+
+    def _find_event(self, seg: Segment, t_stop: float, left_limit: bool = False,
+                    at_start: tuple | None = None) -> tuple[float, list[tuple[str, int]]]:
+        """First event in (t0, t_stop]; at a gait breakpoint t_stop the functions are taken as
+        left limits (the gait returns the next piece's l'' there). ``at_start``: the gait's
+        (l', l'') at t0 if already known."""
+        t0 = seg.t0
+        h = self._grid_step(t0, t_stop)
+        start = t0
+        chunk = _CHUNK // 4        # most segments end within a quarter period: start short
+        table = None if left_limit else self._period_table(seg.gait, h)
+        if table is not None:
+            first = at_start if at_start is not None else seg.gait.at(t0)[1:]
+            while start < t_stop:
+                tau, vals, first = self._table_chunk(table, seg.gait, start, first, t_stop,
+                                                     chunk)
+                chunk = _CHUNK
+                G, D = self._event_values(seg, tau, vals)
+                found = self._first_bracket(seg, tau, G, D)
+                if found is not None:
+                    return found
+                start = float(tau[-1])
+            return t_stop, []
+        while start < t_stop:
+            n = int(math.ceil((t_stop - start) / h * (1 - 4 * _EPS))) + 1
+            if n > chunk:
+                n = chunk
+                end = start + h * (n - 1)
+            else:
+                n, end = max(n, 2), t_stop
+            tau = start + h * np.arange(n)
+            tau[-1] = end
+            chunk = _CHUNK
+            if left_limit and end == t_stop:
+                tau[-1] = np.nextafter(t_stop, -math.inf)
+            G, D = self._event_values(seg, tau)
+            found = self._first_bracket(seg, tau, G, D)
+            if found is not None:
+                return found
+            start = end
+        return t_stop, []
+
+    def _period_table(self, gait: Gait, h: float):
+        """(h, l', l'') of a smooth periodic gait at the times k h, k = 0 .. T/h - 1, when its
+        event grid is the period's (h = T / 64) and it has no breakpoints; else None.
+
+        Such a gait repeats on that grid, so every segment of a run reads its grid values from
+        this one table instead of evaluating the gait again (the grid is then anchored at
+        multiples of h, not at each segment's start)."""
+        cached = self._table
+        if cached is not None and cached[0] is gait:
+            return cached[1]
+        table = None
+        T = gait.period
+        if T and h == T / 64.0 and not gait.breakpoints(-T, 2.0 * T).size:
+            _, ld, ldd = gait._eval(np.arange(64) * h)
+            check_finite_gait((ld, ld, ldd), np.arange(64) * h)
+            table = (h, ld, ldd)
+        self._table = (gait, table)
+        return table
+
+    def _table_chunk(self, table, gait: Gait, start: float, first: tuple, t_stop: float,
+                     n: int):
+        """Grid times (start, then the multiples of h in (start, t_stop), then t_stop, at most
+        n points), the gait's (l', l'') there (``first``: at start; t_stop from the gait; the
+        rest from the table), and (l', l'') at the last time (the next chunk's start)."""
+        h, ld_t, ldd_t = table
+        k0 = math.floor(start / h) + 1
+        k1 = math.ceil(t_stop / h) - 1
+        while k1 >= k0 and k1 * h >= t_stop:
+            k1 -= 1
+        m = k1 - k0 + 1                       # multiples of h strictly inside (start, t_stop)
+        last = m <= n - 2
+        if not last:
+            m = n - 1
+        ks = np.arange(k0, k0 + m)
+        tau = np.empty(m + 1 + last)
+        tau[0] = start
+        tau[1:m + 1] = ks * h
+        rows = ks % ld_t.shape[0]
+        ld = np.empty((tau.size, ld_t.shape[1]))
+        ldd = np.empty_like(ld)
+        ld[0], ldd[0] = first
+        ld[1:m + 1], ldd[1:m + 1] = ld_t[rows], ldd_t[rows]
+        if last:
+            tau[-1] = t_stop
+            _, ld[-1], ldd[-1] = gait.at(t_stop)
+        if not math.isfinite(_add(ld[0], None) + _add(ld[-1], None) + _add(ldd[0], None)
+                             + _add(ldd[-1], None)):
+            ends = [0, -1]
+            check_finite_gait((np.zeros_like(ld[ends]), ld[ends], ldd[ends]), tau[ends])
+        return tau, (None, ld, ldd), (ld[-1], ldd[-1])
+
+    def _leaves_rest(self, seg: Segment, col: int) -> bool:
+        """Whether velocity function ``col`` belongs to a body that starts the segment leaving
+        rest (its mode was chosen consistently, so it must first become positive)."""
+        if seg.leaving is None or col >= len(seg.contact):
+            return False
+        bodies = np.arange(seg.contact.size) if seg.ref < 0 else np.nonzero(~seg.group)[0]
+        return col < bodies.size and bool(seg.leaving[bodies[col]])
+
+    def _zoom(self, seg: Segment, col: int, a: float, b: float) -> tuple[float, float] | None:
+        """Bracket [t+, t-] of the first return to zero of a function that is 0 at ``a``,
+        rising there, and <= 0 at ``b``: sub-grids of 16 points, zooming towards ``a``.
+        None when it is never positive: a velocity at rounding level, not a slip."""
+        for _ in range(20):
+            sub = np.linspace(a, b, 17)
+            g = self._event_values(seg, sub)[0][:, col]
+            pos = np.nonzero(g[1:] > 0.0)[0]
+            if pos.size:
+                i = int(pos[0]) + 1
+                neg = np.nonzero(g[i + 1:] <= 0.0)[0]
+                return sub[i], sub[i + 1 + int(neg[0])] if neg.size else b
+            b = sub[1]
+        return None
+
+    def _root(self, f, a: float, b: float) -> float:
+        """Root of f in [a, b] (f(a) > 0 >= f(b)) to ``tol``, returned on the crossed side
+        (f <= 0 there), so the mode chosen at the event sees the condition violated."""
+        from scipy.optimize import brentq   # lazy: keeps `import crawler_sim` light
+        # The bracket comes from grid values; the scalar f can disagree with them at rounding
+        # level (e.g. a periodic table read at a later period): then the crossing is at an end.
+        if f(a) <= 0.0:
+            return a
+        if f(b) > 0.0:
+            return b
+        r = brentq(f, a, b, xtol=self.tol, rtol=4 * _EPS)
+        step = max(self.tol, 4 * _EPS * abs(r))
+        while r < b and f(r) > 0.0:
+            r = min(r + step, b)
+            step *= 2.0
+        return r
+
+    def _min_of(self, seg: Segment, col: int, a: float, b: float) -> float | None:
+        """Time of the minimum of velocity function ``col`` in (a, b) where its derivative
+        turns from negative to positive; None if the scalar derivative does not confirm it."""
+        from scipy.optimize import brentq
+        df = self._scalar(seg, col, deriv=True)
+        if not (df(a) < 0.0 < df(b)):
+            return None
+        return brentq(df, a, b, xtol=self.tol, rtol=4 * _EPS)
+
+    def _newton(self, fd, a: float, b: float, fa: float, fb: float) -> float:
+        """Root of a function with known derivative in [a, b] (fa > 0 >= fb): Newton from the
+        secant estimate, kept inside the bracket (bisection when it would leave), to ``tol``."""
+        t = a + (b - a) * fa / (fa - fb)
+        for _ in range(60):
+            f, df = fd(t)
+            if f > 0.0:
+                a = t
+            else:
+                b = t
+            if f == 0.0 or b - a <= self.tol:
+                return t if f <= 0.0 else b
+            step = f / df if df != 0.0 else math.inf
+            t_new = t - step
+            if abs(step) <= 0.5 * self.tol and a <= t_new <= b:
+                return t_new            # quadratic convergence: within tol of the root
+            if not (a < t_new < b):
+                t_new = 0.5 * (a + b)
+            t = t_new
+        return 0.5 * (a + b)
+
+    def _dip_floor(self, seg: Segment, tau: NDArray, G: NDArray) -> NDArray | None:
+        """Lower bounds (N-1, k) of the velocity functions between grid points, or None.
+
+        A velocity function is G = sigma (V + w . l') (w: W_i sliding, C_i - C_ref relative to
+        a stuck body), so |G''| <= J = |w| . max|l'''|; where the gait bounds its jerk, G stays
+        above the chord minus J h^2 / 8 on each grid interval (h its length).
+        """
+        jerk = seg.gait.jerk_bound(float(tau[0]), float(tau[-1]))
+        if jerk is None:
+            return None
+        if seg.ref < 0:
+            w = self._W
+        else:
+            w = self._C[~seg.group] - self._C[seg.ref]
+        J = np.abs(w) @ jerk                                   # (k_vel,)
+        h = np.diff(tau)[:, None]
+        floor = np.full((tau.size - 1, G.shape[1]), -math.inf)
+        k = J.size
+        floor[:, :k] = np.minimum(G[:-1, :k], G[1:, :k]) - J * h * h / 8.0
+        return floor
+
+    def _first_bracket(self, seg, tau, G, D):
+        if G.shape[1] == 0:
+            return None
+        nonpos = G[1:] <= 0.0
+        # dips between grid points, for functions with a known derivative
+        dip_at: dict[int, list] = {}
+        turn = (D[:-1] < 0.0) & (D[1:] > 0.0) & (G[:-1] > 0.0) & (G[1:] > 0.0)
+        if turn.any():
+            floor = self._dip_floor(seg, tau, G)
+            for k, c in zip(*turn.nonzero()):
+                if floor is not None and floor[k, c] > 0.0:
+                    continue     # provably positive between the two grid points
+                t_min = self._min_of(seg, int(c), tau[k], tau[k + 1])
+                if t_min is None:
+                    continue
+                # a dip counts when it goes below rounding level (a velocity that only touches
+                # zero, e.g. right after leaving rest, is not an event)
+                noise = 1e-13 * float(np.max(np.abs(G[:, c])))
+                if self._scalar(seg, int(c))(t_min) < -noise:
+                    dip_at.setdefault(int(k), []).append((int(c), t_min))
+        rows = nonpos.any(axis=1).nonzero()[0]
+        k_cross = int(rows[0]) if rows.size else None
+        k_dip = min(dip_at) if dip_at else None
+        if k_cross is None and k_dip is None:
+            return None
+        k = min(x for x in (k_cross, k_dip) if x is not None)
+        lo = tau[k]
+        roots = []
+        if k_cross == k:
+            for c in nonpos[k].nonzero()[0]:
+                leaving = k == 0 and tau[0] == seg.t0 and self._leaves_rest(seg, int(c))
+                if G[k, c] <= 0.0 or leaving:
+                    if leaving:
+                        # a body just left zero velocity and comes back before the next grid
+                        # point: zoom in on the first sub-interval where it turns
+                        br = self._zoom(seg, int(c), lo, tau[k + 1])
+                        if br is not None:
+                            roots.append((self._root(self._scalar(seg, int(c)), *br), int(c)))
+                    else:
+                        roots.append((lo, int(c)))   # started at or below zero: event now
+                elif np.isfinite(D[k, c]):
+                    hi, g_hi = tau[k + 1], G[k + 1, c]
+                    if D[k, c] < 0.0 < D[k + 1, c]:
+                        # rising again at the right end: the first crossing is before the
+                        # minimum (a short slip can end right at a grid point)
+                        t_min = self._min_of(seg, int(c), lo, hi)
+                        if t_min is not None:
+                            g_min = self._scalar(seg, int(c))(t_min)
+                            if g_min <= 0.0:
+                                hi, g_hi = t_min, g_min
+                    roots.append((self._newton(self._scalar_pair(seg, int(c)), lo, hi,
+                                               G[k, c], g_hi), int(c)))
+                else:
+                    roots.append((self._root(self._scalar(seg, int(c)), lo, tau[k + 1]),
+                                  int(c)))
+        for c, t_min in dip_at.get(k, []):
+            roots.append((self._root(self._scalar(seg, c), lo, t_min), c))
+        t_ev = min(r for r, _ in roots)
+        labels = self._functions(seg)
+        hits = sorted({labels[c] for r, c in roots if r <= t_ev + 2 * self.tol})
+        return t_ev, hits
+
+    # ---------------------------------------------------------------- output
+    def sample(self, times: NDArray[np.float64]) -> dict:
+        """Exact states at ``times`` (sorted, within the integrated span) from kept segments.
+
+        Times inside a ``PeriodicBlock`` are mapped onto its template period and shifted, so
+        every segment is evaluated once, for all the times that fall on it.
+        """
+        segs = self.segments
+        n_t = times.size
+        starts = np.array([sg.t0 for sg in segs])
+        idx = np.clip(np.searchsorted(starts, times, side='right') - 1, 0, len(segs) - 1)
+        local = times.astype(float).copy()
+        shift_x = np.zeros(n_t)
+        shift_k = np.zeros((n_t, self._m.size))
+        pieces: list[Segment] = []
+        number: dict[int, int] = {}
+
+        def key(seg: Segment) -> int:
+            if id(seg) not in number:
+                number[id(seg)] = len(pieces)
+                pieces.append(seg)
+            return number[id(seg)]
+
+        seg_key = np.full(len(segs), -1, dtype=np.int64)
+        blocks = []
+        for k in np.unique(idx).tolist():
+            if isinstance(segs[k], PeriodicBlock):
+                blocks.append(k)
+            else:
+                seg_key[k] = key(segs[k])
+        owner = seg_key[idx]
+        for k in blocks:
+            sel = (idx == k).nonzero()[0]
+            piece = segs[k]
+            j = np.clip(np.floor((times[sel] - piece.t0) / piece.T).astype(int) + 1, 1, piece.n)
+            loc = times[sel] - j * piece.T             # falls in the template period
+            tpl = piece.template
+            t_starts = np.array([sg.t0 for sg in tpl])
+            t_ends = np.array([sg.t1 for sg in tpl])
+            sub = np.clip(np.searchsorted(t_starts, loc, side='right') - 1, 0, len(tpl) - 1)
+            tpl_key = np.full(len(tpl), -1, dtype=np.int64)
+            for m in np.unique(sub).tolist():
+                tpl_key[m] = key(tpl[m])
+            owner[sel] = tpl_key[sub]
+            local[sel] = np.clip(loc, t_starts[sub], t_ends[sub])
+            shift_x[sel] = j * piece.D
+            shift_k[sel] = np.multiply.outer(j, piece.dK)
+        out = evaluate_rows(self.crawler, pieces, owner, local, (self._C, self._W))
+        out['x'] += shift_x[:, None]
+        out['impulse'] += shift_k
+        return out

@@ -1,0 +1,221 @@
+"""Streaming integration (``Stepper``) and whole-run simulation (``simulate``).
+
+The ROS node advances a ``Stepper`` tick by tick with a new gait piece each time; ``simulate``
+is the same stepper run over [0, t_end] and sampled into a ``Trajectory``.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .gaits import Gait, _positive as positive
+from .model import Crawler
+from .solvers.exact import ExactSolver
+from .solvers.implicit import ImplicitSolver
+from .solvers.penalty import PenaltySolver, check_penalty, penalty_bound
+from .trajectory import Event, State, Trajectory
+
+__all__ = ['METHODS', 'Stepper', 'simulate']
+
+METHODS = ('exact', 'implicit', 'penalty')
+_KEYS = ('x', 'v', 'friction', 'impulse', 'linkage_force', 'lengths', 'rates', 'contact')
+
+
+def _check_method(method: str) -> str:
+    if method not in METHODS:
+        raise ValueError(f'method must be one of {", ".join(METHODS)}; got {method!r}')
+    return method
+
+
+def _check_positive(name: str, value, unit: str = 's') -> float:
+    return positive(name, value, unit)
+
+
+def _check_finite(name: str, value) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f'{name} must be a finite number, got {value!r}') from None
+    if not math.isfinite(x):
+        raise ValueError(f'{name} must be finite, got {value!r}')
+    return x
+
+
+def check_gait(gait: Gait, crawler: Crawler, t: float) -> None:
+    """Raise ValueError if the gait's shape does not match p or it is not finite at t."""
+    if not isinstance(gait, Gait):
+        raise ValueError(f'gait must be a crawler_sim.core.gaits.Gait, got {type(gait).__name__}')
+    try:
+        vals = gait.at(t)
+    except Exception as exc:  # a user's callable failing is a bad gait
+        raise ValueError(f'gait failed at t = {t} s: {exc}') from exc
+    shape = (crawler.p - 1,)
+    if all(isinstance(a, np.ndarray) and a.shape == shape for a in vals) and math.isfinite(
+            float(vals[0].sum() + vals[1].sum() + vals[2].sum())):
+        return     # the common case, in one test (a sum is finite only if every term is)
+    for name, arr in zip(('length', 'velocity', 'acceleration'), vals):
+        arr = np.asarray(arr)
+        if arr.shape != (crawler.p - 1,):
+            raise ValueError(f'gait {name} must have shape ({crawler.p - 1},) for p = '
+                             f'{crawler.p} bodies, got {arr.shape}')
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f'gait {name} must be finite, got {arr.tolist()} at t = {t} s')
+
+
+class Stepper:
+    """Incremental integration of one crawler for streaming use.
+
+    Parameters
+    ----------
+    crawler, gait : the crawler and the gait valid from t0 on (it can change at each advance).
+    method : "exact" (default), "implicit" or "penalty".
+    t0, x0, v0 : start time [s], position [m] and velocity [m/s] of body 0.
+    dt : step [s] of "implicit" and "penalty" (default 1e-3).
+    penalty : the seed's n [N s/m] for "penalty", one float or one per body.
+    tol : event time tolerance of "exact" [s]; max_step : largest step between event checks [s].
+    keep_history : keep every segment / event for later sampling (``simulate`` does); streaming
+        use leaves it off and drains events with ``pop_events``.
+    periodic_skip : let "exact" skip gait periods that repeat (see ``ExactSolver``).
+    """
+
+    def __init__(self, crawler: Crawler, gait: Gait, method: str = 'exact', *, t0: float = 0.0,
+                 x0: float = 0.0, v0: float = 0.0, dt: float | None = None,
+                 penalty: ArrayLike | None = None, tol: float = 1e-13,
+                 max_step: float | None = None, keep_history: bool = False,
+                 periodic_skip: bool = True) -> None:
+        self.method = _check_method(method)
+        t0, x0, v0 = (_check_finite(k, v) for k, v in (('t0', t0), ('x0', x0), ('v0', v0)))
+        check_gait(gait, crawler, t0)
+        self.crawler = crawler
+        if method == 'exact':
+            tol = _check_positive('tol', tol)
+            if max_step is not None:
+                max_step = _check_positive('max_step', max_step)
+            self._solver = ExactSolver(crawler, gait, t0=t0, x0=x0, v0=v0, tol=tol,
+                                       max_step=max_step, keep_segments=keep_history,
+                                       periodic_skip=periodic_skip)
+        else:
+            dt = 1e-3 if dt is None else _check_positive('dt', dt)
+            if method == 'implicit':
+                self._solver = ImplicitSolver(crawler, gait, dt=dt, t0=t0, x0=x0, v0=v0)
+            else:
+                self._solver = PenaltySolver(crawler, gait, dt=dt, t0=t0, x0=x0, v0=v0,
+                                             penalty=check_penalty(penalty, crawler.p))
+        self._keep = keep_history
+        self._n_events_read = 0
+
+    @property
+    def t(self) -> float:
+        """Current time [s]."""
+        return self._solver.t
+
+    @property
+    def gait(self) -> Gait:
+        return self._solver.gait
+
+    @property
+    def solver(self):
+        """The method's solver object (segments, steps, counters)."""
+        return self._solver
+
+    def advance(self, t1: float, gait: Gait | None = None) -> None:
+        """Integrate to t1 [s] (>= t) with ``gait`` (or the previous one) valid on [t, t1]."""
+        t1 = _check_finite('t1', t1)
+        if t1 < self.t:
+            raise ValueError(f't1 must be >= the current time {self.t} s, got {t1}')
+        if gait is not None:
+            check_gait(gait, self.crawler, self.t)
+        self._solver.advance(t1, gait)
+
+    def _row(self) -> dict:
+        return self._solver.current()
+
+    @property
+    def state(self) -> State:
+        """The crawler at the current time (left limit at an event)."""
+        r = self._row()
+        return State(self.t, r['x'], r['v'], r['friction'], r['contact'].astype(np.int8),
+                     r['linkage_force'], r['lengths'], r['rates'], bool(r['indeterminate']))
+
+    def pop_events(self) -> list[Event]:
+        """Contact events since the last call, in time order."""
+        ev = self._solver.events
+        out = ev[self._n_events_read:]
+        if self._keep:
+            self._n_events_read = len(ev)
+        else:
+            # streaming: drop what was read so a long run does not accumulate events
+            ev.clear()
+            if hasattr(self._solver, '_checkpoint'):
+                self._solver._checkpoint = None
+        return list(out)
+
+    def reset(self, *, t0: float = 0.0, x0: float = 0.0, v0: float = 0.0) -> None:
+        """Back to an initial state (events are cleared)."""
+        self._solver.reset(t0=t0, x0=x0, v0=v0)
+        self._n_events_read = 0
+
+
+def _sample_times(t_end: float, t_eval: ArrayLike | None, dt: float | None) -> NDArray:
+    if t_eval is None:
+        n = int(round(t_end / dt)) + 1 if dt is not None and t_end / dt <= 1e6 else 1001
+        return np.linspace(0.0, t_end, max(n, 2))
+    t = np.asarray(t_eval, dtype=float).ravel()
+    if t.size == 0 or not np.all(np.isfinite(t)):
+        raise ValueError('t_eval must be a non-empty list of finite times in [0, t_end] s')
+    if np.any(np.diff(t) < 0) or t[0] < 0 or t[-1] > t_end:
+        raise ValueError(f't_eval must be sorted and within [0, {t_end}] s')
+    return t
+
+
+def simulate(crawler: Crawler, gait: Gait, t_end: float, method: str = 'exact', *,
+             dt: float | None = None, t_eval: ArrayLike | None = None, v0: float = 0.0,
+             x0: float = 0.0, penalty: ArrayLike | None = None, tol: float = 1e-13,
+             max_step: float | None = None, include_events: bool = True,
+             periodic_skip: bool = True) -> Trajectory:
+    """Simulate the crawler under ``gait`` on [0, t_end] and return the sampled ``Trajectory``.
+
+    With method "exact" the values at ``t_eval`` are exact (closed form, not interpolated) and,
+    unless ``t_eval`` is given or ``include_events`` is False, the event times are added to the
+    default uniform samples. "implicit" and "penalty" step with ``dt`` (default 1e-3 s) and land
+    a step on every requested time. v0 / x0: initial velocity / position of body 0.
+    ``tol`` / ``max_step`` / ``periodic_skip``: see ``Stepper``.
+    """
+    if not isinstance(crawler, Crawler):
+        raise ValueError(f'crawler must be a crawler_sim.Crawler, got {type(crawler).__name__}')
+    _check_method(method)
+    t_end = _check_positive('t_end', t_end)
+    if dt is not None:
+        dt = _check_positive('dt', dt)
+    st = Stepper(crawler, gait, method, x0=x0, v0=v0, dt=dt, penalty=penalty, tol=tol,
+                 max_step=max_step, keep_history=True, periodic_skip=periodic_skip)
+    times = _sample_times(t_end, t_eval, dt)
+    info: dict = {}
+    if method == 'exact':
+        st.advance(t_end)
+        s = st.solver
+        if t_eval is None and include_events and s.events:
+            times = np.union1d(times, [e.time for e in s.events if 0 < e.time < t_end])
+        out = s.sample(times)
+        info['segments'] = s.n_segments
+        info['skipped_periods'] = s.n_skipped_periods
+    else:
+        s = st.solver
+        rows = []
+        for tk in times:
+            st.advance(tk)
+            rows.append(st._row())
+        out = {k: np.array([r[k] for r in rows]) for k in rows[0]}
+        info['steps'] = s.n_steps
+        info['dt'] = s.dt
+        if method == 'penalty':
+            info['penalty'] = s.n.tolist()
+            info['error_bound'] = penalty_bound(crawler, s.n, times)
+    return Trajectory(t=times, x=out['x'], v=out['v'], friction=out['friction'],
+                      state=out['contact'].astype(np.int8), linkage_force=out['linkage_force'],
+                      impulse=out['impulse'], lengths=out['lengths'], rates=out['rates'],
+                      events=list(st.solver.events), indeterminate=out['indeterminate'],
+                      crawler=crawler, method=method, info=info)
+

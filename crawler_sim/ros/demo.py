@@ -1,0 +1,254 @@
+"""The demo crawl (``make run``): sim_node driven by gait_node over real topics, on sim time.
+
+``python -m crawler_sim.ros.demo [--duration 20] [--runs runs]``
+
+1. finds the colcon-installed ``sim_node`` and ``gait_node`` through the ament index
+   (``get_package_prefix('crawler_sim')/lib/crawler_sim/``, as ``ros2 run`` does);
+2. starts them as processes in a fresh ``ROS_DOMAIN_ID``: the sim with its shipped parameters,
+   ``publish_clock``, ``real_time_factor 0`` (as fast as the CPU allows), ``start_paused`` and
+   recording to a new bag ``runs/crawl_<date>-<time>/``; the gait node on sim time in
+   trajectory mode (stamped trajectories: the stroke lands on sim time however fast the sim
+   runs and however late the messages arrive);
+3. waits until both are connected, un-pauses the sim, follows ``/clock`` until the requested
+   simulated time, pauses the sim and stops both with SIGINT;
+4. prints a summary read back from the bag (distance crawled, mean speed, stick fraction per
+   body, contact events, real-time factor, bag and plot paths) and writes the plot with
+   ``crawler_sim.bag.plot``.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+DEADLINE_CONNECT = 60.0     # wall s for discovery
+
+
+def _executable(name: str) -> Path:
+    from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+    try:
+        prefix = Path(get_package_prefix('crawler_sim'))
+    except PackageNotFoundError:
+        raise SystemExit('crawler_sim is not in the ament index (AMENT_PREFIX_PATH): run '
+                         '`make build` or `colcon build` and source install/setup.bash') from None
+    path = prefix / 'lib' / 'crawler_sim' / name
+    if not os.access(path, os.X_OK):
+        raise SystemExit(f'{path} is missing: rebuild with colcon')
+    return path
+
+
+def _workspace_env(env: dict[str, str]) -> dict[str, str]:
+    """``env`` plus the PYTHONPATH entries ``source install/setup.bash`` would add for this
+    package (its colcon ``.dsv`` hooks; a --symlink-install also points into build/)."""
+    from ament_index_python.packages import get_package_prefix
+    prefix = Path(get_package_prefix('crawler_sim'))
+    entries: list[str] = []
+    todo = [prefix / 'share' / 'crawler_sim' / 'package.dsv']
+    while todo:
+        dsv = todo.pop(0)
+        if not dsv.is_file():
+            continue
+        for line in dsv.read_text().splitlines():
+            kind, _, rest = line.partition(';')
+            if kind == 'source' and rest.endswith('.dsv'):
+                todo.append((prefix / rest).resolve())
+            elif kind.startswith('prepend') and rest.startswith('PYTHONPATH;'):
+                value = rest.split(';', 1)[1]
+                path = value if os.path.isabs(value) else str(prefix / value)
+                if path not in entries:
+                    entries.append(path)
+    old = [p for p in env.get('PYTHONPATH', '').split(os.pathsep) if p]
+    out = dict(env)
+    out['PYTHONPATH'] = os.pathsep.join(entries + [p for p in old if p not in entries])
+    return out
+
+
+def _share() -> Path:
+    from ament_index_python.packages import get_package_share_directory
+    return Path(get_package_share_directory('crawler_sim'))
+
+
+class _Child:
+    def __init__(self, name: str, args: list[str], env: dict, log: Path) -> None:
+        self.name = name
+        self.log = log
+        self._file = open(log, 'w')
+        self.popen = subprocess.Popen([str(_executable(name)), '--ros-args', *args], env=env,
+                                      stdout=self._file, stderr=subprocess.STDOUT)
+
+    def stop(self, timeout: float = 10.0) -> int:
+        if self.popen.poll() is None:
+            self.popen.send_signal(signal.SIGINT)
+        try:
+            return self.popen.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self.popen.kill()
+            return self.popen.wait()
+        finally:
+            self._file.close()
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog='python -m crawler_sim.ros.demo', description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--duration', type=float, default=20.0, help='simulated seconds (20)')
+    parser.add_argument('--runs', type=Path, default=Path('runs'), help='output directory')
+    args = parser.parse_args(argv)
+    if not args.duration > 0:
+        parser.error('--duration must be > 0')
+
+    domain = os.getpid() % 100 + 1
+    os.environ['ROS_DOMAIN_ID'] = str(domain)
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    env = _workspace_env(dict(os.environ))
+    name = time.strftime('crawl_%Y%m%d-%H%M%S')
+    runs = args.runs.resolve()
+    runs.mkdir(parents=True, exist_ok=True)
+    bag = runs / name
+    png = runs / f'{name}.png'
+    sim_args = ['--params-file', str(_share() / 'config' / 'crawler_sim.yaml'),
+                '-p', 'publish_clock:=true', '-p', 'real_time_factor:=0.0',
+                '-p', 'start_paused:=true', '-p', 'diagnostics_period:=0.2',
+                '-p', 'record:=true', '-p', f'record_dir:={runs}', '-p', f'record_name:={name}']
+    print(f'crawler_sim demo: {args.duration:g} simulated seconds, ROS_DOMAIN_ID={domain}')
+    children = [_Child('sim_node', sim_args, env, runs / f'{name}.sim_node.log'),
+                _Child('gait_node', ['-p', 'use_sim_time:=true', '-p', 'mode:=trajectory'], env,
+                       runs / f'{name}.gait_node.log')]
+    try:
+        wall, diag = _drive(args.duration, children)
+    except KeyboardInterrupt:
+        print('\ninterrupted')
+        for child in reversed(children):
+            child.stop()
+        return 130
+    except RuntimeError as exc:
+        for child in reversed(children):
+            child.stop()
+        print(f'error: {exc}', file=sys.stderr)
+        for child in children:
+            print(f'--- {child.log}:\n' + child.log.read_text()[-2000:], file=sys.stderr)
+        return 1
+    codes = [child.stop() for child in reversed(children)]
+    if any(codes):
+        print(f'warning: exit codes {codes} (logs in {runs})', file=sys.stderr)
+    _summary(bag, png, args.duration, wall, diag)
+    return 0
+
+
+def _drive(duration: float, children: list[_Child]) -> tuple[float, dict[str, str]]:
+    """Connect, run the sim for ``duration`` sim seconds; return (wall s, last diagnostics)."""
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.node import Node
+    from rclpy.qos import qos_profile_sensor_data
+    from rosgraph_msgs.msg import Clock
+    from std_srvs.srv import SetBool
+
+    rclpy.init()
+    node = Node('crawler_sim_demo')
+    diag: dict[str, str] = {}
+    sim_ns = [0]
+
+    def on_diag(msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            if status.hardware_id == 'crawler_sim':
+                diag.clear()
+                diag.update({kv.key: kv.value for kv in status.values})
+
+    def on_clock(msg: Clock) -> None:
+        sim_ns[0] = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
+
+    node.create_subscription(DiagnosticArray, '/diagnostics', on_diag, 10)
+    node.create_subscription(Clock, '/clock', on_clock, qos_profile_sensor_data)
+    pause = node.create_client(SetBool, '/crawler_sim/pause')
+
+    def spin_until(cond, what: str, timeout: float) -> None:
+        end = time.monotonic() + timeout
+        while not cond():
+            for child in children:
+                if child.popen.poll() is not None:
+                    raise RuntimeError(f'{child.name} exited with {child.popen.returncode}')
+            if time.monotonic() > end:
+                raise RuntimeError(f'timed out after {timeout:g} s waiting for {what}')
+            rclpy.spin_once(node, timeout_sec=0.05)
+
+    def set_paused(value: bool) -> None:
+        spin_until(pause.service_is_ready, 'the ~/pause service', DEADLINE_CONNECT)
+        future = pause.call_async(SetBool.Request(data=value))
+        spin_until(future.done, 'the ~/pause response', DEADLINE_CONNECT)
+
+    try:
+        spin_until(lambda: int(diag.get('linkage_cmd_publishers', 0))
+                   + int(diag.get('linkage_trajectory_publishers', 0)) >= 1
+                   and int(diag.get('clock_subscribers', 0)) >= 2,
+                   'sim_node and gait_node to connect', DEADLINE_CONNECT)
+        set_paused(False)
+        start = time.monotonic()
+        last_print = 0.0
+        end_ns = round(duration * 1e9)
+
+        tty = sys.stdout.isatty()
+        cr = '\r' if tty else ''
+
+        def done() -> bool:
+            nonlocal last_print
+            now = time.monotonic()
+            if now - last_print > (0.5 if tty else 5.0):
+                last_print = now
+                print(f'{cr}  sim time {sim_ns[0] / 1e9:6.2f} s / {duration:g} s',
+                      end='' if tty else '\n', flush=True)
+            return sim_ns[0] >= end_ns
+
+        spin_until(done, f'{duration:g} simulated seconds', 60.0 + 20.0 * duration)
+        wall = time.monotonic() - start
+        set_paused(True)
+        print(f'{cr}  sim time {sim_ns[0] / 1e9:6.2f} s / {duration:g} s')
+        final = dict(diag)
+        spin_until(lambda: diag.get('paused') == 'true', 'the final diagnostics', 10.0)
+        final = dict(diag)
+        return wall, final
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def _summary(bag: Path, png: Path, duration: float, wall: float, diag: dict[str, str]) -> None:
+    from crawler_sim import bag as bags
+
+    print(f'real-time factor: {duration / wall:.1f} ({duration:g} sim s in {wall:.2f} wall s)')
+    try:
+        run = bags.load(bag)
+    except Exception as exc:  # the bag is optional for the figures below
+        print(f'cannot read {bag}: {exc}')
+        print(f'contact events: {diag.get("solver_events", "?")}')
+        return
+    keep = run.t <= duration + 1e-9
+    t, x, contact = run.t[keep], run.x[keep], run.contact[keep]
+    masses = np.asarray(run.scene.get('masses', np.ones(run.p)), dtype=float)
+    com = x @ masses / masses.sum()
+    distance = float(com[-1] - com[0])
+    span = float(t[-1] - t[0]) if len(t) > 1 else float('nan')
+    stick = (contact == 0).mean(axis=0)
+    events = run.events.t
+    n_events = int(np.count_nonzero(events <= duration + 1e-9))
+    print(f'distance crawled (centre of mass): {distance * 1000:+.2f} mm in {span:.2f} s')
+    print(f'mean speed: {distance / span * 1000:+.3f} mm/s')
+    print('stick fraction per body: '
+          + ', '.join(f'body_{i} {f:.1%}' for i, f in enumerate(stick)))
+    print(f'contact events: {n_events} (solver reported {diag.get("solver_events", "?")}), '
+          f'method {diag.get("method", "?")}')
+    print(f'bag: {bag}')
+    try:
+        print(f'plot: {bags.plot(bag, png)}')
+    except Exception as exc:
+        print(f'plot failed: {exc}')
+
+
+if __name__ == '__main__':
+    sys.exit(main())

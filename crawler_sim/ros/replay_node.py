@@ -1,0 +1,331 @@
+"""``replay_node``: publish a bag's topics with their original timing (like ``ros2 bag play``).
+
+Run it like sim_node: ``ros2 run crawler_sim replay_node --ros-args -p bag:=runs/NAME``.
+The raw CDR messages are read from the bag's MCAP file(s) with :mod:`crawler_sim.bag`, turned
+back into rclpy messages of their recorded type (``pkg/msg/Type``) and published on their
+recorded (absolute) topic names, each at wall time ``t0 + (log_time - start) / rate``. Before
+each batch of messages that share a log time, ``/clock`` (rosgraph_msgs/Clock) is published with
+that log time, so ``use_sim_time`` nodes follow the bag's time. Use ROS remapping
+(``-r /linkage_cmd:=/other``) to publish a topic under another name.
+
+Parameters
+----------
+bag : str
+    Bag directory or ``.mcap`` file (required).
+rate : float
+    Playback speed factor (> 0; 2 plays twice as fast). Default 1.
+loop : bool
+    Start again from ``start_offset`` at the end of the bag. Default false.
+start_offset : float
+    Seconds of log time after the start of the bag at which playback starts (>= 0).
+publish_clock : bool
+    Publish ``/clock`` with the log time of every batch. Default true.
+topics : string array
+    Topics to play (e.g. ``['/linkage_cmd']`` to drive a live sim_node with a recorded
+    controller). Default: every topic of the bag except the latched scene topic.
+wait_for_subscribers : int
+    Before playing, wait until every publisher (``/clock`` included) has at least this many
+    matched subscribers, so that nothing is lost to discovery. Default 0 (start at once).
+start_paused : bool
+    Start paused before the first message; ``~/pause`` (std_srvs/SetBool, false) starts it.
+
+Service ``~/pause`` (std_srvs/SetBool): true pauses, false resumes; paused time does not count,
+so the spacing of the messages is kept.
+
+Exit codes: 0 at the end of the bag (or on SIGINT/SIGTERM), 2 for a missing or unreadable bag or
+invalid parameters (one line on stderr, no traceback).
+"""
+from __future__ import annotations
+
+from bisect import bisect_left
+from dataclasses import dataclass
+import sys
+import time
+from typing import Any, Callable
+
+from mcap.records import Channel, Schema
+from rcl_interfaces.msg import ParameterDescriptor
+import rclpy
+from rclpy.duration import Duration
+from rclpy.exceptions import ParameterUninitializedException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+from rosgraph_msgs.msg import Clock
+from std_srvs.srv import SetBool
+
+from crawler_sim.bag import BagError, bag_files
+from crawler_sim.bag.mcapfile import Batch, scan
+from crawler_sim.bag.schema import message_class, parse_qos_yaml
+from crawler_sim.bag.topics import SCENE, split_topic
+from crawler_sim.ros.messages import stamp_from_ns
+
+__all__ = ['ReplayError', 'ReplayNode', 'Recording', 'Track', 'read_bag', 'main']
+
+NODE_NAME = 'replay_node'
+QUEUE_DEPTH = 100          # publisher history: bursts at a high rate are not dropped
+MAX_WAIT_SLICE = 0.1       # s: longest single wait, so parameter services stay responsive
+ACK_TIMEOUT = 2.0          # s to wait at the end for reliable subscribers to acknowledge
+
+
+class ReplayError(ValueError):
+    """Invalid parameters or a bag that cannot be played (one-line message)."""
+
+
+@dataclass(frozen=True)
+class Track:
+    """One topic of the bag to publish."""
+
+    topic: str
+    type_name: str
+    cls: type
+    qos: QoSProfile
+
+
+@dataclass
+class Recording:
+    """Messages to play, sorted by log time: ``log_times[i]``, ``topics[i]``, ``data[i]`` (CDR)."""
+
+    tracks: dict[str, Track]
+    log_times: list[int]
+    topics: list[str]
+    data: list[bytes]
+    start_ns: int          # first log time of the whole bag (all topics)
+    end_ns: int
+
+
+def _qos(metadata: dict[str, str]) -> QoSProfile:
+    """Publisher QoS from the recorded ``offered_qos_profiles`` (reliability and durability)."""
+    profiles = parse_qos_yaml(metadata.get('offered_qos_profiles', ''))
+    first = profiles[0] if profiles and isinstance(profiles[0], dict) else {}
+    best_effort = first.get('reliability') == 'best_effort'
+    latched = first.get('durability') == 'transient_local'
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST, depth=QUEUE_DEPTH,
+        reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+
+
+def _is_scene(topic: str) -> bool:
+    return split_topic(topic, SCENE.suffix) is not None
+
+
+def read_bag(path: str, topics: list[str] | None = None,
+             warn: Callable[[str], Any] | None = None) -> Recording:
+    """Read the messages of ``topics`` (absolute names; None: all but the scene) from a bag.
+
+    Raises :class:`BagError` / :class:`ReplayError` with a one-line message. ``warn(text)``
+    receives non-fatal problems (a truncated file, a topic whose type is not installed).
+    """
+    warn = warn or (lambda text: None)
+    wanted = None if topics is None else {'/' + t.lstrip('/') for t in topics}
+    tracks: dict[str, Track] = {}
+    skipped: dict[str, str] = {}
+    seen: set[str] = set()
+    entries: list[tuple[int, int, str, bytes]] = []
+    start_ns: int | None = None
+    end_ns: int | None = None
+    for file_index, path_i in enumerate(bag_files(path)):
+        per_topic: dict[str, list[tuple[int, bytes]]] = {}
+
+        def want(channel: Channel, schema: Schema | None,
+                 per_topic: dict = per_topic) -> Callable[[Batch], None] | None:
+            topic = channel.topic
+            seen.add(topic)
+            if (wanted is None and _is_scene(topic)) or (wanted is not None
+                                                         and topic not in wanted):
+                return None
+            if channel.message_encoding != 'cdr' or schema is None:
+                skipped[topic] = f'encoding {channel.message_encoding!r} is not cdr'
+                return None
+            if topic not in tracks:
+                try:
+                    cls = message_class(schema.name)
+                except (BagError, ValueError) as exc:
+                    skipped[topic] = str(exc)
+                    return None
+                tracks[topic] = Track(topic, schema.name, cls, _qos(dict(channel.metadata)))
+            store: list[tuple[int, bytes]] = []
+            per_topic[topic] = store          # a re-scan of the file replaces the first attempt
+
+            def sink(batch: Batch) -> None:
+                for i, t in enumerate(batch.log_times.tolist()):
+                    store.append((t, batch.data(i)))
+            return sink
+
+        result = scan(path_i, want)
+        if result.truncated:
+            warn(f'{path_i}: {result.stop_reason}; playing the messages before the damage')
+        if result.start_ns is not None:
+            start_ns = result.start_ns if start_ns is None else min(start_ns, result.start_ns)
+            end_ns = result.end_ns if end_ns is None else max(end_ns, result.end_ns)
+        for topic, store in per_topic.items():
+            entries.extend((t, file_index, topic, d) for t, d in store)
+    if wanted is not None:
+        missing = sorted(wanted - seen)
+        if missing:
+            raise ReplayError(f'{path}: no topic {", ".join(missing)} in the bag '
+                              f'(it has {", ".join(sorted(seen)) or "no topics"})')
+        bad = sorted(t for t in wanted if t in skipped)
+        if bad:
+            raise ReplayError(f'{path}: cannot play {bad[0]}: {skipped[bad[0]]}')
+    for topic, reason in sorted(skipped.items()):
+        warn(f'skipping {topic}: {reason}')
+    entries.sort(key=lambda e: (e[0], e[1]))      # stable: file order within equal log times
+    if not entries or start_ns is None:
+        raise ReplayError(f'{path}: no messages to play')
+    return Recording(tracks, [e[0] for e in entries], [e[2] for e in entries],
+                     [e[3] for e in entries], start_ns, end_ns)
+
+
+class ReplayNode(Node):
+    """Publishes a :class:`Recording` against the wall clock; see the module docstring."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        dynamic = ParameterDescriptor(dynamic_typing=True)     # accept 2 as well as 2.0
+        self.declare_parameter('bag', '', ParameterDescriptor(
+            description='Bag directory or .mcap file to play (required)'))
+        self.declare_parameter('rate', 1.0, dynamic)
+        self.declare_parameter('loop', False)
+        self.declare_parameter('start_offset', 0.0, dynamic)
+        self.declare_parameter('publish_clock', True)
+        self.declare_parameter('topics', Parameter.Type.STRING_ARRAY)
+        self.declare_parameter('wait_for_subscribers', 0)
+        self.declare_parameter('start_paused', False)
+
+        path = str(self.get_parameter('bag').value or '')
+        if not path:
+            raise ReplayError("parameter 'bag' is required (a bag directory or .mcap file)")
+        self.rate = self._number('rate')
+        if not self.rate > 0.0:
+            raise ReplayError(f"parameter 'rate' must be > 0, got {self.rate}")
+        offset = self._number('start_offset')
+        if not offset >= 0.0:
+            raise ReplayError(f"parameter 'start_offset' must be >= 0, got {offset}")
+        self.loop = bool(self.get_parameter('loop').value)
+        self.wait_for = int(self.get_parameter('wait_for_subscribers').value)
+        self.paused = bool(self.get_parameter('start_paused').value)
+        try:
+            topics = list(self.get_parameter('topics').value) or None
+        except ParameterUninitializedException:
+            topics = None
+
+        log = self.get_logger()
+        self.rec = read_bag(path, topics, warn=log.warning)
+        self.begin_ns = self.rec.start_ns + round(offset * 1e9)
+        self.first = bisect_left(self.rec.log_times, self.begin_ns)
+        if self.first == len(self.rec.log_times):
+            duration = (self.rec.end_ns - self.rec.start_ns) / 1e9
+            raise ReplayError(f'{path}: start_offset {offset} s is past the last message to '
+                              f'play (the bag lasts {duration:.3f} s)')
+        self.pubs = {name: self.create_publisher(t.cls, name, t.qos)
+                     for name, t in self.rec.tracks.items()}
+        self.clock_pub = (self.create_publisher(Clock, '/clock', 10)
+                          if self.get_parameter('publish_clock').value else None)
+        self.create_service(SetBool, '~/pause', self._on_pause)
+        log.info(f'playing {len(self.rec.log_times) - self.first} messages on '
+                 f'{len(self.pubs)} topics from {path} (rate {self.rate}, loop {self.loop})')
+
+    def _on_pause(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
+        self.paused = bool(request.data)
+        response.success = True
+        response.message = 'paused' if self.paused else 'playing'
+        return response
+
+    def _number(self, name: str) -> float:
+        value = self.get_parameter(name).value
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ReplayError(f"parameter '{name}' must be a number, got {value!r}")
+        return float(value)
+
+    def all_publishers(self) -> list:
+        return list(self.pubs.values()) + ([self.clock_pub] if self.clock_pub else [])
+
+    def play(self, executor: SingleThreadedExecutor) -> None:
+        """Wait for subscribers if asked, then play once (or forever with ``loop``)."""
+        if self.wait_for > 0:
+            self.get_logger().info(f'waiting for {self.wait_for} subscriber(s) per topic')
+            while not all(p.get_subscription_count() >= self.wait_for
+                          for p in self.all_publishers()):
+                executor.spin_once(timeout_sec=0.05)
+        while True:
+            started = time.monotonic()
+            self.play_once(executor)
+            if not self.loop:
+                break
+            if time.monotonic() - started < MAX_WAIT_SLICE:    # one batch: no hot loop
+                executor.spin_once(timeout_sec=MAX_WAIT_SLICE)
+        deadline = Duration(seconds=ACK_TIMEOUT)
+        for pub in self.all_publishers():     # let reliable subscribers get the last messages
+            pub.wait_for_all_acked(deadline)
+
+    def play_once(self, executor: SingleThreadedExecutor) -> None:
+        """Publish every message from ``start_offset`` to the end, paced by the wall clock."""
+        rec, rate, log = self.rec, self.rate, self.get_logger()
+        t0 = time.monotonic()
+        i, n = self.first, len(rec.log_times)
+        while i < n:
+            t_ns = rec.log_times[i]
+            while True:
+                if self.paused:              # paused time does not count
+                    paused_at = time.monotonic()
+                    while self.paused:
+                        executor.spin_once(timeout_sec=MAX_WAIT_SLICE)
+                    t0 += time.monotonic() - paused_at
+                left = t0 + (t_ns - self.begin_ns) / 1e9 / rate - time.monotonic()
+                if left <= 0.0:
+                    break
+                executor.spin_once(timeout_sec=min(left, MAX_WAIT_SLICE))
+            if self.clock_pub is not None:
+                self.clock_pub.publish(Clock(clock=stamp_from_ns(t_ns)))
+            while i < n and rec.log_times[i] == t_ns:
+                topic = rec.topics[i]
+                try:
+                    msg = deserialize_message(rec.data[i], rec.tracks[topic].cls)
+                except Exception as exc:  # noqa: BLE001 - damaged data: skip the message
+                    log.warning(f'{topic}: cannot deserialize the message at {t_ns} ns: {exc}',
+                                throttle_duration_sec=1.0)
+                else:
+                    self.pubs[topic].publish(msg)
+                i += 1
+
+
+def main(args: list[str] | None = None) -> None:
+    """Entry point of ``ros2 run crawler_sim replay_node``."""
+    rclpy.init(args=args)
+    node: ReplayNode | None = None
+    executor: SingleThreadedExecutor | None = None
+    code = 0
+    try:
+        node = ReplayNode()
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        node.play(executor)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (BagError, ReplayError) as exc:
+        print(f'[replay_node] error: {exc}', file=sys.stderr, flush=True)
+        code = 2
+    except Exception as exc:
+        if not rclpy.ok():
+            pass                  # a signal shut ROS down in the middle of a publish
+        elif node is None:        # e.g. a parameter override of the wrong type
+            print(f'[replay_node] error: {exc}', file=sys.stderr, flush=True)
+            code = 2
+        else:
+            raise
+    finally:
+        if executor is not None:
+            executor.shutdown(timeout_sec=1.0)
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    if code:
+        raise SystemExit(code)
+
+
+if __name__ == '__main__':
+    main()

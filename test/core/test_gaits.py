@@ -1,0 +1,483 @@
+"""Tests of crawler_sim.core.gaits: the gait contract, each gait's defining property, bad input."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.testing import assert_allclose, assert_array_equal
+import pytest
+
+from crawler_sim.core import gaits
+from crawler_sim.core.gaits import (Cubic, Custom, Fourier, Gait, PiecewiseCubic, PiecewiseParabolic,
+                               Scallop, Sinusoid, Spline)
+
+TWO_PI = 2.0 * math.pi
+
+
+def _custom() -> Custom:
+    def length(t):
+        return np.array([0.1 + 0.01 * math.sin(2.0 * t), 0.2 - 0.02 * math.cos(3.0 * t)])
+
+    def velocity(t):
+        return np.array([0.02 * math.cos(2.0 * t), 0.06 * math.sin(3.0 * t)])
+
+    def acceleration(t):
+        return np.array([-0.04 * math.sin(2.0 * t), 0.18 * math.cos(3.0 * t)])
+
+    return Custom(length, velocity, acceleration, period=TWO_PI)
+
+
+_PERIODIC_SPLINE_T = np.linspace(0.0, 2.0, 9)
+
+# name -> (factory, expected period or None, number of linkages)
+CASES = {
+    'sinusoid': (lambda: Sinusoid([0.1, 0.12], [0.02, 0.03], 1.5, [0.0, 1.0]), 1 / 1.5, 2),
+    'fourier': (lambda: Fourier([0.1, 0.2], ([[0.01, 0.003], [0.02, 0.0]],
+                                             [[0.0, 0.004], [0.01, 0.002]]), 0.8), 1 / 0.8, 2),
+    'fourier_shared': (lambda: Fourier(0.1, ([0.01, 0.0, 0.002], [0.0, 0.003, 0.0]), 2.0,
+                                       n_links=3), 0.5, 3),
+    'scallop': (lambda: Scallop(0.1, 0.02, 2.0, 0.2, [0.0, 0.5, 1.0]), 0.5, 3),
+    'parabolic_stroke': (lambda: PiecewiseParabolic.stroke([0.1, 0.15], [0.02, 0.01], 1.25, 0.3),
+                         0.8, 2),
+    'parabolic_open': (lambda: PiecewiseParabolic([0.0, 0.2, 0.5, 0.7], [1.0, -0.5, 0.25], 0.1,
+                                                  0.05, periodic=False), None, 1),
+    'spline_clamped': (lambda: Spline([0.0, 0.3, 0.7, 1.0],
+                                      [[0.1, 0.2], [0.12, 0.18], [0.11, 0.21], [0.1, 0.2]]),
+                       None, 2),
+    'spline_periodic': (lambda: Spline(_PERIODIC_SPLINE_T,
+                                       0.1 + 0.02 * np.sin(math.pi * _PERIODIC_SPLINE_T) ** 3,
+                                       periodic=True), 2.0, 1),
+    'cubic': (lambda: Cubic(0.5, [0.1, 0.2], [0.01, -0.02], [0.3, 0.1], [-1.0, 2.0]), None, 2),
+    'custom': (_custom, TWO_PI, 2),
+}
+PERIODIC = [name for name, (_, period, _) in CASES.items() if period is not None]
+
+
+def _make(name: str) -> Gait:
+    return CASES[name][0]()
+
+
+def _kinks(gait: Gait, lo: float, hi: float) -> np.ndarray:
+    """Times near which finite differences are not smooth: l'' jumps, and spline knots (l''')."""
+    kinks = [gait.breakpoints(lo, hi)]
+    if isinstance(gait, Spline):
+        knots = gait.times
+        if gait.period is not None:
+            m = np.arange(math.floor(lo / gait.period) - 1, math.ceil(hi / gait.period) + 2)
+            knots = (knots[None, :] + gait.period * m[:, None]).ravel()
+        kinks.append(knots)
+    return np.concatenate(kinks)
+
+
+@pytest.mark.parametrize('name', CASES)
+def test_derivatives_match_central_differences_away_from_breakpoints(name):
+    gait = _make(name)
+    h = 1e-5
+    t = np.linspace(-1.3, 3.1, 701)
+    kinks = _kinks(gait, -2.0, 4.0)
+    if kinks.size:
+        t = t[np.min(np.abs(t[:, None] - kinks[None, :]), axis=1) > 10 * h]
+    assert t.size > 500
+    l_plus, ld_plus, _ = gait(t + h)
+    l_minus, ld_minus, _ = gait(t - h)
+    _, ld, ldd = gait(t)
+    fd_ld = (l_plus - l_minus) / (2 * h)
+    fd_ldd = (ld_plus - ld_minus) / (2 * h)
+    assert np.max(np.abs(ld)) > 0 and np.max(np.abs(ldd)) > 0
+    assert np.max(np.abs(fd_ld - ld)) < 1e-6 * np.max(np.abs(ld))
+    assert np.max(np.abs(fd_ldd - ldd)) < 1e-6 * np.max(np.abs(ldd))
+
+
+@pytest.mark.parametrize('name', CASES)
+def test_array_evaluation_equals_scalar_evaluation(name):
+    gait = _make(name)
+    t = np.array([-0.7, 0.0, 0.13, 0.5, 1.01, 2.345, 7.9])
+    arrays = gait(t)
+    for k, tk in enumerate(t):
+        for from_array, from_scalar in zip(arrays, gait(float(tk))):
+            assert_allclose(from_array[k], from_scalar, rtol=1e-13, atol=1e-14)
+
+
+ONE_LINK = {
+    'scallop1': lambda: Scallop(0.1, 0.02, 2.0, 0.2, 0.3),
+    'sinusoid1': lambda: Sinusoid(0.1, 0.02, 1.5, 0.4),
+    'spline_periodic': CASES['spline_periodic'][0],
+    'parabolic_open': CASES['parabolic_open'][0],
+}
+
+
+@pytest.mark.parametrize('name', ONE_LINK)
+def test_the_float_fast_paths_at_and_at1_equal_array_evaluation_of_a_one_linkage_gait(name):
+    # at() and at1() are scalar-math rewrites the exact solver relies on (at1 in its root
+    # finders); the array path (_eval, numpy ufuncs) is the independent reference.
+    gait = ONE_LINK[name]()
+    assert gait.n_links == 1
+    t = np.array([-0.7, 0.0, 0.13, 0.5, 1.01, 2.345, 7.9])
+    arrays = gait(t)
+    for k, tk in enumerate(t):
+        l, ld, ldd = gait.at1(float(tk))
+        assert all(isinstance(v, float) for v in (l, ld, ldd))
+        for from_array, one, arr in zip(arrays, (l, ld, ldd), gait.at(float(tk))):
+            assert_allclose(one, from_array[k, 0], rtol=1e-13, atol=1e-14)
+            assert one == float(arr[0])       # at() and at1() are the same arithmetic
+
+
+@pytest.mark.parametrize('name', CASES)
+def test_scalar_call_gives_n_links_and_array_call_gives_n_by_n_links(name):
+    gait = _make(name)
+    n = CASES[name][2]
+    assert gait.n_links == n
+    for t in (0.3, np.float64(0.3), np.array(0.3)):
+        assert [np.shape(a) for a in gait(t)] == [(n,)] * 3
+    assert [np.shape(a) for a in gait(np.linspace(0.0, 1.0, 5))] == [(5, n)] * 3
+    assert [np.shape(a) for a in gait([0.1, 0.2])] == [(2, n)] * 3
+
+
+@pytest.mark.parametrize('name', PERIODIC)
+def test_periodic_gaits_repeat_after_their_period(name):
+    gait = _make(name)
+    assert gait.period == pytest.approx(CASES[name][1], rel=1e-15)
+    t = np.linspace(-0.4, 1.7, 211)
+    one = gait(t)
+    assert np.ptp(one[0]) > 1e-3          # not trivially constant
+    kinks = _kinks(gait, -5.0, 5.0)       # l'' is one-sided there: compare it elsewhere
+    smooth = np.all(np.abs(t[:, None] - kinks[None, :]) > 1e-9, axis=1)
+    for shift in (gait.period, 3 * gait.period, -2 * gait.period):
+        l, ld, ldd = gait(t + shift)
+        assert_allclose(l, one[0], rtol=0, atol=1e-9 * np.max(np.abs(one[0])))
+        assert_allclose(ld, one[1], rtol=0, atol=1e-9 * np.max(np.abs(one[1])))
+        assert_allclose(ldd[smooth], one[2][smooth], rtol=0, atol=1e-9 * np.max(np.abs(one[2])))
+
+
+def test_every_gait_class_is_exported():
+    expected = {'Gait', 'Custom', 'Sinusoid', 'Fourier', 'Scallop', 'PiecewiseParabolic',
+                'Spline', 'Cubic'}
+    assert expected <= set(gaits.__all__)
+    assert all(hasattr(gaits, name) for name in gaits.__all__)
+
+
+# ---------------------------------------------------------------- Fourier
+
+def test_fourier_matches_its_series_written_out():
+    f = 1.3
+    gait = Fourier([0.1, 0.2], ([[0.01, 0.003], [0.0, 0.02]], [[0.004, 0.0], [0.005, 0.001]]), f)
+    t = np.linspace(0.0, 2.0, 17)
+    w = TWO_PI * f * t
+    l0 = 0.1 + 0.01 * np.cos(w) + 0.003 * np.cos(2 * w) + 0.004 * np.sin(w)
+    l1 = 0.2 + 0.02 * np.cos(2 * w) + 0.005 * np.sin(w) + 0.001 * np.sin(2 * w)
+    assert_allclose(gait.length(t), np.column_stack([l0, l1]), rtol=1e-13)
+    assert gait.period == pytest.approx(1 / f)
+
+
+# ---------------------------------------------------------------- Scallop
+
+@pytest.mark.parametrize('asymmetry', [0.05, 0.2, 0.5, 0.7, 0.95])
+def test_scallop_extends_for_the_asymmetry_fraction_of_the_period(asymmetry):
+    gait = Scallop(0.1, 0.02, 2.0, asymmetry, [0.0, 1.3])
+    t = np.linspace(0.0, gait.period, 200_001)[:-1]
+    _, ld, _ = gait(t)
+    assert_allclose(np.mean(ld > 0, axis=0), [asymmetry, asymmetry], atol=1e-3)
+
+
+@pytest.mark.parametrize('asymmetry', [0.05, 0.2, 0.5, 0.95])
+def test_scallop_runs_from_its_minimum_at_phase_zero_to_its_maximum_at_r_t(asymmetry):
+    mean, amp, f = 0.1, 0.02, 2.0
+    gait = Scallop(mean, amp, f, asymmetry)
+    l, ld, _ = gait(np.array([0.0, asymmetry / f, 1.0 / f]))
+    assert_allclose(l[:, 0], [mean - amp, mean + amp, mean - amp], rtol=1e-14)
+    assert_allclose(ld[:, 0], 0.0, atol=1e-14)
+    l_fine = gait.length(np.linspace(0.0, 1.0 / f, 10_001))
+    assert np.min(l_fine) >= mean - amp - 1e-15 and np.max(l_fine) <= mean + amp + 1e-15
+
+
+def test_scallop_with_half_asymmetry_is_a_cosine():
+    mean, amp, f, phase = 0.1, 0.02, 1.5, np.array([0.0, 0.7])
+    gait = Scallop(mean, amp, f, 0.5, phase)
+    t = np.linspace(-1.0, 2.0, 31)
+    arg = TWO_PI * f * t[:, None] + phase
+    assert_allclose(gait.length(t), mean - amp * np.cos(arg), rtol=1e-13)
+    assert_allclose(gait.velocity(t), amp * TWO_PI * f * np.sin(arg), atol=1e-13)
+
+
+def test_scallop_phase_leads_the_stroke_like_a_time_shift():
+    f, phase = 2.0, 0.9
+    lead = Scallop(0.1, 0.02, f, 0.3, [0.0, phase])
+    t = np.linspace(0.0, 1.0, 41)
+    l = lead.length(t)
+    assert_allclose(l[:, 1], lead.length(t + phase / (TWO_PI * f))[:, 0], rtol=1e-12)
+
+
+def test_scallop_is_c2_while_the_bang_bang_stroke_is_not():
+    def max_acceleration_jump(gait: Gait) -> float:
+        ldd = gait.acceleration(np.linspace(0.0, gait.period, 1_000_001))
+        return np.max(np.abs(np.diff(ldd, axis=0))) / np.max(np.abs(ldd))
+
+    assert max_acceleration_jump(Scallop(0.1, 0.02, 2.0, 0.2)) < 1e-4
+    assert max_acceleration_jump(PiecewiseParabolic.stroke(0.1, 0.02, 2.0, 0.2)) > 0.1
+
+
+def test_scallop_with_zero_amplitude_is_a_rest():
+    gait = Scallop(0.1, 0.0, 2.0, 0.3)
+    assert gait.is_constant(0.0, 10.0)
+    assert not Scallop(0.1, 0.01, 2.0, 0.3).is_constant(0.0, 0.01)
+
+
+# ---------------------------------------------------------------- PiecewiseParabolic
+
+# Pieces of 0.2, 0.3, 0.2, 0.3 s with l'' = 3, -2, -3, 2 (second linkage twice that).
+# By hand: l' at the knots 0, 0.6, 0, -0.6, 0; l - l0 at the knots 0, 0.06, 0.15, 0.09, 0.
+TIMES = [0.0, 0.2, 0.5, 0.7, 1.0]
+ACC = np.array([[3.0, 6.0], [-2.0, -4.0], [-3.0, -6.0], [2.0, 4.0]])
+
+
+def _closed() -> PiecewiseParabolic:
+    return PiecewiseParabolic(TIMES, ACC, [0.1, 0.3])
+
+
+def test_parabolic_acceleration_is_exactly_the_given_constant_inside_each_piece():
+    gait = _closed()
+    for period in range(-1, 3):
+        for k in range(4):
+            t = period + np.linspace(TIMES[k], TIMES[k + 1], 9)[1:-1]
+            assert_array_equal(gait.acceleration(t), np.tile(ACC[k], (7, 1)))
+
+
+def test_parabolic_length_and_rate_at_the_knots_match_the_hand_integration():
+    l, ld, _ = _closed()(np.array(TIMES) + 2.0)
+    assert_allclose(l, np.array([0.1, 0.3]) + np.outer([0, 0.06, 0.15, 0.09, 0], [1, 2]),
+                    rtol=1e-12, atol=1e-14)
+    assert_allclose(ld, np.outer([0, 0.6, 0, -0.6, 0], [1, 2]), atol=1e-12)
+
+
+def test_parabolic_length_and_rate_are_continuous_across_breakpoints():
+    gait = _closed()
+    eps = 1e-9
+    b = gait.breakpoints(-1.1, 2.9)
+    assert b.size == 16                    # -1.0, -0.8, -0.5, -0.3, 0.0, ..., 2.7
+    before, after = gait(b - eps), gait(b + eps)
+    assert np.max(np.abs(after[0] - before[0])) < 1e-8
+    assert np.max(np.abs(after[1] - before[1])) < 1e-7
+    # ... while l'' really jumps there, by a_k - a_{k-1}.
+    jumps = np.tile(ACC - np.roll(ACC, 1, axis=0), (4, 1))
+    assert_allclose(after[2] - before[2], jumps, rtol=1e-12)
+
+
+def test_parabolic_breakpoints_are_exactly_the_jump_times_over_several_periods():
+    gait = _closed()
+    expected = [-0.3, 0.0, 0.2, 0.5, 0.7, 1.0, 1.2, 1.5, 1.7, 2.0, 2.2, 2.5]
+    assert_allclose(gait.breakpoints(-0.35, 2.6), expected, rtol=0, atol=1e-12)
+    assert_allclose(gait.breakpoints(0.2, 0.7), [0.5])             # open interval
+    assert gait.breakpoints(0.21, 0.49).size == 0
+
+
+@pytest.mark.parametrize('name', ['parabolic_stroke', 'parabolic_open', 'spline_clamped'])
+def test_at_a_reported_breakpoint_the_gait_already_takes_the_next_piece(name):
+    # The exact solver starts a new segment at each reported breakpoint; the gait must hand it
+    # the acceleration of that segment (right limit), even many periods away from t = 0.
+    gait = _make(name)
+    b = gait.breakpoints(-3.0, 40.0)
+    assert b.size >= 2
+    at, right, left = (gait.acceleration(b + dt) for dt in (0.0, 1e-7, -1e-7))
+    assert_allclose(at, right, rtol=1e-5, atol=1e-12)
+    assert np.all(np.abs(at - left) > 1e-3 * np.max(np.abs(at)))
+
+
+def test_symmetric_bang_bang_stroke_jumps_only_at_quarter_periods():
+    # r = 0.5: l'' = +a, -a, -a, +a on quarters, so it changes only at T/4 and 3T/4.
+    gait = PiecewiseParabolic.stroke(0.1, 0.02, 2.0, 0.5)
+    assert_allclose(gait.breakpoints(0.0, 1.0), [0.125, 0.375, 0.625, 0.875], atol=1e-15)
+
+
+@pytest.mark.parametrize('asymmetry', [0.1, 0.3, 0.5, 0.8])
+def test_bang_bang_stroke_spans_the_amplitude_and_extends_for_the_asymmetry_fraction(asymmetry):
+    mean, amp, f = 0.1, 0.02, 2.0
+    gait = PiecewiseParabolic.stroke(mean, amp, f, asymmetry)
+    l, ld, _ = gait(np.array([0.0, asymmetry / f, 1.0 / f]))
+    assert_allclose(l[:, 0], [mean - amp, mean + amp, mean - amp], rtol=1e-13)
+    assert_allclose(ld[:, 0], 0.0, atol=1e-14)
+    t = np.linspace(0.0, 1.0 / f, 100_001)[:-1]
+    assert np.mean(gait.velocity(t) > 0) == pytest.approx(asymmetry, abs=1e-3)
+    # Rest to rest over a time D with l'' = +a then -a for D / 2 each covers 2 A: a = 8 A / D^2.
+    t_ext, t_con = asymmetry / f, (1 - asymmetry) / f
+    ldd = gait.acceleration(np.array([0.1, 0.9]) * t_ext)
+    assert_allclose(ldd[:, 0], np.array([1, -1]) * 8 * amp / t_ext ** 2, rtol=1e-12)
+    ldd = gait.acceleration(t_ext + np.array([0.1, 0.9]) * t_con)
+    assert_allclose(ldd[:, 0], np.array([-1, 1]) * 8 * amp / t_con ** 2, rtol=1e-12)
+
+
+def test_parabolic_rest_pieces_are_constant_and_moving_pieces_are_not():
+    # +a, -a (extend), rest, -a, +a (contract), rest.
+    a = 2.0
+    gait = PiecewiseParabolic([0.0, 0.1, 0.2, 0.5, 0.6, 0.7, 1.0], [a, -a, 0, -a, a, 0], 0.1)
+    assert gait.is_constant(0.2, 0.5) and gait.is_constant(0.25, 0.45)
+    assert gait.is_constant(0.7, 1.0) and gait.is_constant(2.8, 2.9)
+    assert not gait.is_constant(0.15, 0.3)
+    assert not gait.is_constant(0.75, 1.05)
+    assert not gait.is_constant(0.2, 1.4)
+    _, ld, ldd = gait(np.linspace(1.21, 1.49, 15))
+    assert np.all(ld == 0) and np.all(ldd == 0)
+
+
+@pytest.mark.parametrize('accelerations, v0', [
+    ([1.0, -1.0, 1.0], 0.0),     # l' does not come back
+    ([1.0, -1.0, 0.0], 0.0),     # l' comes back but l has grown
+    ([0.0, 0.0, 0.0], 0.1),      # constant drift
+])
+def test_periodic_stroke_that_does_not_close_is_rejected(accelerations, v0):
+    with pytest.raises(ValueError, match='accelerations'):
+        PiecewiseParabolic([0.0, 1.0, 2.0, 3.0], accelerations, 0.1, v0)
+
+
+def test_open_parabolic_profile_holds_still_after_it_ends():
+    gait = PiecewiseParabolic([0.0, 1.0, 2.0], [1.0, -1.0], 0.1, periodic=False)
+    assert gait.period is None
+    l, ld, ldd = gait(np.array([-1.0, 2.0, 5.0]))
+    assert_allclose(l[:, 0], [0.1, 1.1, 1.1], rtol=1e-14)    # 0.1 + 2 * (1/2 * 1 * 1^2)
+    assert_array_equal(ld[:, 0], 0.0)
+    assert_array_equal(ldd[:, 0], 0.0)
+    assert gait.is_constant(2.5, 10.0) and gait.is_constant(-3.0, 0.0)
+    assert not gait.is_constant(1.5, 2.5)
+    assert_array_equal(gait.breakpoints(-1.0, 3.0), [0.0, 1.0, 2.0])
+
+
+# ---------------------------------------------------------------- Spline
+
+def test_spline_passes_through_its_samples():
+    times = np.array([0.0, 0.3, 0.7, 1.0, 1.6])
+    lengths = np.array([[0.1, 0.2], [0.12, 0.18], [0.11, 0.21], [0.1, 0.2], [0.13, 0.19]])
+    gait = Spline(times, lengths)
+    assert_allclose(gait.length(times), lengths, rtol=1e-14)
+
+
+def test_periodic_spline_passes_through_its_samples_and_is_c2_across_the_wrap():
+    t = _PERIODIC_SPLINE_T
+    y = 0.1 + 0.02 * np.sin(math.pi * t) ** 3
+    gait = Spline(t, y, periodic=True)
+    assert_allclose(gait.length(t)[:, 0], y, rtol=1e-14)
+    eps = 1e-9
+    before, after = gait(t[-1] - eps), gait(t[-1] + eps)
+    for a, b in zip(before, after):
+        assert_allclose(a, b, rtol=0, atol=1e-6)
+    assert gait.breakpoints(-5.0, 5.0).size == 0
+
+
+def test_clamped_spline_starts_and_ends_at_rest_and_holds_outside_its_range():
+    gait = Spline([0.0, 0.3, 0.7, 1.0], [0.1, 0.14, 0.11, 0.12])
+    assert_allclose(gait.velocity(np.array([0.0, 1.0])), 0.0, atol=1e-14)
+    l, ld, ldd = gait(np.array([-2.0, -1e-9, 1.0 + 1e-9, 3.0]))
+    assert_allclose(l[:, 0], [0.1, 0.1, 0.12, 0.12], rtol=1e-12)
+    assert_array_equal(ld, 0.0)
+    assert_array_equal(ldd, 0.0)
+    assert gait.is_constant(-3.0, 0.0) and gait.is_constant(1.0, 4.0)
+    assert not gait.is_constant(-1.0, 0.5)
+    assert_array_equal(gait.breakpoints(-1.0, 2.0), [0.0, 1.0])     # l'' jumps to 0 there
+
+
+# ---------------------------------------------------------------- bad input
+
+BAD = {
+    'sinusoid frequency 0': (lambda: Sinusoid(0.1, 0.01, 0.0), 'frequency'),
+    'fourier frequency < 0': (lambda: Fourier(0.1, ([0.01], [0.0]), -1.0), 'frequency'),
+    'fourier frequency inf': (lambda: Fourier(0.1, ([0.01], [0.0]), math.inf), 'frequency'),
+    'fourier coefficient nan': (lambda: Fourier(0.1, ([math.nan], [0.0]), 1.0), 'coefficients'),
+    'fourier cos/sin shapes': (lambda: Fourier(0.1, ([0.1, 0.2], [0.0]), 1.0), 'coefficients'),
+    'fourier not a pair': (lambda: Fourier(0.1, [0.1, 0.2, 0.3], 1.0), 'coefficients'),
+    'fourier rows vs n_links': (lambda: Fourier(0.1, ([[0.1], [0.2]], [[0.0], [0.0]]), 1.0,
+                                                n_links=3), 'coefficients'),
+    'fourier mean inf': (lambda: Fourier([0.1, math.inf], ([0.1], [0.0]), 1.0), 'mean'),
+    'scallop asymmetry 0': (lambda: Scallop(0.1, 0.02, 1.0, 0.0), 'asymmetry'),
+    'scallop asymmetry 1': (lambda: Scallop(0.1, 0.02, 1.0, 1.0), 'asymmetry'),
+    'scallop asymmetry > 1': (lambda: Scallop(0.1, 0.02, 1.0, 1.5), 'asymmetry'),
+    'scallop asymmetry nan': (lambda: Scallop(0.1, 0.02, 1.0, math.nan), 'asymmetry'),
+    'scallop frequency nan': (lambda: Scallop(0.1, 0.02, math.nan, 0.3), 'frequency'),
+    'scallop frequency < 0': (lambda: Scallop(0.1, 0.02, -2.0, 0.3), 'frequency'),
+    'scallop amplitude < 0': (lambda: Scallop(0.1, -0.02, 1.0, 0.3), 'amplitude'),
+    'scallop phase size': (lambda: Scallop(0.1, 0.02, 1.0, 0.3, [0, 1], n_links=3), 'phase'),
+    'scallop n_links 0': (lambda: Scallop(0.1, 0.02, 1.0, 0.3, n_links=0), 'n_links'),
+    'parabolic unsorted times': (lambda: PiecewiseParabolic([0.0, 0.5, 0.4, 1.0],
+                                                            [1, -1, 0], 0.1), 'times'),
+    'parabolic repeated time': (lambda: PiecewiseParabolic([0.0, 0.5, 0.5, 1.0],
+                                                           [1, -1, 0], 0.1), 'times'),
+    'parabolic nan time': (lambda: PiecewiseParabolic([0.0, math.nan, 1.0], [1, -1], 0.1),
+                           'times'),
+    'parabolic acc rows': (lambda: PiecewiseParabolic([0.0, 0.5, 1.0], [1, -1, 0], 0.1),
+                           'accelerations'),
+    'parabolic acc inf': (lambda: PiecewiseParabolic([0.0, 0.5, 1.0], [math.inf, 0], 0.1),
+                          'accelerations'),
+    'parabolic l0 size': (lambda: PiecewiseParabolic([0.0, 0.5, 1.0], [[1, 1], [-1, -1]],
+                                                     [0.1, 0.2, 0.3]), 'l0'),
+    'parabolic v0 nan': (lambda: PiecewiseParabolic([0.0, 0.5, 1.0], [1, -1], 0.1, math.nan),
+                         'v0'),
+    'stroke asymmetry 1': (lambda: PiecewiseParabolic.stroke(0.1, 0.02, 1.0, 1.0), 'asymmetry'),
+    'stroke frequency 0': (lambda: PiecewiseParabolic.stroke(0.1, 0.02, 0.0, 0.3), 'frequency'),
+    'stroke amplitude < 0': (lambda: PiecewiseParabolic.stroke(0.1, -0.02, 1.0, 0.3),
+                             'amplitude'),
+    'spline unsorted times': (lambda: Spline([0.0, 1.0, 0.5], [0.1, 0.2, 0.1]), 'times'),
+    'spline one sample': (lambda: Spline([0.0], [0.1]), 'times'),
+    'spline lengths rows': (lambda: Spline([0.0, 0.5, 1.0], [0.1, 0.2]), 'lengths'),
+    'spline lengths nan': (lambda: Spline([0.0, 0.5, 1.0], [0.1, math.nan, 0.1]), 'lengths'),
+    'spline periodic open': (lambda: Spline([0.0, 0.5, 1.0], [0.1, 0.2, 0.15], periodic=True),
+                             'lengths'),
+    'cubic l0 nan': (lambda: Cubic(0.0, [0.1, math.nan], 0.0, 0.0, 0.0), 'l0'),
+    'call with 2-D times': (lambda: Sinusoid(0.1, 0.01, 1.0)(np.zeros((2, 2))), 't must'),
+    'breakpoints t1 < t0': (lambda: _closed().breakpoints(1.0, 0.0), 't1'),
+}
+
+
+@pytest.mark.parametrize('make, parameter', BAD.values(), ids=list(BAD))
+def test_bad_input_raises_value_error_naming_the_parameter(make, parameter):
+    with pytest.raises(ValueError, match=rf'\b{parameter}\b'):
+        make()
+
+
+def test_value_errors_state_the_allowed_range():
+    with pytest.raises(ValueError, match=r'asymmetry must be in the open interval \(0, 1\)'):
+        Scallop(0.1, 0.02, 1.0, 1.2)
+    with pytest.raises(ValueError, match='frequency must be finite and > 0 Hz'):
+        Fourier(0.1, ([0.01], [0.0]), 0.0)
+
+
+@pytest.mark.parametrize('name', ['sinusoid', 'fourier', 'fourier_shared', 'parabolic_stroke',
+                                  'parabolic_open', 'cubic'])
+def test_jerk_bound_holds_for_the_finite_difference_jerk_between_breakpoints(name):
+    # The exact solver skips a dip search when the jerk bound proves a velocity stays positive;
+    # a bound below the true jerk would make it miss events. Central differences of l'' are
+    # the independent estimate of the jerk.
+    gait = _make(name)
+    h = 1e-5
+    t = np.linspace(-1.3, 3.1, 2001)
+    kinks = _kinks(gait, -2.0, 4.0)
+    if kinks.size:
+        t = t[np.min(np.abs(t[:, None] - kinks[None, :]), axis=1) > 10 * h]
+    jerk = (gait(t + h)[2] - gait(t - h)[2]) / (2 * h)
+    bound = gait.jerk_bound(-1.3, 3.1)
+    assert bound.shape == (gait.n_links,)
+    assert np.all(np.abs(jerk) <= bound * (1 + 1e-6) + 1e-9), (np.abs(jerk).max(axis=0), bound)
+
+
+def test_jerk_bound_of_piecewise_cubic_is_the_largest_jerk_of_the_pieces_it_spans():
+    pieces = [Cubic(0.0, [0.1, 0.2], 0.0, 0.0, [1.0, -2.0]),
+              Cubic(1.0, [0.1, 0.2], 0.0, 0.0, [-3.0, 0.5]),
+              Cubic(2.0, [0.1, 0.2], 0.0, 0.0, [0.25, 4.0])]
+    pc = PiecewiseCubic([0.0, 1.0, 2.0], pieces)
+    assert pc.jerk_bound(0.1, 0.9).tolist() == [1.0, 2.0]
+    assert pc.jerk_bound(0.5, 1.5).tolist() == [3.0, 2.0]
+    assert pc.jerk_bound(0.5, 2.5).tolist() == [3.0, 4.0]
+
+
+def test_piecewise_cubic_small_and_large_evaluations_agree_bit_for_bit():
+    # few points are evaluated in Python floats, many with numpy: the same IEEE expressions
+    rng = np.random.default_rng(7)
+    starts = np.cumsum(rng.uniform(1e-3, 2e-3, 12))
+    pieces = [Cubic(t0, rng.uniform(0.05, 0.15, 2), rng.normal(0, 0.1, 2), rng.normal(0, 1, 2),
+                    rng.normal(0, 10, 2)) for t0 in starts]
+    pc = PiecewiseCubic(starts, pieces)
+    t = np.sort(rng.uniform(starts[0] - 1e-3, starts[-1] + 3e-3, 200))
+    big = pc(t)                      # 200 points: the numpy path
+    for k in range(0, 200, 8):
+        small = pc(t[k:k + 8])       # 8 points: the float path
+        for a, b in zip(big, small):
+            assert np.array_equal(a[k:k + 8], b)
+        one = pc.at(float(t[k]))
+        for a, b in zip(big, one):
+            assert np.array_equal(a[k], b)

@@ -1,0 +1,301 @@
+"""The colcon-built executables, found through the ament index, each run as its own process.
+
+Real DDS between processes on this host, in the session's ROS_DOMAIN_ID (conftest.py). Every
+wait has a deadline; nothing sleeps for a fixed time.
+"""
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+import signal
+import subprocess
+import time
+import warnings
+
+from ament_index_python.packages import get_package_prefix, get_package_share_directory
+from diagnostic_msgs.msg import DiagnosticArray
+from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType, ParameterValue
+from rcl_interfaces.srv import SetParameters
+import numpy as np
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import qos_profile_sensor_data
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import SetBool
+
+from crawler_sim import Stepper
+from crawler_sim.core.actuator import Actuator
+from crawler_sim.core.gaits import Cubic
+from crawler_sim.ros.messages import ns_from_stamp
+from crawler_sim.ros.sim_node import PARAMETERS, SimConfig
+from ros_helpers import Spinning  # noqa: E402
+
+DEADLINE = 20.0
+
+
+@pytest.fixture
+def ament_env(installed_env, monkeypatch):
+    """This process sees the temporary install first in the ament index, as `ros2 run` would."""
+    monkeypatch.setenv('AMENT_PREFIX_PATH', installed_env['AMENT_PREFIX_PATH'])
+    return installed_env
+
+
+def executable(name: str) -> Path:
+    """What `ros2 run crawler_sim <name>` runs: <prefix>/lib/crawler_sim/<name>."""
+    found = [p for p in (Path(get_package_prefix('crawler_sim')) / 'lib' / 'crawler_sim').iterdir()
+             if p.name == name and os.access(p, os.X_OK)]
+    assert len(found) == 1, f'{name} not found exactly once'
+    return found[0]
+
+
+class Proc:
+    """A child process with its output in files (no pipe can fill up and block it)."""
+
+    def __init__(self, tmp: Path, env: dict, name: str, *ros_args: str) -> None:
+        self.out = open(tmp / f'{name}.out', 'w+')
+        self.err = open(tmp / f'{name}.err', 'w+')
+        self.popen = subprocess.Popen([str(executable(name)), '--ros-args', *ros_args],
+                                      env=env, stdout=self.out, stderr=self.err)
+
+    def stop(self, sig: int = signal.SIGINT, timeout: float = 10.0) -> tuple[int, str]:
+        if self.popen.poll() is None:
+            self.popen.send_signal(sig)
+        try:
+            code = self.popen.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self.popen.kill()
+            self.popen.wait()
+            raise AssertionError(f'process did not exit within {timeout} s of signal {sig}')
+        self.err.seek(0)
+        return code, self.err.read()
+
+    def kill(self) -> None:
+        if self.popen.poll() is None:
+            self.popen.kill()
+            self.popen.wait()
+
+
+class Peer(Spinning):
+    """The test's own node, in the session domain with host-wide discovery."""
+
+    deadline = DEADLINE
+
+    def __init__(self) -> None:
+        self.ctx = Context()
+        rclpy.init(context=self.ctx, domain_id=int(os.environ['ROS_DOMAIN_ID']))
+        self.node = self.client_node = Node('test_peer', context=self.ctx)
+        self.ex = SingleThreadedExecutor(context=self.ctx)
+        self.ex.add_node(self.node)
+
+
+    def close(self) -> None:
+        self.ex.shutdown()
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.ctx)
+
+
+@pytest.fixture
+def peer():
+    p = Peer()
+    yield p
+    p.close()
+
+
+def sim_args(method: str, *extra: str) -> list[str]:
+    config = Path(get_package_share_directory('crawler_sim')) / 'config' / 'crawler_sim.yaml'
+    return ['--params-file', str(config), '-p', f'method:={method}', '-p', 'publish_clock:=true',
+            '-p', 'real_time_factor:=0.0', '-p', 'start_paused:=true',
+            '-p', 'diagnostics_period:=0.2', *extra]
+
+
+def test_the_package_is_registered_in_the_ament_index_with_its_executables(ament_env,
+                                                                         colcon_install):
+    prefix = Path(get_package_prefix('crawler_sim'))
+    assert prefix == colcon_install / 'crawler_sim'
+    for name in ('sim_node', 'gait_node'):
+        assert executable(name).parent == prefix / 'lib' / 'crawler_sim'
+    share = Path(get_package_share_directory('crawler_sim'))
+    assert (share / 'package.xml').is_file()
+    assert (share / 'config' / 'crawler_sim.yaml').is_file()
+
+
+def diagnostics_values(msg: DiagnosticArray) -> dict[str, str]:
+    return {kv.key: kv.value for kv in msg.status[0].values}
+
+
+@pytest.mark.parametrize('method', ['exact', 'implicit'])
+def test_the_sim_process_matches_the_offline_solution_and_runs_faster_than_real_time(
+        ament_env, peer, tmp_path, method):
+    sim = Proc(tmp_path, ament_env, 'sim_node', *sim_args(method))
+    try:
+        node = peer.node
+        states: list[JointState] = []
+        applied: list[JointState] = []
+        diags: list[DiagnosticArray] = []
+        clock_wall: list[tuple[int, float]] = []
+        node.create_subscription(JointState, 'body_states', states.append, 100000)
+        sensor: list[JointState] = []
+        node.create_subscription(JointState, 'body_states', sensor.append,
+                                 qos_profile_sensor_data)
+        node.create_subscription(JointState, '/crawler_sim/applied_command', applied.append, 100)
+        node.create_subscription(DiagnosticArray, '/diagnostics', diags.append, 100)
+        node.create_subscription(Clock, '/clock', lambda m: clock_wall.append(
+            (ns_from_stamp(m.clock), time.monotonic())), qos_profile_sensor_data)
+        pub = node.create_publisher(Float64MultiArray, 'linkage_cmd', 10)
+        peer.until(lambda: pub.get_subscription_count() > 0 and diags and int(
+            diagnostics_values(diags[-1])['clock_subscribers']) >= 1, 'the sim to connect')
+        assert peer.call(SetBool, '/crawler_sim/pause', SetBool.Request(data=False)).success
+
+        plan = [  # (sim time [s] after which to act, action)
+            (0.5, [0.15, 0.12]),
+            (2.0, [0.15]),                        # wrong size: rejected
+            (2.2, [0.06, math.nan]),              # NaN: rejected
+            (2.4, [0.06, 0.9]),                   # out of range: rejected
+            (4.0, [0.06, 0.16]),
+            (6.5, [0.12, 0.07]),
+        ]
+        bad_param = None
+        now_ns = lambda: clock_wall[-1][0] if clock_wall else 0  # noqa: E731
+        for t_act, data in plan:
+            peer.until(lambda: now_ns() >= t_act * 1e9, f'sim time {t_act} s')
+            n_applied = len(applied)
+            pub.publish(Float64MultiArray(data=[float(x) for x in data]))
+            if t_act in (0.5, 4.0, 6.5):
+                # a valid command: wait for its echo, else a late peer could send the next one
+                # before a tick took this one (the latest command wins, as in ros2_control)
+                peer.until(lambda: len(applied) > n_applied, 'the applied command')
+            if t_act == 2.4:   # a rejected parameter set, sent through the ROS service
+                friction = ParameterMsg(name='friction', value=ParameterValue(
+                    type=ParameterType.PARAMETER_DOUBLE_ARRAY, double_array_value=[1.0, 2.0]))
+                bad_param = peer.call(SetParameters, '/crawler_sim/set_parameters',
+                                      SetParameters.Request(parameters=[friction]))
+        peer.until(lambda: now_ns() >= 10e9, 'sim time 10 s', timeout=60.0)
+        # let the body states catch up (a busy peer lags behind the flat-out sim)
+        peer.until(lambda: states and ns_from_stamp(states[-1].header.stamp) > 10e9,
+                   'body states past 10 s', timeout=60.0)
+        t_start = clock_wall[0][1]
+        t_ten = next(w for t, w in clock_wall if t >= 10e9)
+        peer.until(lambda: len(diags) >= 2 and float(
+            diagnostics_values(diags[-1])['sim_time']) > 10.0, 'diagnostics after 10 s')
+        code, err = sim.stop(signal.SIGINT)
+    finally:
+        sim.kill()
+
+    assert code == 0 and 'Traceback' not in err, err
+    wall = t_ten - t_start
+    print(f'\n{method}: 10 sim s in {wall:.2f} wall s')
+    assert wall < 6.0, f'10 simulated seconds took {wall:.2f} s of wall time'
+
+    assert not bad_param.results[0].successful
+    assert 'friction must have 1 or 3 entries' in bad_param.results[0].reason
+    values = diagnostics_values(diags[-1])
+    assert (values['commands_accepted'], values['commands_rejected']) == ('3', '3'), values
+    assert sensor, 'the SensorData subscriber received nothing'
+
+    # offline: the same commands at the same ticks through the same actuator and the core
+    schedule = {ns_from_stamp(m.header.stamp): list(m.position) for m in applied}
+    assert len(schedule) == 3
+    assert [v for _, v in sorted(schedule.items())] == [[0.15, 0.12], [0.06, 0.16], [0.12, 0.07]]
+    values = {k: v[0] for k, v in PARAMETERS.items()}
+    values['method'] = method
+    cfg = SimConfig.from_values(values)
+    dt_ns = cfg.dt_ns
+    act = Actuator(cfg.initial_lengths, dt_ns / 1e9, cfg.limits)
+    st = Stepper(cfg.crawler, Cubic(0.0, list(cfg.initial_lengths), 0.0, 0.0, 0.0), method,
+                 t0=0.0, x0=cfg.initial_position, v0=0.0, dt=dt_ns / 1e9)
+    published = {ns_from_stamp(m.header.stamp): m for m in states
+                 if ns_from_stamp(m.header.stamp) <= 10_000_000_000}
+    # 100 Hz for 10 s. Flat out (~25x real time) a Python subscriber that also takes every
+    # /clock message can fall behind on a busy machine and lose some (the publisher keeps the
+    # last 10): what matters is that those received match and cover the whole run.
+    assert len(published) > 300
+    assert {t // 1_000_000_000 for t in published} >= set(range(10))
+    worst = 0.0
+    moved = 0.0
+    for k in range(10_000):
+        t0_ns = k * dt_ns
+        if t0_ns in schedule:
+            act.set_target(schedule[t0_ns])
+        st.advance((t0_ns + dt_ns) / 1e9, act.step(t0_ns / 1e9, (t0_ns + dt_ns) / 1e9))
+        msg = published.get(t0_ns + dt_ns)
+        if msg is not None:
+            s = st.state
+            for got, want in ((msg.position, s.x), (msg.velocity, s.v), (msg.effort, s.friction)):
+                worst = max(worst, float(np.max(np.abs(np.asarray(got) - want))))
+            moved = max(moved, float(np.max(np.abs(s.x - [0.0, 0.1, 0.2]))))
+    assert moved > 0.01                  # the commands did move the bodies
+    assert worst <= 1e-9, f'published states differ from the offline solution by {worst}'
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
+def test_sim_node_exits_cleanly_on_a_signal_and_closes_its_bag(ament_env, peer, tmp_path, sig):
+    sim = Proc(tmp_path, ament_env, 'sim_node', '-p', 'method:=implicit', '-p', 'record:=true',
+               '-p', f'record_dir:={tmp_path}', '-p', 'record_name:=bag')
+    try:
+        states: list[JointState] = []
+        peer.node.create_subscription(JointState, 'body_states', states.append, 10)
+        peer.until(lambda: states, 'body_states from the process')   # it runs
+        code, err = sim.stop(sig)
+    finally:
+        sim.kill()
+    assert code == 0, err
+    assert 'Traceback' not in err and 'Error' not in err, err
+    bag = pytest.importorskip('crawler_sim.bag')
+    assert (tmp_path / 'bag' / 'metadata.yaml').is_file()      # written only by close()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter('always')
+        run = bag.load(tmp_path / 'bag')
+    assert not [w for w in caught if 'footer' in str(w.message)]   # the file was finished
+    assert len(run) > 0 and run.t[0] == 0.0
+
+
+def test_invalid_parameters_at_start_give_one_line_and_exit_code_1(ament_env, tmp_path):
+    sim = Proc(tmp_path, ament_env, 'sim_node', '-p', 'friction:=[1.0, 2.0]')
+    try:
+        code = sim.popen.wait(timeout=DEADLINE)
+    finally:
+        sim.kill()
+    sim.err.seek(0)
+    err = sim.err.read()
+    assert code == 1
+    assert 'friction must have 1 or 3 entries' in err and 'Traceback' not in err
+
+
+def test_gait_node_drives_the_sim_on_sim_time(ament_env, peer, tmp_path):
+    # paced at 4x real time, not flat out: a sim-time controller in Python gets fewer turns per
+    # sim second the faster the sim runs, and on a busy CI machine flat out can starve it
+    sim = Proc(tmp_path, ament_env, 'sim_node', *sim_args('implicit', '-p',
+                                                           'real_time_factor:=4.0'))
+    gait = Proc(tmp_path, ament_env, 'gait_node', '-p', 'use_sim_time:=true')
+    try:
+        diags: list[DiagnosticArray] = []
+        states: list[JointState] = []
+        peer.node.create_subscription(DiagnosticArray, '/diagnostics', diags.append, 100)
+        peer.node.create_subscription(JointState, 'body_states', states.append, 100000)
+        peer.until(lambda: diags and int(
+            diagnostics_values(diags[-1])['linkage_cmd_publishers']) >= 1 and int(
+            diagnostics_values(diags[-1])['clock_subscribers']) >= 1, 'gait_node to connect')
+        assert peer.call(SetBool, '/crawler_sim/pause', SetBool.Request(data=False)).success
+        peer.until(lambda: states and ns_from_stamp(states[-1].header.stamp) >= 6e9,
+                   'sim time 6 s', timeout=60.0)
+        peer.until(lambda: float(diagnostics_values(diags[-1])['sim_time']) >= 6.0,
+                   'diagnostics at 6 s')
+        codes = [gait.stop(signal.SIGINT), sim.stop(signal.SIGINT)]
+    finally:
+        gait.kill()
+        sim.kill()
+    for code, err in codes:
+        assert code == 0 and 'Traceback' not in err, err
+    values = diagnostics_values(diags[-1])
+    # 50 Hz of sim time for 6 s is 300 commands; some are lost to start-up and latency
+    assert int(values['commands_accepted']) > 100 and values['commands_rejected'] == '0'
+    lengths = np.array([np.diff(m.position) for m in states])
+    assert lengths.max() - lengths.min() > 0.04          # the stroke is played (2 x 0.03 m)
+    x = np.array([m.position for m in states])
+    assert np.ptp(x, axis=0).min() > 5e-3                  # and every body moves
