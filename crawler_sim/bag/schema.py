@@ -8,13 +8,20 @@
 * :func:`qos_profiles` / :func:`qos_yaml` give the version-9 ``offered_qos_profiles`` (a list of
   maps with string enums), as ``rosbag2_storage::serialize_rclcpp_qos_vector`` writes it.
 
-Packages are found through ``ament_index_python``, so ``AMENT_PREFIX_PATH`` must include the prefix
-that holds ``share/<pkg>`` (the venv prefix when ROS comes from PyPI wheels).
+Where the definitions come from, first found wins (recording works wherever rclpy works):
+
+1. the install prefix of the message package's own Python module: ``<prefix>/lib/pythonX.Y/
+   site-packages/<pkg>`` -> ``<prefix>/share/<pkg>`` (a sourced ``/opt/ros/jazzy``, a colcon
+   workspace, or the PyPI wheels in a venv); no environment variable needed;
+2. the ament index (``AMENT_PREFIX_PATH``), for packages whose module lives elsewhere;
+3. rosbags' built-in Jazzy typestore, which knows the definitions and type hashes of the
+   standard interfaces (its text is the normalised concatenation, not the file verbatim).
 """
 from __future__ import annotations
 
 from functools import lru_cache
 import importlib
+import importlib.util
 import json
 from pathlib import Path
 import re
@@ -51,31 +58,77 @@ def canonical_type(type_name: str) -> str:
     return '/'.join(split_type(type_name))
 
 
-@lru_cache(maxsize=None)
-def share_dir(pkg: str) -> Path:
-    """``share/<pkg>`` of an installed ROS package, found with ``ament_index_python``."""
-    from ament_index_python.packages import (
-        get_package_share_directory, PackageNotFoundError)
+def _module_share_dir(pkg: str) -> Path | None:
+    """``<prefix>/share/<pkg>`` of the prefix the Python module ``pkg`` is installed in."""
     try:
+        spec = importlib.util.find_spec(pkg)
+    except (ImportError, ValueError):
+        return None
+    origins = list(spec.submodule_search_locations or []) if spec is not None else []
+    if spec is not None and spec.origin and not origins:
+        origins = [str(Path(spec.origin).parent)]
+    for origin in origins:
+        # site-packages/<pkg> -> site-packages -> pythonX.Y -> lib -> <prefix>
+        for parent in Path(origin).resolve().parents:
+            candidate = parent / 'share' / pkg
+            if (candidate / 'package.xml').is_file() or (candidate / 'msg').is_dir():
+                return candidate
+    return None
+
+
+def _ament_share_dir(pkg: str) -> Path | None:
+    """``share/<pkg>`` from the ament index, or None (no index, or not in it)."""
+    try:
+        from ament_index_python.packages import get_package_share_directory
         return Path(get_package_share_directory(pkg))
-    except (PackageNotFoundError, KeyError, LookupError, ValueError) as exc:
-        msg = (f'ROS package {pkg!r} not found through AMENT_PREFIX_PATH ({exc}); '
-               'set AMENT_PREFIX_PATH to the prefix that holds share/{pkg}')
-        raise BagError(msg) from None
+    except Exception:  # noqa: BLE001 - unset AMENT_PREFIX_PATH raises OSError, unknown pkg others
+        return None
 
 
-def _interface_file(type_name: str, ext: str) -> Path:
+@lru_cache(maxsize=None)
+def share_dir(pkg: str) -> Path | None:
+    """``share/<pkg>`` of an installed ROS package (module prefix, then ament index), or None."""
+    return _module_share_dir(pkg) or _ament_share_dir(pkg)
+
+
+def _interface_file(type_name: str, ext: str) -> Path | None:
     pkg, namespace, name = split_type(type_name)
-    path = share_dir(pkg) / namespace / f'{name}.{ext}'
-    if not path.is_file():
-        raise BagError(f'no definition file {path} for {type_name}')
-    return path
+    share = share_dir(pkg)
+    path = None if share is None else share / namespace / f'{name}.{ext}'
+    return path if path is not None and path.is_file() else None
+
+
+@lru_cache(maxsize=1)
+def _typestore() -> Any:
+    """rosbags' Jazzy typestore (None when rosbags is not installed)."""
+    try:
+        from rosbags.typesys import Stores, get_typestore
+    except ImportError:
+        return None
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+def _not_found(type_name: str, what: str) -> BagError:
+    pkg = split_type(type_name)[0]
+    return BagError(
+        f'no {what} for {type_name}: share/{pkg} was found neither next to the Python module '
+        f'{pkg} nor through AMENT_PREFIX_PATH, and rosbags\' Jazzy typestore does not know it')
 
 
 @lru_cache(maxsize=None)
 def msg_text(type_name: str) -> str:
     """The installed ``.msg`` file of ``type_name``, verbatim."""
-    return _interface_file(type_name, 'msg').read_text(encoding='utf-8')
+    path = _interface_file(type_name, 'msg')
+    if path is None:
+        raise _not_found(type_name, 'definition file')
+    return path.read_text(encoding='utf-8')
+
+
+def _typestore_text(type_name: str) -> str | None:
+    store = _typestore()
+    if store is None or type_name not in store.fielddefs:
+        return None
+    return store.generate_msgdef(type_name, ros_version=2)[0]
 
 
 def msg_dependencies(text: str, package: str) -> list[str]:
@@ -94,7 +147,16 @@ def msg_dependencies(text: str, package: str) -> list[str]:
 
 @lru_cache(maxsize=None)
 def full_text(type_name: str) -> str:
-    """Concatenated definition of ``type_name`` and all its dependencies (rosbag2 byte layout)."""
+    """Concatenated definition of ``type_name`` and all its dependencies (rosbag2 byte layout).
+
+    Without the installed ``.msg`` files (see the module docstring) rosbags' typestore text.
+    """
+    canonical = canonical_type(type_name)
+    if _interface_file(canonical, 'msg') is None:
+        text = _typestore_text(canonical)
+        if text is None:
+            raise _not_found(canonical, 'definition file')
+        return text
     seen: set[str] = set()
 
     def append(name: str, depth: int) -> str:
@@ -117,6 +179,11 @@ def type_hash(type_name: str) -> str:
     """``RIHS01_<64 hex>`` hash of ``type_name`` from its installed ``.json`` type description."""
     canonical = canonical_type(type_name)
     path = _interface_file(canonical, 'json')
+    if path is None:
+        store = _typestore()
+        if store is not None and canonical in store.fielddefs:
+            return str(store.hash_rihs01(canonical))
+        raise _not_found(canonical, 'type hash')
     try:
         hashes = json.loads(path.read_text(encoding='utf-8'))['type_hashes']
         return next(h['hash_string'] for h in hashes if h['type_name'] == canonical)

@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections import Counter
 import json
 from pathlib import Path
+import sys
 
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
@@ -232,8 +233,9 @@ def test_mcap_file_carries_rosbag2_records_channel_metadata_and_zstd_chunks(bag)
 # ---------------------------------------------------------------- schema text
 
 def installed_msg(pkg: str, name: str) -> str:
-    from ament_index_python.packages import get_package_share_directory
-    return (Path(get_package_share_directory(pkg)) / 'msg' / f'{name}.msg').read_text()
+    # the interface packages here come from the PyPI wheels installed into this interpreter's
+    # prefix (share/<pkg> next to lib/); read the file directly, without the code under test
+    return (Path(sys.prefix) / 'share' / pkg / 'msg' / f'{name}.msg').read_text()
 
 
 def test_joint_state_schema_is_root_msg_then_header_then_time_like_rosbag2():
