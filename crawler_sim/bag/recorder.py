@@ -57,6 +57,27 @@ class Recorder:
         self.writer = writer if writer is not None else BagWriter(
             path, scene=scene, scene_topic=SCENE.name(ns), **writer_options)
 
+    @classmethod
+    def create(cls, record_dir: os.PathLike | str, record_name: str | None = None, *,
+               masses: ArrayLike | None = None, scene: Mapping[str, Any] | None = None,
+               namespace: str = '', **writer_options: Any) -> Recorder:
+        """A recorder writing a new bag inside ``record_dir`` (see :meth:`BagWriter.create`:
+        the name is checked, unique, and the robot's topics are on disk at once)."""
+        ns = normalize_namespace(namespace)
+        topics = {t.name(ns): t.type for t in (BODY_STATES, JOINT_STATES, CONTACT_STATES,
+                                               LINKAGE_CMD, EVENTS)}
+        if masses is not None or (scene is not None and scene.get('masses') is not None):
+            topics[ODOM.name(ns)] = ODOM.type
+        writer = BagWriter.create(record_dir, record_name, scene=scene, topics=topics,
+                                  scene_topic=SCENE.name(ns), **writer_options)
+        try:
+            rec = cls(writer=writer, masses=masses, scene=scene, namespace=namespace)
+        except BaseException:
+            writer.close()
+            raise
+        rec._owns_writer = True
+        return rec
+
     @property
     def error(self) -> str | None:
         """Why recording stopped, or None (see :attr:`BagWriter.error`)."""
@@ -184,6 +205,8 @@ def record_arrays(path: os.PathLike | str, *, t: ArrayLike, x: ArrayLike, v: Arr
     pending = sorted([(tc, 0, i) for i, tc in enumerate(cmd_t)]
                      + [(te, 1, payload) for te, payload in _events(events)],
                      key=lambda item: (item[0], item[1]))
+    # an offline run is written in one go: no wall-clock flushes, so the bytes are deterministic
+    writer_options.setdefault('flush_interval', None)
     rec = Recorder(path, masses=masses, scene=scene, namespace=namespace, **writer_options)
     with rec:
         k = 0

@@ -17,10 +17,16 @@ record ``crawler_sim.scene`` (one JSON string per top-level key) and as one latc
 (transient local) ``std_msgs/msg/String`` message of YAML on ``/crawler_sim/scene``, stamped with
 the time of the first message, for ``ros2 bag play`` users.
 
+Crash safety: the header, the ``rosbag2`` record and every schema and channel known at
+creation (``topics=``) are written outside chunks and flushed the moment the writer is created,
+so the file is a recoverable MCAP from the first millisecond. A background thread flushes the
+open chunk every ``flush_interval`` (0.5 s) of wall time whether or not messages arrive, so a
+SIGKILL loses at most about that much of the run; the ``fsync`` runs outside the writer's lock.
+
 Failure policy: an ``OSError`` while writing (disk full, I/O error) stops the recording. The
-writer sets :attr:`BagWriter.error`, closes the file and turns later calls into no-ops, so a
-simulation that records keeps running. The partial ``.mcap`` can be repaired with
-:func:`crawler_sim.bag.recover`.
+writer sets :attr:`BagWriter.error` (saying how many messages actually reached the disk),
+closes the file and turns later calls into no-ops, so a simulation that records keeps running.
+The partial ``.mcap`` can be repaired with :func:`crawler_sim.bag.recover`.
 """
 from __future__ import annotations
 
@@ -30,6 +36,7 @@ import json
 import os
 from pathlib import Path
 import struct
+import threading
 import time
 from typing import Any, BinaryIO, Callable, Mapping
 import warnings
@@ -42,6 +49,7 @@ import yaml
 
 from . import schema as schemas
 from .errors import BagError
+from .naming import claim_directory
 from .topics import SCENE, SCENE_METADATA
 
 ROS_DISTRO = 'jazzy'
@@ -49,7 +57,7 @@ METADATA_VERSION = 9
 ROSBAG2_METADATA = 'rosbag2'
 ROSBAG2_METADATA_KEY = 'serialized_metadata'
 CHUNK_SIZE = 1 << 20          # bytes of uncompressed chunk data before a chunk is written
-FLUSH_INTERVAL = 1.0          # s of wall time between automatic flushes
+FLUSH_INTERVAL = 0.5          # s of wall time between automatic flushes (SIGKILL loses <= this)
 _EMPTY_START = 2**63 - 1      # rosbag2's starting_time of a bag without messages
 
 Opener = Callable[[Path], BinaryIO]
@@ -171,8 +179,13 @@ class BagWriter:
         Topic of the scene message (default ``/crawler_sim/scene``).
     chunk_size : int
         Uncompressed chunk size [bytes] before a chunk is compressed and written.
-    flush_interval : float
-        Wall time [s] after which :meth:`write` flushes on its own (``0`` flushes every write).
+    flush_interval : float or None
+        Wall time [s] between automatic flushes of the open chunk, by a background thread
+        (and by :meth:`write` when it notices the interval has passed). ``0`` flushes at
+        every write; None never flushes on its own.
+    topics : mapping, optional
+        ``{absolute topic: type name}`` registered (schema and channel) and flushed to disk at
+        creation, before any message.
 
     Attributes
     ----------
@@ -184,9 +197,11 @@ class BagWriter:
                  qos: Mapping[str, Any] | None = None,
                  custom_data: Mapping[str, str] | None = None,
                  scene_topic: str = SCENE.name(),
-                 chunk_size: int = CHUNK_SIZE, flush_interval: float = FLUSH_INTERVAL,
+                 chunk_size: int = CHUNK_SIZE, flush_interval: float | None = FLUSH_INTERVAL,
+                 topics: Mapping[str, str] | None = None,
                  _opener: Opener | None = None,
-                 _clock: Callable[[], float] = time.monotonic) -> None:
+                 _clock: Callable[[], float] = time.monotonic,
+                 _claimed: bool = False) -> None:
         self.path = Path(path)
         self.name = self.path.name
         self.file_name = f'{self.name}_0.mcap'
@@ -194,8 +209,13 @@ class BagWriter:
         self.error: str | None = None
         self._qos = dict(qos or {})
         self._custom = {str(k): str(v) for k, v in (custom_data or {}).items()} or None
-        self._flush_interval = float(flush_interval)
+        self._flush_interval = None if flush_interval is None else float(flush_interval)
         self._clock = _clock
+        self._lock = threading.RLock()       # write/flush/close vs. the flush thread
+        self._flushed_count = 0              # messages on disk at the last successful flush
+        self._dirty = False                  # records added since the last flush
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
         self._topics: dict[str, _Topic] = {}
         self._schemas: dict[str, _Schema] = {}
         self._stats = _Stats()
@@ -203,7 +223,8 @@ class BagWriter:
         self._scene: dict[str, Any] | None = None
         self._scene_pending = False           # the scene message waits for the first time stamp
         self._scene_topic = scene_topic
-        self._make_directory()
+        if not _claimed:
+            self._make_directory()
         try:
             self._stream = (_opener or _default_open)(self.mcap_path)
         except OSError as exc:
@@ -219,6 +240,35 @@ class BagWriter:
             self._scene.setdefault('crawler_sim_version', package_version())
             self._scene_pending = True
             self._guard(self._writer.add_metadata, SCENE_METADATA, scene_record(self._scene))
+        for topic, type_name in (topics or {}).items():
+            if self.error is None:
+                self._topic(topic, type_name)
+        if self._scene is not None and self.error is None:
+            self._topic(self._scene_topic, SCENE.type)
+        self.flush()             # header, schemas and channels on disk before any message
+        if self._flush_interval and _clock is time.monotonic and self.error is None:
+            self._thread = threading.Thread(target=self._flush_loop, daemon=True,
+                                            name=f'bag flush {self.name}')
+            self._thread.start()
+
+    @classmethod
+    def create(cls, record_dir: os.PathLike | str, record_name: str | None = None, *,
+               scene: Mapping[str, Any] | None = None, topics: Mapping[str, str] | None = None,
+               **options: Any) -> BagWriter:
+        """A new bag in a new folder directly inside ``record_dir``.
+
+        ``record_name`` must be 1-200 characters of ``[A-Za-z0-9._-]`` (no separators, no
+        ``..``: :func:`crawler_sim.bag.naming.check_record_name`, ``ValueError`` naming
+        ``record_name`` otherwise); '' or None gives ``crawler_sim_<date-time>_<pid>``. An
+        existing folder of that name gets ``_2``, ``_3``... appended, so two writers never share
+        a folder. ``scene``, ``topics`` and ``options`` are those of :class:`BagWriter`.
+        """
+        folder = claim_directory(record_dir, record_name)
+        try:
+            return cls(folder, scene=scene, topics=topics, _claimed=True, **options)
+        except BaseException:
+            _remove_empty(folder)
+            raise
 
     # ------------------------------------------------------------ public API
 
@@ -245,6 +295,10 @@ class BagWriter:
             raise RuntimeError(f'{self.path}: write() after close()')
         if self.error is not None:
             return False
+        with self._lock:
+            return self._write(topic, type_name, msg, t_ns)
+
+    def _write(self, topic: str, type_name: str, msg: Any, t_ns: int) -> bool:
         t_ns = int(t_ns)
         if t_ns < 0:
             raise ValueError(f'`t_ns` must be >= 0 (MCAP times are unsigned), got {t_ns}')
@@ -260,9 +314,36 @@ class BagWriter:
 
     def flush(self) -> None:
         """Write the open chunk and everything buffered to disk (``fsync``)."""
-        if self._closed or self.error is not None:
-            return
-        self._guard(self._flush)
+        with self._lock:
+            if self._closed or self.error is not None:
+                return
+            self._guard(self._flush)
+            fileno = self._fileno if self.error is None else None
+        _fsync(fileno)
+
+    def flush_if_due(self) -> bool:
+        """Flush if records are pending and ``flush_interval`` has passed since the last flush
+        (what the background thread does); True if it flushed."""
+        with self._lock:
+            if (self._closed or self.error is not None or not self._dirty
+                    or self._flush_interval is None
+                    or self._clock() - self._last_flush < self._flush_interval):
+                return False
+            self._guard(self._flush)
+            fileno = self._fileno if self.error is None else None
+        _fsync(fileno)
+        return fileno is not None
+
+    def _flush_loop(self) -> None:
+        interval = self._flush_interval or FLUSH_INTERVAL
+        while not self._stop.wait(interval / 4):
+            try:
+                self.flush_if_due()
+            except Exception as exc:  # noqa: BLE001 - the thread must not die silently
+                with self._lock:
+                    if self.error is None:
+                        self.error = f'recording to {self.mcap_path} stopped: flush failed ({exc})'
+                return
 
     def close(self) -> None:
         """Finish the MCAP file (summary, footer) and write metadata.yaml. Idempotent.
@@ -270,16 +351,20 @@ class BagWriter:
         After a write error only the file handle is closed: no summary and no metadata.yaml,
         as for a killed ``ros2 bag record``; :func:`crawler_sim.bag.recover` repairs the file.
         """
-        if self._closed:
-            return
-        if self.error is None and self._scene_pending:
-            self._write_scene(0)
-        if self.error is None:
-            self._guard(self._finish)
-        if self.error is None:
-            self._guard(self._write_metadata_yaml)
-        self._closed = True
-        self._close_stream()
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join()
+        with self._lock:
+            if self._closed:
+                return
+            if self.error is None and self._scene_pending:
+                self._write_scene(0)
+            if self.error is None:
+                self._guard(self._finish)
+            if self.error is None:
+                self._guard(self._write_metadata_yaml)
+            self._closed = True
+            self._close_stream()
 
     def __enter__(self) -> BagWriter:
         return self
@@ -291,8 +376,9 @@ class BagWriter:
 
     def add_metadata(self, name: str, data: Mapping[str, str]) -> None:
         """Add an MCAP Metadata record ``name`` with string keys and values."""
-        if self.error is None and not self._closed:
-            self._guard(self._writer.add_metadata, name, dict(data))
+        with self._lock:
+            if self.error is None and not self._closed:
+                self._guard(self._writer.add_metadata, name, dict(data))
 
     def add_channel(self, topic: str, *, schema_name: str, schema_encoding: str,
                     schema_data: bytes, message_encoding: str,
@@ -322,7 +408,8 @@ class BagWriter:
         """Write already-serialised ``data`` on a topic from :meth:`add_channel`."""
         if self._closed or self.error is not None:
             return False
-        return self._add(entry, data, log_time, publish_time, sequence)
+        with self._lock:
+            return self._add(entry, data, log_time, publish_time, sequence)
 
     # ------------------------------------------------------------ internals
 
@@ -405,8 +492,10 @@ class BagWriter:
         if self._guard(self._writer.add_message, entry.channel_id, log_time, data,
                        publish_time, sequence) is _FAILED:
             return False
-        if self._clock() - self._last_flush >= self._flush_interval:
-            self.flush()
+        self._dirty = True
+        if (self._flush_interval is not None
+                and self._clock() - self._last_flush >= self._flush_interval):
+            self._guard(self._flush)
             if self.error is not None:
                 return False           # this message went down with the chunk being written
         entry.count += 1
@@ -414,9 +503,11 @@ class BagWriter:
         return True
 
     def _flush(self) -> None:
+        """Open chunk and buffers to the OS (survives SIGKILL); the caller fsyncs."""
+        count = self._stats.count
         self._writer.flush()
-        if self._fileno is not None:
-            os.fsync(self._fileno)
+        self._flushed_count = count
+        self._dirty = False
         self._last_flush = self._clock()
 
     def _finish(self) -> None:
@@ -438,8 +529,14 @@ class BagWriter:
 
     def _fail(self, exc: OSError) -> None:
         reason = exc.strerror or str(exc) or type(exc).__name__
-        self.error = (f'recording to {self.mcap_path} stopped after {self._stats.count} messages: '
-                      f'{reason}; the file is incomplete (crawler_sim.bag.recover repairs it)')
+        on_disk = self._flushed_count
+        if on_disk:
+            kept = (f'the file holds the first {on_disk} of {self._stats.count} messages '
+                    '(crawler_sim.bag.recover makes a complete bag of them)')
+        else:
+            kept = f'none of the {self._stats.count} messages reached the disk'
+        self.error = f'recording to {self.mcap_path} stopped: {reason}; {kept}'
+        self._stop.set()
         warnings.warn(self.error, RuntimeWarning, stacklevel=3)
         self._close_stream()
 
@@ -520,6 +617,27 @@ class _LeanWriter(Writer):
                     'message_end_time')))
         self._lean = builder if lean else None
 
+    def register_schema(self, name: str, encoding: str, data: bytes) -> int:
+        """As the base class, but the Schema record goes outside chunks (flushed at once by
+        the caller), so a file cut anywhere still declares it."""
+        return self._unchunked(super().register_schema, name, encoding, data)
+
+    def register_channel(self, topic: str, message_encoding: str, schema_id: int,
+                         metadata: dict[str, str] | None = None) -> int:
+        """As the base class, but the Channel record goes outside chunks (see above)."""
+        return self._unchunked(super().register_channel, topic, message_encoding, schema_id,
+                               metadata or {})
+
+    def _unchunked(self, register: Callable[..., int], *args: Any) -> int:
+        builder = getattr(self, '_Writer__chunk_builder', None)
+        if builder is None:
+            return register(*args)
+        self._Writer__chunk_builder = None        # the base writes to the record builder then
+        try:
+            return register(*args)
+        finally:
+            self._Writer__chunk_builder = builder
+
     def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
                     sequence: int = 0) -> None:
         builder = self._lean
@@ -557,6 +675,24 @@ def _id(value: Any) -> int:
 
 def _yaml(data: Any) -> str:
     return yaml.safe_dump(data, sort_keys=False, default_flow_style=False)
+
+
+def _fsync(fileno: int | None) -> None:
+    """fsync outside the writer's lock (it may take milliseconds on a busy disk); a file closed
+    meanwhile (EBADF) has been synced by its close."""
+    if fileno is None:
+        return
+    try:
+        os.fsync(fileno)
+    except OSError:
+        pass
+
+
+def _remove_empty(folder: Path) -> None:
+    try:
+        folder.rmdir()
+    except OSError:
+        pass
 
 
 def _fileno(stream: Any) -> int | None:

@@ -112,10 +112,25 @@ def test_a_directory_with_a_bad_metadata_yaml_falls_back_to_its_mcap_files(good_
     assert len(load(copy)) == 600
 
 
+def chunk_middle(data: bytes, fraction: float) -> int:
+    """A byte in the middle of the first Chunk record (opcode 0x06) at or after ``fraction`` of
+    the file, found by walking the top-level records (MCAP spec: opcode u8, length u64)."""
+    pos, chunks = 8, []
+    while pos + 9 <= len(data):
+        length = int.from_bytes(data[pos + 1:pos + 9], 'little')
+        if data[pos] == 0x06:
+            chunks.append((pos, length))
+        if data[pos] == 0x0F:                 # DataEnd
+            break
+        pos += 9 + length
+    pos, length = next(c for c in chunks if c[0] >= fraction * len(data))
+    return pos + 9 + length // 2
+
+
 @pytest.mark.parametrize('offset', [0.3, 0.6])
 def test_corrupted_chunk_bytes_give_a_partial_load_or_bag_error(good_bag, tmp_path, offset):
     data = bytearray((good_bag / 'run_0.mcap').read_bytes())
-    start = int(len(data) * offset)
+    start = chunk_middle(data, offset)
     data[start:start + 64] = bytes(64)                # zeros inside a compressed chunk
     path = tmp_path / 'corrupt.mcap'
     path.write_bytes(bytes(data))

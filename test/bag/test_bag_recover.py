@@ -145,6 +145,8 @@ def test_recover_salvages_a_file_cut_anywhere(complete_bag, tmp_path, fraction):
     if result.topics.get('/body_states'):
         with warnings.catch_warnings():
             warnings.simplefilter('error')
+            # a cut inside a time step loses that step's last topics: dropping it is expected
+            warnings.filterwarnings('ignore', message='.*time steps without all')
             run = load(result.bag)
         full = load(complete_bag)
         assert_array_equal(run.x, full.x[:len(run)])

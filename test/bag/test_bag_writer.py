@@ -267,9 +267,27 @@ def _mcap_bytes(writer_class, *, lean: bool = True) -> bytes:
     return out.getvalue()
 
 
-def test_the_lean_message_path_writes_the_same_file_as_mcap():
+def _records(data: bytes) -> tuple[list, list, list]:
+    """(schemas, channels, messages) of an MCAP file as plain tuples, read by the mcap library."""
+    from mcap.reader import make_reader
+    reader = make_reader(io.BytesIO(data))
+    summary = reader.get_summary()
+    schemas = sorted((s.id, s.name, s.encoding, s.data) for s in summary.schemas.values())
+    channels = sorted((c.id, c.topic, c.schema_id, tuple(sorted(c.metadata.items())))
+                      for c in summary.channels.values())
+    messages = [(m.channel_id, m.log_time, m.publish_time, m.sequence, m.data)
+                for _, _, m in reader.iter_messages(log_time_order=False)]
+    return schemas, channels, messages
+
+
+def test_the_lean_writer_holds_the_same_records_as_mcap_with_definitions_outside_chunks():
+    from mcap.records import Channel, Chunk, Schema
+    from mcap.stream_reader import StreamReader
     from mcap.writer import Writer
     from crawler_sim.bag.writer import _LeanWriter
-    reference = _mcap_bytes(Writer)
-    assert _mcap_bytes(_LeanWriter) == reference
-    assert _mcap_bytes(_LeanWriter, lean=False) == reference       # the fallback path
+    lean = _mcap_bytes(_LeanWriter)
+    assert _records(lean) == _records(_mcap_bytes(Writer))
+    assert _mcap_bytes(_LeanWriter, lean=False) == lean       # the add_message fallback path
+    # schemas and channels are top-level records (on disk before any chunk is complete)
+    top = [type(r) for r in StreamReader(io.BytesIO(lean), emit_chunks=True).records]
+    assert top.index(Schema) < top.index(Channel) < top.index(Chunk)
