@@ -217,6 +217,8 @@ class Decoder:
     ----------
     fast, slow : int
         Messages decoded by the vectorized path and by ``deserialize_message``.
+    nbytes : int
+        Bytes of the decoded arrays held so far.
     """
 
     def __init__(self, type_name: str, paths: Sequence[str]) -> None:
@@ -224,6 +226,7 @@ class Decoder:
         self.paths = tuple(paths)
         self.fast = 0
         self.slow = 0
+        self.nbytes = 0          # bytes of decoded arrays held (for callers' memory bounds)
         self._n = 0
         self._templates: dict[int, _Template | None] = {}
         self._parts: dict[str, list[tuple[NDArray[np.int64], NDArray]]] = {
@@ -252,6 +255,7 @@ class Decoder:
             self._add_rows(rows, pos, staged, counts)
         for path in self.paths:
             self._parts[path].extend(staged[path])
+            self.nbytes += sum(pos.nbytes + values.nbytes for pos, values in staged[path])
         self.fast += counts[0]
         self.slow += counts[1]
         self._n += len(starts)

@@ -16,6 +16,12 @@ Message bytes are handed, chunk by chunk, to a *sink* that the caller's ``want(c
 returns for the channels it wants: a :class:`Batch` is a decompressed chunk buffer plus the start,
 length and log time of each message of one channel in it, in file order. Sinks are expected to
 decode what they need right away, so only one decompressed chunk is alive at a time.
+
+Hostile files: memory is bounded by the file's size. A chunk may not claim (nor decompress to)
+more than :func:`chunk_limit` bytes (twice the file size, at least 2 MiB: a compression ratio a
+real recording with 1 MiB chunks stays under), messages of one channel in a chunk may not
+overlap (an index pointing many times at one big message would be copied many times), and only
+regular files are opened (a FIFO named ``*.mcap`` would block forever).
 """
 from __future__ import annotations
 
@@ -24,6 +30,7 @@ from io import BytesIO
 import mmap
 import os
 from pathlib import Path
+import stat
 import struct
 from typing import Callable
 import zlib
@@ -48,6 +55,39 @@ FOOTER_RECORD = RECORD_PREFIX + 20
 _U64 = struct.Struct('<Q')
 _U16 = struct.Struct('<H')
 _CHUNK_HEAD = struct.Struct('<QQQII')   # start, end, uncompressed size, crc, compression length
+CHUNK_FLOOR = 2 << 20        # bytes a chunk may always decompress to (writers use ~1 MiB)
+CHUNK_FACTOR = 2             # ... or this many times the file size
+
+
+def chunk_limit(file_size: int) -> int:
+    """Largest uncompressed chunk [bytes] accepted in a file of ``file_size`` bytes."""
+    return max(CHUNK_FLOOR, CHUNK_FACTOR * int(file_size))
+
+
+def open_regular(path: Path) -> tuple[int, int]:
+    """``(fd, size)`` of ``path`` opened read-only; BagError unless it is a regular file.
+
+    Opened with O_NONBLOCK so that a FIFO or device does not block the open; the caller owns
+    the descriptor.
+    """
+    flags = os.O_RDONLY | getattr(os, 'O_NONBLOCK', 0) | getattr(os, 'O_CLOEXEC', 0)
+    try:
+        fd = os.open(path, flags)
+    except FileNotFoundError:
+        raise BagError(f'{path}: no such file') from None
+    except IsADirectoryError:
+        raise BagError(f'{path}: is a directory, expected an .mcap file') from None
+    except PermissionError:
+        raise
+    except OSError as exc:
+        raise BagError(f'{path}: cannot open ({exc.strerror or exc})') from None
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode):
+        os.close(fd)
+        kind = ('a directory' if stat.S_ISDIR(info.st_mode) else 'a FIFO'
+                if stat.S_ISFIFO(info.st_mode) else 'not a regular file')
+        raise BagError(f'{path}: is {kind}, expected an .mcap file')
+    return fd, info.st_size
 
 
 class _Corrupt(Exception):
@@ -132,21 +172,18 @@ def scan(path: Path | str, want: Want | None = None) -> Scan:
     """
     path = Path(path)
     want = want or (lambda channel, schema: None)
+    fd, size = open_regular(path)
     try:
-        with open(path, 'rb') as f:
-            size = os.fstat(f.fileno()).st_size
-            if size == 0:
-                raise BagError(f'{path}: empty file, not an MCAP bag')
-            with mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as mm:
-                return _scan_mapped(path, mm, size, want)
-    except FileNotFoundError:
-        raise BagError(f'{path}: no such file') from None
-    except IsADirectoryError:
-        raise BagError(f'{path}: is a directory, expected an .mcap file') from None
+        if size == 0:
+            raise BagError(f'{path}: empty file, not an MCAP bag')
+        with mmap.mmap(fd, 0, access=mmap.ACCESS_READ) as mm:
+            return _scan_mapped(path, mm, size, want)
     except PermissionError:
         raise
     except (OSError, ValueError) as exc:
         raise BagError(f'{path}: cannot read ({exc})') from None
+    finally:
+        os.close(fd)
 
 
 def _scan_mapped(path: Path, mm: mmap.mmap, size: int, want: Want) -> Scan:
@@ -157,6 +194,7 @@ def _scan_mapped(path: Path, mm: mmap.mmap, size: int, want: Want) -> Scan:
         try:
             if _scan_indexed(result, mm, size, want):
                 return result
+            result = Scan(path=path)          # what the summary held is read again below
         except _DAMAGE as exc:
             result = Scan(path=path, stop_reason=f'unreadable summary ({exc}); scanned linearly')
     else:
@@ -190,16 +228,45 @@ def _record_at(buf, pos: int, limit: int) -> tuple[int, int, int]:
     return opcode, pos + RECORD_PREFIX, end
 
 
-def _decompress(compression: str, data: bytes, size: int) -> bytes:
+def decompress(compression: str, data: bytes, size: int, limit: int) -> bytes:
+    """Chunk ``data`` decompressed to the ``size`` bytes its record claims, never allocating
+    more than ``limit`` bytes (ValueError otherwise: a claim or a stream larger than that)."""
+    if size > limit:
+        raise ValueError(f'chunk claims {size} bytes uncompressed, more than the {limit} '
+                         'allowed for a file of this size')
     if compression == '':
-        return data
+        return bytes(data)
     if compression == 'zstd':
         import zstandard
-        return zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
+        # stream mode: the frame's own content-size field is not trusted for the allocation
+        return _zstd_bounded(zstandard, data, size)
     if compression == 'lz4':
         import lz4.frame
-        return lz4.frame.decompress(data)
-    raise _Corrupt(f'unsupported chunk compression {compression!r}')
+        out = lz4.frame.LZ4FrameDecompressor().decompress(bytes(data), max_length=size + 1)
+        if len(out) > size:
+            raise ValueError('lz4 chunk decompresses to more than it claims')
+        return out
+    raise ValueError(f'unsupported chunk compression {compression!r}')
+
+
+def _zstd_bounded(zstandard, data, size: int) -> bytes:
+    reader = zstandard.ZstdDecompressor().stream_reader(bytes(data))
+    out = reader.read(size + 1)          # at most size + 1 bytes are ever held
+    while len(out) <= size:
+        more = reader.read(size + 1 - len(out))
+        if not more:
+            break
+        out += more
+    if len(out) > size:
+        raise ValueError('zstd chunk decompresses to more than it claims')
+    return out
+
+
+def _decompress(compression: str, data: bytes, size: int, limit: int) -> bytes:
+    try:
+        return decompress(compression, data, size, limit)
+    except ValueError as exc:
+        raise _Corrupt(str(exc)) from None
 
 
 def _read_chunk(mm, content_start: int, content_end: int) -> NDArray[np.uint8]:
@@ -216,7 +283,7 @@ def _read_chunk(mm, content_start: int, content_end: int) -> NDArray[np.uint8]:
     if pos + dlen > content_end:
         raise _Corrupt('chunk data runs past its record')
     try:
-        raw = _decompress(compression, mm[pos:pos + dlen], usize)
+        raw = _decompress(compression, mm[pos:pos + dlen], usize, chunk_limit(len(mm)))
     except _Corrupt:
         raise
     except Exception as exc:          # zstd/lz4 raise their own error types
@@ -265,6 +332,10 @@ def _batch(chunk: NDArray[np.uint8], channel_id: int, entries: NDArray[np.uint64
     if offsets[-1] + _MESSAGE_HEAD.itemsize > len(chunk):
         raise _Corrupt('message index points outside its chunk')
     heads = _message_heads(chunk, offsets)
+    # each record must end before the next one starts (no message counted twice)
+    ends = offsets + RECORD_PREFIX + heads['length'].astype(np.int64)
+    if np.any(ends[:-1] > offsets[1:]) or np.any(heads['length'] > len(chunk)):
+        raise _Corrupt('message index entries overlap (the same bytes counted twice)')
     if np.any(heads['opcode'] != OP_MESSAGE) or np.any(heads['channel_id'] != channel_id):
         raise _Corrupt('message index does not point at messages of its channel')
     if np.any(heads['log_time'].astype(np.int64) != log_times):

@@ -6,6 +6,7 @@ Topics are matched by suffix (``/body_states``, ``/crawler1/body_states``...), s
 """
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass, field
 import json
 import os
@@ -30,6 +31,7 @@ from .topics import (BODY_STATES, CONTACT_STATES, EVENTS, JOINT_STATES, LINKAGE_
 _JOINT_FIELDS = ('header.stamp.sec', 'header.stamp.nanosec', 'position', 'velocity', 'effort')
 _APPLIED = 'applied_command'
 _FILE_NUMBER = re.compile(r'_(\d+)\.mcap$')
+_MAX_METADATA = 16 << 20       # bytes; rosbag2 writes a few KiB
 
 
 class BagWarning(UserWarning):
@@ -124,27 +126,43 @@ class Run:
 # ---------------------------------------------------------------- files of a bag
 
 def bag_files(path: os.PathLike | str) -> list[Path]:
-    """The .mcap files of a bag directory (from metadata.yaml if present) or ``[path]``."""
+    """The .mcap files of a bag directory (from metadata.yaml if present) or ``[path]``.
+
+    Only regular files count (a FIFO or device named ``*.mcap`` is refused, not opened); a
+    metadata.yaml that lists a file twice is refused (the data would be read twice).
+    """
     path = Path(path)
-    if path.is_file():
-        return [path]
+    if path.is_dir():
+        return _directory_files(path)
     if not path.exists():
         raise BagError(f'{path}: no such file or directory')
-    if not path.is_dir():
-        raise BagError(f'{path}: not a file or directory')
+    if not path.is_file():
+        raise BagError(f'{path}: not a regular file or directory (FIFO, device or socket)')
+    return [path]
+
+
+def _directory_files(path: Path) -> list[Path]:
     meta = path / 'metadata.yaml'
     files: list[Path] = []
     if meta.is_file():
         try:
+            if meta.stat().st_size > _MAX_METADATA:
+                raise ValueError('metadata.yaml too large')
             info = yaml.safe_load(meta.read_text(encoding='utf-8'))['rosbag2_bagfile_information']
-            files = [path / Path(rel).name for rel in info['relative_file_paths']]
-        except (yaml.YAMLError, KeyError, TypeError, ValueError, OSError):
-            files = []
-        files = [f for f in files if f.is_file()]
+            # only plain strings: str() of nested YAML aliases could grow exponentially
+            names = [Path(rel).name for rel in info['relative_file_paths']
+                     if isinstance(rel, str)]
+        except (yaml.YAMLError, KeyError, TypeError, ValueError, OSError, RecursionError):
+            names = []
+        repeated = sorted(n for n, k in Counter(names).items() if k > 1)
+        if repeated:
+            raise BagError(f'{meta}: relative_file_paths lists {", ".join(repeated[:3])} more '
+                           'than once; refusing to read the same data twice')
+        files = [f for f in (path / n for n in names) if f.is_file()]
     if not files:
-        files = sorted(path.glob('*.mcap'), key=_file_order)
+        files = sorted((f for f in path.glob('*.mcap') if f.is_file()), key=_file_order)
     if not files:
-        raise BagError(f'{path}: no .mcap file in this directory')
+        raise BagError(f'{path}: no .mcap file (regular file) in this directory')
     return files
 
 
@@ -155,21 +173,47 @@ def _file_order(path: Path) -> tuple[int, str]:
 
 # ---------------------------------------------------------------- collecting messages
 
+class _Budget:
+    """Bytes of decoded data one file may give: :data:`DECODE_FACTOR` times its size (at least
+    :data:`DECODE_FLOOR`). A real recording decodes to a fraction of its uncompressed size (names,
+    headers and untouched topics are dropped), so only a crafted file (a chunk bomb) reaches it."""
+
+    def __init__(self, path: Path, file_size: int) -> None:
+        self.path = path
+        self.limit = max(DECODE_FLOOR, DECODE_FACTOR * file_size)
+        self.used = 0
+
+    def take(self, nbytes: int) -> None:
+        self.used += nbytes
+        if self.used > self.limit:
+            raise BagError(f'{self.path}: decodes to more than {self.limit} bytes '
+                           f'({DECODE_FACTOR}x the file size); refusing a file that expands '
+                           'like this (crafted or corrupt)')
+
+
+DECODE_FACTOR = 2
+DECODE_FLOOR = 4 << 20
+
+
 @dataclass
 class _TopicData:
     """Messages of one topic collected from one file."""
 
     type: str
     decoder: Decoder | None
+    budget: _Budget
     log_times: list[NDArray[np.int64]] = field(default_factory=list)
     first: bytes | None = None
 
     def sink(self, batch: Batch) -> None:
+        before = self.decoder.nbytes if self.decoder is not None else 0
         if self.decoder is not None:          # first: it raises on damaged data
             self.decoder.add(batch.buffer, batch.starts, batch.lengths)
         if self.first is None and len(batch):
             self.first = batch.data(0)
         self.log_times.append(batch.log_times)
+        after = self.decoder.nbytes if self.decoder is not None else 0
+        self.budget.take(after - before + batch.log_times.nbytes)
 
     def times(self) -> NDArray[np.int64]:
         return np.concatenate(self.log_times) if self.log_times else np.zeros(0, np.int64)
@@ -195,13 +239,18 @@ def _interesting(topic: str) -> bool:
 def _scan_file(path: Path) -> tuple[Scan, dict[str, _TopicData]]:
     """Scan one file, decoding the crawler_sim topics on the way."""
     store: dict[str, _TopicData] = {}
+    try:
+        size = path.stat().st_size
+    except OSError:
+        size = 0                          # scan() reports the reason
+    budget = _Budget(path, size)
 
     def want(channel: Channel, schema: Schema | None) -> Callable[[Batch], None] | None:
         if not _interesting(channel.topic):
             return None
         type_name = schema.name if schema is not None else ''
         fields = _FIELDS.get(type_name)
-        data = _TopicData(type_name, Decoder(type_name, fields) if fields else None)
+        data = _TopicData(type_name, Decoder(type_name, fields) if fields else None, budget)
         store[channel.topic] = data          # a re-scan of the file replaces the first attempt
         return data.sink
 
@@ -402,6 +451,15 @@ def load(path: os.PathLike | str, *, namespace: str | None = None) -> Run:
     return _build_run(Path(path), ns, scans, stores, topics)
 
 
+def _bodies_of(scene: dict[str, Any], names: tuple[str, ...]) -> int:
+    """Number of bodies of a bag without states: from the scene's masses, else 0."""
+    for masses in (scene.get('masses'), (scene.get('crawler') or {}).get('masses')
+                   if isinstance(scene.get('crawler'), dict) else None):
+        if isinstance(masses, list) and masses:
+            return len(masses)
+    return len(names)
+
+
 def _build_run(path: Path, ns: str, scans: list[Scan], stores: list[dict[str, _TopicData]],
                topics: dict[str, TopicSummary]) -> Run:
     body = _merged(stores, BODY_STATES.name(ns))
@@ -411,7 +469,8 @@ def _build_run(path: Path, ns: str, scans: list[Scan], stores: list[dict[str, _T
     contact = contact if contact is not None and contact.type == CONTACT_STATES.type else None
     if body is None:               # _namespace saw the channel, but it has no readable data
         raise BagError(f'{path}: {BODY_STATES.name(ns)} could not be read')
-    p = body.columns['position'].shape[1] if len(body) else len(_names(body))
+    scene = _scene(stores, scans, ns)
+    p = body.columns['position'].shape[1] if len(body) else _bodies_of(scene, _names(body))
     ib, ij, ic = _align([body, joint, contact], stacklevel=4)
     missing = [t.suffix for t, s in ((JOINT_STATES, joint), (CONTACT_STATES, contact))
                if s is None]
@@ -440,7 +499,7 @@ def _build_run(path: Path, ns: str, scans: list[Scan], stores: list[dict[str, _T
         linkage_force=rows(joint, ij, 'effort', n_links),
         commands=_commands(stores, topics, ns, n_links),
         events=_events(stores, ns),
-        scene=_scene(stores, scans, ns),
+        scene=scene,
         topics=topics,
         namespace=ns,
         bodies=_names(body),

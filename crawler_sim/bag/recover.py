@@ -8,16 +8,21 @@ by :class:`crawler_sim.bag.BagWriter` (fresh ``rosbag2`` metadata records, summa
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from io import BytesIO
 import os
 from pathlib import Path
 import re
-from typing import Any
+from typing import Any, Iterator
+import zlib
 
+from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
-from mcap.records import Channel, Message, Metadata, Schema
+from mcap.opcode import Opcode
+from mcap.records import Channel, Chunk, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 
 from .errors import BagError
+from .mcapfile import chunk_limit, decompress, open_regular
 from .reader import bag_files
 from .writer import ROSBAG2_METADATA, BagWriter
 
@@ -96,11 +101,13 @@ def recover(src: os.PathLike | str, dst: os.PathLike | str | None = None) -> Rec
 
 
 def _check_magic(file: Path) -> None:
+    fd, _ = open_regular(file)          # BagError for FIFOs and other special files
     try:
-        with open(file, 'rb') as f:
-            head = f.read(8)
+        head = os.read(fd, 8)
     except OSError as exc:
         raise BagError(f'{file}: cannot read ({exc.strerror})') from None
+    finally:
+        os.close(fd)
     if head != b'\x89MCAP0\r\n':
         raise BagError(f'{file}: not an MCAP file (bad magic bytes)')
 
@@ -151,13 +158,47 @@ class _Copier:
             self.result.metadata += 1
 
 
+def _records(f: Any, size: int) -> Iterator[Any]:
+    """Top-level records of an open MCAP file, chunks opened with bounded decompression (a chunk
+    may not claim more than :func:`crawler_sim.bag.mcapfile.chunk_limit` bytes)."""
+    for record in StreamReader(f, skip_magic=False, emit_chunks=True,
+                               record_size_limit=size).records:
+        if isinstance(record, Chunk):
+            raw = decompress(record.compression, record.data, record.uncompressed_size,
+                             chunk_limit(size))
+            if record.uncompressed_crc and zlib.crc32(raw) != record.uncompressed_crc:
+                raise McapError('chunk CRC mismatch (damaged data)')
+            yield from _chunk_records(raw)
+        else:
+            yield record
+
+
+def _chunk_records(raw: bytes) -> Iterator[Any]:
+    """Schema, Channel and Message records of a decompressed chunk (others skipped)."""
+    stream = ReadDataStream(BytesIO(raw))
+    while stream.count < len(raw):
+        opcode = stream.read1()
+        length = stream.read8()
+        if stream.count + length > len(raw):
+            raise McapError('record runs past the end of its chunk')
+        if opcode == Opcode.SCHEMA:
+            yield Schema.read(stream)
+        elif opcode == Opcode.CHANNEL:
+            yield Channel.read(stream)
+        elif opcode == Opcode.MESSAGE:
+            yield Message.read(stream, length)
+        else:
+            stream.read(length)
+
+
 def _copy_file(file: Path, writer: BagWriter, result: RecoverResult) -> None:
     """Copy the readable records of ``file``; note where and why reading stopped."""
     copier = _Copier(writer, result)
     handlers = {Schema: copier.schema, Channel: copier.channel, Message: copier.message,
                 Metadata: copier.metadata}
-    with open(file, 'rb') as f:
-        records = iter(StreamReader(f, skip_magic=False).records)
+    fd, size = open_regular(file)
+    with os.fdopen(fd, 'rb') as f:
+        records = _records(f, size)
         while writer.error is None:
             try:
                 record = next(records)
