@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 from .schema import message_class
 
 ENCAPSULATION = 4
+_ROW_BYTES = 256 << 10          # bytes of message rows copied at once by Decoder.add
 _PRIMITIVE = {
     'boolean': '|u1', 'octet': '|u1', 'char': '|u1', 'uint8': '|u1', 'int8': '|i1',
     'int16': '<i2', 'uint16': '<u2', 'int32': '<i4', 'uint32': '<u4', 'float': '<f4',
@@ -251,8 +252,11 @@ class Decoder:
             sel = np.flatnonzero(lengths == length) if len(uniq) > 1 else None
             sub = starts if sel is None else starts[sel]
             pos = (np.arange(len(starts)) if sel is None else sel) + self._n
-            rows = sliding_window_view(buffer, int(length))[sub]      # (n, length) copy
-            self._add_rows(rows, pos, staged, counts)
+            # rows are copied (n, length) in blocks of about _ROW_BYTES, not all at once
+            step = max(1, _ROW_BYTES // max(int(length), 1))
+            window = sliding_window_view(buffer, int(length))
+            for k in range(0, len(sub), step):
+                self._add_rows(window[sub[k:k + step]], pos[k:k + step], staged, counts)
         for path in self.paths:
             self._parts[path].extend(staged[path])
             self.nbytes += sum(pos.nbytes + values.nbytes for pos, values in staged[path])

@@ -18,8 +18,8 @@ length and log time of each message of one channel in it, in file order. Sinks a
 decode what they need right away, so only one decompressed chunk is alive at a time.
 
 Hostile files: memory is bounded by the file's size. A chunk may not claim (nor decompress to)
-more than :func:`chunk_limit` bytes (twice the file size, at least 2 MiB: a compression ratio a
-real recording with 1 MiB chunks stays under), messages of one channel in a chunk may not
+more than :func:`chunk_limit` bytes (twice the file size, at least 1.125 MiB: what a writer
+with 1 MiB chunks produces), messages of one channel in a chunk may not
 overlap (an index pointing many times at one big message would be copied many times), and only
 regular files are opened (a FIFO named ``*.mcap`` would block forever).
 """
@@ -55,8 +55,18 @@ FOOTER_RECORD = RECORD_PREFIX + 20
 _U64 = struct.Struct('<Q')
 _U16 = struct.Struct('<H')
 _CHUNK_HEAD = struct.Struct('<QQQII')   # start, end, uncompressed size, crc, compression length
-CHUNK_FLOOR = 2 << 20        # bytes a chunk may always decompress to (writers use ~1 MiB)
+CHUNK_FLOOR = (1 << 20) + (1 << 17)   # bytes a chunk may always decompress to: 1 MiB chunks
+                                      # (mcap's and our writer's default) plus their last message
 CHUNK_FACTOR = 2             # ... or this many times the file size
+
+
+TOTAL_FACTOR = 64           # all chunks of a file: this many times its size (or TOTAL_FLOOR)
+TOTAL_FLOOR = 64 << 20
+
+
+def total_limit(file_size: int) -> int:
+    """Largest sum of uncompressed chunk sizes [bytes] read from a file of ``file_size``."""
+    return max(TOTAL_FLOOR, TOTAL_FACTOR * int(file_size))
 
 
 def chunk_limit(file_size: int) -> int:
@@ -135,6 +145,7 @@ class Scan:
     end_ns: int | None = None
     metadata: list[Metadata] = field(default_factory=list)
     indexed: bool = False          # read through the summary
+    inflated: int = 0              # bytes of chunks decompressed so far
     truncated: bool = False        # no valid end of file, or stopped at a corrupt record
     stop_reason: str = ''
 
@@ -269,12 +280,17 @@ def _decompress(compression: str, data: bytes, size: int, limit: int) -> bytes:
         raise _Corrupt(str(exc)) from None
 
 
-def _read_chunk(mm, content_start: int, content_end: int) -> NDArray[np.uint8]:
+def _read_chunk(result: Scan, mm, content_start: int, content_end: int) -> NDArray[np.uint8]:
     """Decompressed records of the Chunk record whose content spans the given bytes.
 
-    The CRC is checked when the writer stored one.
+    The CRC is checked when the writer stored one. All chunks of a file together may not
+    decompress to more than :func:`total_limit` bytes (the CPU and time a scan may take).
     """
     _, _, usize, crc, clen = _CHUNK_HEAD.unpack_from(mm, content_start)
+    result.inflated += usize
+    if result.inflated > total_limit(len(mm)):
+        raise _Corrupt(f'chunks decompress to more than {total_limit(len(mm))} bytes '
+                       f'({TOTAL_FACTOR}x the file size); refusing the rest (crafted file?)')
     pos = content_start + _CHUNK_HEAD.size
     compression = bytes(mm[pos:pos + clen]).decode()
     pos += clen
@@ -397,7 +413,7 @@ def _scan_indexed(result: Scan, mm, size: int, want: Want) -> bool:
         opcode, a, b = _record_at(mm, ci.chunk_start_offset, footer_pos)
         if opcode != OP_CHUNK:
             raise _Corrupt('chunk index does not point at a chunk')
-        chunk = _read_chunk(mm, a, b)
+        chunk = _read_chunk(result, mm, a, b)
         for cid in present:
             opcode, ia, ib = _record_at(mm, ci.message_index_offsets[cid], footer_pos)
             if opcode != OP_MESSAGE_INDEX:
@@ -478,7 +494,7 @@ def _add_loose_message(result: Scan, buf, a: int, b: int,
 def _linear_chunk(result: Scan, mm, size: int, a: int, b: int, want: Want,
                   wanted: dict[int, Sink | None]) -> int:
     """Process one chunk and the message indexes after it; return the position after them."""
-    chunk = _read_chunk(mm, a, b)
+    chunk = _read_chunk(result, mm, a, b)
     indexes: dict[int, NDArray[np.uint64]] = {}
     pos = b
     complete_indexes = False

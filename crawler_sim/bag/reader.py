@@ -192,7 +192,7 @@ class _Budget:
 
 
 DECODE_FACTOR = 2
-DECODE_FLOOR = 4 << 20
+DECODE_FLOOR = 1 << 20
 
 
 @dataclass

@@ -93,14 +93,16 @@ class Recorder:
         """
         t_ns = to_ns(t)
         w = self.writer
-        w.write(self._names[BODY_STATES], BODY_STATES.type,
-                msgs.body_states(t_ns, x, v, friction), t_ns)
-        w.write(self._names[JOINT_STATES], JOINT_STATES.type,
-                msgs.joint_states(t_ns, lengths, rates, linkage_force), t_ns)
-        w.write(self._names[CONTACT_STATES], CONTACT_STATES.type,
-                msgs.contact_states(contact), t_ns)
-        if self.masses is not None:
-            w.write(self._names[ODOM], ODOM.type, msgs.odometry(t_ns, x, v, self.masses), t_ns)
+        body = msgs.body_states(t_ns, x, v, friction)
+        joint = msgs.joint_states(t_ns, lengths, rates, linkage_force)
+        contact_msg = msgs.contact_states(contact)
+        odom = None if self.masses is None else msgs.odometry(t_ns, x, v, self.masses)
+        with w.atomic():            # a flush never splits one time step
+            w.write(self._names[BODY_STATES], BODY_STATES.type, body, t_ns)
+            w.write(self._names[JOINT_STATES], JOINT_STATES.type, joint, t_ns)
+            w.write(self._names[CONTACT_STATES], CONTACT_STATES.type, contact_msg, t_ns)
+            if odom is not None:
+                w.write(self._names[ODOM], ODOM.type, odom, t_ns)
         return w.error is None
 
     def record(self, state: Any) -> bool:

@@ -22,7 +22,7 @@ from mcap.records import Channel, Chunk, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 
 from .errors import BagError
-from .mcapfile import chunk_limit, decompress, open_regular
+from .mcapfile import chunk_limit, decompress, open_regular, total_limit
 from .reader import bag_files
 from .writer import ROSBAG2_METADATA, BagWriter
 
@@ -161,9 +161,14 @@ class _Copier:
 def _records(f: Any, size: int) -> Iterator[Any]:
     """Top-level records of an open MCAP file, chunks opened with bounded decompression (a chunk
     may not claim more than :func:`crawler_sim.bag.mcapfile.chunk_limit` bytes)."""
+    inflated = 0
     for record in StreamReader(f, skip_magic=False, emit_chunks=True,
                                record_size_limit=size).records:
         if isinstance(record, Chunk):
+            inflated += record.uncompressed_size
+            if inflated > total_limit(size):
+                raise McapError(f'chunks decompress to more than {total_limit(size)} bytes '
+                                '(64x the file size); the rest is not copied (crafted file?)')
             raw = decompress(record.compression, record.data, record.uncompressed_size,
                              chunk_limit(size))
             if record.uncompressed_crc and zlib.crc32(raw) != record.uncompressed_crc:

@@ -181,8 +181,9 @@ class BagWriter:
         Uncompressed chunk size [bytes] before a chunk is compressed and written.
     flush_interval : float or None
         Wall time [s] between automatic flushes of the open chunk, by a background thread
-        (and by :meth:`write` when it notices the interval has passed). ``0`` flushes at
-        every write; None never flushes on its own.
+        (by :meth:`write` instead when a test clock ``_clock`` is injected). ``0`` flushes at
+        every write; None never flushes on its own. Writes grouped in :meth:`atomic` reach
+        the disk together.
     topics : mapping, optional
         ``{absolute topic: type name}`` registered (schema and channel) and flushed to disk at
         creation, before any message.
@@ -320,6 +321,11 @@ class BagWriter:
             self._guard(self._flush)
             fileno = self._fileno if self.error is None else None
         _fsync(fileno)
+
+    def atomic(self) -> threading.RLock:
+        """``with writer.atomic(): ...`` - the writes inside are not split by the flush thread
+        (one time step's topics reach the disk together)."""
+        return self._lock
 
     def flush_if_due(self) -> bool:
         """Flush if records are pending and ``flush_interval`` has passed since the last flush
@@ -493,7 +499,8 @@ class BagWriter:
                        publish_time, sequence) is _FAILED:
             return False
         self._dirty = True
-        if (self._flush_interval is not None
+        # with the flush thread running, flushes happen there (between atomic() blocks only)
+        if (self._flush_interval is not None and (self._thread is None or not self._flush_interval)
                 and self._clock() - self._last_flush >= self._flush_interval):
             self._guard(self._flush)
             if self.error is not None:
