@@ -69,6 +69,7 @@ a feasible, smooth trajectory is tracked with a lag of about one tick.
 """
 from __future__ import annotations
 
+from bisect import bisect_right
 from dataclasses import dataclass
 import math
 from typing import Sequence
@@ -210,9 +211,9 @@ class TrajectoryReference:
             return list(self._p[-1]), [0.0] * self.n_links, [0.0] * self.n_links
         if tau <= kt[0]:
             return list(self._p[0]), list(self._v[0]), list(self._a[0])
-        k = 0
-        while kt[k + 1] <= tau:       # few points per message: a linear scan is fine
-            k += 1
+        # the segment holding tau: kt[k] <= tau < kt[k+1], by bisection (O(log n): a
+        # trajectory may hold up to a million points)
+        k = bisect_right(kt, tau) - 1
         h = kt[k + 1] - kt[k]
         s = (tau - kt[k]) / h
         r, rd, rdd = [], [], []
