@@ -141,7 +141,7 @@ class SimNode(Node):
 
     # ------------------------------------------------------------------ configuration
     def _param_values(self) -> dict:
-        return {name: self.get_parameter(name).value for name in PARAMETERS}
+        return {name: self.get_parameter_or(name).value for name in PARAMETERS}
 
     def _validate_parameters(self, params: list[Parameter]) -> SetParametersResult:
         values = self._param_values()
@@ -149,7 +149,7 @@ class SimNode(Node):
             if prm.name not in PARAMETERS:
                 continue
             value = prm.value
-            if isinstance(PARAMETERS[prm.name][0], list) and value is not None:
+            if isinstance(PARAMETERS[prm.name][0], (list, tuple)) and value is not None:
                 value = list(value)
             values[prm.name] = value
         try:

@@ -1,7 +1,8 @@
 """sim_node parameters: declarations, descriptors, validation to a :class:`SimConfig`.
 
-The defaults are the seed's crawler: two bodies (a 0.5 kg head and a 1 kg tail) joined by one
-linkage, so ``linkage_cmd`` takes ONE length. Every per-body or per-linkage list accepts one
+The defaults are the seed's crawler: two bodies (a 0.5 kg head and a 1 kg tail, friction
+coefficient 0.3, i.e. friction forces proportional to weight) joined by one linkage, so
+``linkage_cmd`` takes ONE length. Every per-body or per-linkage list accepts one
 entry meaning "the same for all", so changing the number of bodies at run time is a single
 ``masses`` change (``ros2 param set /crawler_sim masses "[1.0, 1.0, 1.0]"``).
 
@@ -31,10 +32,16 @@ PARAMETERS: dict[str, tuple[Any, str, tuple[float, float] | None, bool]] = {
     'masses': ([0.5, 1.0], 'Body masses [kg], p >= 2 entries, each in (0, 1e9]; p sets the '
                'number of bodies (a change of p resets the simulation; the seed: 2 bodies)',
                None, False),
-    'friction': ([1.5], 'Friction force resisting forward sliding [N], one entry for all bodies '
-                 'or one per body, each in [0, 1e9]', None, False),
-    'friction_backward': ([1.5], 'Friction force resisting backward sliding [N], one entry for '
-                          'all bodies or one per body, each in [0, 1e9]', None, False),
+    'mu': ([0.3], 'Coulomb friction coefficient against forward sliding, one entry for all '
+           'bodies or one per body, each in [0, 1e3]: friction force = mu m g cos(slope) '
+           '(unless friction is set)', None, False),
+    'mu_backward': ([0.3], 'Coulomb friction coefficient against backward sliding (as mu)',
+                    None, False),
+    'friction': ((), 'Friction force resisting forward sliding [N], one entry for all bodies '
+                 'or one per body, each in [0, 1e9]; when set (non-empty) it replaces mu',
+                 None, False),
+    'friction_backward': ((), 'Friction force resisting backward sliding [N] (as friction); '
+                          'when set it replaces mu_backward', None, False),
     'slope': (0.0, 'Incline [rad], uphill is +x', (-1.5, 1.5), False),
     'gravity': (9.81, 'Gravitational acceleration [m/s^2] (acts through the slope)',
                 (0.0, 100.0), False),
@@ -106,9 +113,12 @@ def descriptor(name: str):
 
 def declare_all(node) -> dict[str, Any]:
     """Declare every parameter on ``node``; return the values (overrides applied)."""
+    from rclpy.parameter import Parameter
     for name, (default, *_rest) in PARAMETERS.items():
+        if default == ():         # a double array without a value until it is set
+            default = Parameter.Type.DOUBLE_ARRAY
         node.declare_parameter(name, default, descriptor(name))
-    return {name: node.get_parameter(name).value for name in PARAMETERS}
+    return {name: node.get_parameter_or(name).value for name in PARAMETERS}
 
 
 def _per_body(name: str, values, p: int, lo: float, hi: float, lo_open: bool = False
@@ -179,8 +189,16 @@ class SimConfig:
         if p < 2:
             raise ValueError(f'masses must list p >= 2 bodies, got {p}')
         masses = _per_body('masses', v['masses'], p, 0.0, MAX_VALUE, lo_open=True)
-        fwd = _per_body('friction', v['friction'], p, 0.0, MAX_VALUE)
-        bwd = _per_body('friction_backward', v['friction_backward'], p, 0.0, MAX_VALUE)
+        weight = [m * v['gravity'] * math.cos(v['slope']) for m in masses]
+        forces = []
+        for force, coeff in (('friction', 'mu'), ('friction_backward', 'mu_backward')):
+            if v[force]:
+                forces.append(_per_body(force, v[force], p, 0.0, MAX_VALUE))
+            else:
+                mu = _per_body(coeff, v[coeff], p, 0.0, 1e3)
+                mu = mu * p if len(mu) == 1 else mu
+                forces.append([mu_i * w for mu_i, w in zip(mu, weight)])
+        fwd, bwd = forces
         # derived quantities: the total mass and the largest weight component must be finite
         # (each value being finite is not enough once they are summed and multiplied)
         if not math.isfinite(sum(masses) * max(v['gravity'], 1.0)):
