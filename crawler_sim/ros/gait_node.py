@@ -4,7 +4,8 @@ Time is ROS time: sim time with ``use_sim_time:=true`` (``sim_node`` with ``publ
 the gait's t is measured from the first tick of the timer. Default gait: the seed's asymmetric
 ``Scallop`` stroke of ONE linkage (extension in 20 % of the period, contraction in 80 %) at
 2 Hz, 0.08-0.12 m, which makes sim_node's default two-body crawler move forward (about
-+6 mm/s through the default actuator limits). With ``n_links`` > 1 linkage j+1 leads linkage j
++4 mm/s, although it asks more of the default actuator than it gives: |l'| up to
+0.77 m/s and |l''| up to 22 m/s^2). With ``n_links`` > 1 linkage j+1 leads linkage j
 by ``phase_lag``: a travelling wave for chains. Two modes:
 
 - ``command`` (default): every ``1/rate`` s it samples the lengths l(t) and publishes them on

@@ -103,7 +103,9 @@ class SimNode(Node):
         self._traj_sub = self.create_subscription(JointTrajectory, 'linkage_trajectory',
                                                   self._on_trajectory, 10, callback_group=group,
                                                   raw=True)
-        self._inputs = ((self._cmd_sub, self._on_command), (self._traj_sub, self._on_trajectory))
+        self._takes = [(sub.handle.take_message, sub.msg_type, sub.raw, handler)
+                       for sub, handler in ((self._cmd_sub, self._on_command),
+                                            (self._traj_sub, self._on_trajectory))]
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.create_service(SetBool, '~/pause', self._on_pause)
 
@@ -195,18 +197,24 @@ class SimNode(Node):
     def take_inputs(self) -> int:
         """Take every ``linkage_cmd`` and ``linkage_trajectory`` message waiting in the
         middleware and validate it, in order of arrival across both topics; return how many
-        were taken. The loop calls this at the start of every tick (and while paused)."""
-        taken = []
+        were taken. The loop calls this at the start of every tick (and while paused).
+
+        The subscription handles are used without their ``with`` guard (2.3 us each, every
+        tick): it only defers destruction, and they are destroyed only with the node, after
+        the loop has stopped.
+        """
+        taken = None
         with self._lock:
-            for sub, handler in self._inputs:
-                handle = sub.handle
-                while True:
-                    with handle:
-                        got = handle.take_message(sub.msg_type, sub.raw)
-                    if got is None:
-                        break
+            for take, msg_type, raw, handler in self._takes:
+                got = take(msg_type, raw)
+                while got is not None:
+                    if taken is None:
+                        taken = []
                     taken.append((got[1].get('received_timestamp', 0), len(taken), handler,
                                   got[0]))
+                    got = take(msg_type, raw)
+            if taken is None:
+                return 0
             if len(taken) > 1:
                 taken.sort(key=lambda item: item[:2])
             for _, _, handler, msg in taken:
@@ -424,7 +432,7 @@ class SimNode(Node):
                 scratch.tick()
             st = scratch.state
             enc = self.outputs.encoder
-            for name, _topic, _pub, encode in self.outputs._grid:
+            for _name, _topic, _pub, encode, _raw in self.outputs._grid:
                 encode(st, self._t_ns, self._cfg.crawler.masses)
             enc.applied_command(list(self._cfg.initial_lengths), self._t_ns)
             enc.fast = enc.slow = 0
