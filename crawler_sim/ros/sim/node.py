@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 from typing import Any
 
 import numpy as np
@@ -110,6 +111,7 @@ class SimNode(Node):
         self.create_service(SetBool, '~/pause', self._on_pause)
 
         self._solver_error = ''
+        self._traj_intake = (0.0, 0)          # (wall s, bytes) of the latest trajectory
         self._pending_cmd: list[float] | None = None
         self._pending_traj: intake.PreparedTrajectory | None = None
         self.paused = bool(self._cfg.start_paused)
@@ -240,8 +242,12 @@ class SimNode(Node):
             from rclpy.serialization import serialize_message
             msg = serialize_message(msg)
         cfg = self._cfg
+        start = time.perf_counter()
         reason, prepared = intake.prepare(msg, cfg.n_links, cfg.min_length, cfg.max_length,
                                           self._t_ns, cfg.max_trajectory_lead)
+        # wall time of the intake (parse + checks) of the latest trajectory: a figure for the
+        # diagnostics (a 100k-point trajectory must not stall the loop)
+        self._traj_intake = (time.perf_counter() - start, len(msg))
         if reason is not None:
             self._rejections.note('trajectories', 'linkage_trajectory', reason)
             return
@@ -393,6 +399,8 @@ class SimNode(Node):
                 'clock_subscribers': (_count(self.outputs.clock_pub.get_subscription_count)
                                       if self.outputs.clock_pub is not None else 0),
                 'recording': rec.path, 'recording_error': rec.error,
+                'last_trajectory_intake_ms': self._traj_intake[0] * 1e3,
+                'last_trajectory_bytes': self._traj_intake[1],
             }
             warn = ['recording failed'] if rec.error else []
             return self._diag.message(self._t_ns, values, wall_now, warn)
