@@ -179,3 +179,20 @@ def test_rejections_are_counted_but_logged_at_most_once_per_period():
     log.note('commands', 'linkage_cmd', 'expected 1 lengths')
     assert len(lines) == 3
     assert '10000 rejected since the last message, 10001 in all' in lines[-1]
+
+
+@pytest.mark.parametrize('n_pts,n_links,vel,acc', [(0, 1, False, False), (5, 1, False, False),
+                                                   (3, 1, True, True), (4, 3, True, False)])
+def test_the_recorded_trajectory_bytes_are_read_by_rosbags_and_rclpy(n_pts, n_links, vel, acc):
+    # rclpy's buffer of a JointTrajectory carries unused bytes that rosbags refuses ("CDR
+    # message size mismatch"): the node records the bytes the message uses
+    from rclpy.serialization import deserialize_message
+    from rosbags.typesys import get_typestore, Stores
+    msg = traj(n_pts, n_links, vel, acc, stamp_ns=7)
+    data = serialize_message(msg)
+    reason, prepared = intake.prepare(data, n_links, LO, HI, 0, 3600.0)
+    assert reason is None
+    store = get_typestore(Stores.ROS2_JAZZY)
+    got = store.deserialize_cdr(prepared.raw, 'trajectory_msgs/msg/JointTrajectory')
+    assert len(got.points) == n_pts and list(got.joint_names) == list(msg.joint_names)
+    assert deserialize_message(prepared.raw, JointTrajectory) == msg

@@ -170,7 +170,7 @@ def prepare(data: bytes, n_links: int, lo: float, hi: float, t_ns: int, max_lead
         return str(exc), None
     reason, prepared = check_trajectory(tr, n_links, lo, hi, t_ns, max_lead_s)
     if prepared is not None:
-        prepared.raw = data
+        prepared.raw = data[:tr.nbytes] if tr.nbytes else data
     return reason, prepared
 
 

@@ -54,6 +54,8 @@ class TrajectoryArrays:
     effort: np.ndarray | None
     sizes: tuple[int, int, int, int]   # per-point sizes of the four arrays (first point)
     mixed: bool = False                # points of different shapes
+    nbytes: int = 0                    # bytes the message uses (0: unknown); rclpy's buffers
+    # may carry unused bytes after it, which rosbags refuses ("CDR message size mismatch")
 
     @property
     def n_points(self) -> int:
@@ -121,7 +123,7 @@ def parse(data: bytes) -> TrajectoryArrays:
     if n_pts == 0:
         empty = np.zeros(0, dtype=np.int64)
         return TrajectoryArrays(stamp_ns, names, empty, np.zeros((0, n_names)), None, None,
-                                None, (n_names, 0, 0, 0))
+                                None, (n_names, 0, 0, 0), nbytes=4 + off)
     regular = _regular_points(buf, off, n_pts)
     if regular is None:
         if n_pts > MAX_IRREGULAR_POINTS:
@@ -129,10 +131,10 @@ def parse(data: bytes) -> TrajectoryArrays:
                 f'{n_pts} points of different shapes (at most {MAX_IRREGULAR_POINTS} such points;'
                 ' give every point the same arrays)')
         return _via_rclpy(data)
-    tfs, arrays, sizes = regular
+    tfs, arrays, sizes, end = regular
     return TrajectoryArrays(stamp_ns, names, tfs, arrays[0],
                             arrays[1] if sizes[1] else None, arrays[2] if sizes[2] else None,
-                            arrays[3] if sizes[3] else None, sizes)
+                            arrays[3] if sizes[3] else None, sizes, nbytes=4 + end)
 
 
 def _regular_points(buf: memoryview, off: int, n_pts: int):
@@ -186,7 +188,7 @@ def _regular_points(buf: memoryview, off: int, n_pts: int):
     dur = fields[:, 8] // 4
     sec = u32[dur].view('<i4').astype(np.int64)
     nsec = u32[dur + 1].astype(np.int64)
-    return sec * 1_000_000_000 + nsec, arrays, sizes_t
+    return sec * 1_000_000_000 + nsec, arrays, sizes_t, total_end
 
 
 def _via_rclpy(data: bytes) -> TrajectoryArrays:
