@@ -153,7 +153,8 @@ class GaitNode(Node):
         self.get_logger().info(f'preloaded one trajectory of {len(msg.points)} points')
 
     def trajectory(self, now_ns: int, horizon: float | None = None) -> JointTrajectory:
-        """The next ``horizon`` seconds of the gait from ROS time ``now_ns``, stamped absolutely."""
+        """The next ``horizon`` seconds of the gait from ROS time ``now_ns``, stamped
+        absolutely."""
         n = max(2, round((self._horizon if horizon is None else horizon) * self._rate))
         step = 1.0 / self._rate
         tau = np.arange(n) * step

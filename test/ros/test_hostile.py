@@ -15,7 +15,6 @@ import numpy as np
 from nav_msgs.msg import Odometry
 import pytest
 from rclpy.parameter import Parameter
-from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint

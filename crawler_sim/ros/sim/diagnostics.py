@@ -14,7 +14,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 
 from crawler_sim.ros import messages as M
 
-__all__ = ['Diagnostics', 'COUNTERS']
+__all__ = ['Diagnostics', 'COUNTERS', 'node_values']
 
 COUNTERS = ('ticks', 'late_ticks', 'commands_accepted', 'commands_rejected',
             'commands_no_value', 'trajectories_accepted', 'trajectories_rejected',
@@ -59,3 +59,33 @@ class Diagnostics:
             warn.append('non-finite state: outputs withheld')
         warn += extra_warnings or []
         return M.diagnostics_msg(t_ns, out, warn=warn, name=self.name)
+
+
+def _count(query) -> int:
+    """A graph count, or -1 once the context is shut down (e.g. in the final diagnostics)."""
+    try:
+        return int(query())
+    except Exception:  # rclpy raises RCLError for an invalid context
+        return -1
+
+
+def node_values(node) -> tuple[dict[str, Any], list[str]]:
+    """The figures of a SimNode for its report (call under its lock), and extra warnings."""
+    rec = node.recorder
+    cfg = node._cfg
+    clock = node.outputs.clock_pub
+    values = {
+        'paused': node.paused, 'method': cfg.method, 'bodies': cfg.p,
+        'real_time_factor_target': cfg.real_time_factor,
+        'last_rejection': node._rejections.last,
+        'indeterminate': bool(getattr(node._last_state, 'indeterminate', False)),
+        'solver_method_now': node._engine.stepper.method,
+        'solver_error': node._solver_error,
+        'linkage_cmd_publishers': _count(node._cmd_sub.get_publisher_count),
+        'linkage_trajectory_publishers': _count(node._traj_sub.get_publisher_count),
+        'clock_subscribers': _count(clock.get_subscription_count) if clock is not None else 0,
+        'recording': rec.path, 'recording_error': rec.error,
+        'last_trajectory_intake_ms': node._traj_intake[0] * 1e3,
+        'last_trajectory_bytes': node._traj_intake[1],
+    }
+    return values, (['recording failed'] if rec.error else [])

@@ -100,7 +100,8 @@ def check_trajectory(tr: TrajectoryArrays, n_links: int, lo: float, hi: float, t
         empty = np.zeros(0, dtype=np.int64)
         return None, PreparedTrajectory(tr.stamp_ns, empty, np.zeros((0, n_links)), None, None)
     if tr.mixed:
-        return 'points differ in which of positions/velocities/accelerations/effort they fill', None
+        return ('points differ in which of positions/velocities/accelerations/effort they '
+                'fill'), None
     sizes = tr.sizes
     if sizes[0] != n_links:
         return (f'mismatch between joint_names size ({n_links}) and positions ({sizes[0]}) '

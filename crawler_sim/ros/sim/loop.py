@@ -11,9 +11,27 @@ from __future__ import annotations
 
 import time
 
-__all__ = ['run', 'MAX_LAG']
+__all__ = ['run', 'warm_up', 'MAX_LAG']
 
 MAX_LAG = 0.5            # wall s of lag after which the real-time loop re-anchors
+
+
+def warm_up(node) -> None:
+    """Run once what the first ticks would compile, import or build cold (the solver's first
+    call, the encoders' templates) on a scratch engine, so that cold start stays out of the
+    real-time loop; ``main`` calls it before the loop starts. The node's state is unchanged."""
+    from crawler_sim.core.engine import Engine
+    with node._lock:
+        cfg = node._cfg
+        scratch = Engine(cfg.engine_config(), node._t_ns)
+        for _ in range(cfg.publish_every):
+            scratch.tick()
+        st = scratch.state
+        enc = node.outputs.encoder
+        for _name, _topic, _pub, encode, _raw in node.outputs._grid:
+            encode(st, node._t_ns, cfg.crawler.masses)
+        enc.applied_command(list(cfg.initial_lengths), node._t_ns)
+        enc.fast = enc.slow = 0
 
 
 def run(node) -> None:

@@ -43,10 +43,10 @@ from trajectory_msgs.msg import JointTrajectory
 from crawler_sim.core.engine import Engine
 from crawler_sim.ros import messages as M
 from . import intake, loop
-from .diagnostics import COUNTERS, Diagnostics
+from .diagnostics import COUNTERS, Diagnostics, node_values
 from .outputs import Outputs
 from .params import PARAMETERS, SimConfig, declare_all
-from .recording import Recorder
+from .recording import applied_trajectory, Recorder
 
 __all__ = ['SimNode', 'LoopTakenGroup', 'NODE_NAME']
 
@@ -70,14 +70,6 @@ class LoopTakenGroup(CallbackGroup):
 
     def ending_execution(self, entity: Any) -> None:
         pass
-
-
-def _count(query) -> int:
-    """A graph count, or -1 once the context is shut down (e.g. in the final diagnostics)."""
-    try:
-        return int(query())
-    except Exception:  # rclpy raises RCLError for an invalid context
-        return -1
 
 
 class SimNode(Node):
@@ -360,14 +352,8 @@ class SimNode(Node):
             return
         actuator.set_trajectory(ref)
         if self.recorder.on and tr.raw is not None:
-            # as received, with stamp 0 ("now") replaced by the tick it took effect at
-            raw = tr.raw
-            if not tr.stamp_ns:
-                sec, nanosec = divmod(t_ns, 1_000_000_000)
-                raw = raw[:4] + sec.to_bytes(4, 'little', signed=True) \
-                    + nanosec.to_bytes(4, 'little') + raw[12:]
             self.recorder.write('linkage_trajectory', 'trajectory_msgs/msg/JointTrajectory',
-                                raw, t_ns)
+                                applied_trajectory(tr.raw, tr.stamp_ns, t_ns), t_ns)
 
     # ------------------------------------------------------------------ outputs
     def _publish_outputs(self) -> None:
@@ -386,23 +372,7 @@ class SimNode(Node):
     def diagnostics(self, wall_now: float | None = None):
         """Build the /diagnostics message (figures since the previous call)."""
         with self._lock:
-            rec = self.recorder
-            values = {
-                'paused': self.paused, 'method': self._cfg.method, 'bodies': self._cfg.p,
-                'real_time_factor_target': self._cfg.real_time_factor,
-                'last_rejection': self._rejections.last,
-                'indeterminate': bool(getattr(self._last_state, 'indeterminate', False)),
-                'solver_method_now': self._engine.stepper.method,
-                'solver_error': self._solver_error,
-                'linkage_cmd_publishers': _count(self._cmd_sub.get_publisher_count),
-                'linkage_trajectory_publishers': _count(self._traj_sub.get_publisher_count),
-                'clock_subscribers': (_count(self.outputs.clock_pub.get_subscription_count)
-                                      if self.outputs.clock_pub is not None else 0),
-                'recording': rec.path, 'recording_error': rec.error,
-                'last_trajectory_intake_ms': self._traj_intake[0] * 1e3,
-                'last_trajectory_bytes': self._traj_intake[1],
-            }
-            warn = ['recording failed'] if rec.error else []
+            values, warn = node_values(self)
             return self._diag.message(self._t_ns, values, wall_now, warn)
 
     def _publish_diagnostics(self, wall_now: float) -> None:
@@ -431,19 +401,8 @@ class SimNode(Node):
 
     # ------------------------------------------------------------------ the loop
     def warm_up(self) -> None:
-        """Run once what the first ticks would compile or import (encoders' templates, the
-        solver's first call), on a scratch engine, so that cold start stays out of the
-        real-time loop. The node's state is unchanged."""
-        with self._lock:
-            scratch = Engine(self._cfg.engine_config(), self._t_ns)
-            for _ in range(self._cfg.publish_every):
-                scratch.tick()
-            st = scratch.state
-            enc = self.outputs.encoder
-            for _name, _topic, _pub, encode, _raw in self.outputs._grid:
-                encode(st, self._t_ns, self._cfg.crawler.masses)
-            enc.applied_command(list(self._cfg.initial_lengths), self._t_ns)
-            enc.fast = enc.slow = 0
+        """Run once what the first ticks would compute cold (see :func:`.loop.warm_up`)."""
+        loop.warm_up(self)
 
     def run(self) -> None:
         """Tick until stopped or the context shuts down, paced by ``real_time_factor``."""

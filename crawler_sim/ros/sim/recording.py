@@ -12,7 +12,7 @@ import os
 import time
 from typing import Any, Callable
 
-__all__ = ['Recorder', 'bag_name', 'FLUSH_PERIOD']
+__all__ = ['Recorder', 'bag_name', 'applied_trajectory', 'FLUSH_PERIOD']
 
 FLUSH_PERIOD = 0.5      # wall s between two flushes of the bag
 
@@ -29,6 +29,17 @@ def bag_name(record_name: str, when: float | None = None) -> str:
         raise ValueError(f'record_name {record_name!r} must be a plain name inside record_dir '
                          '(no path separators, not . or ..)')
     return record_name
+
+
+def applied_trajectory(raw: bytes, stamp_ns: int, t_ns: int) -> bytes:
+    """A received JointTrajectory (CDR) as recorded: the same bytes, with stamp 0 ("start at
+    the tick it is applied") replaced by that tick's sim time ``t_ns``, so the recorded stamp
+    is absolute."""
+    if stamp_ns:
+        return raw
+    sec, nanosec = divmod(t_ns, 1_000_000_000)
+    return (raw[:4] + sec.to_bytes(4, 'little', signed=True) + nanosec.to_bytes(4, 'little')
+            + raw[12:])
 
 
 class Recorder:
