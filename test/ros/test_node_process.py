@@ -10,6 +10,7 @@ import os
 from pathlib import Path
 import signal
 import subprocess
+import sys
 import time
 import warnings
 
@@ -333,3 +334,25 @@ def test_gait_node_drives_the_sim_on_sim_time(ament_env, peer, tmp_path):
     assert lengths.max() - lengths.min() > 0.03          # the stroke is played (2 x 0.02 m)
     x = np.array([m.position for m in states])
     assert np.ptp(x, axis=0).min() > 5e-3                  # and every body moves
+
+
+def test_the_demo_crawls_the_same_every_time_in_the_users_domain(ament_env, tmp_path):
+    # the demo (make run) twice: the gait is preloaded as one trajectory into the paused sim, so
+    # both runs get the same command stream at the same ticks and record the same states
+    from crawler_sim import bag
+    env = dict(ament_env, ROS_DOMAIN_ID=os.environ['ROS_DOMAIN_ID'], MPLBACKEND='Agg')
+    runs = []
+    for k in range(2):
+        out = tmp_path / f'runs{k}'
+        proc = subprocess.run([sys.executable, '-m', 'crawler_sim.ros.demo', '--duration', '2',
+                               '--runs', str(out)], env=env, capture_output=True, text=True,
+                              timeout=240)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        assert f'ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}' in proc.stdout   # not overridden
+        runs.append(bag.load(next(p for p in out.iterdir() if p.is_dir())))
+    a, b = runs
+    n = min(np.count_nonzero(a.t <= 2.0), np.count_nonzero(b.t <= 2.0))
+    assert n > 150
+    np.testing.assert_array_equal(a.t[:n], b.t[:n])
+    np.testing.assert_array_equal(a.x[:n], b.x[:n])
+    assert a.x[n - 1, 0] - a.x[0, 0] > 1e-3          # and it crawls forward
