@@ -196,3 +196,26 @@ def test_the_recorded_trajectory_bytes_are_read_by_rosbags_and_rclpy(n_pts, n_li
     got = store.deserialize_cdr(prepared.raw, 'trajectory_msgs/msg/JointTrajectory')
     assert len(got.points) == n_pts and list(got.joint_names) == list(msg.joint_names)
     assert deserialize_message(prepared.raw, JointTrajectory) == msg
+
+
+@pytest.mark.parametrize('order', [1, 3, 5])
+@pytest.mark.parametrize('first', [0.0, 0.013])
+def test_the_array_reference_gives_the_same_floats_as_the_list_one(order, first):
+    # from_arrays (the node's path, no per-point Python lists) against __init__ (the core's
+    # original constructor): bit-identical r, r', r'' everywhere, including before the first
+    # point (from the actuator's state) and after the last
+    rng = np.random.default_rng(order)
+    n, n_links = 200, 2
+    times = first + np.cumsum(rng.uniform(1e-3, 2e-2, n))
+    times[0] = first
+    pos = rng.uniform(0.05, 0.2, (n, n_links))
+    vel = rng.normal(size=(n, n_links)) if order >= 3 else None
+    acc = rng.normal(size=(n, n_links)) if order >= 5 else None
+    state = [(0.1, 0.2, -0.3), (0.12, -0.1, 0.5)]
+    lists = TrajectoryReference(4.0, state, times.tolist(), pos.tolist(),
+                                None if vel is None else vel.tolist(),
+                                None if acc is None else acc.tolist())
+    arrays = TrajectoryReference.from_arrays(4.0, state, times, pos, vel, acc)
+    assert arrays.end_time == lists.end_time
+    for t in np.concatenate([[3.9, 4.0], 4.0 + rng.uniform(0, times[-1] + 0.1, 500)]):
+        assert arrays(float(t)) == lists(float(t))

@@ -184,10 +184,10 @@ def reference(tr: PreparedTrajectory, t_ns: int, state: Sequence[Sequence[float]
     if reason:
         raise ValueError(reason)
     keep, times = tr.times(t_ns)
-    pos = tr.positions[keep].tolist()
-    vel = tr.velocities[keep].tolist() if tr.velocities is not None else None
-    acc = tr.accelerations[keep].tolist() if tr.accelerations is not None else None
-    return TrajectoryReference(t_ns / 1e9, state, times.tolist(), pos, vel, acc)
+    vel = tr.velocities[keep] if tr.velocities is not None else None
+    acc = tr.accelerations[keep] if tr.accelerations is not None else None
+    return TrajectoryReference.from_arrays(t_ns / 1e9, state, times, tr.positions[keep], vel,
+                                           acc)
 
 
 class RejectionLog:
