@@ -464,7 +464,12 @@ def test_real_time_factor_paces_sim_time_against_the_wall_clock(ros):
     sim.stop()
     loop.join(timeout=5)
     wall = time.monotonic() - start
-    assert sim.sim_time_ns / 1e9 == pytest.approx(2.0 * wall, rel=0.15)
+    # pacing never runs ahead of real_time_factor x wall time, whatever the load (flat out
+    # this node runs several times faster); falling behind it is allowed only when it says so
+    # (late ticks counted), so a busy machine cannot fail this test, a broken pacer can
+    sim_s = sim.sim_time_ns / 1e9
+    assert 0.0 < sim_s <= 2.0 * wall * 1.02 + 0.01
+    assert sim_s >= 2.0 * wall * 0.85 or sim.counters['late_ticks'] > 0
 
 
 @pytest.mark.parametrize('method', ['exact', 'implicit', 'penalty'])
