@@ -156,39 +156,84 @@ def _regular_points(buf: memoryview, off: int, n_pts: int):
     # either settle (from point 1 on, one stride) or alternate (period 2 from point 0)
     f0, end0 = _point_layout(off, sizes_t)
     f1, end1 = _point_layout(end0, sizes_t)
-    k = np.arange(n_pts, dtype=np.int64)
-    if (end1 - end0) % 8 == 0:
-        stride = end1 - end0
-        starts = np.where(k == 0, off, end0 + (k - 1) * stride)
-        rel = np.array([[x - off for x in f0], [x - end0 for x in f1]], dtype=np.int64)
-        fields = starts[:, None] + rel[np.minimum(k, 1)]
-        total_end = end0 + (n_pts - 1) * stride
-    else:
-        pair = end1 - off
-        starts = off + (k // 2) * pair
-        rel = np.array([[x - off for x in f0], [x - off for x in f1]], dtype=np.int64)
-        fields = starts[:, None] + rel[k % 2]
-        total_end = off + (n_pts // 2) * pair + (end0 - off if n_pts % 2 else 0)
+    if (end1 - end0) % 8 == 0:          # point 0, then blocks of one point from end0
+        block = end1 - end0
+        head = [_one_point(buf, f0, sizes_t)]
+        blocks = (end0, n_pts - 1, block, [[x - end0 for x in f1]])
+        tail = []
+        total_end = end0 + (n_pts - 1) * block
+    else:                                # blocks of two points from off
+        block = end1 - off
+        head = []
+        blocks = (off, n_pts // 2, block, [[x - off for x in f0], [x - off for x in f1]])
+        last = off + (n_pts // 2) * block
+        total_end = last + (end0 - off if n_pts % 2 else 0)
+        tail = [_one_point(buf, [x - off + last for x in f0], sizes_t)] if n_pts % 2 else []
     if total_end > len(buf):       # (rclpy's buffers may carry unused bytes at the end)
         return None
-    raw = np.frombuffer(buf, dtype=np.uint8)
-    u32 = raw[: len(raw) // 4 * 4].view('<u4')
-    for j in range(4):
-        if not np.all(u32[fields[:, 2 * j] // 4] == sizes_t[j]):
-            return None
-    f64 = raw[: len(raw) // 8 * 8].view('<f8')   # data offsets of doubles are 8-aligned
-    arrays = []
-    for j in range(4):
-        n = sizes_t[j]
-        if n == 0:
-            arrays.append(None)
+    slots = _read_blocks(buf, *blocks, sizes_t)
+    if slots is None or any(p is None for p in head + tail):
+        return None
+    # points in order: head, then the slots of each block interleaved, then tail
+    parts = []
+    for j in range(5):              # tfs, positions, velocities, accelerations, effort
+        if j > 0 and sizes_t[j - 1] == 0:
+            parts.append(None)
             continue
-        idx = fields[:, 2 * j + 1][:, None] // 8 + np.arange(n)[None, :]
-        arrays.append(f64[idx])
-    dur = fields[:, 8] // 4
-    sec = u32[dur].view('<i4').astype(np.int64)
-    nsec = u32[dur + 1].astype(np.int64)
-    return sec * 1_000_000_000 + nsec, arrays, sizes_t, total_end
+        mid = [sl[j] for sl in slots]
+        if len(mid) == 2:
+            inter = np.empty((len(mid[0]) + len(mid[1]),) + mid[0].shape[1:], mid[0].dtype)
+            inter[0::2], inter[1::2] = mid[0], mid[1]
+        else:
+            inter = mid[0]
+        pieces = [np.asarray(h[j])[None] for h in head] + [inter] \
+            + [np.asarray(t[j])[None] for t in tail]
+        parts.append(np.concatenate(pieces) if len(pieces) > 1 else inter)
+    return parts[0], parts[1:], sizes_t, total_end
+
+
+def _one_point(buf: memoryview, fields: list[int], sizes: tuple[int, ...]):
+    """(tfs_ns, positions, velocities, accelerations, effort) of the point whose field offsets
+    are ``fields`` (see :func:`_point_layout`), or None when its counts differ from ``sizes``."""
+    out: list = []
+    try:
+        for j in range(4):
+            (n,) = _U32.unpack_from(buf, fields[2 * j])
+            if n != sizes[j]:
+                return None
+            out.append(np.array(struct.unpack_from(f'<{n}d', buf, fields[2 * j + 1])) if n
+                       else None)
+        sec, nsec = struct.unpack_from('<iI', buf, fields[8])
+    except struct.error:          # runs past the end of the message
+        return None
+    return [sec * 1_000_000_000 + nsec] + out
+
+
+def _read_blocks(buf: memoryview, start: int, n_blocks: int, block: int,
+                 slots: list[list[int]], sizes: tuple[int, ...]):
+    """Per slot (point position within a block): [tfs_ns, positions, velocities,
+    accelerations, effort] of every block, read from 2-D views of the buffer (no copy but the
+    results); None when a count differs from ``sizes``. Blocks are ``block`` bytes (a multiple
+    of 8) from ``start``; slot field offsets are relative to the block start."""
+    u32 = np.frombuffer(buf, '<u4', count=n_blocks * block // 4,
+                        offset=start).reshape(n_blocks, block // 4)
+    base8 = start - start % 8         # doubles are 8-aligned in the buffer
+    f64 = np.frombuffer(buf, '<f8', count=n_blocks * block // 8,
+                        offset=base8).reshape(n_blocks, block // 8)
+    out = []
+    for rel in slots:
+        got: list = []
+        for j in range(4):
+            if not np.all(u32[:, rel[2 * j] // 4] == sizes[j]):
+                return None
+            n = sizes[j]
+            col = (start + rel[2 * j + 1] - base8) // 8
+            got.append(f64[:, col:col + n].copy() if n else None)
+        dur = rel[8] // 4
+        tfs = u32[:, dur].view('<i4').astype(np.int64) * 1_000_000_000 \
+            + u32[:, dur + 1].astype(np.int64)
+        out.append([tfs] + got)
+    return out
 
 
 def _via_rclpy(data: bytes) -> TrajectoryArrays:
