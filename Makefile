@@ -17,7 +17,7 @@ export MPLBACKEND := Agg
 .PHONY: run test venv build bench clean
 
 run: build
-	$(PY) -m crawler_sim.demo
+	$(PY) -m crawler_sim.ros.demo
 
 test: build
 	$(PY) -m pytest -q -p no:cacheprovider test

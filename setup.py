@@ -13,8 +13,16 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
-        (os.path.join('share', package_name, 'config'), glob('config/*.yaml')),
+        # ROS parameter files and scene files in separate folders (neither is mistaken for
+        # the other); the launch file, and the RViz and Foxglove layouts of the markers
+        (os.path.join('share', package_name, 'config', 'ros'), glob('config/ros/*.yaml')),
+        (os.path.join('share', package_name, 'config', 'scenes'), glob('config/scenes/*.yaml')),
         (os.path.join('share', package_name, 'config', 'bench'), glob('config/bench/*.yaml')),
+        (os.path.join('share', package_name, 'config', 'viz'), glob('config/viz/*')),
+        (os.path.join('share', package_name, 'launch'), glob('launch/*.launch.py')),
+        # `crawler-sim` on PATH after `source install/setup.bash` (colcon puts <prefix>/bin on
+        # PATH; the console scripts below go to lib/crawler_sim/ for `ros2 run`)
+        ('bin', ['scripts/crawler-sim']),
     ],
     install_requires=['setuptools'],
     zip_safe=True,

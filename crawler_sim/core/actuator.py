@@ -69,6 +69,7 @@ a feasible, smooth trajectory is tracked with a lag of about one tick.
 """
 from __future__ import annotations
 
+from bisect import bisect_right
 from dataclasses import dataclass
 import math
 from typing import Sequence
@@ -202,29 +203,77 @@ class TrajectoryReference:
         self._p, self._v, self._a = pos, vel, acc
         self.end_time = self.t_start + knots_t[-1]
 
+    @classmethod
+    def from_arrays(cls, t_start: float, state: Sequence[Sequence[float]], times,
+                    positions, velocities=None, accelerations=None) -> TrajectoryReference:
+        """The same reference as ``cls(...)`` from numpy arrays of any length, without the
+        per-element conversions of ``__init__`` (a million points: tens of ms, not seconds).
+
+        ``times`` (N,) and ``positions`` (N, n_links) etc. as in ``__init__``; the times must be
+        finite, >= 0 and strictly increasing (checked here with numpy).
+        """
+        import numpy as np
+        ts = np.asarray(times, dtype=float)
+        if ts.ndim != 1 or len(ts) == 0 or len(positions) != len(ts):
+            raise ValueError('a trajectory needs at least one point and one position row per time')
+        if accelerations is not None and velocities is None:
+            raise ValueError('accelerations need velocities')
+        if not (np.isfinite(ts).all() and ts[0] >= 0 and np.all(np.diff(ts) > 0)):
+            raise ValueError('trajectory times must be >= 0 and strictly increasing')
+        self = cls.__new__(cls)
+        self.n_links = len(state)
+        self.t_start = float(t_start)
+        self.order = 5 if accelerations is not None else 3 if velocities is not None else 1
+        n_pts = len(ts)
+        # rows stay numpy arrays (a list of a million small lists costs seconds to build);
+        # __call__ takes the two rows it needs as floats (_row)
+        pos = np.asarray(positions, dtype=float).reshape(n_pts, self.n_links)
+        zeros = np.zeros((n_pts, self.n_links))
+        vel = (np.asarray(velocities, dtype=float).reshape(n_pts, self.n_links)
+               if velocities is not None else zeros)
+        acc = (np.asarray(accelerations, dtype=float).reshape(n_pts, self.n_links)
+               if accelerations is not None else zeros)
+        knots_t = ts.tolist()
+        if knots_t[0] != 0.0:            # the first segment starts at the actuator's state
+            knots_t.insert(0, 0.0)
+            st = np.array([[float(x) for x in row] for row in state])
+            zero = np.zeros((1, self.n_links))
+            pos = np.vstack([st[:, 0][None, :], pos])
+            vel = np.vstack([st[:, 1][None, :] if self.order >= 3 else zero, vel])
+            acc = np.vstack([st[:, 2][None, :] if self.order >= 5 else zero, acc])
+        self._t = knots_t
+        self._p, self._v, self._a = pos, vel, acc
+        self.end_time = self.t_start + knots_t[-1]
+        return self
+
     def __call__(self, t: float) -> tuple[list[float], list[float], list[float]]:
         """(r, r', r'') per linkage at sim time t."""
         tau = t - self.t_start
         kt = self._t
         if tau >= kt[-1]:
-            return list(self._p[-1]), [0.0] * self.n_links, [0.0] * self.n_links
+            return list(_row(self._p, -1)), [0.0] * self.n_links, [0.0] * self.n_links
         if tau <= kt[0]:
-            return list(self._p[0]), list(self._v[0]), list(self._a[0])
-        k = 0
-        while kt[k + 1] <= tau:       # few points per message: a linear scan is fine
-            k += 1
+            return (list(_row(self._p, 0)), list(_row(self._v, 0)),
+                    list(_row(self._a, 0)))
+        # the segment holding tau: kt[k] <= tau < kt[k+1], by bisection (O(log n): a
+        # trajectory may hold up to a million points)
+        k = bisect_right(kt, tau) - 1
         h = kt[k + 1] - kt[k]
         s = (tau - kt[k]) / h
+        P0, P1 = _row(self._p, k), _row(self._p, k + 1)
+        if self.order > 1:
+            V0, V1 = _row(self._v, k), _row(self._v, k + 1)
+            A0, A1 = _row(self._a, k), _row(self._a, k + 1)
         r, rd, rdd = [], [], []
         for i in range(self.n_links):
-            p0, p1 = self._p[k][i], self._p[k + 1][i]
+            p0, p1 = P0[i], P1[i]
             if self.order == 1:
                 r.append(p0 + s * (p1 - p0))
                 rd.append((p1 - p0) / h)
                 rdd.append(0.0)
                 continue
-            v0, v1 = self._v[k][i] * h, self._v[k + 1][i] * h
-            a0, a1 = self._a[k][i] * h * h, self._a[k + 1][i] * h * h
+            v0, v1 = V0[i] * h, V1[i] * h
+            a0, a1 = A0[i] * h * h, A1[i] * h * h
             c = _hermite(p0, v0, a0, p1, v1, a1, self.order)
             x = c[0] + s * (c[1] + s * (c[2] + s * (c[3] + s * (c[4] + s * c[5]))))
             xd = c[1] + s * (2 * c[2] + s * (3 * c[3] + s * (4 * c[4] + s * 5 * c[5])))
@@ -233,6 +282,11 @@ class TrajectoryReference:
             rd.append(xd / h)
             rdd.append(xdd / (h * h))
         return r, rd, rdd
+
+
+def _row(rows, k: int) -> list[float]:
+    """Row k of a list of rows, or of a 2-D array as floats (same values)."""
+    return rows[k] if isinstance(rows, list) else rows[k].tolist()
 
 
 def _hermite(p0: float, v0: float, a0: float, p1: float, v1: float, a1: float,
@@ -322,7 +376,7 @@ class Actuator:
             raise ValueError(f'expected {self.n_links} linkages, got {trajectory.n_links}')
         self.trajectory = trajectory
         self._rest_piece = None
-        self.target = list(trajectory._p[-1])
+        self.target = [float(x) for x in trajectory._p[-1]]
         self._settled = [False] * self.n_links
 
     def state(self) -> list[tuple[float, float, float]]:

@@ -4,13 +4,13 @@
 
 1. finds the colcon-installed ``sim_node`` and ``gait_node`` through the ament index
    (``get_package_prefix('crawler_sim')/lib/crawler_sim/``, as ``ros2 run`` does);
-2. starts them as processes in a fresh ``ROS_DOMAIN_ID``: the sim with its shipped parameters,
-   ``publish_clock``, ``real_time_factor 0`` (as fast as the CPU allows), ``start_paused`` and
-   recording to a new bag ``runs/crawl_<date>-<time>/``; the gait node on sim time in
-   trajectory mode (stamped trajectories: the stroke lands on sim time however fast the sim
-   runs and however late the messages arrive);
-3. waits until both are connected, un-pauses the sim, follows ``/clock`` until the requested
-   simulated time, pauses the sim and stops both with SIGINT;
+2. starts them as processes (in the user's ``ROS_DOMAIN_ID``): the sim with its shipped
+   two-body parameters (``config/ros/crawler_sim.yaml``), ``real_time_factor 0`` (as fast as
+   the CPU allows), ``start_paused`` and recording to a new bag ``runs/crawl_<date>-<time>/``;
+   the gait node on sim time, preloading the whole stroke as one trajectory stamped 0;
+3. waits until the sim holds that trajectory, un-pauses it, follows ``/clock`` until the
+   requested simulated time, pauses the sim and stops both with SIGINT. The same command
+   stream at the same ticks: every run crawls the same distance;
 4. prints a summary read back from the bag (distance crawled, mean speed, stick fraction per
    body, contact events, real-time factor, bag and plot paths) and writes the plot with
    ``crawler_sim.bag.plot``.
@@ -103,8 +103,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.duration > 0:
         parser.error('--duration must be > 0')
 
-    domain = os.getpid() % 100 + 1
-    os.environ['ROS_DOMAIN_ID'] = str(domain)
+    domain = os.environ.get('ROS_DOMAIN_ID', '0')      # the user's: never overridden
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     env = _workspace_env(dict(os.environ))
     name = time.strftime('crawl_%Y%m%d-%H%M%S')
@@ -112,14 +111,15 @@ def main(argv: list[str] | None = None) -> int:
     runs.mkdir(parents=True, exist_ok=True)
     bag = runs / name
     png = runs / f'{name}.png'
-    sim_args = ['--params-file', str(_share() / 'config' / 'crawler_sim.yaml'),
-                '-p', 'publish_clock:=true', '-p', 'real_time_factor:=0.0',
+    sim_args = ['--params-file', str(_share() / 'config' / 'ros' / 'crawler_sim.yaml'),
+                '-p', 'real_time_factor:=0.0',
                 '-p', 'start_paused:=true', '-p', 'diagnostics_period:=0.2',
                 '-p', 'record:=true', '-p', f'record_dir:={runs}', '-p', f'record_name:={name}']
     print(f'crawler_sim demo: {args.duration:g} simulated seconds, ROS_DOMAIN_ID={domain}')
     children = [_Child('sim_node', sim_args, env, runs / f'{name}.sim_node.log'),
-                _Child('gait_node', ['-p', 'use_sim_time:=true', '-p', 'mode:=trajectory'], env,
-                       runs / f'{name}.gait_node.log')]
+                _Child('gait_node', ['-p', 'use_sim_time:=true', '-p', 'mode:=trajectory',
+                                     '-p', 'preload:=true', '-p', f'duration:={args.duration}'],
+                       env, runs / f'{name}.gait_node.log')]
     try:
         wall, diag = _drive(args.duration, children)
     except KeyboardInterrupt:
@@ -184,10 +184,11 @@ def _drive(duration: float, children: list[_Child]) -> tuple[float, dict[str, st
         spin_until(future.done, 'the ~/pause response', DEADLINE_CONNECT)
 
     try:
-        spin_until(lambda: int(diag.get('linkage_cmd_publishers', 0))
-                   + int(diag.get('linkage_trajectory_publishers', 0)) >= 1
-                   and int(diag.get('clock_subscribers', 0)) >= 2,
-                   'sim_node and gait_node to connect', DEADLINE_CONNECT)
+        # the gait node sends its whole stroke as one trajectory (stamp 0 = from the tick it is
+        # applied) to the paused sim: the run starts only once it is there, so every run gets
+        # the same command stream at the same ticks and crawls the same
+        spin_until(lambda: int(diag.get('trajectories_accepted', 0)) >= 1,
+                   'sim_node to receive the gait', DEADLINE_CONNECT)
         set_paused(False)
         start = time.monotonic()
         last_print = 0.0

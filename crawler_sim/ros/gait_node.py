@@ -1,11 +1,12 @@
 """``gait_node``: a small topic-driven controller that plays one of the core's gaits.
 
 Time is ROS time: sim time with ``use_sim_time:=true`` (``sim_node`` with ``publish_clock:=true``);
-the gait's t is measured from the first tick of the timer. Default gait: the asymmetric
-``Scallop`` stroke (extension in 30 % of the period, contraction in 70 %) at 1 Hz, 0.07-0.13 m,
-with linkage j+1 leading linkage j by a quarter period: a travelling wave that makes the default
-three-body crawler move forward (about +2 mm/s), within the default actuator limits
-(|l'| <= 0.37 m/s, |l''| <= 3.4 m/s^2). Two modes:
+the gait's t is measured from the first tick of the timer. Default gait: the seed's asymmetric
+``Scallop`` stroke of ONE linkage (extension in 20 % of the period, contraction in 80 %) at
+2 Hz, 0.08-0.12 m, which makes sim_node's default two-body crawler move forward (about
++4 mm/s, although it asks more of the default actuator than it gives: |l'| up to
+0.77 m/s and |l''| up to 22 m/s^2). With ``n_links`` > 1 linkage j+1 leads linkage j
+by ``phase_lag``: a travelling wave for chains. Two modes:
 
 - ``command`` (default): every ``1/rate`` s it samples the lengths l(t) and publishes them on
   ``linkage_cmd`` (std_msgs/Float64MultiArray), the sim's step-command input; the sim's
@@ -20,7 +21,9 @@ three-body crawler move forward (about +2 mm/s), within the default actuator lim
 Parameters: ``gait`` (scallop | sinusoid), ``n_links``, ``mean`` [m], ``amplitude`` [m],
 ``frequency`` [Hz], ``asymmetry`` (scallop: fraction of the period spent extending),
 ``phase_lag`` [rad] between neighbouring linkages, ``rate`` [Hz], ``mode``, ``horizon`` [s],
-``duration`` [s] of ROS time after which it stops publishing (0: forever).
+``duration`` [s] of ROS time after which it stops publishing (0: forever), ``preload``
+(trajectory mode: one trajectory of the whole duration, stamped 0, sent once a subscriber is
+matched: the demo's deterministic command stream).
 """
 from __future__ import annotations
 
@@ -74,15 +77,15 @@ class GaitNode(Node):
         p = {
             'gait': self.declare_parameter('gait', 'scallop', _desc(
                 'Gait: ' + ' | '.join(GAITS))).value,
-            'n_links': self.declare_parameter('n_links', 2, _desc(
+            'n_links': self.declare_parameter('n_links', 1, _desc(
                 'Number of linkages (bodies - 1)', 1, 100, integer=True)).value,
             'mean': self.declare_parameter('mean', 0.1, _desc(
                 'Mean length [m]', 0.0, 100.0)).value,
-            'amplitude': self.declare_parameter('amplitude', 0.03, _desc(
+            'amplitude': self.declare_parameter('amplitude', 0.02, _desc(
                 'Half stroke [m]', 0.0, 100.0)).value,
-            'frequency': self.declare_parameter('frequency', 1.0, _desc(
+            'frequency': self.declare_parameter('frequency', 2.0, _desc(
                 'Stroke frequency [Hz]', 1e-3, 100.0)).value,
-            'asymmetry': self.declare_parameter('asymmetry', 0.3, _desc(
+            'asymmetry': self.declare_parameter('asymmetry', 0.2, _desc(
                 'Scallop: fraction of the period spent extending', 0.01, 0.99)).value,
             'phase_lag': self.declare_parameter('phase_lag', -math.pi / 2, _desc(
                 'Phase lag of linkage j+1 behind linkage j [rad] (negative: it leads)',
@@ -96,6 +99,12 @@ class GaitNode(Node):
             'command (lengths on linkage_cmd) | trajectory (on linkage_trajectory)')).value
         self._horizon = self.declare_parameter('horizon', 4.0, _desc(
             'Trajectory mode: seconds of gait per trajectory', 0.1, 3600.0)).value
+        self._preload = self.declare_parameter('preload', False, _desc(
+            'Trajectory mode: publish ONE trajectory of the whole duration, stamped 0 (start at '
+            'the tick it is applied), as soon as a subscriber is matched; then nothing. The '
+            'same command stream whatever the timing: a deterministic run')).value
+        if self._preload and not (self.mode == 'trajectory' and self._duration > 0):
+            raise ValueError('preload needs mode trajectory and a duration > 0')
         if self.mode not in MODES:
             raise ValueError(f'mode must be one of {", ".join(MODES)}, got {self.mode!r}')
         self.gait = make_gait(p['gait'], p['n_links'], p['mean'], p['amplitude'],
@@ -108,7 +117,12 @@ class GaitNode(Node):
         self._t0_ns: int | None = None
         self._next_ns = 0
         self.sent = 0
-        self.create_timer(1.0 / rate, self._on_timer)
+        if self._preload:
+            from rclpy.clock import Clock, ClockType
+            self._preload_timer = self.create_timer(
+                0.05, self._on_preload, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        else:
+            self.create_timer(1.0 / rate, self._on_timer)
         topic = 'linkage_cmd' if self.mode == 'command' else 'linkage_trajectory'
         self.get_logger().info(f'playing {p["gait"]} on {topic} at {rate} Hz: {p}')
 
@@ -127,9 +141,21 @@ class GaitNode(Node):
             self._next_ns = now + round(self._horizon / 4 * 1e9)
             self.sent += 1
 
-    def trajectory(self, now_ns: int) -> JointTrajectory:
-        """The next ``horizon`` seconds of the gait from ROS time ``now_ns``, stamped absolutely."""
-        n = max(2, round(self._horizon * self._rate))
+    def _on_preload(self) -> None:
+        if self.sent or self._pub.get_subscription_count() == 0:
+            return
+        self._t0_ns = 0
+        msg = self.trajectory(0, horizon=self._duration)
+        msg.header.stamp = stamp_from_ns(0)       # 0: start at the tick it is applied
+        self._pub.publish(msg)
+        self.sent += 1
+        self._preload_timer.cancel()
+        self.get_logger().info(f'preloaded one trajectory of {len(msg.points)} points')
+
+    def trajectory(self, now_ns: int, horizon: float | None = None) -> JointTrajectory:
+        """The next ``horizon`` seconds of the gait from ROS time ``now_ns``, stamped
+        absolutely."""
+        n = max(2, round((self._horizon if horizon is None else horizon) * self._rate))
         step = 1.0 / self._rate
         tau = np.arange(n) * step
         gait_t = (now_ns - self._t0_ns) / 1e9 + tau

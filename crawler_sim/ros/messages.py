@@ -26,7 +26,8 @@ from ..bag.msgs import (BASE_FRAME, ODOM_FRAME, body_names, body_states, centre_
                         linkage_names, ns_from_stamp, odometry, stamp_from_ns)
 
 __all__ = ['stamp_from_ns', 'ns_from_stamp', 'linkage_names', 'body_names', 'joint_states_msg',
-           'body_states_msg', 'contact_states_msg', 'odom_msg', 'markers_msg',
+           'body_states_msg', 'contact_states_msg', 'contacts_stamped_msg', 'odom_msg',
+           'markers_msg',
            'diagnostics_msg', 'clock_msg', 'clock_cdr', 'applied_command_msg',
            'float64_array_msg', 'event_msg', 'centre_of_mass', 'OutputEncoder', 'OUTPUT_TYPES',
            'CONTACT_COLOURS',
@@ -48,6 +49,16 @@ def joint_states_msg(state, t_ns: int) -> JointState:
 def body_states_msg(state, t_ns: int) -> JointState:
     """``body_states`` from a core ``State``."""
     return body_states(t_ns, state.x, state.v, state.friction)
+
+
+def contacts_stamped_msg(state, t_ns: int) -> JointState:
+    """``contacts``: the stamped alternative to ``contact_states`` within common_interfaces.
+
+    One entry per body (name ``body_i``): position = contact state (+1 sliding forward, 0
+    stuck, -1 sliding backward), velocity = body velocity [m/s], effort = friction force [N]
+    (the sign convention of ``body_states``)."""
+    return joint_state(t_ns, body_names(len(state.x)), np.asarray(state.contact, dtype=float),
+                       state.v, state.friction)
 
 
 def contact_states_msg(state) -> Int8MultiArray:
@@ -164,6 +175,7 @@ OUTPUT_TYPES = {
     'markers': 'visualization_msgs/msg/MarkerArray',
     'applied_command': 'sensor_msgs/msg/JointState',
     'linkage_cmd': 'std_msgs/msg/Float64MultiArray',
+    'contacts_stamped': 'sensor_msgs/msg/JointState',
 }
 _STAMP = ('header.stamp.sec', 'header.stamp.nanosec')
 _JOINTS = (_STAMP, ('position',), ('velocity',), ('effort',))
@@ -205,6 +217,11 @@ class OutputEncoder:
     def body_states(self, state, t_ns: int, masses=None) -> bytes:
         return self._joints('body_states', t_ns, state.x, state.v, state.friction,
                             lambda: body_states_msg(state, t_ns))
+
+    def contacts_stamped(self, state, t_ns: int, masses=None) -> bytes:
+        contact = np.asarray(state.contact, dtype=float)
+        return self._joints('contacts_stamped', t_ns, contact, state.v, state.friction,
+                            lambda: contacts_stamped_msg(state, t_ns))
 
     def applied_command(self, lengths: Sequence[float], t_ns: int) -> bytes:
         """``~/applied_command`` (see :func:`applied_command_msg`)."""

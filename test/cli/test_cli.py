@@ -16,7 +16,7 @@ from crawler_sim import cli
 from crawler_sim.core.scene import Scene, load_scene
 
 REPO = Path(__file__).resolve().parents[2]
-CONFIG = REPO / 'config'
+CONFIG = REPO / 'config' / 'scenes'
 SCENES = ('scallop_2body', 'wave_3body', 'slope_climb', 'bang_bang')
 FIGURES = ('displacement', 'mean speed', 'stick fraction', 'events', 'dissipated energy',
            'actuator work', 'cost of transport', 'verify', 'wall time')

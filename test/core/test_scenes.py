@@ -22,7 +22,7 @@ def _is_scene_file(path: Path) -> bool:
     return isinstance(data, dict) and 'scene' in data
 
 
-SCENE_FILES = sorted(p for p in CONFIG.glob('*.yaml') if _is_scene_file(p)) + sorted(
+SCENE_FILES = sorted(p for p in CONFIG.glob('scenes/*.yaml') if _is_scene_file(p)) + sorted(
     p for p in CONFIG.glob('bench/*.yaml') if _is_scene_file(p))
 
 
@@ -60,7 +60,7 @@ def test_every_scene_survives_the_bag_round_trip_bit_for_bit(path):
 
 @pytest.mark.parametrize('name', NAMED)
 def test_each_named_scene_crawls_forward(name):
-    tr = load_scene(CONFIG / f'{name}.yaml').simulate()
+    tr = load_scene(CONFIG / 'scenes' / f'{name}.yaml').simulate()
     assert tr.displacement > 0.1          # metres in the scene's 20 s
 
 
@@ -124,7 +124,7 @@ def test_coefficients_give_the_same_crawler_as_from_coefficients():
 
 
 def test_run_options_reach_simulate_and_can_be_overridden():
-    scene = load_scene(CONFIG / 'scallop_2body.yaml')
+    scene = load_scene(CONFIG / 'scenes' / 'scallop_2body.yaml')
     scene = scene.with_run(method='implicit', dt=2e-3, t_end=1.0)
     tr = scene.simulate()
     assert tr.method == 'implicit'
@@ -133,7 +133,7 @@ def test_run_options_reach_simulate_and_can_be_overridden():
 
 
 def test_yaml_exponent_floats_without_a_dot_are_read_as_numbers(tmp_path):
-    text = (CONFIG / 'scallop_2body.yaml').read_text() + '    tol: 1e-12\n    dt: 5e-4\n'
+    text = (CONFIG / 'scenes' / 'scallop_2body.yaml').read_text() + '    tol: 1e-12\n    dt: 5e-4\n'
     path = tmp_path / 's.yaml'
     path.write_text(text)
     run = load_scene(path).run
@@ -142,7 +142,7 @@ def test_yaml_exponent_floats_without_a_dot_are_read_as_numbers(tmp_path):
 
 # --- errors -----------------------------------------------------------------------------------
 
-BASE = yaml.safe_load((CONFIG / 'wave_3body.yaml').read_text())['scene']
+BASE = yaml.safe_load((CONFIG / 'scenes' / 'wave_3body.yaml').read_text())['scene']
 
 
 def _set(path: str, value):

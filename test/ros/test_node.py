@@ -42,6 +42,9 @@ from crawler_sim.ros.sim_node import SimConfig, SimNode
 from ros_helpers import Spinning  # noqa: E402
 
 DEADLINE = 10.0   # wall s for any single wait (discovery, a service call)
+#: the scene of most tests here: three 1 kg bodies, 3 N of friction each, two 0.1 m linkages
+THREE_BODY = {'masses': [1.0, 1.0, 1.0], 'friction': [3.0], 'friction_backward': [3.0],
+              'initial_lengths': [0.1, 0.1], 'publish_clock': False}
 
 
 class Harness(Spinning):
@@ -66,7 +69,11 @@ class Harness(Spinning):
         self.others: list[Node] = []
         self.received: dict[str, list] = {}
 
-    def sim(self, **params: Any) -> SimNode:
+    def sim(self, seed: bool = False, **params: Any) -> SimNode:
+        """A SimNode; unless ``seed``, on the three-body scene these tests were written for
+        (the defaults are the seed's two bodies, tested in test_defaults.py)."""
+        if not seed:
+            params = {**THREE_BODY, **params}
         node = SimNode(context=self.ctx, parameter_overrides=[
             Parameter(k, value=v) for k, v in params.items()])
         self.ex.add_node(node)
@@ -200,7 +207,7 @@ def test_clock_is_published_at_every_publish_tick_only_when_asked(ros):
 def test_a_switched_off_output_has_no_publisher_and_builds_no_message(ros, monkeypatch):
     sim = ros.sim(publish_markers=False, publish_odom=False, method='implicit')
     built = []
-    monkeypatch.setattr(sim._outputs, 'markers', lambda *a: built.append(a))
+    monkeypatch.setattr(sim.outputs.encoder, 'markers', lambda *a: built.append(a))
     ticks(sim, 50)
     assert ros.obs.count_publishers('/markers') == 0
     assert ros.obs.count_publishers('/odom') == 0
@@ -362,7 +369,7 @@ def test_a_stamped_trajectory_that_already_ended_is_rejected(ros):
     ([Parameter('masses', value=[1.0, 1.0, 1.0, 1.0])], 'initial_lengths must have 1 or 3'),
     ([Parameter('masses', value=[1.0, -1.0, 1.0])], 'masses[1]'),
     ([Parameter('record', value=True)], 'read-only'),
-    ([Parameter('penalty', value=[0.0])], 'penalty must have 1 or 3 entries'),
+    ([Parameter('penalty', value=[0.0])], 'penalty[0] = 0.0 outside (0'),
 ])
 def test_an_invalid_parameter_is_rejected_with_a_reason_and_changes_nothing(ros, params,
                                                                            problem):
@@ -457,7 +464,12 @@ def test_real_time_factor_paces_sim_time_against_the_wall_clock(ros):
     sim.stop()
     loop.join(timeout=5)
     wall = time.monotonic() - start
-    assert sim.sim_time_ns / 1e9 == pytest.approx(2.0 * wall, rel=0.15)
+    # pacing never runs ahead of real_time_factor x wall time, whatever the load (flat out
+    # this node runs several times faster); falling behind it is allowed only when it says so
+    # (late ticks counted), so a busy machine cannot fail this test, a broken pacer can
+    sim_s = sim.sim_time_ns / 1e9
+    assert 0.0 < sim_s <= 2.0 * wall * 1.02 + 0.01
+    assert sim_s >= 2.0 * wall * 0.85 or sim.counters['late_ticks'] > 0
 
 
 @pytest.mark.parametrize('method', ['exact', 'implicit', 'penalty'])
@@ -578,9 +590,12 @@ def test_a_failing_bag_stops_recording_but_not_the_simulation(ros, monkeypatch, 
 
 @pytest.mark.parametrize('mode,tolerance', [('command', 0.035), ('trajectory', 1e-3)])
 def test_gait_node_plays_its_gait_on_sim_time(ros, mode, tolerance):
-    sim = ros.sim(publish_clock=True)
+    sim = ros.sim(seed=True)              # the defaults of both: two bodies, one linkage
+    # a stroke within the actuator's limits (|l'| <= 0.17 m/s, |l''| <= 1.2 m/s^2), so that
+    # trajectory mode can play it exactly (the default stroke saturates the actuator)
     gait = GaitNode(context=ros.ctx, parameter_overrides=[
-        Parameter('use_sim_time', value=True), Parameter('mode', value=mode)])
+        Parameter('use_sim_time', value=True), Parameter('mode', value=mode),
+        Parameter('frequency', value=1.0), Parameter('asymmetry', value=0.4)])
     ros.ex.add_node(gait)
     ros.others.append(gait)
     counter = 'commands_accepted' if mode == 'command' else 'trajectories_accepted'

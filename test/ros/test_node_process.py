@@ -10,6 +10,7 @@ import os
 from pathlib import Path
 import signal
 import subprocess
+import sys
 import time
 import warnings
 
@@ -107,9 +108,17 @@ def peer():
     p.close()
 
 
-def sim_args(method: str, *extra: str) -> list[str]:
-    config = Path(get_package_share_directory('crawler_sim')) / 'config' / 'crawler_sim.yaml'
-    return ['--params-file', str(config), '-p', f'method:={method}', '-p', 'publish_clock:=true',
+#: the three-body scene of the offline-match test (friction forces given in N)
+THREE_BODY = {'masses': [1.0, 1.0, 1.0], 'friction': [3.0], 'friction_backward': [3.0]}
+
+
+def config_file(name: str = 'crawler_sim.yaml') -> Path:
+    return Path(get_package_share_directory('crawler_sim')) / 'config' / 'ros' / name
+
+
+def sim_args(method: str, *extra: str, three_body: bool = True) -> list[str]:
+    scene = [a for k, v in THREE_BODY.items() for a in ('-p', f'{k}:={v}')] if three_body else []
+    return ['--params-file', str(config_file()), *scene, '-p', f'method:={method}',
             '-p', 'real_time_factor:=0.0', '-p', 'start_paused:=true',
             '-p', 'diagnostics_period:=0.2', *extra]
 
@@ -122,7 +131,16 @@ def test_the_package_is_registered_in_the_ament_index_with_its_executables(ament
         assert executable(name).parent == prefix / 'lib' / 'crawler_sim'
     share = Path(get_package_share_directory('crawler_sim'))
     assert (share / 'package.xml').is_file()
-    assert (share / 'config' / 'crawler_sim.yaml').is_file()
+    for name in ('ros/crawler_sim.yaml', 'ros/chain_3body.yaml', 'scenes/scallop_2body.yaml',
+                 'viz/crawler_sim.rviz', 'viz/crawler_sim.foxglove.json'):
+        assert (share / 'config' / name).is_file(), name
+    assert (share / 'launch' / 'crawler_sim.launch.py').is_file()
+    # `crawler-sim` on PATH once the workspace is sourced: colcon puts <prefix>/bin on PATH
+    tool = prefix / 'bin' / 'crawler-sim'
+    assert os.access(tool, os.X_OK)
+    proc = subprocess.run([str(tool), '--help'], env=ament_env, capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 0 and 'simulate' in proc.stdout, proc.stderr
 
 
 def diagnostics_values(msg: DiagnosticArray) -> dict[str, str]:
@@ -188,9 +206,8 @@ def test_the_sim_process_matches_the_offline_solution_and_runs_faster_than_real_
         sim.kill()
 
     assert code == 0 and 'Traceback' not in err, err
-    wall = t_ten - t_start
-    print(f'\n{method}: 10 sim s in {wall:.2f} wall s')
-    assert wall < 6.0, f'10 simulated seconds took {wall:.2f} s of wall time'
+    # speed is a benchmark figure (tools/node_bench.py), not a test assertion
+    print(f'\n{method}: 10 sim s in {t_ten - t_start:.2f} wall s')
 
     assert not bad_param.results[0].successful
     assert 'friction must have 1 or 3 entries' in bad_param.results[0].reason
@@ -203,7 +220,7 @@ def test_the_sim_process_matches_the_offline_solution_and_runs_faster_than_real_
     assert len(schedule) == 3
     assert [v for _, v in sorted(schedule.items())] == [[0.15, 0.12], [0.06, 0.16], [0.12, 0.07]]
     values = {k: v[0] for k, v in PARAMETERS.items()}
-    values['method'] = method
+    values.update(THREE_BODY, method=method)
     cfg = SimConfig.from_values(values)
     dt_ns = cfg.dt_ns
     act = Actuator(cfg.initial_lengths, dt_ns / 1e9, cfg.limits)
@@ -256,7 +273,7 @@ def test_sim_node_exits_cleanly_on_a_signal_and_closes_its_bag(ament_env, peer, 
 
 
 def test_invalid_parameters_at_start_give_one_line_and_exit_code_1(ament_env, tmp_path):
-    sim = Proc(tmp_path, ament_env, 'sim_node', '-p', 'friction:=[1.0, 2.0]')
+    sim = Proc(tmp_path, ament_env, 'sim_node', '-p', 'friction:=[1.0, 2.0, 3.0]')
     try:
         code = sim.popen.wait(timeout=DEADLINE)
     finally:
@@ -264,14 +281,30 @@ def test_invalid_parameters_at_start_give_one_line_and_exit_code_1(ament_env, tm
     sim.err.seek(0)
     err = sim.err.read()
     assert code == 1
-    assert 'friction must have 1 or 3 entries' in err and 'Traceback' not in err
+    assert 'friction must have 1 or 2 entries' in err and 'Traceback' not in err
+
+
+def test_a_scene_file_as_params_file_gives_one_clear_line_and_exit_code_2(ament_env,
+                                                                          tmp_path):
+    scene = config_file().parents[1] / 'scenes' / 'scallop_2body.yaml'
+    sim = Proc(tmp_path, ament_env, 'sim_node', '--params-file', str(scene))
+    try:
+        code = sim.popen.wait(timeout=DEADLINE)
+    finally:
+        sim.kill()
+    sim.err.seek(0)
+    err = sim.err.read()
+    assert code == 2, err
+    assert 'is not a ROS 2 parameter file' in err and 'scene file' in err
+    assert 'Traceback' not in err and 'rcl' not in err.replace('crawler_sim', '')
 
 
 def test_gait_node_drives_the_sim_on_sim_time(ament_env, peer, tmp_path):
     # paced at 4x real time, not flat out: a sim-time controller in Python gets fewer turns per
     # sim second the faster the sim runs, and on a busy CI machine flat out can starve it
     sim = Proc(tmp_path, ament_env, 'sim_node', *sim_args('implicit', '-p',
-                                                           'real_time_factor:=4.0'))
+                                                           'real_time_factor:=4.0',
+                                                           three_body=False))
     gait = Proc(tmp_path, ament_env, 'gait_node', '-p', 'use_sim_time:=true')
     try:
         diags: list[DiagnosticArray] = []
@@ -295,7 +328,31 @@ def test_gait_node_drives_the_sim_on_sim_time(ament_env, peer, tmp_path):
     values = diagnostics_values(diags[-1])
     # 50 Hz of sim time for 6 s is 300 commands; some are lost to start-up and latency
     assert int(values['commands_accepted']) > 100 and values['commands_rejected'] == '0'
+    # the seed's two bodies: one linkage, its length = x_1 - x_0
     lengths = np.array([np.diff(m.position) for m in states])
-    assert lengths.max() - lengths.min() > 0.04          # the stroke is played (2 x 0.03 m)
+    assert lengths.shape[1] == 1
+    assert lengths.max() - lengths.min() > 0.03          # the stroke is played (2 x 0.02 m)
     x = np.array([m.position for m in states])
     assert np.ptp(x, axis=0).min() > 5e-3                  # and every body moves
+
+
+def test_the_demo_crawls_the_same_every_time_in_the_users_domain(ament_env, tmp_path):
+    # the demo (make run) twice: the gait is preloaded as one trajectory into the paused sim, so
+    # both runs get the same command stream at the same ticks and record the same states
+    from crawler_sim import bag
+    env = dict(ament_env, ROS_DOMAIN_ID=os.environ['ROS_DOMAIN_ID'], MPLBACKEND='Agg')
+    runs = []
+    for k in range(2):
+        out = tmp_path / f'runs{k}'
+        proc = subprocess.run([sys.executable, '-m', 'crawler_sim.ros.demo', '--duration', '2',
+                               '--runs', str(out)], env=env, capture_output=True, text=True,
+                              timeout=240)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        assert f'ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}' in proc.stdout   # not overridden
+        runs.append(bag.load(next(p for p in out.iterdir() if p.is_dir())))
+    a, b = runs
+    n = min(np.count_nonzero(a.t <= 2.0), np.count_nonzero(b.t <= 2.0))
+    assert n > 150
+    np.testing.assert_array_equal(a.t[:n], b.t[:n])
+    np.testing.assert_array_equal(a.x[:n], b.x[:n])
+    assert a.x[n - 1, 0] - a.x[0, 0] > 1e-3          # and it crawls forward

@@ -184,7 +184,8 @@ SETTLE = 1.5     # sim s after a command by which the actuator has settled and e
 
 
 def sim_params(*extra: str) -> list[str]:
-    config = Path(get_package_share_directory('crawler_sim')) / 'config' / 'crawler_sim.yaml'
+    config = (Path(get_package_share_directory('crawler_sim')) / 'config' / 'ros'
+              / 'chain_3body.yaml')      # three bodies: commands of two lengths
     args = ['--params-file', str(config)]
     for p in ('method:=exact', 'start_paused:=true', 'diagnostics_period:=0.2') + extra:
         args += ['-p', p]

@@ -1,0 +1,91 @@
+"""sim_node diagnostics: figures since the previous report, as one DiagnosticStatus.
+
+The status is named ``<node fully qualified name>: simulation`` (so two namespaced crawlers
+publish distinct names on the shared ``/diagnostics``) and carries the hardware id
+``crawler_sim``. Level WARN names what went wrong since the previous report (late ticks,
+rejected inputs, a recording or solver failure), else OK.
+"""
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticArray
+
+from crawler_sim.ros import messages as M
+
+__all__ = ['Diagnostics', 'COUNTERS', 'node_values']
+
+COUNTERS = ('ticks', 'late_ticks', 'commands_accepted', 'commands_rejected',
+            'commands_no_value', 'trajectories_accepted', 'trajectories_rejected',
+            'solver_events', 'resets', 'lag_resets', 'solver_failures', 'nonfinite_outputs')
+
+
+class Diagnostics:
+    """Tick lateness and counter deltas between two reports."""
+
+    def __init__(self, counters: dict[str, int], name: str) -> None:
+        self.counters = counters
+        self.name = name
+        self.lateness: list[float] = []       # wall s, one entry per real-time tick
+        self._prev = (0, time.perf_counter(), dict(counters))
+
+    def message(self, t_ns: int, values: dict[str, Any], wall_now: float | None = None,
+                extra_warnings: list[str] | None = None) -> DiagnosticArray:
+        """The report at sim time ``t_ns`` [ns]; ``values`` are the node's own figures."""
+        wall_now = time.perf_counter() if wall_now is None else wall_now
+        t_prev, wall_prev, c_prev = self._prev
+        c = dict(self.counters)
+        rtf = (t_ns - t_prev) / 1e9 / max(wall_now - wall_prev, 1e-9)
+        late = sorted(self.lateness)
+        self.lateness = []
+        self._prev = (t_ns, wall_now, c)
+        p99 = late[min(len(late) - 1, int(0.99 * len(late)))] * 1e3 if late else 0.0
+        out = {'sim_time': t_ns / 1e9, 'real_time_factor': rtf,
+               'tick_lateness_p99_ms': p99,
+               'tick_lateness_max_ms': late[-1] * 1e3 if late else 0.0}
+        out.update(values)
+        out.update(c)
+        warn = []
+        if c['late_ticks'] > c_prev['late_ticks']:
+            warn.append(f'{c["late_ticks"] - c_prev["late_ticks"]} late ticks')
+        for kind in ('commands', 'trajectories'):
+            k = kind + '_rejected'
+            if c[k] > c_prev[k]:
+                warn.append(f'{c[k] - c_prev[k]} {kind} rejected')
+        if c['solver_failures'] > c_prev['solver_failures']:
+            warn.append('solver failed, fell back to implicit')
+        if c['nonfinite_outputs'] > c_prev['nonfinite_outputs']:
+            warn.append('non-finite state: outputs withheld')
+        warn += extra_warnings or []
+        return M.diagnostics_msg(t_ns, out, warn=warn, name=self.name)
+
+
+def _count(query) -> int:
+    """A graph count, or -1 once the context is shut down (e.g. in the final diagnostics)."""
+    try:
+        return int(query())
+    except Exception:  # rclpy raises RCLError for an invalid context
+        return -1
+
+
+def node_values(node) -> tuple[dict[str, Any], list[str]]:
+    """The figures of a SimNode for its report (call under its lock), and extra warnings."""
+    rec = node.recorder
+    cfg = node._cfg
+    clock = node.outputs.clock_pub
+    values = {
+        'paused': node.paused, 'method': cfg.method, 'bodies': cfg.p,
+        'real_time_factor_target': cfg.real_time_factor,
+        'last_rejection': node._rejections.last,
+        'indeterminate': bool(getattr(node._last_state, 'indeterminate', False)),
+        'solver_method_now': node._engine.stepper.method,
+        'solver_error': node._solver_error,
+        'linkage_cmd_publishers': _count(node._cmd_sub.get_publisher_count),
+        'linkage_trajectory_publishers': _count(node._traj_sub.get_publisher_count),
+        'clock_subscribers': _count(clock.get_subscription_count) if clock is not None else 0,
+        'recording': rec.path, 'recording_error': rec.error,
+        'last_trajectory_intake_ms': node._traj_intake[0] * 1e3,
+        'last_trajectory_bytes': node._traj_intake[1],
+    }
+    return values, (['recording failed'] if rec.error else [])

@@ -1,0 +1,97 @@
+"""The real-time loop of sim_node: ticks paced against the wall clock.
+
+One loop drives the ticks in both clock modes. ``real_time_factor`` paces it (1 = real time,
+10 = ten times faster, 0 = as fast as possible). A tick that starts more than one tick period
+after its wall deadline is counted as late, and the loop catches up by running the due ticks
+back to back (beyond :data:`MAX_LAG` of lag it gives up on the lost time and re-anchors).
+Diagnostics go out every ``diagnostics_period`` wall seconds and the bag is flushed on a wall
+timer (``recording.FLUSH_PERIOD``), both from this loop, so neither waits for a message.
+"""
+from __future__ import annotations
+
+import time
+
+__all__ = ['run', 'warm_up', 'MAX_LAG']
+
+MAX_LAG = 0.5            # wall s of lag after which the real-time loop re-anchors
+
+
+def warm_up(node) -> None:
+    """Run once what the first ticks would compile, import or build cold (the solver's first
+    call, the encoders' templates) on a scratch engine, so that cold start stays out of the
+    real-time loop; ``main`` calls it before the loop starts. The node's state is unchanged."""
+    from crawler_sim.core.engine import Engine
+    with node._lock:
+        cfg = node._cfg
+        scratch = Engine(cfg.engine_config(), node._t_ns)
+        for _ in range(cfg.publish_every):
+            scratch.tick()
+        st = scratch.state
+        enc = node.outputs.encoder
+        for _name, _topic, _pub, encode, _raw in node.outputs._grid:
+            encode(st, node._t_ns, cfg.crawler.masses)
+        enc.applied_command(list(cfg.initial_lengths), node._t_ns)
+        enc.fast = enc.slow = 0
+
+
+def run(node) -> None:
+    """Tick ``node`` until it is stopped or its context shuts down."""
+    try:
+        _loop(node)
+    except Exception:
+        if node.context.ok():
+            raise
+        # a signal shut the context down in the middle of a tick (e.g. while publishing)
+
+
+def _loop(node) -> None:
+    now = time.perf_counter
+    anchor_wall = now()
+    anchor_tick = 0
+    next_diag = anchor_wall + node._cfg.diagnostics_period
+    next_flush = anchor_wall
+    ok = node.context.ok
+    counters = node.counters
+    lateness = node._diag
+    recorder = node.recorder
+    if counters['ticks'] == 0:
+        with node._lock:
+            node._publish_outputs()       # the initial state at t = 0 (a bag starts there)
+    checks = 0
+    while not node._stop:
+        # context.ok() costs ~1 us: flat out, ask every 16th iteration
+        checks = (checks + 1) & 15
+        if checks == 0 and not ok():
+            break
+        t = now()
+        if t >= next_diag:
+            node._publish_diagnostics(t)
+            next_diag = t + node._cfg.diagnostics_period
+        if t >= next_flush:
+            recorder.maybe_flush(time.monotonic())
+            next_flush = t + 0.1
+        if node.paused:
+            node.take_inputs()        # count (and warn about) commands while paused too
+            time.sleep(0.01)
+            continue
+        if node._anchor_needed:
+            node._anchor_needed = False
+            anchor_wall, anchor_tick = t, counters['ticks']
+        cfg = node._cfg
+        rtf = cfg.real_time_factor
+        if rtf > 0.0:
+            period = cfg.dt_ns * 1e-9 / rtf
+            deadline = anchor_wall + (counters['ticks'] - anchor_tick) * period
+            if t < deadline:
+                time.sleep(min(deadline - t, 0.05))
+                continue
+            late = t - deadline
+            lateness.lateness.append(late)
+            if late > period:
+                counters['late_ticks'] += 1
+            if late > MAX_LAG:
+                counters['lag_resets'] += 1
+                node._anchor_needed = True
+        with node._lock:              # a pause that arrived meanwhile wins
+            if not node.paused:
+                node.tick()

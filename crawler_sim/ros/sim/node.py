@@ -1,0 +1,413 @@
+"""``SimNode``: the crawler as a ROS 2 node driven by commanded linkage lengths.
+
+The node glues the pieces of this package around ``crawler_sim.core.engine.Engine`` (the
+actuator model and the core's exact ``Stepper``, no ROS): :mod:`.params` (parameters to a
+:class:`~.params.SimConfig`), :mod:`.intake` (commands and trajectories), :mod:`.outputs`
+(publishers and encoders), :mod:`.recording` (the bag), :mod:`.diagnostics` and :mod:`.loop`
+(the real-time loop). Interface (relative names unless they start with ``/``):
+
+- subscribes ``linkage_cmd`` (std_msgs/Float64MultiArray): target length of each linkage [m]
+  (the seed's two bodies: ONE length); ``linkage_trajectory`` (trajectory_msgs/JointTrajectory,
+  joints ``linkage_0``...);
+- publishes ``joint_states``, ``body_states`` (sensor_msgs/JointState), ``contact_states``
+  (std_msgs/Int8MultiArray), ``contacts`` (sensor_msgs/JointState: the stamped alternative),
+  ``odom`` (nav_msgs/Odometry), ``markers`` (visualization_msgs/MarkerArray),
+  ``~/applied_command`` (sensor_msgs/JointState: the target that took effect, stamped with the
+  tick it took effect at), ``/diagnostics`` and ``/clock`` (by default, at every publish tick);
+- services ``~/reset`` (std_srvs/Trigger) and ``~/pause`` (std_srvs/SetBool).
+
+Timing. Sim time is an integer number of nanoseconds that advances by ``dt`` per tick, so a run
+is deterministic: the same commands taking effect at the same ticks give bit-identical states.
+A tick: take the inputs that arrived, apply pending parameter changes, then the pending command
+or trajectory, then one actuator piece; every ``publish_every`` ticks the engine integrates the
+queued pieces exactly and the outputs go out. A state that is not finite is never published
+(it is counted in ``nonfinite_outputs`` and the simulation resets).
+"""
+from __future__ import annotations
+
+import math
+import threading
+import time
+from typing import Any
+
+import numpy as np
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.callback_groups import CallbackGroup
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import SetBool, Trigger
+from trajectory_msgs.msg import JointTrajectory
+
+from crawler_sim.core.engine import Engine
+from crawler_sim.ros import messages as M
+from . import intake, loop
+from .diagnostics import COUNTERS, Diagnostics, node_values
+from .outputs import Outputs
+from .params import PARAMETERS, SimConfig, declare_all
+from .recording import applied_trajectory, Recorder
+
+__all__ = ['SimNode', 'LoopTakenGroup', 'NODE_NAME']
+
+NODE_NAME = 'crawler_sim'
+
+
+class LoopTakenGroup(CallbackGroup):
+    """Callback group of subscriptions whose messages the simulation loop takes itself.
+
+    An executor never waits on nor runs anything of this group (``can_execute`` is always
+    False), so an incoming message does not wake the executor thread (each wake-up rebuilds a
+    wait set in Python and takes the GIL from the loop). The loop takes the messages between
+    ticks instead (:meth:`SimNode.take_inputs`).
+    """
+
+    def can_execute(self, entity: Any) -> bool:
+        return False
+
+    def beginning_execution(self, entity: Any) -> bool:
+        return False
+
+    def ending_execution(self, entity: Any) -> None:
+        pass
+
+
+class SimNode(Node):
+    """The simulator node. ``tick()`` advances one integration step; ``run()`` is the loop."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        self._cfg = SimConfig.from_values(declare_all(self))
+        self._pending_cfg: SimConfig | None = None
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        self.add_post_set_parameters_callback(self._parameters_set)
+
+        self._lock = threading.RLock()
+        self._log = self.get_logger()
+        self.counters = dict.fromkeys(COUNTERS, 0)
+        self._rejections = intake.RejectionLog(self.counters, self._log.warning)
+        self._diag = Diagnostics(self.counters, f'{self.get_fully_qualified_name()}: simulation')
+        self.outputs = Outputs(self)
+        self._applied_pub = self.create_publisher(JointState, '~/applied_command', 10)
+        self.outputs.sync(self._cfg)
+        group = LoopTakenGroup()
+        self._cmd_sub = self.create_subscription(Float64MultiArray, 'linkage_cmd',
+                                                 self._on_command, 10, callback_group=group)
+        self._traj_sub = self.create_subscription(JointTrajectory, 'linkage_trajectory',
+                                                  self._on_trajectory, 10, callback_group=group,
+                                                  raw=True)
+        self._takes = [(sub.handle.take_message, sub.msg_type, sub.raw, handler)
+                       for sub, handler in ((self._cmd_sub, self._on_command),
+                                            (self._traj_sub, self._on_trajectory))]
+        self.create_service(Trigger, '~/reset', self._on_reset)
+        self.create_service(SetBool, '~/pause', self._on_pause)
+
+        self._solver_error = ''
+        self._traj_intake = (0.0, 0)          # (wall s, bytes) of the latest trajectory
+        self._pending_cmd: list[float] | None = None
+        self._pending_traj: intake.PreparedTrajectory | None = None
+        self.paused = bool(self._cfg.start_paused)
+        self._anchor_needed = True
+        self._last_state = None
+        self._stop = False        # set by stop() (signals); run() returns at the next tick
+        self.recorder = Recorder(self._absolute_topic, self._log)
+        self._build(self._cfg, t_ns=0)
+        if self._cfg.record:      # last: nothing below can fail and leave the bag open
+            scene = {k: (list(v) if isinstance(v, (list, tuple)) else v)
+                     for k, v in self._cfg.values.items()}
+            scene['crawler'] = self._cfg.crawler.to_dict()
+            self.recorder.open(self._cfg.record_dir, self._cfg.record_name, scene)
+
+    # ------------------------------------------------------------------ compatibility
+    @property
+    def bag_path(self) -> str:
+        return self.recorder.path
+
+    @property
+    def _bag(self):
+        return self.recorder.bag
+
+    @property
+    def _recording_error(self) -> str:
+        return self.recorder.error
+
+    @property
+    def _last_rejection(self) -> str:
+        return self._rejections.last
+
+    # ------------------------------------------------------------------ configuration
+    def _param_values(self) -> dict:
+        return {name: self.get_parameter_or(name).value for name in PARAMETERS}
+
+    def _validate_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        values = self._param_values()
+        for prm in params:
+            if prm.name not in PARAMETERS:
+                continue
+            value = prm.value
+            if isinstance(PARAMETERS[prm.name][0], (list, tuple)) and value is not None:
+                value = list(value)
+            values[prm.name] = value
+        try:
+            SimConfig.from_values(values)
+        except (ValueError, TypeError) as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def _parameters_set(self, params: list[Parameter]) -> None:
+        cfg = SimConfig.from_values(self._param_values())
+        with self._lock:
+            self._pending_cfg = cfg
+
+    def _build(self, cfg: SimConfig, t_ns: int) -> None:
+        """(Re)build actuator and stepper at rest in the initial configuration at sim time t_ns."""
+        self._cfg = cfg
+        self._t_ns = t_ns
+        self._engine = Engine(cfg.engine_config(), t_ns)
+        self._pending_cmd = None
+        self._pending_traj = None
+        self._anchor_needed = True
+
+    def _apply_config(self, new: SimConfig) -> None:
+        old = self._cfg
+        if new.p != old.p:
+            self._log.info(f'number of bodies changed {old.p} -> {new.p}: resetting')
+            self._build(new, self._t_ns)
+            self.counters['resets'] += 1
+        else:
+            self._cfg = new
+            if (new.crawler.to_dict() != old.crawler.to_dict() or new.method != old.method
+                    or new.dt_ns != old.dt_ns or new.penalty_n != old.penalty_n):
+                self._engine.restart_stepper(new.engine_config())
+            else:
+                self._engine.sync()
+                self._engine.cfg = new.engine_config()
+                if new.limits != old.limits:
+                    self._engine.actuator.configure(limits=new.limits)
+            self._anchor_needed = True
+        self.outputs.sync(self._cfg)
+
+    # ------------------------------------------------------------------ inputs
+    def take_inputs(self) -> int:
+        """Take every ``linkage_cmd`` and ``linkage_trajectory`` message waiting in the
+        middleware and validate it, in order of arrival across both topics; return how many
+        were taken. The loop calls this at the start of every tick (and while paused).
+
+        The subscription handles are used without their ``with`` guard (2.3 us each, every
+        tick): it only defers destruction, and they are destroyed only with the node, after
+        the loop has stopped.
+        """
+        taken = None
+        with self._lock:
+            for take, msg_type, raw, handler in self._takes:
+                got = take(msg_type, raw)
+                while got is not None:
+                    if taken is None:
+                        taken = []
+                    taken.append((got[1].get('received_timestamp', 0), len(taken), handler,
+                                  got[0]))
+                    got = take(msg_type, raw)
+            if taken is None:
+                return 0
+            if len(taken) > 1:
+                taken.sort(key=lambda item: item[:2])
+            for _, _, handler, msg in taken:
+                handler(msg)
+        return len(taken)
+
+    def _on_command(self, msg: Float64MultiArray) -> None:
+        data = msg.data
+        cfg = self._cfg
+        reason = intake.validate_command(data, cfg.n_links, cfg.min_length, cfg.max_length)
+        if reason is not None:
+            self._rejections.note('commands', 'linkage_cmd', reason)
+            return
+        if all(math.isnan(x) for x in data):
+            self.counters['commands_no_value'] += 1
+            return
+        self.counters['commands_accepted'] += 1
+        self._pending_cmd = list(data)
+        self._pending_traj = None
+
+    def _on_trajectory(self, msg: bytes | JointTrajectory) -> None:
+        if not isinstance(msg, (bytes, bytearray)):
+            from rclpy.serialization import serialize_message
+            msg = serialize_message(msg)
+        cfg = self._cfg
+        start = time.perf_counter()
+        reason, prepared = intake.prepare(msg, cfg.n_links, cfg.min_length, cfg.max_length,
+                                          self._t_ns, cfg.max_trajectory_lead)
+        # wall time of the intake (parse + checks) of the latest trajectory: a figure for the
+        # diagnostics (a 100k-point trajectory must not stall the loop)
+        self._traj_intake = (time.perf_counter() - start, len(msg))
+        if reason is not None:
+            self._rejections.note('trajectories', 'linkage_trajectory', reason)
+            return
+        self.counters['trajectories_accepted'] += 1
+        self._pending_traj = prepared
+        self._pending_cmd = None
+
+    # ------------------------------------------------------------------ services
+    def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        with self._lock:
+            self.reset()
+            response.success = True
+            response.message = f'reset to the initial state at t = {self._t_ns / 1e9:.9f} s'
+        return response
+
+    def _on_pause(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
+        with self._lock:
+            self.paused = bool(request.data)
+            self._anchor_needed = True
+            response.success = True
+            response.message = (f'{"paused" if self.paused else "running"} at '
+                                f't = {self._t_ns / 1e9:.9f} s')
+        return response
+
+    def reset(self) -> None:
+        """Back to the initial state (pending parameter changes applied); sim time goes on.
+        Commands that arrived before the reset are taken (counted) and dropped with it."""
+        with self._lock:
+            self.take_inputs()
+            cfg = self._pending_cfg or self._cfg
+            self._pending_cfg = None
+            self._build(cfg, self._t_ns)
+            self.outputs.sync(cfg)
+            self.outputs.refresh()
+            self.counters['resets'] += 1
+            self._publish_outputs()
+
+    # ------------------------------------------------------------------ the tick
+    @property
+    def sim_time_ns(self) -> int:
+        """Current sim time [ns]."""
+        return self._t_ns
+
+    @property
+    def state(self):
+        """The core ``State`` now."""
+        return self._engine.state
+
+    @property
+    def config(self) -> SimConfig:
+        return self._cfg
+
+    def tick(self) -> None:
+        """Advance one integration step (also callable directly, e.g. from tests)."""
+        with self._lock:
+            self.take_inputs()
+            if self._pending_cfg is not None:
+                cfg, self._pending_cfg = self._pending_cfg, None
+                self._apply_config(cfg)
+            t0_ns = self._t_ns
+            if self._pending_cmd is not None:
+                self._apply_command(t0_ns)
+            elif self._pending_traj is not None:
+                self._apply_trajectory(t0_ns)
+            engine = self._engine
+            synced = engine.tick()
+            self._t_ns = engine.t_ns
+            self.counters['ticks'] += 1
+            if not synced:
+                return
+            if engine.failures:
+                self.counters['solver_failures'] += len(engine.failures)
+                self._solver_error = engine.failures[-1] + '; continuing with method implicit'
+                self._log.error(self._solver_error, throttle_duration_sec=1.0)
+                engine.failures.clear()
+            events = engine.pop_events()
+            if events:
+                self.counters['solver_events'] += len(events)
+                if self.recorder.on:
+                    for ev in events:
+                        self.recorder.write('events', 'std_msgs/msg/Int32MultiArray',
+                                            M.event_msg(ev.body, ev.old, ev.new),
+                                            round(ev.time * 1e9))
+            self._publish_outputs()
+
+    def _apply_command(self, t_ns: int) -> None:
+        cmd, self._pending_cmd = self._pending_cmd, None
+        self._engine.actuator.set_target(cmd)
+        recording = self.recorder.on
+        if not recording and self._applied_pub.get_subscription_count() == 0:
+            return
+        data = self.outputs.encoder.applied_command(cmd, t_ns)
+        self._applied_pub.publish(data)
+        if recording:
+            self.recorder.write('linkage_cmd', M.OUTPUT_TYPES['linkage_cmd'],
+                                self.outputs.encoder.linkage_cmd(cmd), t_ns)
+            self.recorder.write('~/applied_command', M.OUTPUT_TYPES['applied_command'], data,
+                                t_ns)
+
+    def _apply_trajectory(self, t_ns: int) -> None:
+        tr, self._pending_traj = self._pending_traj, None
+        actuator = self._engine.actuator
+        if not len(tr.tfs_ns):               # an empty trajectory: stop, hold position
+            actuator.set_trajectory(None)
+            return
+        try:
+            ref = intake.reference(tr, t_ns, actuator.state())
+        except ValueError as exc:       # e.g. times that round together at this sim time
+            self._rejections.note('trajectories', 'linkage_trajectory', str(exc))
+            return
+        actuator.set_trajectory(ref)
+        if self.recorder.on and tr.raw is not None:
+            self.recorder.write('linkage_trajectory', 'trajectory_msgs/msg/JointTrajectory',
+                                applied_trajectory(tr.raw, tr.stamp_ns, t_ns), t_ns)
+
+    # ------------------------------------------------------------------ outputs
+    def _publish_outputs(self) -> None:
+        st = self._engine.state
+        if not (np.isfinite(st.x).all() and np.isfinite(st.v).all()):
+            # never publish a non-finite value: count it, report it and start again
+            self.counters['nonfinite_outputs'] += 1
+            self._log.error('non-finite state: outputs withheld, resetting',
+                            throttle_duration_sec=1.0)
+            self._build(self._cfg, self._t_ns)
+            return
+        self._last_state = st
+        self.outputs.publish(lambda: st, self._t_ns, self._cfg.crawler.masses,
+                             self.recorder.write if self.recorder.on else None)
+
+    def diagnostics(self, wall_now: float | None = None):
+        """Build the /diagnostics message (figures since the previous call)."""
+        with self._lock:
+            values, warn = node_values(self)
+            return self._diag.message(self._t_ns, values, wall_now, warn)
+
+    def _publish_diagnostics(self, wall_now: float) -> None:
+        msg = self.diagnostics(wall_now)
+        pub = self.outputs.pubs.get('diagnostics')
+        if pub is not None:
+            pub.publish(msg)
+            self.recorder.write('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', msg,
+                                self._t_ns)
+
+    def _absolute_topic(self, topic: str) -> str:
+        """The recorded name of ``topic``: ``~/x`` and relative names resolved as ROS does."""
+        if topic.startswith('~/'):
+            return self.get_fully_qualified_name() + topic[1:]
+        if topic.startswith('/'):
+            return topic
+        return f'{self.get_namespace().rstrip("/")}/{topic}'
+
+    def close(self) -> None:
+        """Close the bag (idempotent); call before destroy_node."""
+        with self._lock:
+            if self.recorder.on:
+                self.recorder.write('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray',
+                                    self.diagnostics(), self._t_ns)
+            self.recorder.close()
+
+    # ------------------------------------------------------------------ the loop
+    def warm_up(self) -> None:
+        """Run once what the first ticks would compute cold (see :func:`.loop.warm_up`)."""
+        loop.warm_up(self)
+
+    def run(self) -> None:
+        """Tick until stopped or the context shuts down, paced by ``real_time_factor``."""
+        loop.run(self)
+
+    def stop(self) -> None:
+        """Make :meth:`run` return after the current tick (thread-safe)."""
+        self._stop = True

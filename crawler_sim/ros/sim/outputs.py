@@ -1,0 +1,102 @@
+"""sim_node outputs: publishers of the switched-on outputs and their CDR encoders.
+
+Every output goes out as CDR bytes from a per-shape template (``messages.OutputEncoder``): one
+serialisation serves the publisher and the bag, and no rclpy message is built per tick. An
+output is encoded only when someone takes it (a subscriber, or the bag); the subscriber counts
+are read from rclpy at most every :data:`COUNT_PERIOD` publish ticks, as each query costs a few
+microseconds and a late subscriber then misses at most that many messages.
+"""
+from __future__ import annotations
+
+from typing import Any, Callable
+
+from diagnostic_msgs.msg import DiagnosticArray
+from nav_msgs.msg import Odometry
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Int8MultiArray
+from visualization_msgs.msg import MarkerArray
+
+from crawler_sim.ros import messages as M
+from .params import OUTPUTS
+
+__all__ = ['Outputs', 'TOPICS', 'COUNT_PERIOD']
+
+#: output name -> (message class, topic)
+TOPICS: dict[str, tuple[type, str]] = {
+    'joint_states': (JointState, 'joint_states'),
+    'body_states': (JointState, 'body_states'),
+    'contact_states': (Int8MultiArray, 'contact_states'),
+    'contacts_stamped': (JointState, 'contacts'),
+    'odom': (Odometry, 'odom'),
+    'markers': (MarkerArray, 'markers'),
+    'diagnostics': (DiagnosticArray, '/diagnostics'),
+}
+COUNT_PERIOD = 16       # publish ticks between two reads of the subscriber counts
+
+
+class Outputs:
+    """The node's output publishers (created and destroyed as ``publish_*`` change)."""
+
+    def __init__(self, node) -> None:
+        self._node = node
+        self.pubs: dict[str, Any] = {}
+        self.clock_pub = None
+        self.encoder = M.OutputEncoder()
+        # (name, topic, publisher, encode, publish_raw) on the publish grid, and those with a
+        # subscriber
+        self._grid: list[tuple] = []
+        self._takers: list[tuple] = []
+        self._countdown = 0
+
+    def sync(self, cfg) -> None:
+        """Create the publishers of switched-on outputs, destroy those switched off."""
+        node = self._node
+        for name in OUTPUTS:
+            on = bool(getattr(cfg, 'publish_' + name))
+            if on and name not in self.pubs:
+                msg_type, topic = TOPICS[name]
+                self.pubs[name] = node.create_publisher(msg_type, topic, 10)
+            elif not on and name in self.pubs:
+                node.destroy_publisher(self.pubs.pop(name))
+        enc = self.encoder
+        # publish_raw of the pybind handle: rclpy's Publisher.publish adds a type check and a
+        # `with handle` guard (about 5 us) per message; the handles live as long as the node
+        self._grid = [(name, TOPICS[name][1], self.pubs[name], getattr(enc, name),
+                       self.pubs[name].handle.publish_raw)
+                      for name in OUTPUTS[:-1] if name in self.pubs]
+        self._countdown = 0
+        if cfg.publish_clock and self.clock_pub is None:
+            self.clock_pub = node.create_publisher(Clock, '/clock', 10)
+            self._clock_raw = self.clock_pub.handle.publish_raw
+        elif not cfg.publish_clock and self.clock_pub is not None:
+            node.destroy_publisher(self.clock_pub)
+            self.clock_pub = None
+
+    def publish(self, state_of: Callable[[], Any], t_ns: int, masses, record=None) -> None:
+        """Publish /clock and every output taken by someone at sim time ``t_ns``; ``record``
+        (topic, type, bytes, t_ns) gets each output before it is published, so what a
+        subscriber has seen is in the bag."""
+        if self.clock_pub is not None:
+            self._clock_raw(M.clock_cdr(t_ns))
+        if record is not None:
+            takers = self._grid
+        else:
+            self._countdown -= 1
+            if self._countdown <= 0:
+                self._countdown = COUNT_PERIOD
+                self._takers = [g for g in self._grid if g[2].get_subscription_count() > 0]
+            takers = self._takers
+        if not takers:
+            return
+        st = state_of()
+        types = M.OUTPUT_TYPES
+        for name, topic, _pub, encode, publish_raw in takers:
+            data = encode(st, t_ns, masses)
+            if record is not None:
+                record(topic, types[name], data, t_ns)
+            publish_raw(data)
+
+    def refresh(self) -> None:
+        """Read the subscriber counts at the next publish tick (e.g. after a reset)."""
+        self._countdown = 0
