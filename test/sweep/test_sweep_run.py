@@ -1,0 +1,141 @@
+"""Running sweeps: local processes, a real Dask scheduler with two workers, checkpoints."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+import shutil
+import subprocess
+import sys
+import time
+
+import pandas as pd
+import pytest
+
+from crawler_sim.sweep import runner, spec_from_dict, sweep
+from crawler_sim.sweep.metrics import scene_figures
+
+REPO = Path(__file__).resolve().parents[2]
+SPEC = {'name': 'small', 'periods': 8, 'samples_per_period': 20, 'chunk_size': 7,
+        'base': {'crawler': {'masses': [1.0, 1.0], 'mu': 0.3},
+                 'gait': {'type': 'scallop', 'mean': 0.1, 'amplitude': 0.02, 'frequency': 1.0,
+                          'asymmetry': 0.5}},
+        'random': {'n': 30, 'seed': 5, 'params': {
+            'crawler.mu[1]': {'uniform': [0.1, 0.6]}, 'gait.asymmetry': {'uniform': [0.1, 0.9]},
+            'bodies': {'choice': [2, 3]}}}}
+
+
+@pytest.fixture(scope='module')
+def serial() -> pd.DataFrame:
+    return sweep(SPEC, workers=1)
+
+
+def test_a_sweep_has_one_row_per_scene_equal_to_that_scene_run_on_its_own(serial):
+    spec = spec_from_dict(SPEC)
+    assert len(serial) == 30 and list(serial.index) == list(range(30))
+    assert (serial['error'] == '').all()
+    for k in (0, 13, 29):
+        params = list(spec.param_sets())[k]
+        alone = scene_figures(spec.scene(params), 8, 20)   # the figures computed directly
+        assert serial.loc[k, 'mean_speed'] == alone['mean_speed']
+        assert serial.loc[k, 'bodies'] == params['bodies']
+        assert serial.loc[k, 'gait.asymmetry'] == params['gait.asymmetry']
+    two = serial['bodies'] == 2
+    assert serial.loc[two, 'stick_fraction_2'].isna().all()
+    assert serial.loc[~two, 'stick_fraction_2'].notna().all()
+    meta = serial.attrs['crawler_sim']
+    assert meta['spec'] == spec.to_dict() and meta['version']
+
+
+def test_local_processes_give_the_same_frame_bit_for_bit(serial):
+    pd.testing.assert_frame_equal(sweep(SPEC, workers=2), serial, check_exact=True)
+
+
+def test_an_invalid_combination_is_a_row_with_its_error_not_a_lost_sweep():
+    spec = {k: v for k, v in SPEC.items() if k != 'random'}
+    spec['grid'] = {'gait.amplitude': [0.02, -0.01]}     # a negative half stroke is invalid
+    df = sweep(spec, workers=1)
+    assert df.loc[0, 'error'] == '' and df.loc[1, 'error'].startswith('SceneError')
+    assert 'amplitude' in df.loc[1, 'error'] and pd.isna(df.loc[1, 'mean_speed'])
+
+
+def test_a_checkpointed_sweep_resumes_without_recomputing_finished_chunks(serial, tmp_path,
+                                                                          monkeypatch):
+    ck = tmp_path / 'ck'
+    sweep(SPEC, workers=1, checkpoint=ck)
+    chunks = sorted(ck.glob('chunk_*.parquet'))
+    assert len(chunks) == 5                          # ceil(30 / 7)
+    chunks[2].unlink()                               # as if interrupted before chunk 2 ended
+    calls = []
+    real = runner.run_chunk
+    monkeypatch.setattr(runner, 'run_chunk', lambda data, i: calls.append(i) or real(data, i))
+    again = sweep(SPEC, workers=1, checkpoint=ck)
+    assert calls == [2]
+    pd.testing.assert_frame_equal(again, serial, check_exact=True)
+
+
+def test_a_checkpoint_of_another_spec_is_refused(tmp_path):
+    sweep(dict(SPEC, random=dict(SPEC['random'], n=3)), workers=1, checkpoint=tmp_path)
+    with pytest.raises(ValueError, match='checkpoint of another sweep spec'):
+        sweep(SPEC, workers=1, checkpoint=tmp_path)
+
+
+def _wait_for(path: Path, procs: list, timeout: float = 90.0) -> None:
+    end = time.monotonic() + timeout
+    while not path.exists():
+        for p in procs:
+            if p.poll() is not None:
+                raise RuntimeError(f'{p.args} exited with {p.returncode}')
+        if time.monotonic() > end:
+            raise TimeoutError(f'{path} not written')
+        time.sleep(0.2)
+
+
+@pytest.fixture(scope='module')
+def dask_client(tmp_path_factory):
+    """A real Dask scheduler and two one-thread workers as separate processes on localhost."""
+    distributed = pytest.importorskip('distributed')
+    tmp = tmp_path_factory.mktemp('dask')
+    sched_file = tmp / 'scheduler.json'
+    env = dict(os.environ, PYTHONPATH=str(REPO), DASK_DISTRIBUTED__WORKER__DAEMON='False')
+    dask_bin = shutil.which('dask', path=str(Path(sys.executable).parent)) or 'dask'
+    procs = [subprocess.Popen([dask_bin, 'scheduler', '--host', '127.0.0.1', '--port', '0',
+                               '--no-dashboard', '--scheduler-file', str(sched_file)],
+                              env=env, cwd=tmp, stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL)]
+    try:
+        _wait_for(sched_file, procs)
+        for k in range(2):
+            procs.append(subprocess.Popen(
+                [dask_bin, 'worker', '--scheduler-file', str(sched_file), '--nthreads', '1',
+                 '--nworkers', '1', '--no-dashboard', '--name', f'w{k}',
+                 '--local-directory', str(tmp / f'w{k}')],
+                env=env, cwd=tmp, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        client = distributed.Client(scheduler_file=str(sched_file), timeout='60s')
+        client.wait_for_workers(2, timeout=90)
+        yield client
+        client.close()
+    finally:
+        for p in reversed(procs):
+            p.terminate()
+        for p in procs:
+            try:
+                p.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                p.kill()
+
+
+def test_a_dask_cluster_gives_the_local_frame_bit_for_bit_using_both_workers(serial, dask_client):
+    df = sweep(SPEC, client=dask_client)
+    pd.testing.assert_frame_equal(df, serial, check_exact=True)
+    workers = dask_client.run(lambda: 'crawler_sim.sweep.runner' in sys.modules)
+    assert len(workers) == 2 and all(workers.values())   # both imported and ran chunks
+
+
+def test_a_dask_sweep_resumes_from_a_local_checkpoint(serial, dask_client, tmp_path):
+    ck = tmp_path / 'ck'
+    sweep(SPEC, workers=1, checkpoint=ck)
+    for path in sorted(ck.glob('chunk_*.parquet'))[1:4]:
+        path.unlink()
+    df = sweep(SPEC, client=dask_client, checkpoint=ck)
+    pd.testing.assert_frame_equal(df, serial, check_exact=True)
+    assert len(list(ck.glob('chunk_*.parquet'))) == 5
