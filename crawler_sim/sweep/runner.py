@@ -167,6 +167,12 @@ def _local(spec: SweepSpec, todo: list[int], workers: int, on_done: Callable) ->
         for i in todo:
             on_done(i, run_chunk(data, i))
         return
+    try:
+        # the first simulation imports scipy's root finders (about 1 s): do it once here so the
+        # forked workers inherit it instead of each paying it
+        scene_figures(spec.scene(next(spec.param_sets())), 4, 4)
+    except (SceneError, ValueError, ArithmeticError, RuntimeError):
+        pass
     methods = multiprocessing.get_all_start_methods()
     # fork: the workers inherit the imported package instead of importing it again
     ctx = multiprocessing.get_context('fork' if 'fork' in methods else None)
