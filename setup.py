@@ -15,6 +15,7 @@ setup(
         ('share/' + package_name, ['package.xml']),
         (os.path.join('share', package_name, 'config'), glob('config/*.yaml')),
         (os.path.join('share', package_name, 'config', 'bench'), glob('config/bench/*.yaml')),
+        (os.path.join('share', package_name, 'config', 'sweeps'), glob('config/sweeps/*.yaml')),
     ],
     install_requires=['setuptools'],
     zip_safe=True,

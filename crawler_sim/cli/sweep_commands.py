@@ -129,6 +129,8 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
                     coefficients=[res.gait.cos.tolist(), res.gait.sin.tolist()])
     best_scene['gait'] = spec
     best_scene['name'] = f'{scene.name}_optimized'
+    best_scene['description'] = (f'{scene.name} with the {res.family.name} stroke of best '
+                                 f'{args.objective} found by crawler-sim optimize')
     header = (f'# crawler-sim optimize {args.scene}: {args.family} stroke, objective '
               f'{args.objective}, limits |l\'| <= {limits.max_speed} m/s, |l\'\'| <= '
               f'{limits.max_acceleration} m/s^2, bandwidth {limits.bandwidth} Hz\n'

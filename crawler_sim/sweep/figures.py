@@ -22,10 +22,11 @@ def _plt():
 def speed_map(df: pd.DataFrame, x: str, y: str, path: str | os.PathLike, *,
               value: str = 'mean_speed', scale: float = 1e3, unit: str = 'mm/s',
               x_label: str | None = None, y_label: str | None = None, title: str = '',
-              x_transform: Any = None, ax: Any = None) -> Path:
+              x_transform: Any = None, ax: Any = None, zero_contour: bool = True) -> Path:
     """A colour map of ``value`` (times ``scale``) over the grid columns ``x`` and ``y`` of a
     sweep, with its zero contour, written to ``path`` (PNG). ``x_transform`` maps the x column
-    (e.g. to a friction ratio). The colours are symmetric about zero (red forward, blue back)."""
+    (e.g. to a friction ratio). The colours are symmetric about zero (red forward, blue back).
+    With ``ax`` it draws into that axes and leaves saving to the caller."""
     plt = _plt()
     xs = df[x].to_numpy(dtype=float)
     if x_transform is not None:
@@ -43,7 +44,7 @@ def speed_map(df: pd.DataFrame, x: str, y: str, path: str | os.PathLike, *,
         fig = ax.figure
     mesh = ax.pcolormesh(X, Y, V, cmap='RdBu_r', vmin=-lim, vmax=lim, shading='nearest')
     fig.colorbar(mesh, ax=ax, label=f'{value.replace("_", " ")} [{unit}]')
-    if np.nanmin(V) < 0 < np.nanmax(V):
+    if zero_contour and np.nanmin(V) < 0 < np.nanmax(V):
         ax.contour(X, Y, V, levels=[0.0], colors='k', linewidths=0.8)
     ax.set_xlabel(x_label or x)
     ax.set_ylabel(y_label or y)
