@@ -177,3 +177,17 @@ def test_the_help_lists_the_new_commands(capsys):
     proc = run(capsys, '--help')
     for name in ('sweep', 'optimize', 'export'):
         assert name in proc.stdout
+
+
+def test_the_sweep_command_runs_on_a_scheduler_address_with_the_same_result(dask_client,
+                                                                            tmp_path, capsys):
+    spec = tmp_path / 'tiny.yaml'
+    spec.write_text(SPEC_YAML)
+    local, remote = tmp_path / 'local.parquet', tmp_path / 'remote.parquet'
+    assert run(capsys, 'sweep', str(spec), '-o', str(local), '--workers', '1',
+               '--quiet').returncode == 0
+    proc = run(capsys, 'sweep', str(spec), '-o', str(remote), '--quiet', '--scheduler',
+               dask_client.scheduler.address)
+    assert proc.returncode == 0, proc.stderr
+    assert dask_client.scheduler.address in proc.stdout
+    pd.testing.assert_frame_equal(read_table(remote), read_table(local), check_exact=True)
