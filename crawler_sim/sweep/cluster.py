@@ -11,6 +11,7 @@ The workers must be able to import ``crawler_sim`` (the same version as the driv
 from __future__ import annotations
 
 from typing import Any, Callable
+import uuid
 
 import pandas as pd
 
@@ -37,7 +38,8 @@ def run_on_client(client: Any, spec: SweepSpec, todo: list[int],
     from distributed import as_completed
 
     data = client.scatter(spec.to_dict(), broadcast=True)
-    futures = [client.submit(run_chunk, data, i, key=f'crawler-sweep-{spec.name}-{i}-{id(todo)}',
+    run_id = uuid.uuid4().hex[:12]      # keys unique per call, readable on the dashboard
+    futures = [client.submit(run_chunk, data, i, key=f'crawler-sweep-{spec.name}-{run_id}-{i}',
                              pure=False) for i in todo]
     index = {f.key: i for f, i in zip(futures, todo)}
     try:

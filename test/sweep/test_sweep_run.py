@@ -90,3 +90,13 @@ def test_a_dask_sweep_resumes_from_a_local_checkpoint(serial, dask_client, tmp_p
     df = sweep(SPEC, client=dask_client, checkpoint=ck)
     pd.testing.assert_frame_equal(df, serial, check_exact=True)
     assert len(list(ck.glob('chunk_*.parquet'))) == 5
+
+
+def test_the_benchmark_compares_local_and_a_local_dask_cluster_and_finds_them_identical():
+    from crawler_sim.sweep import bench
+    res = bench.run(scenes=12, repeat=1, workers=2, chunk_size=4, log=lambda message: None)
+    assert res['bit_identical'] and res['scene_errors'] == 0
+    assert len(res['local_s']) == len(res['dask_s']) == 1
+    # the overhead is derived from the two medians it reports
+    assert res['dask_overhead_pct'] == pytest.approx(
+        100 * (res['dask_median_s'] / res['local_median_s'] - 1))
