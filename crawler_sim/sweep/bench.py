@@ -15,6 +15,7 @@ import argparse
 import json
 import os
 from pathlib import Path
+import resource
 import statistics
 import sys
 import time
@@ -37,6 +38,13 @@ def bench_spec(scenes: int, periods: int = 20, chunk_size: int = 250, seed: int 
     return spec_from_dict(data)
 
 
+def _cpu() -> float:
+    """CPU seconds of this process and its finished children (the local pool's workers)."""
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
 def run(scenes: int, repeat: int, workers: int, chunk_size: int,
         log=print) -> dict:
     """Time the local and the Dask sweep ``repeat`` times; return the figures."""
@@ -45,16 +53,18 @@ def run(scenes: int, repeat: int, workers: int, chunk_size: int,
     spec = bench_spec(scenes, chunk_size=chunk_size)
     t0 = time.perf_counter()
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           dashboard_address=None)
+                           dashboard_address=':0')
     client = Client(cluster)
     startup = time.perf_counter() - t0
-    local_t, dask_t, identical = [], [], []
+    local_t, dask_t, identical, local_cpu = [], [], [], []
     reference: pd.DataFrame | None = None
     try:
         for k in range(repeat):
+            cpu0 = _cpu()
             t = time.perf_counter()
             df_local = sweep(spec, workers=workers)
             local_t.append(time.perf_counter() - t)
+            local_cpu.append(_cpu() - cpu0)
             t = time.perf_counter()
             df_dask = sweep(spec, client=client)
             dask_t.append(time.perf_counter() - t)
@@ -66,8 +76,8 @@ def run(scenes: int, repeat: int, workers: int, chunk_size: int,
             except AssertionError:
                 same = False
             identical.append(same)
-            log(f'repeat {k + 1}/{repeat}: local {local_t[-1]:.2f} s, dask {dask_t[-1]:.2f} s, '
-                f'bit-identical {same}')
+            log(f'repeat {k + 1}/{repeat}: local {local_t[-1]:.2f} s (CPU {local_cpu[-1]:.2f} s), '
+                f'dask {dask_t[-1]:.2f} s, bit-identical {same}, load {os.getloadavg()[0]:.2f}')
     finally:
         client.close()
         cluster.close()
@@ -78,7 +88,9 @@ def run(scenes: int, repeat: int, workers: int, chunk_size: int,
             'local_median_s': local_med, 'dask_median_s': dask_med,
             'dask_overhead_pct': 100.0 * (dask_med - local_med) / local_med,
             'dask_cluster_startup_s': startup, 'bit_identical': all(identical),
-            'scene_errors': errors,
+            'scene_errors': errors, 'local_cpu_s': local_cpu,
+            'local_cpu_median_s': statistics.median(local_cpu),
+            'load_average_1min': os.getloadavg()[0],
             'ms_per_scene_per_worker': 1e3 * local_med * workers / scenes}
 
 
@@ -101,6 +113,11 @@ def main(argv: list[str] | None = None) -> int:
     print(f'local (process pool): median {res["local_median_s"]:.2f} s '
           f'(runs {", ".join(f"{t:.2f}" for t in res["local_s"])}), '
           f'{res["ms_per_scene_per_worker"]:.2f} ms per scene per worker')
+    print(f'local CPU time: median {res["local_cpu_median_s"]:.2f} s, i.e. '
+          f'{res["local_cpu_median_s"] / res["workers"]:.2f} s of wall time on {res["workers"]} '
+          f'idle cores, {1e3 * res["local_cpu_median_s"] / res["scenes"]:.2f} ms CPU per scene '
+          f'(1-min load average at the end {res["load_average_1min"]:.2f} on '
+          f'{os.cpu_count()} cores)')
     print(f'dask (LocalCluster):  median {res["dask_median_s"]:.2f} s '
           f'(runs {", ".join(f"{t:.2f}" for t in res["dask_s"])}); cluster start-up '
           f'{res["dask_cluster_startup_s"]:.2f} s, not counted')
