@@ -151,10 +151,10 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
         import pandas as pd
         from ..sweep.tables import write_table
         write_table(pd.DataFrame(res.history), args.history_table)
+    n_global = sum(h['stage'] == 'global' for h in res.history)
     rows = [('family', f'{res.family.name} ({", ".join(res.family.names)})'),
             ('objective', args.objective),
-            ('evaluations', f'{len(res.history)} ({sum(h["stage"] == "global" for h in res.history)}'
-                            ' global, then local)'),
+            ('evaluations', f'{len(res.history)} ({n_global} global, then local)'),
             ('best', ', '.join(f'{k} {v:.6g}' for k, v in params.items())),
             ('mean speed', f'{res.best["mean_speed"]:.6g} m/s'),
             ('cost of transport', f'{res.best["cost_of_transport"]:.6g}'),

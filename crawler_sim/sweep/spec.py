@@ -7,7 +7,7 @@ A spec file has one top-level key ``sweep``::
       base:                                # a scene, as under ``scene:`` in config/*.yaml
         crawler: {masses: [1.0, 1.0], mu: 0.3}
         gait: {type: scallop, mean: 0.1, amplitude: 0.02, frequency: 1.0, asymmetry: 0.5}
-      periods: 20                          # simulated gait periods per scene (>= 4)
+      periods: 20                          # gait periods per scene (>= 4; base run.t_end unused)
       samples_per_period: 50               # uniform samples per period (events are added)
       grid:                                # every combination of these values ...
         crawler.mu_backward: [0.3, 0.6]

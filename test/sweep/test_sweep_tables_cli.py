@@ -1,4 +1,5 @@
-"""Tables of runs and bags, Parquet/CSV with metadata, and the sweep / export / optimize commands."""
+"""Tables of runs and bags, Parquet/CSV with metadata, and the sweep, export and optimize
+commands."""
 from __future__ import annotations
 
 import os
