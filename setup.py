@@ -23,6 +23,7 @@ setup(
         # `crawler-sim` on PATH after `source install/setup.bash` (colcon puts <prefix>/bin on
         # PATH; the console scripts below go to lib/crawler_sim/ for `ros2 run`)
         ('bin', ['scripts/crawler-sim']),
+        (os.path.join('share', package_name, 'config', 'sweeps'), glob('config/sweeps/*.yaml')),
     ],
     install_requires=['setuptools'],
     zip_safe=True,

@@ -1,4 +1,5 @@
-"""``crawler-sim``: the command line (simulate, bench, stress, replay, info, plot, recover).
+"""``crawler-sim``: the command line (simulate, bench, stress, replay, info, plot, recover; sweep,
+optimize and export live in `sweep_commands`).
 
 Exit codes: 0 success; 1 the work failed (solver failure, unreadable or damaged bag, write
 error, replay mismatch, failed stress run); 2 bad input (usage, missing file, invalid scene or
@@ -571,6 +572,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('source', metavar='BAG_OR_MCAP', help='damaged bag directory or MCAP file')
     p.add_argument('-o', '--output', metavar='OUT',
                    help='where to write the recovered bag (default: next to the source)')
+
+    from .sweep_commands import register       # sweep, optimize, export
+    register(add, _positive, _non_negative_int)
     return parser
 
 
@@ -584,6 +588,9 @@ def _version() -> str:
 
 def _exit_code(exc: BaseException) -> int:
     scene = sys.modules.get('crawler_sim.core.scene')
+    spec = sys.modules.get('crawler_sim.sweep.spec')
+    if spec is not None and isinstance(exc, spec.SpecError):
+        return EXIT_USAGE
     if isinstance(exc, UsageError) or (scene is not None and isinstance(exc, scene.SceneError)):
         return EXIT_USAGE
     return EXIT_FAILURE

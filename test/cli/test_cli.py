@@ -30,6 +30,10 @@ HELP = {  # subcommand -> what its --help must mention
     'info': ('BAG',),
     'plot': ('BAG', '--output'),
     'recover': ('BAG_OR_MCAP', '--output'),
+    'sweep': ('SPEC.yaml', '--output', '--csv', '--scheduler', '--workers', '--checkpoint'),
+    'optimize': ('SCENE.yaml', '--objective', '--family', '--max-speed', '--max-acceleration',
+                 '--scheduler', '--output', '--history'),
+    'export': ('BAG', '--parquet', '--csv'),
 }
 
 

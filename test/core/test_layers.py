@@ -13,13 +13,15 @@ import pytest
 
 PKG = Path(__file__).resolve().parents[2] / 'crawler_sim'
 
-# Allowed imports between layers: cli/ros/bench -> bag -> core. A layer may always import itself.
+# Allowed imports between layers: cli/ros/bench/sweep -> bag -> core. A layer may always
+# import itself.
 ALLOWED = {
     'core': {'core'},
     'bag': {'bag', 'core'},
     'bench': {'bench', 'bag', 'core'},
     'ros': {'ros', 'bag', 'core'},
-    'cli': {'cli', 'bench', 'bag', 'core', 'ros'},
+    'sweep': {'sweep', 'bag', 'core'},
+    'cli': {'cli', 'bench', 'bag', 'core', 'ros', 'sweep'},
 }
 ROS_MODULES = ('rclpy', 'rosidl_runtime_py', 'builtin_interfaces', 'std_msgs', 'sensor_msgs',
                'nav_msgs', 'geometry_msgs', 'visualization_msgs', 'diagnostic_msgs',

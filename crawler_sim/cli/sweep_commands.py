@@ -1,0 +1,233 @@
+"""The ``sweep``, ``optimize`` and ``export`` subcommands of ``crawler-sim``.
+
+Registered by `crawler_sim.cli.build_parser` through :func:`register`; pandas, Dask and scipy
+are imported inside the commands so ``crawler-sim --help`` stays light.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+import shutil
+import time
+from typing import Any, Callable
+
+__all__ = ['register']
+
+Add = Callable[[str, Callable[[argparse.Namespace], int], str, str], argparse.ArgumentParser]
+
+
+def _cli():
+    from . import EXIT_OK, UsageError, _existing, _info, _print_table
+    return EXIT_OK, UsageError, _existing, _info, _print_table
+
+
+def _client(address: str | None) -> Any:
+    if not address:
+        return None
+    from ..sweep.cluster import connect
+    return connect(address)
+
+
+def _spec_of(path: Path) -> Any:
+    """A spec from a sweep YAML file, or from the metadata of a sweep's Parquet/CSV results."""
+    from ..sweep import load_spec, spec_from_dict
+    from ..sweep.tables import read_table
+
+    if path.suffix.lower() in ('.parquet', '.csv'):
+        meta = read_table(path).attrs.get('crawler_sim', {})
+        if meta.get('kind') != 'sweep' or 'spec' not in meta:
+            raise ValueError(f'{path}: holds no sweep spec in its metadata (not written by '
+                             'crawler-sim sweep)')
+        return spec_from_dict(meta['spec'])
+    return load_spec(path)
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    EXIT_OK, UsageError, _existing, _info, _print_table = _cli()
+    from ..sweep import sweep
+    from ..sweep.tables import write_table
+
+    spec = _spec_of(_existing(args.spec))
+    fmt = 'csv' if args.csv else 'parquet'
+    out = Path(args.output or f'sweep_{spec.name}.{fmt}')
+    checkpoint = Path(args.checkpoint) if args.checkpoint else out.with_name(out.name + '.chunks')
+    if checkpoint.exists():
+        _info(f'resuming from {checkpoint} (finished chunks are not recomputed)')
+    client = _client(args.scheduler)
+    start = time.perf_counter()
+    try:
+        df = sweep(spec, client=client, workers=args.workers, checkpoint=checkpoint,
+                   progress=not args.quiet)
+    finally:
+        if client is not None:
+            client.close()
+    wall = time.perf_counter() - start
+    write_table(df, out, fmt)
+    if not args.checkpoint:
+        shutil.rmtree(checkpoint, ignore_errors=True)     # the table now holds every chunk
+    errors = int((df['error'] != '').sum())
+    speed = df['mean_speed']
+    rows = [('sweep', f'{spec.name}: {len(df)} scenes x {spec.periods} periods'),
+            ('where', args.scheduler or f'local ({args.workers or "all"} processes)'),
+            ('wall time', f'{wall:.2f} s'),
+            ('errors', f'{errors} scenes' + (f' (first: {df.loc[df.error != "", "error"].iloc[0]})'
+                                              if errors else '')),
+            ('not steady', f'{int((df["steady"] == False).sum())} scenes'),  # noqa: E712
+            ('mean speed', f'min {speed.min():.4g}, median {speed.median():.4g}, '
+                           f'max {speed.max():.4g} m/s'),
+            ('output', str(out))]
+    _print_table(rows)
+    return EXIT_OK
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    EXIT_OK, UsageError, _existing, _info, _print_table = _cli()
+    from ..sweep.tables import export_bag
+
+    bag = _existing(args.bag, 'bag')
+    out, fmt = (args.parquet, 'parquet') if args.parquet else (args.csv, 'csv')
+    samples, events = export_bag(bag, out, fmt)
+    print(samples)
+    print(events)
+    return EXIT_OK
+
+
+def _cmd_optimize(args: argparse.Namespace) -> int:
+    EXIT_OK, UsageError, _existing, _info, _print_table = _cli()
+    import yaml
+
+    from ..core.actuator import ActuatorLimits
+    from ..core.scene import load_scene, scene_to_dict
+    from ..sweep.optimize import gait_node_params, optimize
+
+    scene = load_scene(_existing(args.scene))
+    limits = ActuatorLimits(args.bandwidth, args.max_speed, args.max_acceleration)
+    client = _client(args.scheduler)
+    try:
+        res = optimize(scene, objective=args.objective, family_name=args.family,
+                       limits=limits, harmonics=args.harmonics, periods=args.periods,
+                       maxiter=args.maxiter, popsize=args.popsize, seed=args.seed,
+                       client=client, workers=args.workers, progress=_info)
+    finally:
+        if client is not None:
+            client.close()
+    out = Path(args.output)
+    stem = out.with_suffix('')
+    scene_file = stem.with_name(stem.name + '_scene.yaml')
+    best_scene = scene_to_dict(scene)
+    spec: dict[str, Any] = {'type': res.family.name}      # the scene-file gait schema
+    params = res.params
+    if res.family.name in ('scallop', 'stroke'):
+        spec.update(mean=list(res.family.mean), amplitude=params['amplitude'],
+                    frequency=params['frequency'], asymmetry=params['asymmetry'])
+        if res.family.name == 'scallop':
+            spec['phase'] = [-j * params.get('phase_lag', 0.0) for j in range(res.family.n_links)]
+    else:
+        spec.update(mean=list(res.family.mean), frequency=res.family.frequency,
+                    coefficients=[res.gait.cos.tolist(), res.gait.sin.tolist()])
+    best_scene['gait'] = spec
+    best_scene['name'] = f'{scene.name}_optimized'
+    best_scene['description'] = (f'{scene.name} with the {res.family.name} stroke of best '
+                                 f'{args.objective} found by crawler-sim optimize')
+    header = (f'# crawler-sim optimize {args.scene}: {args.family} stroke, objective '
+              f'{args.objective}, limits |l\'| <= {limits.max_speed} m/s, |l\'\'| <= '
+              f'{limits.max_acceleration} m/s^2, bandwidth {limits.bandwidth} Hz\n'
+              f'# mean speed {res.best["mean_speed"]:.6g} m/s, cost of transport '
+              f'{res.best["cost_of_transport"]:.6g}\n')
+    scene_file.write_text(header + yaml.safe_dump({'scene': best_scene}, sort_keys=False))
+    node = gait_node_params(res)
+    if node is not None:
+        out.write_text(header + '# play: ros2 run crawler_sim gait_node --ros-args '
+                       f'--params-file {out.name}\n' + yaml.safe_dump(node, sort_keys=False))
+    else:
+        _info(f'gait_node cannot play a {args.family} stroke yet; wrote the gait as a scene '
+              f'({scene_file}) only')
+    if args.history:
+        from ..sweep.figures import optimize_history
+        optimize_history(res, args.history)
+    if args.history_table:
+        import pandas as pd
+        from ..sweep.tables import write_table
+        write_table(pd.DataFrame(res.history), args.history_table)
+    n_global = sum(h['stage'] == 'global' for h in res.history)
+    rows = [('family', f'{res.family.name} ({", ".join(res.family.names)})'),
+            ('objective', args.objective),
+            ('evaluations', f'{len(res.history)} ({n_global} global, then local)'),
+            ('best', ', '.join(f'{k} {v:.6g}' for k, v in params.items())),
+            ('mean speed', f'{res.best["mean_speed"]:.6g} m/s'),
+            ('cost of transport', f'{res.best["cost_of_transport"]:.6g}'),
+            ('scene', str(scene_file))]
+    if node is not None:
+        rows.append(('gait_node params', str(out)))
+    if args.json:
+        print(json.dumps({'params': params, 'best': {k: (v if not isinstance(v, float) or
+                                                          math.isfinite(v) else None)
+                                                      for k, v in res.best.items()},
+                          'scene': str(scene_file),
+                          'gait_node_params': str(out) if node is not None else None}, indent=2))
+    else:
+        _print_table(rows)
+    return EXIT_OK
+
+
+def register(add: Add, positive: Callable[[str], float],
+             non_negative_int: Callable[[str], int]) -> None:
+    """Add the sweep, optimize and export subcommands through ``add`` (build_parser's helper)."""
+    p = add('sweep', _cmd_sweep, 'run a parameter sweep and write one row per scene',
+            'Simulate every scene of SPEC.yaml (a grid or a random sample over scene and gait '
+            'parameters, see config/sweeps/) and write mean speed, displacement per period, '
+            'stick fractions, dissipated energy, cost of transport, actuator peak force and the '
+            'verify figure per scene to Parquet (or CSV) with the spec as metadata. SPEC may '
+            'also be the results of an earlier sweep: it is run again. Interrupted runs resume '
+            'from OUT.chunks/.')
+    p.add_argument('spec', metavar='SPEC.yaml', help='sweep file (top-level key "sweep:"), or '
+                   'a results .parquet/.csv to re-run')
+    p.add_argument('-o', '--output', metavar='OUT', help='results file (default: '
+                   'sweep_<name>.parquet)')
+    p.add_argument('--csv', action='store_true', help='write CSV instead of Parquet')
+    p.add_argument('--scheduler', metavar='ADDRESS', help='run on the Dask scheduler at '
+                   'ADDRESS (e.g. tcp://host:8786) instead of local processes')
+    p.add_argument('--workers', type=non_negative_int, metavar='N',
+                   help='local processes (default: all cores)')
+    p.add_argument('--checkpoint', metavar='DIR', help='keep finished chunks in DIR '
+                   '(default: OUT.chunks, removed after success)')
+    p.add_argument('--quiet', action='store_true', help='no progress bar')
+
+    p = add('optimize', _cmd_optimize, 'find the fastest or cheapest stroke',
+            'Find the stroke that maximises the steady mean speed (or minimises the cost of '
+            'transport) of the crawler of SCENE.yaml under sim_node\'s actuator limits: '
+            'differential evolution, then Nelder-Mead. Writes OUT (a gait_node parameter file) '
+            'and OUT_scene.yaml (a scene with the best gait).')
+    p.add_argument('scene', metavar='SCENE.yaml', help='scene: crawler, run options, mean lengths')
+    p.add_argument('--objective', choices=('speed', 'cot'), default='speed',
+                   help='speed (maximise) or cot (minimise cost of transport); default speed')
+    p.add_argument('--family', choices=('scallop', 'stroke', 'fourier'), default='scallop',
+                   help='stroke family (default scallop, which gait_node plays)')
+    p.add_argument('--harmonics', type=int, default=3, metavar='K', help='fourier harmonics')
+    p.add_argument('--max-speed', type=positive, default=0.5, metavar='V',
+                   help="largest |l'| [m/s] (sim_node's actuator_max_speed, default 0.5)")
+    p.add_argument('--max-acceleration', type=positive, default=5.0, metavar='A',
+                   help="largest |l''| [m/s^2] (actuator_max_acceleration, default 5)")
+    p.add_argument('--bandwidth', type=positive, default=5.0, metavar='HZ',
+                   help='highest stroke frequency [Hz] (actuator_bandwidth, default 5)')
+    p.add_argument('--periods', type=int, default=12, metavar='N', help='periods per run')
+    p.add_argument('--maxiter', type=int, default=15, metavar='N', help='generations')
+    p.add_argument('--popsize', type=int, default=8, metavar='N', help='population factor')
+    p.add_argument('--seed', type=non_negative_int, default=0, metavar='N', help='random seed')
+    p.add_argument('--workers', type=int, default=1, metavar='N', help='local processes')
+    p.add_argument('--scheduler', metavar='ADDRESS', help='evaluate on a Dask scheduler')
+    p.add_argument('-o', '--output', default='best_gait.yaml', metavar='OUT',
+                   help='gait_node parameter file (default best_gait.yaml)')
+    p.add_argument('--history', metavar='PNG', help='plot of the optimiser history')
+    p.add_argument('--history-table', metavar='FILE', help='every evaluation (.parquet/.csv)')
+    p.add_argument('--json', action='store_true', help='print the result as JSON')
+
+    p = add('export', _cmd_export, 'write a bag as tables (Parquet or CSV)',
+            'Write a recorded run as a table with one row per sample (one column per body '
+            'quantity) and its contact events as a second table OUT_events.')
+    p.add_argument('bag', metavar='BAG', help='bag directory or MCAP file')
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument('--parquet', metavar='OUT', help='Parquet file to write')
+    g.add_argument('--csv', metavar='OUT', help='CSV file to write')

@@ -1,0 +1,137 @@
+"""The figures of one periodic run: steady speed after a detected transient, stick fractions,
+dissipated energy, cost of transport, actuator peak force and the verify() figure.
+
+Transient detection
+-------------------
+The centre of mass X is read exactly at the period boundaries t_k = k T (they are samples of
+the run), giving the displacement of every period d_k = X(t_k) - X(t_{k-1}), k = 1..N. The run
+is steady from period k0 on when every later d_k agrees with the last one, d_N, to
+``STEADY_RTOL`` times the stroke's scale (the largest linkage excursion or |d|). The transient
+is then k0 periods long; the figures below are taken over the steady window [t_k0, t_N]. When
+fewer than ``MIN_STEADY`` periods agree (no steady state yet, or a steady state that repeats
+only every few periods) ``steady`` is False and the window is the last half of the run.
+
+Energy
+------
+Between two consecutive samples (the event times are samples) each body slides one way or
+sticks, and its friction force is constant while it slides, so the energy it dissipates is
+exactly f_i^+ (forward travel) + f_i^- (backward travel): no quadrature error for the exact
+method. The actuator's positive work is the trapezoidal integral of max(G l', 0) over the samples.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ..core.scene import Scene
+from ..core.stepper import simulate
+from ..core.trajectory import Trajectory
+from ..core.verify import verify
+
+__all__ = ['FIGURES', 'STEADY_RTOL', 'MIN_STEADY', 'steady_window', 'run_figures',
+           'scene_figures']
+
+STEADY_RTOL = 1e-8   # agreement of the per-period displacements, relative to the stroke scale
+MIN_STEADY = 2       # periods that must agree before a run counts as steady
+
+#: The figure columns of a sweep row, in order (stick_fraction_<i> per body follow them).
+FIGURES = ('bodies', 'period', 'mean_speed', 'displacement_per_period', 'transient_periods',
+           'steady', 'dissipated_energy', 'positive_actuator_work', 'cost_of_transport',
+           'actuator_peak_force', 'events_per_period', 'verify_worst', 'verify_ok')
+
+
+def steady_window(boundary_x: np.ndarray, scale: float) -> tuple[int, bool]:
+    """(k0, steady) from the centre of mass at the period boundaries, shape (N + 1,).
+
+    k0 is the first period boundary from which every period's displacement equals the last
+    one's to ``STEADY_RTOL * scale`` [m]. If fewer than ``MIN_STEADY`` periods agree, returns
+    (N // 2, False).
+    """
+    d = np.diff(boundary_x)
+    n = d.size
+    tol = STEADY_RTOL * max(scale, float(np.abs(d).max(initial=0.0)), 1e-300)
+    off = np.abs(d - d[-1]) > tol
+    k0 = int(np.flatnonzero(off)[-1]) + 1 if off.any() else 0
+    if n - k0 < MIN_STEADY:
+        return n // 2, False
+    return k0, True
+
+
+def _stuck_time(tr: Trajectory, a: float, b: float) -> np.ndarray:
+    """Time each body spends stuck in [a, b] [s], shape (p,), from the exact event times."""
+    state = tr.state[0].astype(int).copy()
+    last = np.full(state.size, float(tr.t[0]))
+    stuck = np.zeros(state.size)
+    for ev in tr.events:
+        if ev.time > b:
+            break
+        if state[ev.body] == 0:
+            stuck[ev.body] += max(0.0, ev.time - max(last[ev.body], a))
+        state[ev.body] = ev.new
+        last[ev.body] = ev.time
+    stuck += np.where(state == 0, np.maximum(0.0, b - np.maximum(last, a)), 0.0)
+    return stuck
+
+
+def run_figures(tr: Trajectory, period: float, periods: int) -> dict[str, Any]:
+    """The sweep figures of a run of ``periods`` whole periods [s] sampled at the boundaries."""
+    c = tr.crawler
+    bounds = np.arange(periods + 1) * period
+    idx = np.searchsorted(tr.t, bounds - 1e-9 * period)
+    idx[-1] = tr.t.size - 1
+    if np.any(np.abs(tr.t[idx] - bounds) > 1e-9 * period):
+        raise ValueError('the run is not sampled at the period boundaries')
+    X = tr.com
+    scale = float(np.ptp(tr.lengths)) if tr.lengths.size else 0.0
+    k0, steady = steady_window(X[idx], scale)
+    i0, i1 = int(idx[k0]), int(idx[-1])
+    t0, t1 = float(tr.t[i0]), float(tr.t[i1])
+    window = t1 - t0
+    n_win = periods - k0
+    dx = float(X[i1] - X[i0])
+    speed = dx / window
+    seg = np.diff(tr.x[i0:i1 + 1], axis=0)
+    dissipated = float(np.sum(c.friction * np.maximum(seg, 0.0).sum(axis=0)
+                              + c.friction_backward * np.maximum(-seg, 0.0).sum(axis=0)))
+    power = np.maximum(np.sum(tr.linkage_force[i0:i1 + 1] * tr.rates[i0:i1 + 1], axis=1), 0.0)
+    tt = tr.t[i0:i1 + 1]
+    pos_work = float(np.sum(0.5 * (power[1:] + power[:-1]) * np.diff(tt)))
+    denom = c.total_mass * c.gravity * abs(dx)
+    report = verify(tr)
+    out: dict[str, Any] = {
+        'bodies': c.p, 'period': period, 'mean_speed': speed,
+        'displacement_per_period': speed * period, 'transient_periods': k0, 'steady': steady,
+        'dissipated_energy': dissipated / n_win, 'positive_actuator_work': pos_work / n_win,
+        'cost_of_transport': pos_work / denom if denom > 0 else math.inf,
+        'actuator_peak_force': float(np.abs(tr.linkage_force).max(initial=0.0)),
+        'events_per_period': sum(1 for e in tr.events if t0 < e.time <= t1) / n_win,
+        'verify_worst': report.worst, 'verify_ok': report.ok(1e-9),
+    }
+    frac = _stuck_time(tr, t0, t1) / window
+    for i, f in enumerate(frac):
+        out[f'stick_fraction_{i}'] = float(f)
+    return out
+
+
+def scene_figures(scene: Scene, periods: int, samples_per_period: int) -> dict[str, Any]:
+    """Simulate ``scene`` for ``periods`` gait periods and return its sweep figures.
+
+    The samples are ``samples_per_period`` per period on a uniform grid through every period
+    boundary, plus (method "exact") every event time.
+    """
+    period = scene.gait.period
+    if not period:
+        raise ValueError(f'the gait {scene.gait_spec["type"]!r} is not periodic')
+    r = scene.run
+    t_end = periods * period
+    n = periods * samples_per_period
+    if r.method == 'exact':
+        # dt only sets the sample grid of "exact": linspace(0, t_end, n + 1) plus the events
+        tr = simulate(scene.crawler, scene.gait, t_end, 'exact', dt=t_end / n, v0=r.v0, x0=r.x0,
+                      tol=r.tol, max_step=r.max_step)
+    else:
+        tr = simulate(scene.crawler, scene.gait, t_end, r.method, dt=r.dt, v0=r.v0, x0=r.x0,
+                      penalty=r.penalty, t_eval=np.linspace(0.0, t_end, n + 1))
+    return run_figures(tr, period, periods)

@@ -1,0 +1,243 @@
+"""Running a sweep: chunks of scenes, local processes or a Dask client, checkpoints, metadata.
+
+The scenes of a spec are cut into chunks of ``spec.chunk_size`` in spec order; one chunk is one
+task (a local process job or a Dask task) and gives one DataFrame (:func:`run_chunk`, a pure
+function of the spec and the chunk index). The result is the chunks concatenated in order, so it
+does not depend on where or in which order the chunks ran: local and Dask give the same
+DataFrame bit for bit.
+
+With a ``checkpoint`` directory every finished chunk is written there as Parquet as soon as it
+arrives, and a later run of the same spec reads finished chunks instead of recomputing them
+(resuming after an interruption). The directory holds the spec; another spec is refused.
+"""
+from __future__ import annotations
+
+import json
+import math
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+import sys
+import time
+from typing import Any, Callable, Iterable
+
+import pandas as pd
+
+from .. import __version__
+from ..core.scene import SceneError
+from .metrics import FIGURES, scene_figures
+from .spec import SpecError, SweepSpec, spec_from_dict
+
+__all__ = ['sweep', 'run_chunk', 'chunk_params', 'n_chunks', 'assemble', 'metadata',
+           'Progress', 'Checkpoint']
+
+Progress = Callable[[int, int], None]
+
+
+def n_chunks(spec: SweepSpec) -> int:
+    """Number of chunks of ``spec``."""
+    return max(1, math.ceil(len(spec) / spec.chunk_size))
+
+
+def chunk_params(spec: SweepSpec, index: int) -> list[dict]:
+    """The parameter sets of chunk ``index`` (scenes index * chunk_size onwards)."""
+    start = index * spec.chunk_size
+    out = []
+    for k, params in enumerate(spec.param_sets()):
+        if k >= start + spec.chunk_size:
+            break
+        if k >= start:
+            out.append(params)
+    return out
+
+
+def _row(spec: SweepSpec, scene_index: int, params: dict) -> dict:
+    row: dict[str, Any] = {'scene': scene_index}
+    for key in spec.params:
+        value = params.get(key)
+        row[key] = json.dumps(value) if isinstance(value, (list, dict)) else value
+    try:
+        row.update(scene_figures(spec.scene(params), spec.periods, spec.samples_per_period))
+        row['error'] = ''
+    except (SceneError, ValueError, ArithmeticError, RuntimeError) as exc:
+        # one bad combination (or a solver failure) is a row with its reason, not a lost sweep
+        row['error'] = f'{type(exc).__name__}: {exc}'.splitlines()[0]
+    return row
+
+
+def run_chunk(spec_data: dict, index: int) -> pd.DataFrame:
+    """Rows of chunk ``index`` of the spec given as plain data (``SweepSpec.to_dict()``).
+
+    A pure function: the same arguments give the same DataFrame on any machine and process.
+    """
+    spec = spec_from_dict(spec_data)
+    start = index * spec.chunk_size
+    rows = [_row(spec, start + k, p) for k, p in enumerate(chunk_params(spec, index))]
+    return _columns(pd.DataFrame(rows), spec)
+
+
+def _columns(df: pd.DataFrame, spec: SweepSpec) -> pd.DataFrame:
+    """Fixed column order and dtypes, whatever rows a chunk holds (errors only, p varies)."""
+    for name in FIGURES:
+        if name not in df:
+            df[name] = pd.NA if name in ('steady', 'verify_ok') else math.nan
+    sticks = sorted((c for c in df if c.startswith('stick_fraction_')),
+                    key=lambda c: int(c.rsplit('_', 1)[1]))
+    for name in FIGURES + tuple(sticks):
+        if name in ('bodies', 'transient_periods'):
+            df[name] = df[name].astype('Int64')
+        elif name in ('steady', 'verify_ok'):
+            df[name] = df[name].astype('boolean')
+        else:
+            df[name] = df[name].astype('float64')
+    df['error'] = df['error'].astype(str) if 'error' in df else ''
+    params = [k for k in spec.params if k not in FIGURES]    # 'bodies' is also a figure
+    return df[['scene', *params, *FIGURES, *sticks, 'error']]
+
+
+def assemble(spec: SweepSpec, frames: Iterable[pd.DataFrame]) -> pd.DataFrame:
+    """The sweep's DataFrame from its chunks in order, with the spec and version in ``attrs``."""
+    df = pd.concat(list(frames), ignore_index=True)
+    # a body that exists in some chunks only: its stick fraction is NaN elsewhere
+    df = _columns(df.copy(), spec)
+    df = df.set_index('scene')
+    df.attrs['crawler_sim'] = metadata(spec)
+    return df
+
+
+def metadata(spec: SweepSpec) -> dict:
+    """What re-runs a sweep: the spec as plain data and the package version."""
+    return {'kind': 'sweep', 'version': __version__, 'spec': spec.to_dict()}
+
+
+class Checkpoint:
+    """Finished chunks of one spec as Parquet files in a directory (see the module doc)."""
+
+    def __init__(self, directory: str | os.PathLike, spec: SweepSpec) -> None:
+        self.dir = Path(directory)
+        self.dir.mkdir(parents=True, exist_ok=True)
+        stamp = self.dir / 'spec.json'
+        data = json.dumps(spec.to_dict(), sort_keys=True)
+        if stamp.exists():
+            if stamp.read_text(encoding='utf-8') != data:
+                raise SpecError(f'{self.dir}: checkpoint of another sweep spec; use another '
+                                'directory or delete it')
+        else:
+            stamp.write_text(data, encoding='utf-8')
+
+    def _path(self, index: int) -> Path:
+        return self.dir / f'chunk_{index:06d}.parquet'
+
+    def done(self, index: int) -> bool:
+        return self._path(index).exists()
+
+    def load(self, index: int) -> pd.DataFrame:
+        return pd.read_parquet(self._path(index))
+
+    def save(self, index: int, df: pd.DataFrame) -> None:
+        tmp = self._path(index).with_suffix('.tmp')
+        df.to_parquet(tmp, index=False)
+        tmp.replace(self._path(index))      # atomic: a killed run never leaves half a chunk
+
+
+def bar(label: str) -> Progress:
+    """A progress bar on stderr: rewritten in place on a terminal, a line per 10 % otherwise."""
+    tty = sys.stderr.isatty()
+    start = time.perf_counter()
+    shown = [-1]
+
+    def show(done: int, total: int) -> None:
+        frac = done / total if total else 1.0
+        elapsed = time.perf_counter() - start
+        eta = f'{elapsed / frac - elapsed:.0f} s' if frac > 0 else '?'
+        text = (f'{label}: [{"#" * int(30 * frac):<30}] {done}/{total} scenes '
+                f'{elapsed:.1f} s, ETA {eta}')
+        if tty:
+            print('\r' + text, end='\n' if done >= total else '', file=sys.stderr, flush=True)
+        elif int(10 * frac) > shown[0]:
+            shown[0] = int(10 * frac)
+            print(text, file=sys.stderr, flush=True)
+    return show
+
+
+def _local(spec: SweepSpec, todo: list[int], workers: int, on_done: Callable) -> None:
+    data = spec.to_dict()
+    if workers <= 1 or len(todo) <= 1:
+        for i in todo:
+            on_done(i, run_chunk(data, i))
+        return
+    try:
+        # the first simulation imports scipy's root finders (about 1 s): do it once here so the
+        # forked workers inherit it instead of each paying it
+        scene_figures(spec.scene(next(spec.param_sets())), 4, 4)
+    except (SceneError, ValueError, ArithmeticError, RuntimeError):
+        pass
+    methods = multiprocessing.get_all_start_methods()
+    # fork: the workers inherit the imported package instead of importing it again
+    ctx = multiprocessing.get_context('fork' if 'fork' in methods else None)
+    with ProcessPoolExecutor(max_workers=min(workers, len(todo)), mp_context=ctx) as pool:
+        futures = {pool.submit(run_chunk, data, i): i for i in todo}
+        try:
+            for fut in as_completed(futures):
+                on_done(futures[fut], fut.result())
+        except BaseException:
+            for fut in futures:
+                fut.cancel()
+            raise
+
+
+def sweep(spec: SweepSpec | dict | str | os.PathLike, *, client: Any = None,
+          workers: int | None = None, checkpoint: str | os.PathLike | None = None,
+          progress: bool | Progress = False) -> pd.DataFrame:
+    """Run every scene of ``spec`` and return one row per scene (index ``scene``).
+
+    Parameters
+    ----------
+    spec : SweepSpec, its plain-data form, or the path of a sweep YAML file.
+    client : a ``dask.distributed.Client``; the chunks run on its cluster. Default: local.
+    workers : local processes (default: every core); 1 runs in this process.
+    checkpoint : directory of finished chunks; an interrupted sweep resumes from it.
+    progress : True for a bar on stderr, or a callable ``(done_scenes, total_scenes)``.
+
+    Returns
+    -------
+    DataFrame with the swept parameters, the figures of `crawler_sim.sweep.metrics.FIGURES`,
+    ``stick_fraction_<i>`` per body and ``error`` ('' when the scene ran). ``attrs['crawler_sim']``
+    holds the spec and the package version.
+    """
+    if isinstance(spec, (str, os.PathLike)):
+        from .spec import load_spec
+        spec = load_spec(spec)
+    elif isinstance(spec, dict):
+        spec = spec_from_dict(spec)
+    total_chunks, total = n_chunks(spec), len(spec)
+    report = bar(f'sweep {spec.name}') if progress is True else progress or None
+    store = Checkpoint(checkpoint, spec) if checkpoint is not None else None
+    frames: dict[int, pd.DataFrame] = {}
+    todo = []
+    for i in range(total_chunks):
+        if store is not None and store.done(i):
+            frames[i] = store.load(i)
+        else:
+            todo.append(i)
+
+    def done_scenes() -> int:
+        return min(total, sum(len(f) for f in frames.values()))
+
+    def on_done(i: int, df: pd.DataFrame) -> None:
+        frames[i] = df
+        if store is not None:
+            store.save(i, df)
+        if report:
+            report(done_scenes(), total)
+
+    if report:
+        report(done_scenes(), total)
+    if todo:
+        if client is not None:
+            from .cluster import run_on_client
+            run_on_client(client, spec, todo, on_done)
+        else:
+            _local(spec, todo, workers or os.cpu_count() or 1, on_done)
+    return assemble(spec, (frames[i] for i in range(total_chunks)))

@@ -1,0 +1,164 @@
+"""Tables: runs as pandas DataFrames, and Parquet / CSV files that carry their metadata.
+
+A simulated `Trajectory` and a recorded bag (`crawler_sim.bag.load`) become the same two frames:
+
+- samples: one row per sample, index ``t`` [s]; per body i the columns ``x_i`` [m], ``v_i``
+  [m/s], ``friction_i`` [N] (force of the ground on the body), ``contact_i`` (+1 sliding forward,
+  0 stuck, -1 backward); per linkage j ``length_j`` [m], ``rate_j`` [m/s], ``linkage_force_j``
+  [N] (on body j+1, positive pushes apart); and ``com`` [m], the centre of mass when the masses
+  are known.
+- events: one row per contact change, columns ``t`` [s], ``body``, ``old``, ``new``.
+
+:func:`write_table` stores a frame's ``attrs['crawler_sim']`` (the sweep spec or the scene, and
+the package version) in the file: Parquet schema metadata under the key ``crawler_sim``, or a
+first CSV line ``# crawler_sim: {JSON}``. :func:`read_table` restores it into ``attrs``.
+"""
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from .. import __version__
+from ..core.trajectory import Trajectory
+
+__all__ = ['trajectory_frames', 'run_frames', 'frames', 'write_table', 'read_table',
+           'export_bag', 'FORMATS']
+
+FORMATS = ('parquet', 'csv')
+_META_KEY = 'crawler_sim'
+_CSV_PREFIX = f'# {_META_KEY}: '
+
+
+def _samples(t: np.ndarray, x, v, friction, contact, lengths, rates, force,
+             masses: np.ndarray | None) -> pd.DataFrame:
+    cols: dict[str, Any] = {}
+    p, n = x.shape[1], lengths.shape[1]
+    for name, arr in (('x', x), ('v', v), ('friction', friction)):
+        for i in range(p):
+            cols[f'{name}_{i}'] = np.asarray(arr[:, i], dtype=np.float64)
+    for i in range(p):
+        cols[f'contact_{i}'] = np.asarray(contact[:, i], dtype=np.int8)
+    for name, arr in (('length', lengths), ('rate', rates), ('linkage_force', force)):
+        for j in range(n):
+            cols[f'{name}_{j}'] = np.asarray(arr[:, j], dtype=np.float64)
+    if masses is not None:
+        cols['com'] = x @ (masses / masses.sum())
+    return pd.DataFrame(cols, index=pd.Index(np.asarray(t, dtype=np.float64), name='t'))
+
+
+def _events(t, body, old, new) -> pd.DataFrame:
+    return pd.DataFrame({'t': np.asarray(t, dtype=np.float64),
+                         'body': np.asarray(body, dtype=np.int64),
+                         'old': np.asarray(old, dtype=np.int8),
+                         'new': np.asarray(new, dtype=np.int8)})
+
+
+def trajectory_frames(tr: Trajectory) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(samples, events) of a simulated run (see the module doc for the columns)."""
+    samples = _samples(tr.t, tr.x, tr.v, tr.friction, tr.state, tr.lengths, tr.rates,
+                       tr.linkage_force, tr.crawler.masses)
+    ev = tr.events
+    events = _events([e.time for e in ev], [e.body for e in ev], [e.old for e in ev],
+                     [e.new for e in ev])
+    meta = {'kind': 'trajectory', 'version': __version__, 'method': tr.method,
+            'crawler': tr.crawler.to_dict()}
+    samples.attrs[_META_KEY] = events.attrs[_META_KEY] = meta
+    return samples, events
+
+
+def run_frames(run: Any) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(samples, events) of a recorded run (`crawler_sim.bag.Run`, as `crawler_sim.bag.load`
+    returns it); ``com`` is added when the bag's scene gives the masses."""
+    crawler = run.scene.get('crawler') if isinstance(run.scene, dict) else None
+    masses = None
+    if isinstance(crawler, dict) and 'masses' in crawler:
+        m = np.asarray(crawler['masses'], dtype=float)
+        masses = m if m.size == run.x.shape[1] else None
+    samples = _samples(run.t, run.x, run.v, run.friction, run.contact, run.lengths, run.rates,
+                       run.linkage_force, masses)
+    ev = run.events
+    events = _events(ev.t, ev.body, ev.old, ev.new)
+    meta = {'kind': 'bag', 'version': __version__, 'path': str(run.path), 'scene': run.scene,
+            'truncated': bool(run.truncated)}
+    samples.attrs[_META_KEY] = events.attrs[_META_KEY] = meta
+    return samples, events
+
+
+def frames(obj: Any) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(samples, events) of a `Trajectory`, a loaded bag, or a bag path (loaded here)."""
+    if isinstance(obj, Trajectory):
+        return trajectory_frames(obj)
+    if isinstance(obj, (str, os.PathLike)):
+        from ..bag import load
+        obj = load(obj)
+    return run_frames(obj)
+
+
+def _format(path: Path, fmt: str | None) -> str:
+    fmt = fmt or path.suffix.lstrip('.').lower()
+    if fmt not in FORMATS:
+        raise ValueError(f'{path}: format must be one of {", ".join(FORMATS)} (from the '
+                         f'suffix .parquet or .csv, or given), got {fmt!r}')
+    return fmt
+
+
+def write_table(df: pd.DataFrame, path: str | os.PathLike, fmt: str | None = None) -> Path:
+    """Write ``df`` to Parquet or CSV (``fmt`` or the suffix) with its ``attrs['crawler_sim']``."""
+    path = Path(path)
+    fmt = _format(path, fmt)
+    meta = json.dumps(df.attrs.get(_META_KEY, {'version': __version__}), sort_keys=True,
+                      default=str)
+    tmp = path.with_name(path.name + '.tmp')
+    if fmt == 'parquet':
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        table = pa.Table.from_pandas(df)
+        table = table.replace_schema_metadata({**(table.schema.metadata or {}),
+                                               _META_KEY.encode(): meta.encode()})
+        pq.write_table(table, tmp)
+    else:
+        with open(tmp, 'w', encoding='utf-8', newline='') as fh:
+            fh.write(_CSV_PREFIX + meta + '\n')
+            df.to_csv(fh, float_format='%.17g')       # 17 digits: floats read back exactly
+    tmp.replace(path)          # the old file stays whole until the new one is complete
+    return path
+
+
+def read_table(path: str | os.PathLike) -> pd.DataFrame:
+    """Read a table written by :func:`write_table`, with ``attrs['crawler_sim']`` restored."""
+    path = Path(path)
+    fmt = _format(path, None)
+    if fmt == 'parquet':
+        import pyarrow.parquet as pq
+
+        table = pq.read_table(path)
+        df = table.to_pandas()
+        raw = (table.schema.metadata or {}).get(_META_KEY.encode())
+        meta = json.loads(raw) if raw else {}
+    else:
+        with open(path, encoding='utf-8') as fh:
+            first = fh.readline()
+            meta = json.loads(first[len(_CSV_PREFIX):]) if first.startswith(_CSV_PREFIX) else {}
+            if not meta:
+                fh.seek(0)
+            df = pd.read_csv(fh, index_col=0)
+    df.attrs[_META_KEY] = meta
+    return df
+
+
+def export_bag(bag: str | os.PathLike, out: str | os.PathLike, fmt: str | None = None
+               ) -> tuple[Path, Path]:
+    """Write a bag's samples to ``out`` and its events next to it (``<stem>_events<suffix>``)."""
+    out = Path(out)
+    fmt = _format(out, fmt)
+    samples, events = frames(bag)
+    events_path = out.with_name(f'{out.stem}_events.{fmt}')
+    write_table(samples, out, fmt)
+    write_table(events.set_index('t'), events_path, fmt)
+    return out, events_path
