@@ -220,10 +220,13 @@ def fourier_rates(t, freq, ca, sb, w, ld, ldd, ep, epp):
     for j in range(n):
         ld[j] = 0.0
         ldd[j] = 0.0
+    c1 = math.cos(th)
+    s1 = math.sin(th)
+    ck, sk = c1, s1
     for k in range(K):
+        if k > 0:       # cos, sin of (k + 1) th by the angle-addition recurrence
+            ck, sk = ck * c1 - sk * s1, sk * c1 + ck * s1
         wk = om * (k + 1)
-        ck = math.cos((k + 1) * th)
-        sk = math.sin((k + 1) * th)
         for j in range(n):
             a = ca[j, k]
             b = sb[j, k]
@@ -234,6 +237,152 @@ def fourier_rates(t, freq, ca, sb, w, ld, ldd, ep, epp):
 
 
 @njit(cache=True)
+def fourier1(t, freq, ca, sb):
+    """(l', l'') of linkage 0 of a Fourier gait at t, as floats: ``fourier_rates``' arithmetic
+    for one linkage without its arrays (the two-body hot path)."""
+    th = 2.0 * math.pi * ((freq * t) % 1.0)
+    om = 2.0 * math.pi * freq
+    c1 = math.cos(th)
+    s1 = math.sin(th)
+    ck, sk = c1, s1
+    ld = 0.0
+    ldd = 0.0
+    for k in range(ca.shape[1]):
+        if k > 0:
+            ck, sk = ck * c1 - sk * s1, sk * c1 + ck * s1
+        wk = om * (k + 1)
+        a = ca[0, k]
+        b = sb[0, k]
+        ld += wk * (b * ck - a * sk)
+        ldd -= wk * wk * (a * ck + b * sk)
+    return ld, ldd
+
+
+@njit(cache=True)
+def prox2(c, u_ref, force, k0, k1, fp0, fp1, fm0, fm1):
+    """``prox`` for two entries in scalars, with the same arithmetic (the two-body hot path)."""
+    above = 0.0 + fm0 + fm1
+    if k1 < k0:
+        ka, kb, pa, pb, ma, mb = k1, k0, fp1, fp0, fm1, fm0
+    else:
+        ka, kb, pa, pb, ma, mb = k0, k1, fp0, fp1, fm0, fm1
+    u = u_ref + (force - 0.0 + above) / c
+    if u < ka:
+        return u, 0.0
+    if kb == ka:
+        ga = 0.0 + pa + pb
+        gb = 0.0 + ma + mb
+        base = c * (ka - u_ref) - force + 0.0 - (above - gb)
+        if base + ga >= 0.0:
+            return ka, min(max(-base, -gb), ga)
+        return u_ref + (force - ga + (above - gb)) / c, 0.0
+    ga = 0.0 + pa
+    gb = 0.0 + ma
+    base = c * (ka - u_ref) - force + 0.0 - (above - gb)
+    if base + ga >= 0.0:
+        return ka, min(max(-base, -gb), ga)
+    below = 0.0 + ga
+    above -= gb
+    u = u_ref + (force - below + above) / c
+    if u < kb:
+        return u, 0.0
+    ga = 0.0 + pb
+    gb = 0.0 + mb
+    base = c * (kb - u_ref) - force + below - (above - gb)
+    if base + ga >= 0.0:
+        return kb, min(max(-base, -gb), ga)
+    return u_ref + (force - (below + ga) + (above - gb)) / c, 0.0
+
+
+@njit(cache=True)
+def split_step(t, tb, V, X, contact, R, K, epb, eppb, w, M, fext, fp, fm, freq, ca, sb, dt,
+               max_depth, ev_t, ev_b, ev_o, ev_n, n_ev, wf, idx, zmask, newc, tmp):
+    """One step [t, tb] from (V, X, contact) with e', e'' = epb, eppb at tb: the Moreau-Jean
+    step, split at each transition inside it (at most max_depth). Updates contact, R (mean
+    friction of the last piece) and K in place, appends events; returns (V, X, n_ev).
+    Scratch: wf float (8, p), idx int64 (p,), zmask bool (p,), newc and tmp int8 (p,)."""
+    p = w.size
+    ld, ldd = wf[0, :p - 1], wf[1, :p - 1]
+    ep, epp, kinks, kbuf, fpb, fmb = wf[2], wf[3], wf[4], wf[5], wf[6], wf[7]
+    lo = t
+    u = V
+    for depth in range(max_depth + 1):
+        h = tb - lo
+        if h <= 0.0:                    # a transition exactly at the step end
+            u = V
+            for i in range(p):
+                newc[i] = contact[i]
+            break
+        for i in range(p):
+            kinks[i] = -epb[i]
+        u, s = prox(M / h, V, fext, kinks, fp, fm, p, idx)
+        same = True
+        for i in range(p):
+            newc[i] = 0 if u == kinks[i] else (1 if u + epb[i] > 0.0 else -1)
+            same = same and newc[i] == contact[i]
+        if same and (first_stuck(contact) < 0 or not changed(
+                contact, u, epb, eppb, M, fext, fp, fm, zmask, kbuf, fpb, fmb, idx, tmp)):
+            break
+        if depth == max_depth or h <= BISECT_REL * dt:
+            break
+        j = first_stuck(contact)
+        a_lo = (fext + slide_sum(contact, fp, fm)) / M
+        uc = -epb[j] if j >= 0 else V + a_lo * h
+        if not changed(contact, uc, epb, eppb, M, fext, fp, fm, zmask, kbuf, fpb, fmb,
+                       idx, tmp):
+            u = uc                      # the prox's change was its O(h) stick test
+            for i in range(p):
+                newc[i] = contact[i]
+            break
+        a, b = lo, tb
+        for _ in range(_BISECT):
+            if b - a <= BISECT_REL * dt:
+                break
+            mid = a + 0.5 * (b - a)
+            fourier_rates(mid, freq, ca, sb, w, ld, ldd, ep, epp)
+            vm = -ep[j] if j >= 0 else V + a_lo * (mid - lo)
+            if changed(contact, vm, ep, epp, M, fext, fp, fm, zmask, kbuf, fpb, fmb,
+                       idx, tmp):
+                b = mid
+            else:
+                a = mid
+        tau = b
+        fourier_rates(tau, freq, ca, sb, w, ld, ldd, ep, epp)
+        vt = -ep[j] if j >= 0 else V + a_lo * (tau - lo)
+        new_mode(contact, vt, ep, epp, M, fext, fp, fm, zmask, kbuf, fpb, fmb, idx, newc)
+        hh = tau - lo
+        if hh > 0.0:
+            interval_friction(contact, V, vt, hh, M, fext, fp, fm, R)
+            X += hh * vt
+            for i in range(p):
+                K[i] += hh * R[i]
+        for i in range(p):
+            if newc[i] != contact[i]:
+                ev_t[n_ev] = tau
+                ev_b[n_ev] = i
+                ev_o[n_ev] = contact[i]
+                ev_n[n_ev] = newc[i]
+                n_ev += 1
+                contact[i] = newc[i]
+        V = vt
+        lo = tau
+    hh = tb - lo
+    if hh > 0.0:
+        interval_friction(newc, V, u, hh, M, fext, fp, fm, R)
+    X += hh * u
+    for i in range(p):
+        K[i] += hh * R[i]
+        if newc[i] != contact[i]:
+            ev_t[n_ev] = tb
+            ev_b[n_ev] = i
+            ev_o[n_ev] = contact[i]
+            ev_n[n_ev] = newc[i]
+            n_ev += 1
+            contact[i] = newc[i]
+    return u, X, n_ev
+
+
+@njit(cache=True)
 def advance_fourier(st, contact, R, K, w, M, fext, fp, fm, freq, ca, sb, t1, dt, max_steps,
                     max_depth, ev_t, ev_b, ev_o, ev_n, ep_out, epp_out):
     """Steps of ``dt`` from st[0] to t1 (the last one shortened to land on t1), the gait a
@@ -241,20 +390,18 @@ def advance_fourier(st, contact, R, K, w, M, fext, fp, fm, freq, ca, sb, t1, dt,
     (friction of the last step) and K (impulse). Stops early after ``max_steps`` steps or when
     the event buffers (ev_*) may overflow; returns (steps, events written). ep_out, epp_out
     receive e', e'' at the last step end (as the step used them). max_depth: transitions placed
-    inside one step (0: the plain Moreau-Jean step)."""
+    inside one step (0: the plain Moreau-Jean step).
+
+    Two bodies take a short path while the mode holds (no transition, at most one body stuck
+    within its friction bounds): the same prox and the same tests as ``split_step``, inline."""
     p = w.size
-    nl = p - 1
-    ld = np.empty(nl)
-    ldd = np.empty(nl)
+    ld = np.empty(p - 1)
+    ldd = np.empty(p - 1)
     epb = np.empty(p)
     eppb = np.empty(p)
-    ep = np.empty(p)
-    epp = np.empty(p)
     kinks = np.empty(p)
-    kbuf = np.empty(p)
-    fpb = np.empty(p)
-    fmb = np.empty(p)
     idx = np.empty(p, np.int64)
+    wf = np.empty((8, p))
     zmask = np.empty(p, np.bool_)
     newc = np.empty(p, np.int8)
     tmp = np.empty(p, np.int8)
@@ -265,88 +412,48 @@ def advance_fourier(st, contact, R, K, w, M, fext, fp, fm, freq, ca, sb, t1, dt,
     while t < t1 and steps < max_steps and n_ev + p * (MAX_DEPTH + 1) <= cap:
         tb = t1 if (t1 - t) / dt <= 1.0 + 1e-9 else t + dt
         V0 = V
-        fourier_rates(tb, freq, ca, sb, w, ld, ldd, epb, eppb)
-        lo = t
-        for depth in range(max_depth + 1):
-            h = tb - lo
-            if h <= 0.0:                    # a transition exactly at the step end
-                u = V
-                for i in range(p):
-                    newc[i] = contact[i]
-                break
-            for i in range(p):
-                kinks[i] = -epb[i]
-            u, s = prox(M / h, V, fext, kinks, fp, fm, p, idx)
-            same = True
-            for i in range(p):
-                newc[i] = 0 if u == kinks[i] else (1 if u + epb[i] > 0.0 else -1)
-                same = same and newc[i] == contact[i]
-            if same and (first_stuck(contact) < 0 or not changed(
-                    contact, u, epb, eppb, M, fext, fp, fm, zmask, kbuf, fpb, fmb, idx, tmp)):
-                break
-            if depth == max_depth or h <= BISECT_REL * dt:
-                break
-            j = first_stuck(contact)
-            a_lo = (fext + slide_sum(contact, fp, fm)) / M
-            uc = -epb[j] if j >= 0 else V + a_lo * h
-            if not changed(contact, uc, epb, eppb, M, fext, fp, fm, zmask, kbuf, fpb, fmb,
-                           idx, tmp):
-                u = uc                      # the prox's change was its O(h) stick test
-                for i in range(p):
-                    newc[i] = contact[i]
-                break
-            a, b = lo, tb
-            for _ in range(_BISECT):
-                if b - a <= BISECT_REL * dt:
-                    break
-                mid = a + 0.5 * (b - a)
-                fourier_rates(mid, freq, ca, sb, w, ld, ldd, ep, epp)
-                vm = -ep[j] if j >= 0 else V + a_lo * (mid - lo)
-                if changed(contact, vm, ep, epp, M, fext, fp, fm, zmask, kbuf, fpb, fmb,
-                           idx, tmp):
-                    b = mid
-                else:
-                    a = mid
-            tau = b
-            fourier_rates(tau, freq, ca, sb, w, ld, ldd, ep, epp)
-            vt = -ep[j] if j >= 0 else V + a_lo * (tau - lo)
-            new_mode(contact, vt, ep, epp, M, fext, fp, fm, zmask, kbuf, fpb, fmb, idx, newc)
-            hh = tau - lo
-            if hh > 0.0:
-                interval_friction(contact, V, vt, hh, M, fext, fp, fm, R)
-                X += hh * vt
-                for i in range(p):
-                    K[i] += hh * R[i]
-            for i in range(p):
-                if newc[i] != contact[i]:
-                    ev_t[n_ev] = tau
-                    ev_b[n_ev] = i
-                    ev_o[n_ev] = contact[i]
-                    ev_n[n_ev] = newc[i]
-                    n_ev += 1
-                    contact[i] = newc[i]
-            V = vt
-            lo = tau
-        hh = tb - lo
-        if hh > 0.0:
-            interval_friction(newc, V, u, hh, M, fext, fp, fm, R)
-        X += hh * u
-        for i in range(p):
-            K[i] += hh * R[i]
-            if newc[i] != contact[i]:
-                ev_t[n_ev] = tb
-                ev_b[n_ev] = i
-                ev_o[n_ev] = contact[i]
-                ev_n[n_ev] = newc[i]
-                n_ev += 1
-                contact[i] = newc[i]
-        V = u
-        for i in range(p):
-            ep_out[i] = epb[i]
-            epp_out[i] = eppb[i]
+        done = False
+        if p == 2:
+            l1, l2 = fourier1(tb, freq, ca, sb)
+            mean = 0.0 + w[0] * 0.0 + w[1] * l1      # rel_rates' arithmetic
+            ep0, ep1 = 0.0 - mean, l1 - mean
+            mean2 = 0.0 + w[0] * 0.0 + w[1] * l2
+            epp0, epp1 = 0.0 - mean2, l2 - mean2
+            h = tb - t
+            k0, k1 = -ep0, -ep1
+            u, s = prox2(M / h, V, fext, k0, k1, fp[0], fp[1], fm[0], fm[1])
+            c0 = 0 if u == k0 else (1 if u + ep0 > 0.0 else -1)
+            c1 = 0 if u == k1 else (1 if u + ep1 > 0.0 else -1)
+            if c0 == contact[0] and c1 == contact[1]:
+                if c0 != 0 and c1 != 0:
+                    done = True         # both slide: R is the two Coulomb forces already
+                elif c0 != c1:
+                    j = 0 if c0 == 0 else 1
+                    i = 1 - j
+                    # the stuck body's required force at tb (the acceleration test of changed)
+                    ri = -fp[i] if contact[i] > 0 else fm[i]
+                    rj = -M * (epp0 if j == 0 else epp1) - fext - ri
+                    if -fp[j] <= rj <= fm[j]:
+                        done = True
+                        interval_friction(contact, V, u, h, M, fext, fp, fm, R)
+            epb[0], epb[1], eppb[0], eppb[1] = ep0, ep1, epp0, epp1
+            if done:
+                X += h * u
+                K[0] += h * R[0]
+                K[1] += h * R[1]
+                V = u
+        else:
+            fourier_rates(tb, freq, ca, sb, w, ld, ldd, epb, eppb)
+        if not done:
+            V, X, n_ev = split_step(t, tb, V, X, contact, R, K, epb, eppb, w, M, fext, fp, fm,
+                                    freq, ca, sb, dt, max_depth, ev_t, ev_b, ev_o, ev_n, n_ev,
+                                    wf, idx, zmask, newc, tmp)
         A = (V - V0) / (tb - t)
         t = tb
         steps += 1
+    for i in range(p):
+        ep_out[i] = epb[i]
+        epp_out[i] = eppb[i]
     st[0] = t
     st[1] = X
     st[2] = V
