@@ -26,7 +26,6 @@ from numpy.typing import ArrayLike, NDArray
 from ..gaits import Fourier, Gait, Sinusoid
 from ..model import Crawler, kinematics
 from ..trajectory import Event
-from . import implicit_kernel as kern
 from .contact import solve_inclusion_batch
 
 __all__ = ['ImplicitSolver', 'ImplicitBatch', 'TimeStepper', 'MAX_STEPS', 'check_steps',
@@ -35,6 +34,19 @@ __all__ = ['ImplicitSolver', 'ImplicitBatch', 'TimeStepper', 'MAX_STEPS', 'check
 #: the most steps one ``advance`` (or one ``simulate``) may take: 1e9 steps is about 2 minutes
 #: in the kernel and hours in Python
 MAX_STEPS = 10 ** 9
+
+
+#: the compiled helpers (``implicit_kernel``), imported on first use: numba takes about a second
+#: to import, which ``import crawler_sim`` should not pay when no fixed-step method runs
+kern = None
+
+
+def _load_kernel():
+    global kern
+    if kern is None:
+        from . import implicit_kernel
+        kern = implicit_kernel
+    return kern
 
 
 def check_steps(span: float, dt: float, what: str = 't_end') -> None:
@@ -88,6 +100,7 @@ class TimeStepper:
                  x0: float = 0.0, v0: float = 0.0) -> None:
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise ValueError(f'dt must be a finite step > 0 s, got {dt!r}')
+        _load_kernel()
         self.crawler = crawler
         self.gait = gait
         self.dt = float(dt)
@@ -211,7 +224,7 @@ class ImplicitSolver(TimeStepper):
                  x0: float = 0.0, v0: float = 0.0, use_kernel: bool = True,
                  locate_transitions: bool = True) -> None:
         self.use_kernel = bool(use_kernel)
-        self._max_depth = kern.MAX_DEPTH if locate_transitions else 0
+        self._max_depth = _load_kernel().MAX_DEPTH if locate_transitions else 0
         self._form: tuple = (None, None)
         super().__init__(crawler, gait, dt=dt, t0=t0, x0=x0, v0=v0)
 
