@@ -12,9 +12,10 @@ lambdas without a period (the issue's user gait).
   n = 1e8, rtol = atol = 1e-10 (``baselines.run_baseline``, the gait's rates in scalar math), as
   the issue names it, and the same with max_step = T / 1000 (without it LSODA steps over whole
   strokes on these scenes);
-* the reference: the implicit method Richardson-extrapolated (2 x(h/2) - x(h), h = 1e-5 s),
+* the reference: the implicit method Richardson-extrapolated from h = 1e-5 s, h/2 and h/4,
   written apart from the exact solver; its first-order error constant is known in closed form
-  ((h/2)(V(T) - V(0)), see ``implicit.py``), so the extrapolation removes it. Errors are the
+  ((h/2)(V(T) - V(0)), see ``implicit.py``); two levels (h, h/2, h/4) remove the h and h^2
+  terms. Errors are the
   position of body 0 at T and the largest |x - x_ref| of the centre of mass over the grid;
 * implicit: steps/s of the kernel (two bodies, scene 1, dt = 1e-5 s, wall and CPU time), the
   log-log slope of |error of x_0(T)| over dt = 1e-3 ... 1e-5 s against the reference, and
@@ -96,11 +97,15 @@ def _implicit_run(crawler: Crawler, gait: gaits.Gait, grid: np.ndarray,
 
 def _reference(crawler: Crawler, gait: gaits.Gait, T: float, grid: np.ndarray,
                h: float) -> dict:
-    """Richardson extrapolation of the implicit method (first order, steady constant)."""
-    com_h, x_h = _implicit_run(crawler, gait, grid, h)
-    com_h2, x_h2 = _implicit_run(crawler, gait, grid, h / 2)
-    return {'x0': 2 * x_h2 - x_h, 'com': 2 * com_h2 - com_h, 'h': h,
-            'richardson_correction': x_h2 - x_h}
+    """Two-level Richardson extrapolation of the implicit method from steps h, h/2, h/4: its
+    error is C h + D h^2 + ... (C = (V(T) - V(0)) / 2, see ``implicit.py``), so
+    R1(h) = 2 x(h/2) - x(h) removes C h and (4 R1(h/2) - R1(h)) / 3 removes D h^2."""
+    runs = [_implicit_run(crawler, gait, grid, h / k) for k in (1, 2, 4)]
+    (c1, x1), (c2, x2), (c4, x4) = runs
+    r_h, r_h2 = 2 * x2 - x1, 2 * x4 - x2
+    rc_h, rc_h2 = 2 * c2 - c1, 2 * c4 - c2
+    return {'x0': (4 * r_h2 - r_h) / 3, 'com': (4 * rc_h2 - rc_h) / 3, 'h': h,
+            'richardson_correction': x2 - x1, 'second_correction': (r_h2 - r_h) / 3}
 
 
 def _scene_row(name: str, repeats: int, h_ref: float, say: Callable) -> dict:
@@ -108,7 +113,8 @@ def _scene_row(name: str, repeats: int, h_ref: float, say: Callable) -> dict:
     grid = np.linspace(0.0, T, 16 * PERIODS + 1)
     ref = _reference(crawler, builtin, T, grid, h_ref)
     row: dict[str, Any] = {'scene': name, 'T': T, 'reference_x0': ref['x0'],
-                           'reference_richardson_correction': ref['richardson_correction']}
+                           'reference_richardson_correction': ref['richardson_correction'],
+                           'reference_second_correction': ref['second_correction']}
     for label, gait in (('exact_builtin', builtin), ('exact_custom', custom)):
         try:
             tm, tr = _timed(lambda: simulate(crawler, gait, T, t_eval=grid), repeats)
@@ -259,8 +265,8 @@ def compare_markdown(res: dict) -> list[str]:
              f'Command: `{res["command"]}` (also part of `crawler-sim bench`). Medians of '
              f'{res["repeats"]} runs, wall (CPU) time; load average {res["load_average"][0]:.2f} '
              f'/ {res["load_average"][-1]:.2f}. Errors against the implicit method '
-             f'Richardson-extrapolated at h = {res["reference_h"]:g} s (independent of the exact '
-             'solver): |x_0(T) '
+             f'Richardson-extrapolated (two levels) from h = {res["reference_h"]:g} s, h/2, h/4 '
+             '(independent of the exact solver): |x_0(T) '
              '- ref| and max |X - X_ref| over 16 samples per period. LSODA: n = 1e8, rtol = atol '
              '= 1e-10, analytic Jacobian; "+max_step" adds max_step = T / 1000.', '',
              '| scene | exact Fourier | exact Custom | LSODA | LSODA +max_step | ratio Fourier '
@@ -300,7 +306,10 @@ def compare_markdown(res: dict) -> list[str]:
     if 'batch' in res:
         b = res['batch']
         lines.append(f'- ImplicitBatch, {b["crawlers"]:,} crawlers, p = 2: '
-                     f'{b["body_steps_per_s"]:.3g} body-steps/s.')
+                     f'{b["body_steps_per_s"]:.3g} body-steps/s (compiled step); the previous '
+                     f'numpy step {b["numpy_body_steps_per_s"]:.3g}/s in the same run '
+                     f'({b["speedup_vs_numpy"]:.1f}x; largest |X| difference '
+                     f'{b["max_diff_vs_numpy"]:.1e} m).')
     cs_ = res['cold_start']
     lines.append(f'- Cold start (fresh interpreter, median of {cs_["repeats"]}): import '
                  f'crawler_sim {cs_["import"]:.2f} s; first exact simulate '

@@ -26,7 +26,6 @@ from numpy.typing import ArrayLike, NDArray
 from ..gaits import Fourier, Gait, Sinusoid
 from ..model import Crawler, kinematics
 from ..trajectory import Event
-from .contact import solve_inclusion_batch
 
 __all__ = ['ImplicitSolver', 'ImplicitBatch', 'TimeStepper', 'MAX_STEPS', 'check_steps',
            'warm_up']
@@ -400,10 +399,10 @@ class ImplicitBatch:
         slope = np.broadcast_to(np.asarray(slope, dtype=float), (B,))
         self.masses = np.ascontiguousarray(m)
         self.M = self.masses.sum(axis=1)
-        self._w = self.masses / self.M[:, None]
+        self._w = np.ascontiguousarray(self.masses / self.M[:, None])
         self.f_plus = np.ascontiguousarray(f)
         self.f_minus = np.ascontiguousarray(fb)
-        self.F_ext = -self.M * gravity * np.sin(slope)
+        self.F_ext = np.ascontiguousarray(-self.M * gravity * np.sin(slope))
         self.B, self.p = B, p
         self.X = np.zeros(B)
         self.V = np.zeros(B)
@@ -422,10 +421,12 @@ class ImplicitBatch:
         return self.V[:, None] + self._ep(rates)
 
     def step(self, h: float, rates: ArrayLike) -> None:
-        """Advance every crawler by h [s]; ``rates`` are l'(t + h)."""
-        ep = self._ep(rates)
-        c = self.M / h
-        V, _ = solve_inclusion_batch(c, self.V, self.F_ext, -ep, self.f_plus, self.f_minus)
-        self.V = V
-        self.X = self.X + h * V
+        """Advance every crawler by h [s]; ``rates`` are l'(t + h), shape (p-1,) or (B, p-1)."""
+        r = np.asarray(rates, dtype=float)
+        if r.shape not in ((self.p - 1,), (self.B, self.p - 1)):
+            raise ValueError(f'rates must have shape ({self.p - 1},) or ({self.B}, '
+                             f'{self.p - 1}), got {r.shape}')
+        _load_kernel().batch_step(float(h), np.ascontiguousarray(r.reshape(-1, self.p - 1)),
+                                  self._w, self.M, self.V, self.X, self.F_ext, self.f_plus,
+                                  self.f_minus)
         self.t += h

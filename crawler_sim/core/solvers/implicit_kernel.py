@@ -459,3 +459,20 @@ def advance_fourier(st, contact, R, K, w, M, fext, fp, fm, freq, ca, sb, t1, dt,
     st[2] = V
     st[3] = A
     return steps, n_ev
+
+
+@njit(cache=True)
+def batch_step(h, rates, w, M, V, X, fext, fp, fm):
+    """One plain Moreau-Jean step of B crawlers (``ImplicitBatch``): rates (1 or B, p - 1) are
+    l'(t + h), shared when there is one row; V, X (B,) are updated in place."""
+    B, p = fp.shape
+    ep = np.empty(p)
+    idx = np.empty(p, np.int64)
+    shared = rates.shape[0] == 1
+    for b in range(B):
+        rel_rates(w[b], rates[0] if shared else rates[b], ep)
+        for i in range(p):
+            ep[i] = -ep[i]
+        u, s = prox(M[b] / h, V[b], fext[b], ep, fp[b], fm[b], p, idx)
+        V[b] = u
+        X[b] += h * u
