@@ -88,9 +88,29 @@ def test_the_plain_moreau_jean_step_has_an_erratic_constant():
     assert located[0] / located[1] == pytest.approx(2.0, rel=0.01)
 
 
-@pytest.mark.parametrize('case', ['scene1', 'scene2', 'scene3', 'p3_slope', 'sinusoid'])
+def _custom_gait(hz):
+    w = 2.0 * math.pi * hz
+    return cs.gaits.Custom(lambda t: 1.0 + 0.3 * (math.sin(w * t) + 0.3 * math.sin(2 * w * t)),
+                           lambda t: 0.3 * w * (math.cos(w * t) + 0.6 * math.cos(2 * w * t)),
+                           lambda t: -0.3 * w * w * (math.sin(w * t) + 1.2 * math.sin(2 * w * t)))
+
+
+@pytest.mark.parametrize('case', ['scene1', 'scene2', 'scene3', 'p3_slope', 'sinusoid',
+                                  'custom', 'scallop', 'stroke_p3'])
 def test_the_kernel_equals_the_python_path(case):
-    if case.startswith('scene'):
+    # Fourier / Sinusoid run in advance_fourier, the others in advance_table (numpy-evaluated
+    # gait, steps with a transition inside handed back to Python); use_kernel=False is the
+    # Python path for every step.
+    if case == 'custom':
+        crawler, gait, T, dt = cs.Crawler([1.0, 2.0], [0.5, 20.0]), _custom_gait(1.0), 2.0, 1e-3
+    elif case == 'scallop':
+        crawler, gait = cs.Crawler([0.5, 1.0], [1.5, 2.9]), cs.gaits.Scallop(0.1, 0.03, 2.0, 0.3)
+        T, dt = 2.0, 5e-4
+    elif case == 'stroke_p3':
+        crawler = cs.Crawler([1.0, 0.9, 0.5], [3.0, 2.6, 1.5], [8.0, 7.0, 4.0], slope=0.17)
+        gait = cs.gaits.PiecewiseParabolic.stroke([0.1, 0.1], [0.03, 0.02], 1.0, 0.3)
+        T, dt = 2.0, 1e-3
+    elif case.startswith('scene'):
         crawler, gait, _ = _scene(list(SCENES)[int(case[-1]) - 1])
         T, dt = 2.0, 1e-3
     elif case == 'p3_slope':
@@ -120,6 +140,25 @@ def test_the_kernel_equals_the_python_path(case):
         for key in ('x', 'v', 'friction', 'impulse'):
             np.testing.assert_allclose(a[key], b[key], rtol=0, atol=1e-12, err_msg=key)
         np.testing.assert_array_equal(a['contact'], b['contact'])
+
+
+def test_gait_changes_at_every_advance_give_the_same_run_in_kernel_and_python():
+    # what the node does: a new Cubic piece (the actuator's) valid on each tick
+    crawler = cs.Crawler([1.0, 0.6], [2.0, 1.0])
+    runs = []
+    for use_kernel in (True, False):
+        s = ImplicitSolver(crawler, cs.gaits.Cubic(0.0, [0.1], [0.0], [0.0], [0.0]), dt=1e-3,
+                           use_kernel=use_kernel)
+        for k in range(200):
+            t0 = k * 0.01
+            piece = cs.gaits.Cubic(t0, [0.1 + 0.02 * math.sin(t0 * 6)],
+                                   [0.12 * math.cos(t0 * 6)], [-0.7 * math.sin(t0 * 6)],
+                                   [-4.3 * math.cos(t0 * 6)])
+            s.advance(t0 + 0.01, piece)
+        runs.append(s)
+    a, b = runs
+    assert len(a.events) == len(b.events) >= 5
+    assert a.X == pytest.approx(b.X, abs=1e-12) and a.V == pytest.approx(b.V, abs=1e-12)
 
 
 @pytest.mark.parametrize('use_kernel', [True, False])

@@ -249,7 +249,10 @@ class ImplicitSolver(TimeStepper):
         check_steps(t1 - self.t, self.dt, '(t1 - t)')
         form = self._kernel_form()
         if form is None:
-            super().advance(t1)
+            if self.use_kernel:
+                self._advance_table(t1)
+            else:
+                super().advance(t1)
             return
         freq, ca, sb = form
         p = self._m.size
@@ -276,6 +279,56 @@ class ImplicitSolver(TimeStepper):
         self.contact, self.R, self.K = contact, R, K
         self._last = (self.t, ep_out.copy(), epp_out.copy())
         self._cache = None
+
+    def _step_times(self, t1: float, n: int) -> NDArray:
+        """The next (at most n) step end times, as ``TimeStepper.advance`` computes them."""
+        acc = np.full(n + 1, self.dt)
+        acc[0] = self.t
+        tt = np.add.accumulate(acc)             # sequential sums: t, t + dt, (t + dt) + dt, ...
+        last = (t1 - tt[:-1]) / self.dt <= 1.0 + 1e-9
+        if last.any():
+            k = int(np.argmax(last))
+            times = tt[1:k + 2].copy()
+            times[k] = t1
+            return times
+        return tt[1:]
+
+    def _advance_table(self, t1: float) -> None:
+        """Any other gait: l', l'' at a chunk of step ends from one vectorised gait call, the
+        steps in the kernel; a step with a transition inside goes through ``_step``."""
+        p = self._m.size
+        cap = 64 * p
+        ev_t, ev_b = np.empty(cap), np.empty(cap, np.int64)
+        ev_o, ev_n = np.empty(cap, np.int8), np.empty(cap, np.int8)
+        ep_out, epp_out = np.empty(p), np.empty(p)
+        while self.t < t1:
+            times = self._step_times(t1, 4096)
+            _, LD, LDD = self.gait(times)
+            _finite_gait((times, LD, LDD), times[0])
+            LD, LDD = np.ascontiguousarray(LD, dtype=float), np.ascontiguousarray(LDD, dtype=float)
+            k = 0
+            while k < times.size:
+                st = np.array([self.t, self.X, self.V, self.A])
+                contact, R, K = self.contact.copy(), self.R.copy(), self.K.copy()
+                k_new, n_ev = kern.advance_table(st, contact, R, K, self._w, self._M,
+                                                 self._fext, self._fp, self._fm, times, LD, LDD,
+                                                 k, self._max_depth, ep_out, epp_out, ev_t, ev_b,
+                                                 ev_o, ev_n)
+                if k_new > k:
+                    self.t, self.X, self.V, self.A = (float(v) for v in st)
+                    self.contact, self.R, self.K = contact, R, K
+                    self.events.extend(Event(float(ev_t[i]), int(ev_b[i]), int(ev_o[i]),
+                                             int(ev_n[i])) for i in range(n_ev))
+                    self.n_steps += k_new - k
+                    self._last = (self.t, ep_out.copy(), epp_out.copy())
+                    self._cache = None
+                    k = k_new
+                if k < times.size and n_ev + p <= cap:      # not a full event buffer
+                    if not np.isfinite(self.X + self.V):
+                        raise ValueError(f'method implicit: non-finite state at t = {self.t!r} '
+                                         's (check the gait and the crawler)')
+                    self._step(float(times[k]))     # a transition inside: located in Python
+                    k += 1
 
     # ------------------------------------------------------------------ Python path
     def _step(self, tb: float) -> None:

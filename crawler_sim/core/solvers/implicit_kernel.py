@@ -476,3 +476,72 @@ def batch_step(h, rates, w, M, V, X, fext, fp, fm):
         u, s = prox(M[b] / h, V[b], fext[b], ep, fp[b], fm[b], p, idx)
         V[b] = u
         X[b] += h * u
+
+
+@njit(cache=True)
+def advance_table(st, contact, R, K, w, M, fext, fp, fm, times, LD, LDD, k0, max_depth,
+                  ep_out, epp_out, ev_t, ev_b, ev_o, ev_n):
+    """Steps to times[k0], times[k0 + 1], ... with the gait's l', l'' there given in LD, LDD
+    (N, p - 1) (any gait, evaluated by numpy beforehand). A step that needs the gait inside it
+    (a transition to place) is left to the caller: returns (index of the first step not taken,
+    events written). st = [t, X, V, A], contact, R, K are updated in place."""
+    p = w.size
+    epb = np.empty(p)
+    eppb = np.empty(p)
+    kinks = np.empty(p)
+    kbuf = np.empty(p)
+    fpb = np.empty(p)
+    fmb = np.empty(p)
+    idx = np.empty(p, np.int64)
+    zmask = np.empty(p, np.bool_)
+    newc = np.empty(p, np.int8)
+    tmp = np.empty(p, np.int8)
+    t, X, V, A = st[0], st[1], st[2], st[3]
+    n_ev = 0
+    k = k0
+    while k < times.size and n_ev + p <= ev_t.size:
+        tb = times[k]
+        rel_rates(w, LD[k], epb)
+        rel_rates(w, LDD[k], eppb)
+        h = tb - t
+        for i in range(p):
+            kinks[i] = -epb[i]
+        u, s = prox(M / h, V, fext, kinks, fp, fm, p, idx)
+        same = True
+        for i in range(p):
+            newc[i] = 0 if u == kinks[i] else (1 if u + epb[i] > 0.0 else -1)
+            same = same and newc[i] == contact[i]
+        ok = same and (first_stuck(contact) < 0 or not changed(
+            contact, u, epb, eppb, M, fext, fp, fm, zmask, kbuf, fpb, fmb, idx, tmp))
+        if not ok and max_depth > 0:
+            j = first_stuck(contact)
+            a_lo = (fext + slide_sum(contact, fp, fm)) / M
+            uc = -epb[j] if j >= 0 else V + a_lo * h
+            if changed(contact, uc, epb, eppb, M, fext, fp, fm, zmask, kbuf, fpb, fmb, idx,
+                       tmp):
+                break                       # a transition inside the step: the caller's
+            u = uc
+            for i in range(p):
+                newc[i] = contact[i]
+        interval_friction(newc, V, u, h, M, fext, fp, fm, R)
+        X += h * u
+        for i in range(p):
+            K[i] += h * R[i]
+            if newc[i] != contact[i]:
+                ev_t[n_ev] = tb
+                ev_b[n_ev] = i
+                ev_o[n_ev] = contact[i]
+                ev_n[n_ev] = newc[i]
+                n_ev += 1
+                contact[i] = newc[i]
+            ep_out[i] = epb[i]
+            epp_out[i] = eppb[i]
+        A = (u - V) / h
+        V = u
+        t = tb
+        k += 1
+    st[0] = t
+    st[1] = X
+    st[2] = V
+    st[3] = A
+    return k, n_ev
