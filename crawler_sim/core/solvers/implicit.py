@@ -79,13 +79,16 @@ def fourier_form(gait: Gait) -> tuple[float, NDArray, NDArray] | None:
 
 
 def warm_up() -> None:
-    """Load (or compile, the first time on a machine: a few seconds) the compiled kernel, so
-    that no compilation happens later in a real-time loop. Safe to call more than once."""
+    """Load (or compile, the first time on a machine: tens of seconds) every compiled kernel of
+    the fixed-step methods, so that no numba import, cache load or compilation happens later in
+    a real-time loop (about 1-2 s with a warm cache). Safe to call more than once."""
+    from ..gaits import Cubic
     c = Crawler([1.0, 1.0], [0.5, 1.0])
-    g = Fourier(1.0, ([0.0], [0.1]), 1.0)
-    s = ImplicitSolver(c, g, dt=0.05)
-    s.advance(1.0)
-    ImplicitSolver(c, g, dt=0.05, use_kernel=False).advance(0.2)
+    for g in (Fourier(1.0, ([0.0], [0.1]), 1.0), Cubic(0.0, [1.0], [0.5], [0.0], [-3.0])):
+        for use_kernel in (True, False):
+            ImplicitSolver(c, g, dt=0.05, use_kernel=use_kernel).advance(1.0)
+    b = ImplicitBatch([1.0, 1.0], [0.5, 1.0])
+    b.step(0.01, [0.1])
 
 
 class TimeStepper:
