@@ -307,7 +307,12 @@ class ImplicitSolver(TimeStepper):
         while self.t < t1:
             times = self._step_times(t1, 4096)
             _, LD, LDD = self.gait(times)
-            _finite_gait((times, LD, LDD), times[0])
+            bad = ~(np.isfinite(LD).all(axis=-1) & np.isfinite(LDD).all(axis=-1))
+            if bad.any():
+                k = int(np.argmax(bad))
+                _finite_gait(self.gait.at(float(times[k])), float(times[k]))
+                raise ValueError(f'gait must be finite, got a non-finite rate at t = '
+                                 f'{float(times[k])!r} s')
             LD, LDD = np.ascontiguousarray(LD, dtype=float), np.ascontiguousarray(LDD, dtype=float)
             k = 0
             while k < times.size:
