@@ -252,7 +252,9 @@ class ImplicitSolver(TimeStepper):
         check_steps(t1 - self.t, self.dt, '(t1 - t)')
         form = self._kernel_form()
         if form is None:
-            if self.use_kernel:
+            # a table chunk costs a vectorised gait call and a kernel dispatch: for the few
+            # steps of a node's tick the Python path is as fast
+            if self.use_kernel and (t1 - self.t) / self.dt > 8.0:
                 self._advance_table(t1)
             else:
                 super().advance(t1)
@@ -305,7 +307,7 @@ class ImplicitSolver(TimeStepper):
         ev_o, ev_n = np.empty(cap, np.int8), np.empty(cap, np.int8)
         ep_out, epp_out = np.empty(p), np.empty(p)
         while self.t < t1:
-            times = self._step_times(t1, 4096)
+            times = self._step_times(t1, int(min(4096.0, (t1 - self.t) / self.dt + 2.0)))
             _, LD, LDD = self.gait(times)
             bad = ~(np.isfinite(LD).all(axis=-1) & np.isfinite(LDD).all(axis=-1))
             if bad.any():
