@@ -268,7 +268,10 @@ def compare_markdown(res: dict) -> list[str]:
              f'Richardson-extrapolated (two levels) from h = {res["reference_h"]:g} s, h/2, h/4 '
              '(independent of the exact solver): |x_0(T) '
              '- ref| and max |X - X_ref| over 16 samples per period. LSODA: n = 1e8, rtol = atol '
-             '= 1e-10, analytic Jacobian; "+max_step" adds max_step = T / 1000.', '',
+             '= 1e-10, analytic Jacobian; "+max_step" adds max_step = T / 1000. Reference '
+             'uncertainty (size of the second Richardson correction): ' +
+             ', '.join(f'{abs(r.get("reference_second_correction", math.nan)):.0e}'
+                       for r in res['scenes'].values()) + ' m.', '',
              '| scene | exact Fourier | exact Custom | LSODA | LSODA +max_step | ratio Fourier '
              '(vs LSODA / +max_step) | ratio Custom | implicit slope |',
              '|---|---|---|---|---|---|---|---|']
@@ -300,7 +303,8 @@ def compare_markdown(res: dict) -> list[str]:
     sp = res['implicit_speed']
     lines += ['', f'- Implicit kernel, one two-body crawler, Fourier gait: '
                   f'{sp["steps_per_s"]:.3g} steps/s wall, {sp["steps_per_s_cpu"]:.3g} steps/s '
-                  f'CPU ({sp["steps"]:,} steps); Custom gait (Python path): '
+                  f'CPU ({sp["steps"]:,} steps); Custom gait (its lambdas called from Python, '
+                  f'the steps in the kernel): '
                   f'{sp["custom_steps_per_s"]:,.0f} steps/s wall '
                   f'({sp["custom_steps_per_s_cpu"]:,.0f} CPU).']
     if 'batch' in res:
