@@ -10,11 +10,16 @@ velocity. A step in which the contact mode changes is split where the transition
 the method converges at order 1 with a steady constant: the error of X is about
 (h / 2) (V(t) - V(0)). ``Fourier`` and ``Sinusoid`` gaits run in a compiled kernel (numba,
 cached on disk; call ``warm_up()`` once to load or build it outside a real-time loop); other
-gaits (``Custom``, piecewise) step in Python with the same algorithm.
+gaits (``Custom``, piecewise) are evaluated by numpy (or their callables) for a chunk of step
+ends and stepped in the kernel; a step with a transition inside, and advances of a few steps,
+take the Python path (the same algorithm, kept as the reference the tests compare with).
 
 A run is limited to ``MAX_STEPS`` steps per ``advance`` (and per ``simulate``): a smaller dt or a
 longer interval raises ValueError naming dt and the allowed range instead of running for ever.
 ``ImplicitBatch`` advances B crawlers with the same p at once (plain Moreau-Jean steps).
+
+(About 500 lines: the shared fixed-step loop, the single-crawler solver with its three paths,
+and the batch stepper belong together; the compiled parts are in ``implicit_kernel``.)
 """
 from __future__ import annotations
 

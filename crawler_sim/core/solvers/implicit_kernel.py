@@ -11,10 +11,15 @@ resets it, so it integrates into a position error whose size jumps from one dt t
 remaining first-order error is the quadrature X_{k+1} = X_k + h V_{k+1}, about
 (h / 2) (V(t) - V(0)): order 1 with a steady constant.
 
-Everything here is also plain Python: ``implicit.py`` calls the small helpers from Python for
-gaits the kernel cannot evaluate (``Custom`` and the piecewise gaits), and runs whole runs in
-``advance_fourier`` for ``Fourier`` and ``Sinusoid`` gaits (evaluated inside the kernel).
+``implicit.py`` runs ``advance_fourier`` for ``Fourier`` and ``Sinusoid`` gaits (evaluated
+inside the kernel), ``advance_table`` for any other gait (its rates at the step ends evaluated
+beforehand), and calls the small helpers from its Python path; ``batch_step`` is
+``ImplicitBatch``'s step.
 Sign conventions: ``R[i]`` is the force of the ground on body i [N]; ``contact`` is +1 / 0 / -1.
+
+(About 550 lines: numba functions that call each other are kept in one module, which is also
+one unit of the on-disk cache; the two-body fast path repeats a few lines of the general step
+on purpose, for speed.)
 """
 from __future__ import annotations
 
