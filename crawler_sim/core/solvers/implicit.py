@@ -277,8 +277,8 @@ class ImplicitSolver(TimeStepper):
         while st[0] < t1:
             steps, n_ev = kern.advance_fourier(st, contact, R, K, self._w, self._M, self._fext,
                                                self._fp, self._fm, freq, ca, sb, t1, self.dt,
-                                               1 << 62, self._max_depth, ev_t, ev_b, ev_o, ev_n, ep_out,
-                                               epp_out)
+                                               1 << 62, self._max_depth, ev_t, ev_b, ev_o,
+                                               ev_n, ep_out, epp_out)
             self.n_steps += int(steps)
             self.events.extend(Event(float(ev_t[k]), int(ev_b[k]), int(ev_o[k]), int(ev_n[k]))
                                for k in range(n_ev))
