@@ -197,9 +197,11 @@ def make_ode(crawler: Crawler, gait: gaits.Gait, model: str, reg: float):
 
 def run_baseline(crawler: Crawler, gait: gaits.Gait, t_end: float, t_eval: NDArray, *,
                  solver: str, model: str, reg: float, rtol: float, atol: float,
-                 budget: float = 10.0, dense: bool = False) -> BaselineResult:
+                 budget: float = 10.0, dense: bool = False,
+                 max_step: float = math.inf) -> BaselineResult:
     """Integrate a regularised ODE with ``solve_ivp(method=solver)`` from rest (body 0 at x = 0,
-    v = 0, as ``simulate`` starts) and sample X, V at ``t_eval``."""
+    v = 0, as ``simulate`` starts) and sample X, V at ``t_eval``. ``max_step`` [s] bounds the
+    solver's step (scipy's default: unbounded)."""
     rhs, jac, rel = make_ode(crawler, gait, model, reg)
     l0 = np.atleast_1d(gait(0.0)[0])
     s0 = np.concatenate([[0.0], np.cumsum(l0)])
@@ -217,7 +219,8 @@ def run_baseline(crawler: Crawler, gait: gaits.Gait, t_end: float, t_eval: NDArr
 
     try:
         sol = solve_ivp(rhs_guarded, (0.0, t_end), [X0, V0], method=solver, jac=jac,
-                        rtol=rtol, atol=atol, t_eval=t_eval, dense_output=dense)
+                        rtol=rtol, atol=atol, t_eval=t_eval, dense_output=dense,
+                        max_step=max_step)
     except BudgetExceeded:
         nan = np.full(t_eval.size, np.nan)
         return BaselineResult(t_eval, nan, nan, 'timeout', f'over the {budget:g} s budget',

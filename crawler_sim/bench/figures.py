@@ -21,6 +21,7 @@ import numpy as np
 
 from ..core import gaits
 from ..core.model import Crawler
+from ..core.solvers.contact import solve_inclusion_batch
 from ..core.solvers.implicit import ImplicitBatch
 from ..core.stepper import Stepper, simulate
 
@@ -91,11 +92,26 @@ def batch_throughput(n_crawlers: int = 10_000, p: int = 2, steps: int = 200, *,
             b.step(h, rates[k])
         return b
 
+    def run_numpy() -> ImplicitBatch:
+        # the previous, numpy-only step (contact.solve_inclusion_batch): the baseline the
+        # compiled step must not be slower than, run in the same process
+        b = ImplicitBatch(masses, friction)
+        for k in range(steps):
+            ep = b._ep(rates[k])
+            b.V, _ = solve_inclusion_batch(b.M / h, b.V, b.F_ext, -ep, b.f_plus, b.f_minus)
+            b.X = b.X + h * b.V
+        return b
+
+    run()                                   # load the kernel outside the timing
     t, b = _timed(run, repeats)
+    tn, bn = _timed(run_numpy, repeats)
     finite = bool(np.all(np.isfinite(b.X)) and np.all(np.isfinite(b.V)))
     return {'crawlers': n_crawlers, 'p': p, 'steps': steps, 'time': t,
             'body_steps_per_s': n_crawlers * p * steps / t,
-            'crawler_steps_per_s': n_crawlers * steps / t, 'finite': finite}
+            'crawler_steps_per_s': n_crawlers * steps / t, 'finite': finite,
+            'numpy_time': tn, 'numpy_body_steps_per_s': n_crawlers * p * steps / tn,
+            'speedup_vs_numpy': tn / t,
+            'max_diff_vs_numpy': float(np.max(np.abs(b.X - bn.X)))}
 
 
 def _constant_gait(kind: str, l0: float = 0.1) -> gaits.Gait:

@@ -128,8 +128,10 @@ def _figures_md(result: dict) -> list[str]:
                    f'{thr["stepper_noskip_periods_per_s"]:,.0f} periods/s without it '
                    f'(simulate: {thr["simulate_noskip_periods_per_s"]:,.0f}/s) (floor 5,000/s).')
     for b in fig.get('batch', []):
+        extra = (f'; the previous numpy step {b["numpy_body_steps_per_s"]:.3g}/s in the same run '
+                 f'({b["speedup_vs_numpy"]:.1f}x)' if 'numpy_body_steps_per_s' in b else '')
         out.append(f'- ImplicitBatch, {b["crawlers"]:,} crawlers, p = {b["p"]}, {b["steps"]} '
-                   f'steps: {b["body_steps_per_s"]:.3g} body-steps/s (floor 1e7/s).')
+                   f'steps: {b["body_steps_per_s"]:.3g} body-steps/s (floor 1e7/s){extra}.')
     rest = fig.get('rest_cost')
     if rest:
         for kind in ('cubic', 'custom', 'stroke_then_rest'):

@@ -230,7 +230,15 @@ def run_bench(out_dir: str | Path, scenes: list[str] | None = None, quick: bool 
     if head and not head.get('error'):
         result['named_baseline'], result['ratio_1e-6'] = _headline(head)
     result['figures'] = _json_float(_run_figures(loaded, quick, say))
+    say('issue 14 comparison (exact vs LSODA, implicit, cold start)')
+    from .compare import compare_floors, run_compare
+    try:
+        result['compare'] = _json_float(run_compare(quick=quick, progress=say))
+    except Exception as exc:  # noqa: BLE001 (reported, not fatal)
+        result['compare'] = {'error': f'{type(exc).__name__}: {exc}'}
     result['floors'] = _floors(result)
+    if 'error' not in result['compare']:
+        result['floors'].update(compare_floors(result['compare']))
     failures = []
     for name, sc in result['scenes'].items():
         if sc.get('error'):
@@ -247,6 +255,9 @@ def run_bench(out_dir: str | Path, scenes: list[str] | None = None, quick: bool 
     paths = {'json': out / 'bench.json', 'markdown': out / 'bench.md', 'png': out / 'bench.png'}
     write_json(result, paths['json'])
     md = markdown(result)
+    if 'compare' in result and 'error' not in result['compare']:
+        from .compare import compare_markdown
+        md += '\n' + '\n'.join(compare_markdown(result['compare']))
     paths['markdown'].write_text(md, encoding='utf-8')
     plot_work_precision(result, paths['png'])
     for line in _headline_lines(result):
@@ -269,6 +280,9 @@ def _headline_lines(result: dict) -> list[str]:
         lines.append(f'named baseline {named["label"]}: {fmt_time(named["time"])}, '
                      f'error {float(named["err_displacement"]):.2e}; exact at that error '
                      f'{fmt_time(named.get("exact_time"))} ({named.get("ratio_text", "-")})')
+    if 'compare' in result and 'error' not in result['compare']:
+        from .compare import compare_lines
+        lines += compare_lines(result['compare'])
     for name, f in result['floors'].items():
         lines.append(f'floor {"PASS" if f["pass"] else "FAIL"}: {name}: {f["value"]}')
     lines.append(f'bench wall time {result["meta"]["wall_time"]:.1f} s')
@@ -282,6 +296,24 @@ def main(argv: list[str] | None = None) -> int:
     import json
 
     argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] == 'compare':
+        from .compare import compare_floors, compare_lines, compare_markdown, run_compare
+        ap = argparse.ArgumentParser(prog='python -m crawler_sim.bench compare',
+                                     description='issue 14: exact vs LSODA, implicit, cold start')
+        ap.add_argument('--quick', action='store_true')
+        ap.add_argument('--repeats', type=int, default=5)
+        ap.add_argument('--json', metavar='FILE')
+        a = ap.parse_args(argv[1:])
+        res = run_compare(repeats=a.repeats, quick=a.quick, progress=_print_progress)
+        res['floors'] = compare_floors(res)
+        if a.json:
+            Path(a.json).write_text(json.dumps(res, indent=1, default=str) + '\n',
+                                    encoding='utf-8')
+        print('\n'.join(compare_markdown(res)))
+        print('\n'.join(compare_lines(res)))
+        for name, f in res['floors'].items():
+            print(f'floor {"PASS" if f["pass"] else "FAIL"}: {name}: {f["value"]}')
+        return 0
     if argv and argv[0] == 'stress':
         from .stress import run_stress
         ap = argparse.ArgumentParser(prog='python -m crawler_sim.bench stress')

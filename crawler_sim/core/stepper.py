@@ -13,7 +13,7 @@ from numpy.typing import ArrayLike, NDArray
 from .gaits import Gait, _positive as positive
 from .model import Crawler
 from .solvers.exact import ExactSolver
-from .solvers.implicit import ImplicitSolver
+from .solvers.implicit import ImplicitSolver, check_steps
 from .solvers.penalty import PenaltySolver, check_penalty, penalty_bound
 from .trajectory import Event, State, Trajectory
 
@@ -189,6 +189,8 @@ def simulate(crawler: Crawler, gait: Gait, t_end: float, method: str = 'exact', 
     t_end = _check_positive('t_end', t_end)
     if dt is not None:
         dt = _check_positive('dt', dt)
+    if method != 'exact':
+        check_steps(t_end, 1e-3 if dt is None else dt)     # never run for ever (issue 11)
     st = Stepper(crawler, gait, method, x0=x0, v0=v0, dt=dt, penalty=penalty, tol=tol,
                  max_step=max_step, keep_history=True, periodic_skip=periodic_skip)
     times = _sample_times(t_end, t_eval, dt)

@@ -104,6 +104,44 @@ def test_markdown_table_lists_every_scene_and_series(quick):
     assert 'Speed ratio at equal error 1e-6' in md
 
 
+def test_quick_bench_includes_the_issue_14_comparison(quick):
+    out, summary, data, _ = quick
+    cmp = data['compare']
+    assert 'error' not in cmp, cmp.get('error')
+    assert sorted(cmp['scenes']) == ['m11_f05_1', 'm11_f5_10_5hz', 'm12_f1_1']
+    for name, row in cmp['scenes'].items():
+        # LSODA with a bounded step agrees with the (independent) Richardson reference
+        assert row['lsoda_max_step']['status'] == 'ok'
+        assert float(row['lsoda_max_step']['err_com']) < 1e-6, name
+        assert row['implicit']['slope'] >= 0.9, (name, row['implicit'])
+        for key in ('exact_builtin', 'lsoda'):
+            assert len(row[key]['runs']) == cmp['repeats'] >= 2
+    assert cmp['implicit_speed']['steps'] > 0 and cmp['implicit_speed']['steps_per_s'] > 0
+    cold = cmp['cold_start']
+    for key in ('import', 'first_exact', 'first_implicit', 'warm_up_fresh'):
+        assert 0 < cold[key] < 300, key
+    md = (out / 'bench.md').read_text(encoding='utf-8')
+    assert '## Issue 14 comparison' in md and cmp['command'] in md
+    assert any(k.startswith('implicit error slope') for k in data['floors'])
+
+
+def test_compare_subcommand_prints_the_command_and_the_floors(capsys, monkeypatch):
+    from crawler_sim.bench import compare, runner
+    fake = {'command': compare.COMMAND, 'repeats': 1, 'reference_h': 1e-4,
+            'load_average': [0.0, 0.0], 'scenes': {},
+            'implicit_speed': {'steps': 10, 'wall': 1.0, 'cpu': 1.0, 'steps_per_s': 10.0,
+                               'steps_per_s_cpu': 10.0, 'custom_steps_per_s': 1.0,
+                               'custom_steps_per_s_cpu': 1.0},
+            'cold_start': {'import': 0.1, 'first_exact': 0.1, 'first_implicit': 0.1,
+                           'second_implicit': 0.01, 'warm_up_after': 0.01,
+                           'warm_up_fresh': 0.1, 'repeats': 1}}
+    monkeypatch.setattr(compare, 'run_compare', lambda **kw: dict(fake))
+    assert runner.main(['compare', '--quick']) == 0
+    text = capsys.readouterr().out
+    assert compare.COMMAND in text
+    assert 'floor FAIL: implicit >= 1e7 steps/s' in text     # 10 steps/s is below the floor
+
+
 # ------------------------------------------------------------------ error measures
 
 def test_history_mismatch_is_the_time_the_contact_states_differ():

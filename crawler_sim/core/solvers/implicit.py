@@ -4,8 +4,22 @@ One step of size h solves exactly, in O(p log p),
 
     V_{k+1} = argmin_V  M/(2h) (V - V_k)^2 - F_ext V + sum_i phi_i(V + e_i'(t_{k+1})),
 
-then X_{k+1} = X_k + h V_{k+1}. Unconditionally stable, first order in h, and a stuck body has
-exactly zero velocity. ``ImplicitBatch`` advances B crawlers with the same p at once.
+then X_{k+1} = X_k + h V_{k+1}. Unconditionally stable, and a stuck body has exactly zero
+velocity. A step in which the contact mode changes is split where the transition happens
+(located to about 1e-12 of the step from the instantaneous mode, see ``implicit_kernel``), so
+the method converges at order 1 with a steady constant: the error of X is about
+(h / 2) (V(t) - V(0)). ``Fourier`` and ``Sinusoid`` gaits run in a compiled kernel (numba,
+cached on disk; call ``warm_up()`` once to load or build it outside a real-time loop); other
+gaits (``Custom``, piecewise) are evaluated by numpy (or their callables) for a chunk of step
+ends and stepped in the kernel; a step with a transition inside, and advances of a few steps,
+take the Python path (the same algorithm, kept as the reference the tests compare with).
+
+A run is limited to ``MAX_STEPS`` steps per ``advance`` (and per ``simulate``): a smaller dt or a
+longer interval raises ValueError naming dt and the allowed range instead of running for ever.
+``ImplicitBatch`` advances B crawlers with the same p at once (plain Moreau-Jean steps).
+
+(About 500 lines: the shared fixed-step loop, the single-crawler solver with its three paths,
+and the batch stepper belong together; the compiled parts are in ``implicit_kernel``.)
 """
 from __future__ import annotations
 
@@ -14,96 +28,187 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..gaits import Gait
+from ..gaits import Fourier, Gait, Sinusoid
 from ..model import Crawler, kinematics
 from ..trajectory import Event
-from .contact import solve_inclusion, solve_inclusion_batch, split_friction
-from .exact import ExactSolver, check_finite_gait
 
-__all__ = ['ImplicitSolver', 'ImplicitBatch', 'TimeStepper']
+__all__ = ['ImplicitSolver', 'ImplicitBatch', 'TimeStepper', 'MAX_STEPS', 'check_steps',
+           'warm_up']
+
+#: the most steps one ``advance`` (or one ``simulate``) may take: 1e9 steps is about 2 minutes
+#: in the kernel and hours in Python
+MAX_STEPS = 10 ** 9
+
+
+#: the compiled helpers (``implicit_kernel``), imported on first use: numba takes about a second
+#: to import, which ``import crawler_sim`` should not pay when no fixed-step method runs
+kern = None
+
+
+def _load_kernel():
+    global kern
+    if kern is None:
+        from . import implicit_kernel
+        kern = implicit_kernel
+    return kern
+
+
+def check_steps(span: float, dt: float, what: str = 't_end') -> None:
+    """Raise ValueError if covering ``span`` [s] with steps ``dt`` [s] needs more than
+    MAX_STEPS steps."""
+    n = span / dt
+    if not n <= MAX_STEPS:      # also catches inf / nan
+        raise ValueError(f'dt = {dt!r} s and {what} = {span!r} s need {n:.3g} steps; at most '
+                         f'{MAX_STEPS:.0e} are allowed: dt must be >= {what} / {MAX_STEPS:.0e} '
+                         f'(= {span / MAX_STEPS:.3g} s) or {what} <= dt * {MAX_STEPS:.0e} '
+                         f'(= {dt * MAX_STEPS:.3g} s)')
+
+
+def _finite_gait(vals, t: float) -> None:
+    for name, arr in zip(('length', 'velocity', 'acceleration'), vals):
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f'gait {name} must be finite, got {np.asarray(arr).tolist()} at '
+                             f't = {t!r} s')
+
+
+def fourier_form(gait: Gait) -> tuple[float, NDArray, NDArray] | None:
+    """(frequency [Hz], cos (n, K), sin (n, K)) of a gait the kernel evaluates, else None."""
+    if type(gait) is Fourier:
+        return gait.frequency, np.ascontiguousarray(gait.cos), np.ascontiguousarray(gait.sin)
+    if type(gait) is Sinusoid:
+        # a sin(w t + phi) = (a sin phi) cos w t + (a cos phi) sin w t
+        a, ph = gait.amplitude, gait.phase
+        return (gait.frequency, np.ascontiguousarray((a * np.sin(ph))[:, None]),
+                np.ascontiguousarray((a * np.cos(ph))[:, None]))
+    return None
+
+
+def warm_up() -> None:
+    """Load (or compile, the first time on a machine: tens of seconds) every compiled kernel of
+    the fixed-step methods, so that no numba import, cache load or compilation happens later in
+    a real-time loop (about 1-2 s with a warm cache). Safe to call more than once."""
+    from ..gaits import Cubic
+    c = Crawler([1.0, 1.0], [0.5, 1.0])
+    for g in (Fourier(1.0, ([0.0], [0.1]), 1.0), Cubic(0.0, [1.0], [0.5], [0.0], [-3.0])):
+        for use_kernel in (True, False):
+            ImplicitSolver(c, g, dt=0.05, use_kernel=use_kernel).advance(1.0)
+    b = ImplicitBatch([1.0, 1.0], [0.5, 1.0])
+    b.step(0.01, [0.1])
 
 
 class TimeStepper:
     """Shared loop of the fixed-step methods: steps of ``dt`` that land exactly on t1.
 
-    Subclasses implement ``_velocity(h, ep)`` returning (V_new, R) for one step.
+    Subclasses implement ``_velocity(h, ep)`` returning (V_new, R, contact) for one step, or
+    override ``_step``.
     """
 
     def __init__(self, crawler: Crawler, gait: Gait, *, dt: float, t0: float = 0.0,
                  x0: float = 0.0, v0: float = 0.0) -> None:
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise ValueError(f'dt must be a finite step > 0 s, got {dt!r}')
+        _load_kernel()
         self.crawler = crawler
         self.gait = gait
         self.dt = float(dt)
         self._m = crawler.masses
         self._M = float(crawler.masses.sum())
-        self._fp = crawler.friction
-        self._fm = crawler.friction_backward
-        self._fext = crawler.external_force
+        self._w = np.ascontiguousarray(crawler.masses / self._M)
+        self._fp = np.ascontiguousarray(crawler.friction, dtype=float)
+        self._fm = np.ascontiguousarray(crawler.friction_backward, dtype=float)
+        self._fext = float(crawler.external_force)
+        p = crawler.p
+        self._scratch = (np.empty(p, np.bool_), np.empty(p), np.empty(p), np.empty(p),
+                         np.empty(p, np.int64), np.empty(p, np.int8))
         self.reset(t0=t0, x0=x0, v0=v0)
 
     def reset(self, *, t0: float = 0.0, x0: float = 0.0, v0: float = 0.0) -> None:
-        l, ld, ldd = self.gait(t0)
+        l, ld, ldd = self.gait.at(float(t0))
+        _finite_gait((l, ld, ldd), t0)
         e, ep, epp = kinematics(self._m, l, ld, ldd)
         self.t = float(t0)
         self.X = float(x0 - e[0])
         self.V = float(v0 - ep[0])
-        # The state at t0 (contact, friction, acceleration) is the instantaneous mode, the same
-        # one the exact method starts from.
-        seg = ExactSolver(self.crawler, self.gait, t0=t0, x0=x0, v0=v0).provisional()
-        first = seg.evaluate(self.crawler, np.array([float(t0)]))
-        self.contact = first['contact'][0].copy()
-        self.R = first['friction'][0]
-        self.A = float(seg.a) if seg.ref < 0 else float(-epp[seg.ref])
-        self.K = np.zeros(self._m.size)
+        # The state at t0 is the instantaneous mode: bodies at zero velocity stick or leave as
+        # the acceleration inclusion says (MODEL.md 2.3).
+        p = self._m.size
+        zmask, kbuf, fpb, fmb, idx, _ = self._scratch
+        contact = np.empty(p, np.int8)
+        force = self._fext
+        for i in range(p):
+            v = self.V + ep[i]
+            zmask[i] = v == 0.0
+            if not zmask[i]:
+                contact[i] = 1 if v > 0 else -1
+                force += -self._fp[i] if v > 0 else self._fm[i]
+        a, s = kern._accel_mode(self._M, force, zmask, np.ascontiguousarray(epp), self._fp,
+                                self._fm, kbuf, fpb, fmb, idx, contact)
+        R = np.where(contact > 0, -self._fp, np.where(contact < 0, self._fm, 0.0))
+        stuck = contact == 0
+        if stuck.any():
+            tot = self._M * a - force
+            wid = self._fp[stuck] + self._fm[stuck]
+            th = 0.0 if wid.sum() <= 0 else min(max((tot + self._fp[stuck].sum()) / wid.sum(),
+                                                    0.0), 1.0)
+            R[stuck] = -self._fp[stuck] + th * wid
+        self.contact = contact
+        self.R = R
+        self.A = float(a)
+        self.K = np.zeros(p)
         self._cache = None
         self.events: list[Event] = []
         self.n_steps = 0
-        self.rows: list[tuple] = []
-        self.record = False
 
     def advance(self, t1: float, gait: Gait | None = None) -> None:
         """Step to t1 with ``gait`` valid on [t, t1]; the last step is shortened to land on t1."""
         if gait is not None:
             self.gait = gait
         t1 = float(t1)
+        if t1 > self.t:
+            check_steps(t1 - self.t, self.dt, '(t1 - t)')
         while self.t < t1:
             n_left = (t1 - self.t) / self.dt
             t_new = t1 if n_left <= 1.0 + 1e-9 else self.t + self.dt
             self._step(t_new)
 
+    def _rates(self, t: float) -> tuple[NDArray, NDArray]:
+        l, ld, ldd = self.gait.at(t)
+        _finite_gait((l, ld, ldd), t)
+        ep = np.empty(self._m.size)
+        epp = np.empty(self._m.size)
+        kern.rel_rates(self._w, np.ascontiguousarray(ld, dtype=float), ep)
+        kern.rel_rates(self._w, np.ascontiguousarray(ldd, dtype=float), epp)
+        return ep, epp
+
     def _step(self, t_new: float) -> None:
         h = t_new - self.t
-        l, ld, ldd = self.gait.at(t_new)
-        check_finite_gait((l, ld, ldd), t_new)
-        e, ep, epp = kinematics(self._m, l, ld, ldd)
+        ep, _ = self._rates(t_new)
         V_new, R, contact = self._velocity(h, ep)
         self.A = (V_new - self.V) / h
         self.V = V_new
         self.X += h * V_new
         self.K = self.K + h * R
         self.R = R
-        old = self.contact
-        for i in np.nonzero(contact != old)[0]:
-            self.events.append(Event(float(t_new), int(i), int(old[i]), int(contact[i])))
-        self.contact = contact
+        self._set_contact(contact, t_new)
         self.t = t_new
         self.n_steps += 1
-        self._cache = (l, ld, ldd, e, ep, epp)
-        if self.record:
-            self.rows.append(self._row())
+        self._cache = None
+
+    def _set_contact(self, contact: NDArray, t: float) -> None:
+        old = self.contact
+        for i in np.nonzero(contact != old)[0]:
+            self.events.append(Event(float(t), int(i), int(old[i]), int(contact[i])))
+        self.contact = np.array(contact, dtype=np.int8)
 
     def current(self) -> dict:
         """The state at self.t as one row of output arrays."""
         return self._row()
 
     def _row(self) -> dict:
-        if getattr(self, '_cache', None) is None or self.n_steps == 0:
-            l, ld, ldd = self.gait(self.t)
-            e, ep, epp = kinematics(self._m, l, ld, ldd)
-        else:
-            l, ld, ldd, e, ep, epp = self._cache
+        if self._cache is None or self._cache[0] != self.t:
+            l, ld, ldd = self.gait.at(self.t)
+            self._cache = (self.t,) + tuple(kinematics(self._m, l, ld, ldd)) + (l, ld)
+        _, e, ep, epp, l, ld = self._cache
         x = self.X + e
         v = self.V + ep
         R = self.R
@@ -114,21 +219,215 @@ class TimeStepper:
 
 
 class ImplicitSolver(TimeStepper):
-    """Moreau-Jean stepping for one crawler."""
+    """Moreau-Jean stepping for one crawler, transitions placed inside their step.
 
-    def _velocity(self, h: float, ep: NDArray):
-        fp, fm = self._fp, self._fm
-        kinks = -ep
-        V_new, s = solve_inclusion(self._M / h, self.V, self._fext, kinks, fp, fm)
-        at = kinks == V_new
-        v = V_new + ep
-        v[at] = 0.0
-        contact = np.sign(v).astype(np.int8)
-        R = np.where(contact > 0, -fp, np.where(contact < 0, fm, 0.0))
-        if at.any():
-            R[at] = -split_friction(s, fp[at], fm[at])
-        return V_new, R, contact
+    ``use_kernel`` (default True) runs ``Fourier`` and ``Sinusoid`` gaits in the compiled
+    kernel; False forces the Python path (the same algorithm; the tests compare the two).
+    ``locate_transitions=False`` gives the plain Moreau-Jean step (transitions at step ends,
+    what ``ImplicitBatch`` does): first order too, but with an erratic constant.
+    """
 
+    def __init__(self, crawler: Crawler, gait: Gait, *, dt: float, t0: float = 0.0,
+                 x0: float = 0.0, v0: float = 0.0, use_kernel: bool = True,
+                 locate_transitions: bool = True) -> None:
+        self.use_kernel = bool(use_kernel)
+        self._max_depth = _load_kernel().MAX_DEPTH if locate_transitions else 0
+        self._form: tuple = (None, None)
+        super().__init__(crawler, gait, dt=dt, t0=t0, x0=x0, v0=v0)
+
+    def reset(self, *, t0: float = 0.0, x0: float = 0.0, v0: float = 0.0) -> None:
+        super().reset(t0=t0, x0=x0, v0=v0)
+        self._last = None            # (t, e', e'') at the last step end, as the step used them
+
+    # ------------------------------------------------------------------ kernel path
+    def _kernel_form(self) -> tuple | None:
+        if not self.use_kernel:
+            return None
+        if self._form[0] is not self.gait:
+            self._form = (self.gait, fourier_form(self.gait))
+        return self._form[1]
+
+    def advance(self, t1: float, gait: Gait | None = None) -> None:
+        """Step to t1 [s] with ``gait`` valid on [t, t1]; the last step lands on t1."""
+        if gait is not None:
+            self.gait = gait
+        t1 = float(t1)
+        if not t1 > self.t:
+            return
+        check_steps(t1 - self.t, self.dt, '(t1 - t)')
+        form = self._kernel_form()
+        if form is None:
+            # a table chunk costs a vectorised gait call and a kernel dispatch: for the few
+            # steps of a node's tick the Python path is as fast
+            if self.use_kernel and (t1 - self.t) / self.dt > 8.0:
+                self._advance_table(t1)
+            else:
+                super().advance(t1)
+            return
+        freq, ca, sb = form
+        p = self._m.size
+        st = np.array([self.t, self.X, self.V, self.A])
+        contact = self.contact.copy()
+        R = self.R.copy()
+        K = self.K.copy()
+        cap = 64 * p * (kern.MAX_DEPTH + 1)
+        ev_t, ev_b = np.empty(cap), np.empty(cap, np.int64)
+        ev_o, ev_n = np.empty(cap, np.int8), np.empty(cap, np.int8)
+        ep_out, epp_out = np.empty(p), np.empty(p)
+        while st[0] < t1:
+            steps, n_ev = kern.advance_fourier(st, contact, R, K, self._w, self._M, self._fext,
+                                               self._fp, self._fm, freq, ca, sb, t1, self.dt,
+                                               1 << 62, self._max_depth, ev_t, ev_b, ev_o,
+                                               ev_n, ep_out, epp_out)
+            self.n_steps += int(steps)
+            self.events.extend(Event(float(ev_t[k]), int(ev_b[k]), int(ev_o[k]), int(ev_n[k]))
+                               for k in range(n_ev))
+        if not np.isfinite(st).all():
+            raise ValueError(f'method implicit: non-finite state at t = {st[0]!r} s (check the '
+                             'gait and the crawler)')
+        self.t, self.X, self.V, self.A = (float(v) for v in st)
+        self.contact, self.R, self.K = contact, R, K
+        self._last = (self.t, ep_out.copy(), epp_out.copy())
+        self._cache = None
+
+    def _step_times(self, t1: float, n: int) -> NDArray:
+        """The next (at most n) step end times, as ``TimeStepper.advance`` computes them."""
+        acc = np.full(n + 1, self.dt)
+        acc[0] = self.t
+        tt = np.add.accumulate(acc)             # sequential sums: t, t + dt, (t + dt) + dt, ...
+        last = (t1 - tt[:-1]) / self.dt <= 1.0 + 1e-9
+        if last.any():
+            k = int(np.argmax(last))
+            times = tt[1:k + 2].copy()
+            times[k] = t1
+            return times
+        return tt[1:]
+
+    def _advance_table(self, t1: float) -> None:
+        """Any other gait: l', l'' at a chunk of step ends from one vectorised gait call, the
+        steps in the kernel; a step with a transition inside goes through ``_step``."""
+        p = self._m.size
+        cap = 64 * p
+        ev_t, ev_b = np.empty(cap), np.empty(cap, np.int64)
+        ev_o, ev_n = np.empty(cap, np.int8), np.empty(cap, np.int8)
+        ep_out, epp_out = np.empty(p), np.empty(p)
+        while self.t < t1:
+            times = self._step_times(t1, int(min(4096.0, (t1 - self.t) / self.dt + 2.0)))
+            _, LD, LDD = self.gait(times)
+            bad = ~(np.isfinite(LD).all(axis=-1) & np.isfinite(LDD).all(axis=-1))
+            if bad.any():
+                k = int(np.argmax(bad))
+                _finite_gait(self.gait.at(float(times[k])), float(times[k]))
+                raise ValueError(f'gait must be finite, got a non-finite rate at t = '
+                                 f'{float(times[k])!r} s')
+            LD, LDD = np.ascontiguousarray(LD, dtype=float), np.ascontiguousarray(LDD, dtype=float)
+            k = 0
+            while k < times.size:
+                st = np.array([self.t, self.X, self.V, self.A])
+                contact, R, K = self.contact.copy(), self.R.copy(), self.K.copy()
+                k_new, n_ev = kern.advance_table(st, contact, R, K, self._w, self._M,
+                                                 self._fext, self._fp, self._fm, times, LD, LDD,
+                                                 k, self._max_depth, ep_out, epp_out, ev_t, ev_b,
+                                                 ev_o, ev_n)
+                if k_new > k:
+                    self.t, self.X, self.V, self.A = (float(v) for v in st)
+                    self.contact, self.R, self.K = contact, R, K
+                    self.events.extend(Event(float(ev_t[i]), int(ev_b[i]), int(ev_o[i]),
+                                             int(ev_n[i])) for i in range(n_ev))
+                    self.n_steps += k_new - k
+                    self._last = (self.t, ep_out.copy(), epp_out.copy())
+                    self._cache = None
+                    k = k_new
+                if k < times.size and n_ev + p <= cap:      # not a full event buffer
+                    if not np.isfinite(self.X + self.V):
+                        raise ValueError(f'method implicit: non-finite state at t = {self.t!r} '
+                                         's (check the gait and the crawler)')
+                    self._step(float(times[k]))     # a transition inside: located in Python
+                    k += 1
+
+    # ------------------------------------------------------------------ Python path
+    def _step(self, tb: float) -> None:
+        M, fext, fp, fm = self._M, self._fext, self._fp, self._fm
+        p = self._m.size
+        zmask, kbuf, fpb, fmb, idx, tmp = self._scratch
+        epb, eppb = self._rates(tb)
+        kinks = -epb
+        contact = self.contact.copy()
+        R = np.empty(p)
+        V, X, K, lo = self.V, self.X, self.K.copy(), self.t
+        V0, t0 = V, self.t
+        newc = np.empty(p, np.int8)
+
+        def chg(c, v, ep, epp) -> bool:
+            return kern.changed(c, v, ep, epp, M, fext, fp, fm, zmask, kbuf, fpb, fmb, idx, tmp)
+
+        for depth in range(self._max_depth + 1):
+            h = tb - lo
+            if h <= 0.0:                    # a transition exactly at the step end
+                u = V
+                newc[:] = contact
+                break
+            u, _ = kern.prox(M / h, V, fext, kinks, fp, fm, p, idx)
+            newc[:] = np.where(u == kinks, 0, np.where(u + epb > 0.0, 1, -1))
+            if np.array_equal(newc, contact) and (kern.first_stuck(contact) < 0 or
+                                                  not chg(contact, u, epb, eppb)):
+                break
+            if depth == self._max_depth or h <= kern.BISECT_REL * self.dt:
+                break
+            j = kern.first_stuck(contact)
+            a_lo = (fext + kern.slide_sum(contact, fp, fm)) / M
+            uc = -epb[j] if j >= 0 else V + a_lo * h
+            if not chg(contact, uc, epb, eppb):
+                u = uc                      # the prox's change was its O(h) stick test
+                newc[:] = contact
+                break
+            a, b = lo, tb
+            for _ in range(kern._BISECT):
+                if b - a <= kern.BISECT_REL * self.dt:
+                    break
+                mid = a + 0.5 * (b - a)
+                ep, epp = self._rates(mid)
+                vm = -ep[j] if j >= 0 else V + a_lo * (mid - lo)
+                if chg(contact, vm, ep, epp):
+                    b = mid
+                else:
+                    a = mid
+            tau = b
+            ep, epp = self._rates(tau)
+            vt = -ep[j] if j >= 0 else V + a_lo * (tau - lo)
+            kern.new_mode(contact, vt, ep, epp, M, fext, fp, fm, zmask, kbuf, fpb, fmb, idx,
+                          newc)
+            hh = tau - lo
+            if hh > 0.0:
+                kern.interval_friction(contact, V, vt, hh, M, fext, fp, fm, R)
+                X += hh * vt
+                K += hh * R
+            self.contact = contact
+            self._set_contact(newc, tau)
+            contact = self.contact.copy()
+            V, lo = vt, tau
+        hh = tb - lo
+        if hh > 0.0:
+            kern.interval_friction(newc, V, u, hh, M, fext, fp, fm, R)
+        X += hh * u
+        K += hh * R
+        self.contact = contact
+        self._set_contact(newc, tb)
+        self.A = (u - V0) / (tb - t0)
+        self.V, self.X, self.K, self.R, self.t = u, X, K, R, tb
+        self.n_steps += 1
+        self._last = (tb, epb, eppb)
+        self._cache = None
+
+    def _row(self) -> dict:
+        row = super()._row()
+        if self._last is not None and self._last[0] == self.t:
+            # the step's own e', e'': a stuck body's velocity is then exactly zero
+            _, ep, epp = self._last
+            row['v'] = self.V + ep
+            body_force = self.R + self.crawler.gravity_forces - self._m * (self.A + epp)
+            row['linkage_force'] = np.cumsum(body_force)[:-1]
+        return row
 
 class ImplicitBatch:
     """Moreau-Jean stepping of B crawlers with the same number of bodies p, vectorised.
@@ -168,10 +467,10 @@ class ImplicitBatch:
         slope = np.broadcast_to(np.asarray(slope, dtype=float), (B,))
         self.masses = np.ascontiguousarray(m)
         self.M = self.masses.sum(axis=1)
-        self._w = self.masses / self.M[:, None]
+        self._w = np.ascontiguousarray(self.masses / self.M[:, None])
         self.f_plus = np.ascontiguousarray(f)
         self.f_minus = np.ascontiguousarray(fb)
-        self.F_ext = -self.M * gravity * np.sin(slope)
+        self.F_ext = np.ascontiguousarray(-self.M * gravity * np.sin(slope))
         self.B, self.p = B, p
         self.X = np.zeros(B)
         self.V = np.zeros(B)
@@ -190,10 +489,12 @@ class ImplicitBatch:
         return self.V[:, None] + self._ep(rates)
 
     def step(self, h: float, rates: ArrayLike) -> None:
-        """Advance every crawler by h [s]; ``rates`` are l'(t + h)."""
-        ep = self._ep(rates)
-        c = self.M / h
-        V, _ = solve_inclusion_batch(c, self.V, self.F_ext, -ep, self.f_plus, self.f_minus)
-        self.V = V
-        self.X = self.X + h * V
+        """Advance every crawler by h [s]; ``rates`` are l'(t + h), shape (p-1,) or (B, p-1)."""
+        r = np.asarray(rates, dtype=float)
+        if r.shape not in ((self.p - 1,), (self.B, self.p - 1)):
+            raise ValueError(f'rates must have shape ({self.p - 1},) or ({self.B}, '
+                             f'{self.p - 1}), got {r.shape}')
+        _load_kernel().batch_step(float(h), np.ascontiguousarray(r.reshape(-1, self.p - 1)),
+                                  self._w, self.M, self.V, self.X, self.F_ext, self.f_plus,
+                                  self.f_minus)
         self.t += h
