@@ -190,21 +190,25 @@ def _kinematic(tr: Trajectory, gait, n_sub: int) -> dict:
         if value > worst[key][0]:
             worst[key] = (float(value), float(when))
 
+    free = (fp == 0) & (fm == 0)
     X = V = None
     cur_sample = -1
     for k, (ta, tb, s) in enumerate(zip(a_pts, b_pts, modes)):
         if sample_of[k] != cur_sample and t[sample_of[k]] == ta:
             cur_sample = sample_of[k]
             X, V = float(X_s[cur_sample]), float(V_s[cur_sample])
-        stuck = np.nonzero(s == 0)[0]
-        slide = np.nonzero(s != 0)[0]
-        force = np.where(s > 0, fp, -fm)               # friction of a sliding body, F_i
+        # a frictionless body feels no friction whatever its claimed contact state (solvers
+        # need not report its events): it is free, never part of a stick, no sign to check
+        stuck = np.nonzero((s == 0) & ~free)[0]
+        slide = np.nonzero((s != 0) & ~free)[0]
+        force = np.where(free, 0.0, np.where(s > 0, fp, -fm))   # friction F_i of a sliding body
         taus = pts[k]
         if stuck.size == 0:
             acc = (fext - float(force.sum())) / M
             Vt = V + acc * (taus - ta)
-            vel = Vt[:, None] + ed[k]
-            note('slide_sign', float(np.max(-s * vel)), ta)
+            vel = Vt[:, None] + ed[k][:, slide]
+            if slide.size:
+                note('slide_sign', float(np.max(-s[slide] * vel)), ta)
             dtb = tb - ta
             X, V = X + V * dtb + 0.5 * acc * dtb * dtb, V + acc * dtb
         else:
