@@ -1,0 +1,301 @@
+"""Differential fuzz of the exact method against the independent oracle (issue 14 part 4).
+
+Each case is drawn from a numpy generator seeded by hypothesis (``draw_case(family, rng)``), so
+the quick profile here and the long profile of ``crawler-sim stress`` (``run_fuzz``) share one
+generator. Scenes: p = 2..8, masses and frictions over four decades, zero and
+direction-dependent friction, slopes, v0 != 0. Gait families: Custom lambdas of ``math``
+functions without a period, every built-in gait (Sinusoid, Fourier, Scallop down to asymmetry
+0.02, PiecewiseParabolic strokes and random non-periodic bang-bang strokes, Spline), and gait
+switches mid-run through ``Stepper.advance(t1, gait)`` as the node does (C2 Cubic pieces, and a
+Sinusoid continued by Cubic pieces).
+
+Pass: at every sample, positions within 1e-10 m (1e-10 relative beyond 1 m) and velocities within
+1e-10 (relative to 1 + the largest velocity) of the oracle, no exception and no stall, and, for
+``simulate`` runs, ``verify(tr, gait).ok()``.
+
+The quick profile (``make test``) runs ``CRAWLER_SIM_FUZZ_EXAMPLES`` (default 5) derandomised
+examples per family without the example database, so CI is deterministic; shrinking is off
+(the failing case's parameters are printed instead, to rerun with ``check_case``).
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, Phase, given, settings, strategies as st
+
+import crawler_sim as cs
+from oracle import Oracle
+
+G = cs.gaits
+FAMILIES = ('custom', 'sinusoid', 'fourier', 'scallop', 'stroke', 'bang_bang', 'spline',
+            'switch_cubic', 'switch_sinusoid')
+TOL = 1e-10
+N_EXAMPLES = int(os.environ.get('CRAWLER_SIM_FUZZ_EXAMPLES', '5'))
+
+
+@dataclass
+class Case:
+    """One differential case: a crawler, how the solver is driven, and the oracle's kinematics."""
+
+    family: str
+    seed: int
+    crawler: cs.Crawler
+    t_end: float
+    v0: float
+    kin: Callable                       # vectorised (l, l', l'') for the oracle
+    breakpoints: np.ndarray             # where l'' may jump, for the oracle's grid
+    timescale: float                    # fastest time scale of the gait [s]
+    gait: object = None                 # simulate(...) with this gait, or
+    pieces: list = field(default_factory=list)   # [(t1, gait)] Stepper.advance calls
+    desc: str = ''
+
+    def __repr__(self) -> str:
+        return (f'Case({self.family!r}, seed={self.seed}, {self.crawler!r}, t_end={self.t_end}, '
+                f'v0={self.v0}, {self.desc})')
+
+
+def _crawler(rng: np.random.Generator, p: int) -> tuple[cs.Crawler, str]:
+    m = 10.0 ** rng.uniform(-2, 2, p)
+    f = 10.0 ** rng.uniform(-2, 2, p)
+    f[rng.random(p) < 0.15] = 0.0
+    fb = None
+    if rng.random() < 0.35:
+        fb = 10.0 ** rng.uniform(-2, 2, p)
+        fb[rng.random(p) < 0.15] = 0.0
+    if rng.random() < 0.08:
+        f[:] = 0.0
+        fb = None
+    slope = float(rng.uniform(-0.5, 0.5)) if rng.random() < 0.3 else 0.0
+    return cs.Crawler(m, f, fb, slope=slope), ''
+
+
+def _vec(fn):
+    """A vectorised kinematics function from a gait (the gait is the input, not the solver)."""
+    return lambda t: fn(np.asarray(t, float))
+
+
+def draw_case(family: str, seed: int) -> Case:
+    """The case of ``family`` drawn from ``numpy.random.default_rng(seed)``."""
+    rng = np.random.default_rng(seed)
+    p = int(rng.integers(2, 9))
+    n = p - 1
+    crawler, _ = _crawler(rng, p)
+    v0 = float(rng.uniform(-1.0, 1.0)) if rng.random() < 0.4 else 0.0
+    t_end = float(rng.uniform(1.0, 2.5))
+    mean = rng.uniform(0.5, 1.5, n)
+    amp = rng.uniform(0.02, 0.3, n)
+    freq = float(rng.uniform(0.5, 2.5))
+    phase = rng.uniform(0, 2 * math.pi, n)
+    kw = dict(family=family, seed=seed, crawler=crawler, t_end=t_end, v0=v0)
+    if family == 'custom':
+        w1 = 2 * math.pi * rng.uniform(0.3, 2.5, n)
+        w2 = 2 * math.pi * rng.uniform(0.3, 4.0, n)
+        a2 = amp * rng.uniform(0, 0.5, n)
+        ms, a1s, a2s, w1s, w2s, phs = (x.tolist() for x in (mean, amp, a2, w1, w2, phase))
+
+        def length(t):
+            return [ms[j] + a1s[j] * math.sin(w1s[j] * t + phs[j]) + a2s[j] * math.sin(w2s[j] * t)
+                    for j in range(n)]
+
+        def velocity(t):
+            return [a1s[j] * w1s[j] * math.cos(w1s[j] * t + phs[j])
+                    + a2s[j] * w2s[j] * math.cos(w2s[j] * t) for j in range(n)]
+
+        def accel(t):
+            return [-a1s[j] * w1s[j] ** 2 * math.sin(w1s[j] * t + phs[j])
+                    - a2s[j] * w2s[j] ** 2 * math.sin(w2s[j] * t) for j in range(n)]
+
+        def kin(t):
+            t = np.asarray(t, float)[:, None]
+            s1, c1 = np.sin(w1 * t + phase), np.cos(w1 * t + phase)
+            s2, c2 = np.sin(w2 * t), np.cos(w2 * t)
+            return (mean + amp * s1 + a2 * s2, amp * w1 * c1 + a2 * w2 * c2,
+                    -amp * w1 ** 2 * s1 - a2 * w2 ** 2 * s2)
+        g = G.Custom(length, velocity, accel)
+        return Case(kin=kin, gait=g, breakpoints=np.empty(0), timescale=float(2 * math.pi / max(w1.max(), w2.max())),
+                    desc=f'custom w1={w1.tolist()} w2={w2.tolist()}', **kw)
+    if family == 'sinusoid':
+        g = G.Sinusoid(mean, amp, freq, phase)
+        return Case(kin=_vec(g), gait=g, breakpoints=np.empty(0), timescale=1 / freq, desc=f'{freq=}', **kw)
+    if family == 'fourier':
+        K = int(rng.integers(1, 4))
+        a = rng.normal(0, 1, (n, K)) * amp[:, None] / np.arange(1, K + 1)
+        b = rng.normal(0, 1, (n, K)) * amp[:, None] / np.arange(1, K + 1)
+        g = G.Fourier(mean, (a, b), freq)
+        return Case(kin=_vec(g), gait=g, breakpoints=np.empty(0), timescale=1 / (freq * K), desc=f'{freq=} {K=}', **kw)
+    if family == 'scallop':
+        r = float(10 ** rng.uniform(math.log10(0.02), math.log10(0.5)))
+        r = r if rng.random() < 0.5 else 1 - r
+        g = G.Scallop(mean, amp, freq, r, phase)
+        return Case(kin=_vec(g), gait=g, breakpoints=np.empty(0), timescale=min(r, 1 - r) / freq,
+                    desc=f'{freq=} asymmetry={r}', **kw)
+    if family == 'stroke':
+        r = float(rng.uniform(0.1, 0.9))
+        g = G.PiecewiseParabolic.stroke(mean, amp, freq, r, n_links=n)
+        return Case(kin=_vec(g), gait=g, breakpoints=g.breakpoints(0.0, t_end),
+                    timescale=min(r, 1 - r) / freq, desc=f'{freq=} asymmetry={r}', **kw)
+    if family == 'bang_bang':
+        k = int(rng.integers(3, 12))
+        times = np.concatenate([[0.0], np.cumsum(rng.uniform(0.05, 0.4, k))])
+        acc = rng.choice([-1.0, 0.0, 1.0], (k, n)) * rng.uniform(0.5, 5.0, (k, n))
+        g = G.PiecewiseParabolic(times, acc, mean, rng.uniform(-0.3, 0.3, n), periodic=False)
+        return Case(kin=_vec(g), gait=g, breakpoints=g.breakpoints(0.0, t_end),
+                    timescale=float(np.diff(times).min()), desc=f'{times=} {acc=}', **kw)
+    if family == 'spline':
+        k = int(rng.integers(4, 10))
+        times = np.linspace(0.0, t_end * rng.uniform(0.6, 1.2), k)
+        y = mean + amp * rng.normal(0, 1, (k, n))
+        g = G.Spline(times, y)
+        return Case(kin=_vec(g), gait=g, breakpoints=g.breakpoints(0.0, t_end),
+                    timescale=float(times[1] - times[0]), desc=f'{times=}', **kw)
+    if family in ('switch_cubic', 'switch_sinusoid'):
+        # the node's way: Cubic pieces, C2 at the joins, one Stepper.advance per piece
+        if family == 'switch_sinusoid':
+            head = G.Sinusoid(mean, amp, freq, phase)
+            t_s = float(rng.uniform(0.2, 0.6) * t_end)
+            l, ld, ldd = head(t_s)
+        else:
+            head, t_s = None, 0.0
+            l, ld, ldd = mean, rng.uniform(-0.3, 0.3, n), rng.uniform(-2, 2, n)
+        starts, cubics = [], []
+        t = t_s
+        while t < t_end:
+            dt = float(rng.uniform(0.02, 0.3))
+            jerk = rng.uniform(-30, 30, n)
+            c = G.Cubic(t, l, ld, ldd, jerk)
+            starts.append(t)
+            cubics.append(c)
+            l, ld, ldd = c(t + dt)
+            t += dt
+        ends = starts[1:] + [t_end]
+        pieces = ([(t_s, head)] if head is not None else []) + list(zip(ends, cubics))
+        pw = G.PiecewiseCubic(starts, cubics)
+
+        def kin(tt, head=head, t_s=t_s, pw=pw):
+            tt = np.asarray(tt, float)
+            out = [np.array(a, float) for a in pw(np.maximum(tt, t_s))]
+            if head is not None:
+                before = tt < t_s
+                if np.any(before):
+                    hv = head(tt[before])
+                    for o, h in zip(out, hv):
+                        o[before] = h
+            return tuple(out)
+        bps = np.array(starts[1:] + ([t_s] if head is not None else []))
+        return Case(kin=kin, pieces=pieces, breakpoints=bps,
+                    timescale=min(0.02, 1 / freq), desc=f'{len(cubics)} cubic pieces from '
+                    f't = {t_s}', **kw)
+    raise ValueError(f'unknown family {family!r}')
+
+
+def sample_times(case: Case) -> np.ndarray:
+    rng = np.random.default_rng(case.seed + 1)
+    return np.union1d(np.sort(rng.uniform(0.0, case.t_end, 5)), [0.0, case.t_end])
+
+
+def oracle_h(case: Case) -> float:
+    """Oracle grid step: well below the gait's fastest time scale (see oracle.py)."""
+    return float(max(min(2e-4, case.timescale / 400), case.t_end / 4e5))
+
+
+def check_case(case: Case) -> dict:
+    """Run the case; return figures (errors vs the oracle). Raises AssertionError on failure."""
+    te = sample_times(case)
+    o = Oracle.for_crawler(case.crawler, case.kin, case.breakpoints)
+    xo, vo = o.solve(case.t_end, te, v0=case.v0, h=oracle_h(case))
+    if case.gait is not None:
+        tr = cs.simulate(case.crawler, case.gait, case.t_end, t_eval=te, v0=case.v0)
+        x, v = tr.x, tr.v
+        rep = cs.verify(tr, case.gait)
+    else:
+        st = cs.Stepper(case.crawler, case.pieces[0][1], v0=case.v0)
+        xs, vs = [], []
+        times = iter(te)
+        tn = next(times)
+        for t1, g in case.pieces:
+            while tn is not None and tn <= t1:
+                st.advance(tn, g)
+                s = st.state
+                xs.append(s.x)
+                vs.append(s.v)
+                tn = next(times, None)
+            st.advance(t1, g)
+        x, v = np.array(xs), np.array(vs)
+        rep = None
+    ex = float(np.abs(x - xo).max())
+    ev = float(np.abs(v - vo).max())
+    x_tol = TOL * max(1.0, float(np.abs(xo).max()))
+    v_tol = TOL * (1.0 + float(np.abs(vo).max()))
+    out = {'err_x': ex, 'err_v': ev, 'verify': None if rep is None else rep.worst,
+           'oracle_events': o.n_events}
+    assert ex <= x_tol and ev <= v_tol, f'{case!r}: |dx| = {ex:.3g} m, |dv| = {ev:.3g} m/s ' \
+        f'(tolerances {x_tol:.1g}, {v_tol:.1g})'
+    assert rep is None or rep.ok(), f'{case!r}: verify {rep}'
+    return out
+
+
+_QUICK = settings(max_examples=N_EXAMPLES, derandomize=True, database=None, deadline=None,
+                  phases=[Phase.explicit, Phase.generate],
+                  suppress_health_check=list(HealthCheck))
+
+# Families the exact solver of today fails in the quick profile (issue 14); the exact helper's
+# rewrite should make them pass, then the integrator removes these marks.
+_XFAIL = {
+    'custom': 'issue 14: the bracketing grid of an aperiodic Custom gait misses whole '
+              'oscillations (dx off by up to 1e-2 m)',
+    'spline': 'issue 14: a stick-to-slip release of a Spline gait is missed (the required '
+              'force leaves its bound by 3 %, dx off by 2e-3 m; the oracle is confirmed by a '
+              'converging implicit prox)',
+}
+
+
+@pytest.mark.parametrize('family', [pytest.param(f, marks=pytest.mark.xfail(
+    strict=False, reason=_XFAIL[f])) if f in _XFAIL else f for f in FAMILIES])
+@_QUICK
+@given(seed=st.integers(0, 2 ** 32 - 1))
+def test_exact_agrees_with_the_oracle(family, seed):
+    check_case(draw_case(family, seed))
+
+
+def test_the_generator_covers_the_ranges_the_issue_asks_for():
+    # p = 2..8, masses and frictions over decades, zero and direction-dependent friction,
+    # slopes and v0 != 0 all occur among the first 200 seeds of each family
+    cases = [draw_case(f, s) for f in FAMILIES for s in range(25)]
+    ps = {c.crawler.p for c in cases}
+    assert ps == set(range(2, 9))
+    m = np.concatenate([c.crawler.masses for c in cases])
+    assert m.min() < 0.05 and m.max() > 20
+    assert any(np.any(c.crawler.friction == 0) for c in cases)
+    assert any(np.any(c.crawler.friction != c.crawler.friction_backward) for c in cases)
+    assert any(c.crawler.slope != 0 for c in cases)
+    assert any(c.v0 != 0 for c in cases)
+    assert any(c.gait is not None and c.gait.period is None for c in cases if
+               c.family == 'custom')
+
+
+def run_fuzz(n_per_family: int, seed: int = 0, families=FAMILIES,
+             progress: Callable | None = None) -> dict:
+    """The long profile (``crawler-sim stress``): ``n_per_family`` cases per family from seeds
+    seed, seed + 1, ...; returns counts, worst errors and the failing cases."""
+    say = progress or (lambda *a: None)
+    out = {'cases': 0, 'failed': 0, 'errors': 0, 'worst_x': 0.0, 'failures': []}
+    for fam in families:
+        for k in range(n_per_family):
+            case = draw_case(fam, seed + k)
+            out['cases'] += 1
+            try:
+                r = check_case(case)
+                out['worst_x'] = max(out['worst_x'], r['err_x'])
+            except AssertionError as exc:
+                out['failed'] += 1
+                out['failures'].append(str(exc)[:400])
+            except Exception as exc:   # a stall or crash of the solver is a failure too
+                out['errors'] += 1
+                out['failures'].append(f'{case!r}: {type(exc).__name__}: {exc}'[:400])
+        say(f'fuzz {fam}: {out["cases"]} cases so far, {out["failed"] + out["errors"]} failed')
+    return out
