@@ -141,18 +141,15 @@ class Search:
     @staticmethod
     def _lower(h: float, ga: NDArray, gb: NDArray, b2: NDArray, b1: NDArray) -> NDArray:
         """Lower bounds of the rows on an interval of length h with end values ga, gb."""
-        with np.errstate(invalid='ignore'):
-            lo2 = np.minimum(ga, gb) - b2 * (h * h / 8.0)
-            lo1 = 0.5 * (ga + gb) - b1 * (h / 2.0)
-        return np.fmax(np.nan_to_num(lo2, nan=-math.inf), np.nan_to_num(lo1, nan=-math.inf))
+        # h > 0 and the values are finite, so an infinite bound gives -inf, never NaN
+        return np.maximum(np.minimum(ga, gb) - b2 * (h * h / 8.0), 0.5 * (ga + gb) - b1 * (h / 2.0))
 
     def _step(self, ga: NDArray, active: NDArray, b2: NDArray, b1: NDArray) -> float:
         """A step from a that the bounds are likely to accept (sets the cost only)."""
         g = np.where(active, np.maximum(ga, 0.0), math.inf)
         with np.errstate(divide='ignore', invalid='ignore'):
-            h2 = np.sqrt(8.0 * g / b2)
-            h1 = 2.0 * g / b1
-        h = float(np.nan_to_num(np.fmax(h2, h1), nan=math.inf).min(initial=math.inf))
+            h = np.fmax(np.sqrt(8.0 * g / b2), 2.0 * g / b1)     # NaN: inf / inf
+        h = float(np.where(np.isnan(h), math.inf, h).min(initial=math.inf))
         return min(max(h, 64.0 * self.tol), self.cap)
 
     # --------------------------------------------------------------------- search
@@ -183,7 +180,8 @@ class Search:
             h = min(h, max(1e3 * self.tol, 1e-9 * (end - a)))   # leave rest carefully
         while a < end:
             tau = a + h * np.arange(1, _N + 1)
-            tau = np.append(tau[tau < end], end)
+            if tau[-1] >= end:
+                tau = np.append(tau[tau < end], end)
             G = self._eval(tau)
             self._observe(np.concatenate(([a], tau)), np.vstack([ga, G]))
             b2, b1 = self._bounds(a, float(tau[-1]))
