@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from ..gaits import Gait
 from ..model import Crawler
-from ..trajectory import Event
+from ..trajectory import Event, EventLog
 from .contact import solve_inclusion, split_friction
 from .events import Rows, Search, check_finite_gait
 
@@ -300,7 +300,7 @@ class ExactSolver:
         self.ref = -1
         self.x_ref = 0.0
         self.segments: list = []
-        self.events: list[Event] = []
+        self.events = EventLog()
         self.n_segments = 0
         self.n_skipped_periods = 0
         self.last: Segment | None = None
@@ -470,9 +470,7 @@ class ExactSolver:
         if self.keep_segments:
             template = [sg for sg in self.segments[prev[6]:] if isinstance(sg, Segment)]
             self.segments.append(PeriodicBlock(self.t, n, T, D, dK, template, (k - 1) * T))
-        shifted = [Event(ev.time + j * T, ev.body, ev.old, ev.new)
-                   for j in range(1, n + 1) for ev in new_events]
-        self.events.extend(shifted)
+        self.events.add_periodic(new_events, n, T)     # stored once (memory)
         self.X += n * D
         self.x_ref += n * D
         self.K = self.K + n * dK
