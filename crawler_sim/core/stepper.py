@@ -170,6 +170,12 @@ def _sample_times(t_end: float, t_eval: ArrayLike | None, dt: float | None) -> N
     return t
 
 
+def _events(events):
+    """Every event as a list, or the exact method's ``EventLog`` (repeated periods stored
+    once) beyond a million events, so memory stays independent of t_end."""
+    return events.compact() if hasattr(events, 'compact') else list(events)
+
+
 def simulate(crawler: Crawler, gait: Gait, t_end: float, method: str = 'exact', *,
              dt: float | None = None, t_eval: ArrayLike | None = None, v0: float = 0.0,
              x0: float = 0.0, penalty: ArrayLike | None = None, tol: float = 1e-13,
@@ -189,7 +195,16 @@ def simulate(crawler: Crawler, gait: Gait, t_end: float, method: str = 'exact', 
     t_end = _check_positive('t_end', t_end)
     if dt is not None:
         dt = _check_positive('dt', dt)
-    if method != 'exact':
+    if method == 'exact':
+        # Float time resolution: event times are floats, spaced ulp(t) ~ 2.2e-16 t apart; past
+        # 1e-6 of the gait's time scale per ulp the "exact" times would be rounding noise.
+        scale = gait.period if getattr(gait, 'period', None) else (max_step or 1.0)
+        limit = 1e-6 * scale / np.finfo(float).eps
+        if t_end > limit:
+            raise ValueError(f't_end must be <= {limit:.3g} s for method "exact" with this gait '
+                             f'(time resolution eps * t_end below 1e-6 of its time scale '
+                             f'{scale:g} s), got {t_end!r}')
+    else:
         check_steps(t_end, 1e-3 if dt is None else dt)     # never run for ever (issue 11)
     st = Stepper(crawler, gait, method, x0=x0, v0=v0, dt=dt, penalty=penalty, tol=tol,
                  max_step=max_step, keep_history=True, periodic_skip=periodic_skip)
@@ -218,6 +233,6 @@ def simulate(crawler: Crawler, gait: Gait, t_end: float, method: str = 'exact', 
     return Trajectory(t=times, x=out['x'], v=out['v'], friction=out['friction'],
                       state=out['contact'].astype(np.int8), linkage_force=out['linkage_force'],
                       impulse=out['impulse'], lengths=out['lengths'], rates=out['rates'],
-                      events=list(st.solver.events), indeterminate=out['indeterminate'],
+                      events=_events(st.solver.events), indeterminate=out['indeterminate'],
                       crawler=crawler, method=method, info=info)
 

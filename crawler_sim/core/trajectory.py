@@ -1,6 +1,8 @@
 """Simulation output: sampled states, stick/slip events and the locomotion figures."""
 from __future__ import annotations
 
+import bisect
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -9,7 +11,7 @@ from numpy.typing import NDArray
 
 from .model import Crawler
 
-__all__ = ['Event', 'Trajectory', 'State']
+__all__ = ['Event', 'EventLog', 'Trajectory', 'State']
 
 
 class Event(NamedTuple):
@@ -19,6 +21,84 @@ class Event(NamedTuple):
     body: int
     old: int
     new: int
+
+
+class EventLog(Sequence):
+    """Events in time order, with repeated gait periods stored once (a read-only sequence).
+
+    The exact method's periodic skip adds ``n`` repetitions of one period's events as one
+    block (its events, the period T and n); element k of the block is generated on access. So
+    a long periodic run keeps memory independent of its length, while ``len``, indexing,
+    slicing and iteration behave as on the list of every event.
+    """
+
+    def __init__(self) -> None:
+        self._parts: list = []        # list[Event] runs, or (template, n, T) blocks
+        self._ends: list[int] = []    # cumulative lengths
+
+    def __len__(self) -> int:
+        return self._ends[-1] if self._ends else 0
+
+    def _tail(self) -> list:
+        if not self._parts or not isinstance(self._parts[-1], list):
+            self._parts.append([])
+            self._ends.append(len(self))
+        return self._parts[-1]
+
+    def append(self, ev: Event) -> None:
+        self._tail().append(ev)
+        self._ends[-1] += 1
+
+    def extend(self, evs) -> None:
+        evs = list(evs)
+        self._tail().extend(evs)
+        self._ends[-1] += len(evs)
+
+    def add_periodic(self, template: list, n: int, T: float) -> None:
+        """The events ``template`` (one period) repeated n times, shifted by T, 2 T, ... n T."""
+        if template and n > 0:
+            self._parts.append((list(template), int(n), float(T)))
+            self._ends.append(len(self) + len(template) * int(n))
+
+    def clear(self) -> None:
+        self._parts.clear()
+        self._ends.clear()
+
+    def _get(self, k: int) -> Event:
+        j = bisect.bisect_right(self._ends, k)
+        part = self._parts[j]
+        local = k - (self._ends[j - 1] if j else 0)
+        if isinstance(part, list):
+            return part[local]
+        tpl, _, T = part
+        rep, i = divmod(local, len(tpl))
+        ev = tpl[i]
+        return Event(ev.time + (rep + 1) * T, ev.body, ev.old, ev.new)
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self._get(i) for i in range(*k.indices(len(self)))]
+        n = len(self)
+        k = int(k)
+        if k < 0:
+            k += n
+        if not 0 <= k < n:
+            raise IndexError('event index out of range')
+        return self._get(k)
+
+    def __iter__(self):
+        for part in self._parts:
+            if isinstance(part, list):
+                yield from part
+            else:
+                tpl, n, T = part
+                for rep in range(1, n + 1):
+                    for ev in tpl:
+                        yield Event(ev.time + rep * T, ev.body, ev.old, ev.new)
+
+    def compact(self, limit: int = 1_000_000):
+        """A plain list when it holds at most ``limit`` events, else this log itself."""
+        return list(self) if len(self) <= limit else self
 
 
 class State(NamedTuple):
@@ -57,7 +137,9 @@ class Trajectory:
     linkage_force : (N, p-1) force linkage j exerts on body j+1 [N] (positive pushes apart)
     impulse : (N, p) integrated friction force since t[0] [N s] (the seed's k_i with sign flipped)
     lengths, rates : (N, p-1) linkage lengths [m] and rates [m/s]
-    events : list of Event, every contact change in (t[0], t[-1]]
+    events : every contact change (Event) in (t[0], t[-1]]: a list, or for a long periodic run
+        of the exact method (over a million events) an ``EventLog`` sequence that stores the
+        repeated periods once (memory independent of t_end)
     indeterminate : (N,) bool, several bodies stuck together (friction split not unique)
     crawler, method : what produced it; ``info`` holds solver figures (segments, steps, bounds).
     """
@@ -118,13 +200,42 @@ class Trajectory:
         state = self.state[0].astype(int).copy()
         last = np.full(state.size, t0)
         stuck = np.zeros(state.size)
-        for ev in self.events:
-            if ev.time > t1:
+
+        def run(events, shift=0.0) -> bool:
+            for ev in events:
+                time = ev.time + shift
+                if time > t1:
+                    return False
+                if state[ev.body] == 0:
+                    stuck[ev.body] += time - last[ev.body]
+                state[ev.body] = ev.new
+                last[ev.body] = time
+            return True
+        parts = self.events._parts if isinstance(self.events, EventLog) else [self.events]
+        for part in parts:
+            if isinstance(part, list):
+                if not run(part):
+                    break
+                continue
+            # a periodic block: every repetition adds the same stuck time per body
+            tpl, n, T = part
+            k_full = min(n, int((t1 - tpl[-1].time) // T))   # repetitions inside [.., t1]
+            start = 1
+            if k_full >= 2:
+                before = stuck.copy()
+                run(tpl, T)
+                moved = np.zeros(state.size, bool)
+                moved[[ev.body for ev in tpl]] = True
+                stuck += (k_full - 1) * (stuck - before)
+                last[moved] += (k_full - 1) * T
+                start = k_full + 1
+            done = False
+            for rep in range(start, n + 1):
+                if not run(tpl, rep * T):
+                    done = True
+                    break
+            if done:
                 break
-            if state[ev.body] == 0:
-                stuck[ev.body] += ev.time - last[ev.body]
-            state[ev.body] = ev.new
-            last[ev.body] = ev.time
         stuck += np.where(state == 0, t1 - last, 0.0)
         return stuck / (t1 - t0) if t1 > t0 else (state == 0).astype(float)
 

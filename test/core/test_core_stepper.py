@@ -353,13 +353,16 @@ def test_batched_sampling_equals_each_segments_own_closed_form(scene):
 
 
 # ----------------------------------------------------------------------------------------------
-# The jerk-bound shortcut of the exact solver's dip search (Gait.jerk_bound): where the bound
-# proves a velocity stays positive between two grid points the root search is skipped. A run
-# with the bound must find exactly the events of a run whose gait hides it (None: the search
-# always runs), while searching less.
+# Two routes of the exact solver's event search (crawler_sim.core.solvers.events): rigorous
+# interval bounds from Gait.jerk_bound / snap_bound, and, for a gait that hides them, bounds
+# estimated from the gait's own values (segments redone when an estimate proves too small).
+# Both must find the same events and states: each is the other's independent reference.
 def _no_jerk_bound(gait):
     class Hidden(type(gait)):
         def jerk_bound(self, t0, t1):
+            return None
+
+        def snap_bound(self, t0, t1):
             return None
     hidden = object.__new__(Hidden)
     hidden.__dict__.update(gait.__dict__)
@@ -383,23 +386,13 @@ def _actuator_windows(seed, n_windows=300, per=10, dt=1e-3):
     return windows
 
 
-@pytest.mark.parametrize('scene', ['actuator_p3', 'sinusoid_p4', 'parabolic_p2'])
-def test_the_jerk_bound_shortcut_finds_the_same_events_with_fewer_root_searches(scene, monkeypatch):
-    from crawler_sim.core.solvers.exact import ExactSolver
-    searches = {'n': 0}
-    original = ExactSolver._min_of
-
-    def counted(self, *args):
-        searches['n'] += 1
-        return original(self, *args)
-    monkeypatch.setattr(ExactSolver, '_min_of', counted)
-
+@pytest.mark.parametrize('scene', ['actuator_p3', 'sinusoid_p4', 'parabolic_p2', 'scallop_p2'])
+def test_bounded_and_estimated_event_searches_find_the_same_events(scene):
     def run(hide: bool):
-        searches['n'] = 0
+        wrap = _no_jerk_bound if hide else (lambda g: g)
         if scene == 'actuator_p3':
             crawler = cs.Crawler([1.0, 0.8, 1.2], [2.9, 2.4, 3.5])
             windows = _actuator_windows(seed=4)
-            wrap = _no_jerk_bound if hide else (lambda g: g)
             st = cs.Stepper(crawler, wrap(gaits.PiecewiseCubic(*windows[0])))
             for k, (starts, pieces) in enumerate(windows):
                 end = windows[k + 1][0][0] if k + 1 < len(windows) else starts[-1] + 1e-3
@@ -407,57 +400,21 @@ def test_the_jerk_bound_shortcut_finds_the_same_events_with_fewer_root_searches(
         else:
             if scene == 'sinusoid_p4':
                 crawler, gait, t_end = _crawler(4, seed=5), _wave(4, amp=0.03, freq=1.5), 3.0
+            elif scene == 'scallop_p2':
+                crawler, gait, t_end = cs.Crawler([1, 1], [50, 10]), \
+                    gaits.Scallop(1.0, 0.3, 1.0, 0.05), 2.0
             else:
                 crawler = cs.Crawler([0.5, 1.0], [1.5, 3.0])
                 gait, t_end = gaits.PiecewiseParabolic.stroke(0.1, 0.02, 2.0, 0.3), 2.0
-            st = cs.Stepper(crawler, _no_jerk_bound(gait) if hide else gait,
-                            periodic_skip=False)
+            st = cs.Stepper(crawler, wrap(gait), periodic_skip=False)
             st.advance(t_end)
-        return st.pop_events(), st.state, searches['n']
+        return st.pop_events(), st.state
 
-    ev_a, state_a, n_a = run(hide=False)
-    ev_b, state_b, n_b = run(hide=True)
+    ev_a, state_a = run(hide=False)
+    ev_b, state_b = run(hide=True)
     assert len(ev_a) == len(ev_b) > 5
     for a, b in zip(ev_a, ev_b):
         assert (a.body, a.old, a.new) == (b.body, b.old, b.new)
         assert abs(a.time - b.time) <= 1e-12
     assert np.allclose(state_a.x, state_b.x, rtol=0, atol=1e-12)
     assert np.array_equal(state_a.contact, state_b.contact)
-    assert n_a <= n_b
-    if scene == 'actuator_p3':
-        assert n_a < n_b      # the node's case: most dip searches are ruled out
-
-
-# ----------------------------------------------------------------------------------------------
-# The period table of the exact solver: a smooth periodic gait's grid values are read from one
-# table for every segment. The same run with the table switched off (every chunk evaluates the
-# gait) must give the same events and states, also far from t = 0, where a table read at a
-# later period and the gait evaluated at the actual time differ by phase rounding.
-@pytest.mark.parametrize('t0', [0.0, 3.7e4])
-@pytest.mark.parametrize('kind', ['scallop2', 'wave4', 'fourier3'])
-def test_the_period_table_gives_the_events_of_direct_gait_evaluation(kind, t0, monkeypatch):
-    from crawler_sim.core.solvers.exact import ExactSolver
-    if kind == 'scallop2':
-        crawler, gait = cs.Crawler([0.5, 1.0], [1.47, 2.94]), gaits.Scallop(0.1, 0.02, 2.0, 0.2)
-    elif kind == 'wave4':
-        crawler, gait = _crawler(4, seed=2), _wave(4, amp=0.03, freq=1.5)
-    else:
-        crawler = _crawler(3, slope=0.1, seed=8)
-        gait = gaits.Fourier([0.1, 0.12], ([[0.01, 0.004], [0.02, 0.0]],
-                                           [[0.0, 0.003], [0.01, 0.002]]), 0.8)
-
-    def run():
-        st = cs.Stepper(crawler, gait, t0=t0, periodic_skip=False)
-        st.advance(t0 + 4.0 * gait.period)
-        return st.pop_events(), st.state
-
-    ev_table, state_table = run()
-    assert ExactSolver(crawler, gait)._period_table(gait, gait.period / 64.0) is not None
-    monkeypatch.setattr(ExactSolver, '_period_table', lambda self, g, h: None)
-    ev_direct, state_direct = run()
-    assert len(ev_table) == len(ev_direct) > 4
-    for a, b in zip(ev_table, ev_direct):
-        assert (a.body, a.old, a.new) == (b.body, b.old, b.new)
-        assert abs(a.time - b.time) <= 1e-9
-    assert np.allclose(state_table.x, state_direct.x, rtol=0, atol=1e-9)
-    assert np.array_equal(state_table.contact, state_direct.contact)

@@ -166,9 +166,15 @@ class Gait:
         return False
 
     def jerk_bound(self, t0: float, t1: float) -> NDArray[np.float64] | None:
-        """Upper bounds of the jerk |d l''/dt| [m/s^3] per linkage on [t0, t1] between
-        breakpoints (where l'' is continuous), or None if unknown (the default). The exact
-        solver uses them to rule out, without a root search, a velocity that dips to zero
-        between two grid points; a bound that is too small makes it miss such dips."""
+        """Upper bounds of |l'''| [m/s^3] per linkage on [t0, t1], or None if unknown (default).
+
+        Between the breakpoints l'' must be Lipschitz with this constant (l''' may jump, as at
+        the joins of a `PiecewiseCubic`). The exact solver's event search is rigorous only with
+        a true bound: a bound that is too small can make it miss an event."""
         return None
 
+    def snap_bound(self, t0: float, t1: float) -> NDArray[np.float64] | None:
+        """Upper bounds of |l''''| [m/s^4] per linkage on [t0, t1] between breakpoints, or None
+        when unknown or when l''' jumps inside (the solver then bounds the stuck-force rows
+        with `jerk_bound` alone)."""
+        return None

@@ -84,6 +84,9 @@ class Cubic(Gait):
     def jerk_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
         return np.array([abs(r[3]) for r in self._rows])
 
+    def snap_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
+        return np.zeros(self.n_links)
+
 
 class PiecewiseCubic(Gait):
     """Consecutive ``Cubic`` pieces, piece k valid on [starts[k], starts[k+1]) (the last one
@@ -166,3 +169,10 @@ class PiecewiseCubic(Gait):
         k0, k1 = self._index(t0), self._index(t1)
         return np.array([max(abs(pc._rows[i][3]) for pc in self.pieces[k0:k1 + 1])
                          for i in range(self.n_links)])
+
+    def snap_bound(self, t0: float, t1: float) -> NDArray[np.float64] | None:
+        # the jerk is constant on a piece and jumps at the joins: no bound across a join
+        k0 = self._index(t0)
+        if k0 + 1 < len(self._starts) and self._starts[k0 + 1] < t1:
+            return None
+        return np.zeros(self.n_links)

@@ -1,34 +1,54 @@
 """`Custom`: a gait from user callables of one float time."""
 from __future__ import annotations
 
+import math
 from typing import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .base import (Gait, Triple)
+from .base import Gait, Triple, _positive
 
 
 class Custom(Gait):
     """A gait from three user callables of one float time.
 
     Each callable returns an array of shape (n_links,) (a float is accepted when there is one
-    linkage). They are never called with arrays. ``breakpoints`` optionally lists times where the
-    acceleration jumps so the exact solver places events there without searching.
+    linkage). They are never called with arrays.
+
+    Optional hints for the exact solver (the more it knows, the less it must assume):
+
+    - ``breakpoints``: times where l'' jumps, so events there are placed without searching;
+    - ``period`` [s]: the gait repeats with this period (enables the periodic skip);
+    - ``jerk_bound`` [m/s^3]: an upper bound of |l'''| (float, one per linkage, or a callable
+      ``(t0, t1) -> bounds`` on [t0, t1]). With it the event search is rigorous; without it
+      the solver estimates the bound from the gait's own values and redoes a segment with a
+      larger estimate whenever a later observation contradicts it;
+    - ``max_step`` [s]: the largest step between two event checks.
     """
 
     def __init__(self, length: Callable[[float], ArrayLike],
                  velocity: Callable[[float], ArrayLike],
                  acceleration: Callable[[float], ArrayLike], *, period: float | None = None,
-                 breakpoints: ArrayLike | None = None) -> None:
+                 breakpoints: ArrayLike | None = None,
+                 jerk_bound: ArrayLike | Callable | None = None,
+                 max_step: float | None = None) -> None:
         for name, fn in (('length', length), ('velocity', velocity),
                          ('acceleration', acceleration)):
             if not callable(fn):
                 raise ValueError(f'Custom gait: {name} must be callable, got {type(fn).__name__}')
         self._fns = (length, velocity, acceleration)
         self.n_links = int(np.atleast_1d(np.asarray(length(0.0), dtype=float)).size)
-        self.period = period
+        self.period = None if period is None else _positive('period', period, 's')
+        self.max_step = None if max_step is None else _positive('max_step', max_step, 's')
         self._breaks = np.sort(np.asarray(breakpoints if breakpoints is not None else [], float))
+        if jerk_bound is None or callable(jerk_bound):
+            self._jerk = jerk_bound
+        else:
+            jb = np.broadcast_to(np.asarray(jerk_bound, dtype=float), (self.n_links,)).copy()
+            if not np.all(np.isfinite(jb)) or np.any(jb < 0):
+                raise ValueError(f'jerk_bound must be finite and >= 0 m/s^3, got {jb.tolist()}')
+            self._jerk = jb
 
     def __call__(self, t: float | ArrayLike) -> Triple:
         if np.ndim(t) == 0:
@@ -46,3 +66,12 @@ class Custom(Gait):
     def breakpoints(self, t0: float, t1: float) -> NDArray[np.float64]:
         b = self._breaks
         return b[(b > t0) & (b < t1)]
+
+    def jerk_bound(self, t0: float, t1: float) -> NDArray[np.float64] | None:
+        if self._jerk is None or not callable(self._jerk):
+            return self._jerk
+        jb = np.broadcast_to(np.asarray(self._jerk(t0, t1), dtype=float), (self.n_links,))
+        if not np.all(np.isfinite(jb) | (jb == math.inf)) or np.any(jb < 0):
+            raise ValueError(f'jerk_bound({t0}, {t1}) must return values >= 0 m/s^3, '
+                             f'got {jb.tolist()}')
+        return jb

@@ -192,6 +192,9 @@ class PiecewiseParabolic(Gait):
     def jerk_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
         return np.zeros(self.n_links)      # l'' is constant between breakpoints
 
+    def snap_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
+        return np.zeros(self.n_links)
+
 
 class Spline(Gait):
     """A C2 cubic spline through sampled lengths (scipy.interpolate.CubicSpline).
@@ -260,3 +263,8 @@ class Spline(Gait):
         if self.periodic:
             return False
         return t1 <= self.times[0] or t0 >= self.times[-1]
+
+    def jerk_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
+        # the jerk is 6 c3 on each knot interval (constant there, jumping at the knots), zero
+        # outside a clamped spline's range: the largest over all intervals bounds it everywhere
+        return 6.0 * np.max(np.abs(self._spline.c[0]), axis=0).reshape(self.n_links)

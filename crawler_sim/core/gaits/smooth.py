@@ -38,6 +38,9 @@ class Sinusoid(Gait):
     def jerk_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
         return np.abs(self.amplitude) * self._w ** 3
 
+    def snap_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
+        return np.abs(self.amplitude) * self._w ** 4
+
     def at(self, t: float) -> Triple:
         if self.n_links == 1:
             l, ld, ldd = self.at1(t)
@@ -119,6 +122,10 @@ class Fourier(Gait):
     def jerk_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
         wk3 = (2.0 * math.pi * self.frequency * self._k) ** 3
         return (np.abs(self.cos) + np.abs(self.sin)) @ wk3
+
+    def snap_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
+        wk4 = (2.0 * math.pi * self.frequency * self._k) ** 4
+        return (np.abs(self.cos) + np.abs(self.sin)) @ wk4
 
 
 class Scallop(Gait):
@@ -212,3 +219,41 @@ class Scallop(Gait):
 
     def is_constant(self, t0: float, t1: float) -> bool:
         return not np.any(self.amplitude)
+
+    def jerk_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
+        return self._cauchy(3, t0, t1)
+
+    def snap_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
+        return self._cauchy(4, t0, t1)
+
+    def _cauchy(self, n: int, t0: float, t1: float) -> NDArray[np.float64]:
+        """Rigorous bound of |d^n l / dt^n| on [t0, t1] by Cauchy's estimate, per linkage.
+
+        l = mean + amplitude f(x), f(x) = s sin x / (1 - c cos x), x = w t + phase - pi r, is
+        analytic off the poles x = 2 pi k (+ pi when c < 0) +- i rho0, cosh rho0 = 1 / |c|. On
+        a disc of radius rho around a real point: |s sin z| <= s cosh rho and, with z' = z (or
+        z + pi when c < 0), 1 - c cos z = 2 |c| sin((z' + i rho0) / 2) sin((z' - i rho0) / 2)
+        and |sin u|^2 = sin^2 Re u + sinh^2 Im u give |1 - c cos z| >= 2 |c| (min sin^2(Re z'
+        / 2) + sinh^2(max(rho0 - rho, 0) / 2)). Then |f^(n)| <= n! max|f| / rho^n; the best
+        of a few radii is kept. Local: small far from the fast phase of a sharp stroke.
+        """
+        c, s, w = self._c, self._s, self._w
+        amp = np.abs(self.amplitude)
+        if abs(c) < 1e-12:        # r = 1/2: a plain cosine stroke
+            return amp * w ** n
+        rho0 = math.acosh(1.0 / abs(c))
+        x0 = w * t0 + self.phase - math.pi * self.asymmetry + (math.pi if c < 0 else 0.0)
+        span = w * (t1 - t0)
+        best = np.full(self.n_links, math.inf)
+        for rho in (0.25 * rho0, 0.5 * rho0, 0.75 * rho0, 0.5, 1.0, 2.0):
+            lo = 0.5 * (x0 - rho)                  # Re(z') / 2 ranges over [lo, lo + width]
+            width = 0.5 * (span + 2.0 * rho)
+            contains = np.ceil(lo / math.pi) * math.pi <= lo + width
+            m = np.where(contains, 0.0, np.minimum(np.sin(lo) ** 2, np.sin(lo + width) ** 2))
+            den = 2.0 * abs(c) * (m + math.sinh(max(rho0 - rho, 0.0) / 2.0) ** 2)
+            safe = np.where(den > 0, den, 1.0)
+            bound = np.where(den > 0, math.factorial(n) * s * math.cosh(rho) / safe / rho ** n,
+                             math.inf)
+            best = np.minimum(best, bound)
+        # 1 + 1e-12: the bound is computed in floats
+        return amp * w ** n * best * (1.0 + 1e-12)

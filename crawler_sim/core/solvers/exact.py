@@ -10,20 +10,20 @@ Between events the motion is known exactly:
 
 Events end a segment: a sliding body's velocity reaching zero, a stuck group's required force
 reaching its friction bound, the group losing rigidity, and the gait's own breakpoints (jumps of
-l''), which are placed exactly because the gait lists them. At each segment start the contact mode
-is chosen by the acceleration-level inclusion (``contact.solve_inclusion``); when that choice is
-degenerate (a tie at a kink or at a bound, e.g. right at a stick-to-slip transition or a grazing
-contact) it is decided by the same inclusion a short look-ahead later.
+l''), which the gait lists. At each segment start the contact mode is the solution of the
+acceleration-level inclusion (``contact.solve_inclusion``); a degenerate choice (a tie at a kink
+or at a bound) is decided by the same inclusion a short look-ahead later. The contact sign of a
+body always comes from its actual velocity or acceleration; V is never moved to make an event.
 
-How brackets are chosen (so no event is missed): every segment is scanned on a grid whose
-spacing is the gait period / 64 (1/8 of the interval for aperiodic gaits) or the user's
-``max_step`` if that is smaller, in chunks, vectorised. An event is bracketed by a sign change on
-the grid; for velocity events the derivative is known in closed form, so a velocity that dips to
-zero and back between two grid points is caught as well (a sign change of its derivative is
-refined and the minimum checked). A stuck body's force that crosses its bound and comes back
-between two grid points can be missed: lower ``max_step`` for gaits with sharp features.
-Velocity roots are refined by safeguarded Newton, force roots by Brent's method
-(``scipy.optimize.brentq``), to ``tol`` seconds, and reported on the crossed side.
+The event search (``events``) proves each piece of a segment free of events from bounds on the
+event functions' derivatives, which follow from the gait's ``jerk_bound`` / ``snap_bound``, or
+splits it, and narrows the first bracketed event to ``tol`` seconds.
+
+Guarantee: for a gait whose ``jerk_bound`` (and ``snap_bound``, where it gives one) are true
+bounds (every built-in gait, and a ``Custom`` gait given ``jerk_bound=``), no contact event is
+missed and every event time is within ``tol`` seconds (or one float spacing of t) of the exact
+one; for a ``Custom`` gait without a bound, the bound is estimated from the gait's values and a
+segment is redone whenever a later value contradicts the estimate (reliable, not a proof).
 """
 from __future__ import annotations
 
@@ -35,28 +35,14 @@ from numpy.typing import NDArray
 
 from ..gaits import Gait
 from ..model import Crawler
-from ..trajectory import Event
+from ..trajectory import Event, EventLog
 from .contact import solve_inclusion, split_friction
+from .events import Rows, Search, check_finite_gait
 
 __all__ = ['ExactSolver', 'Segment']
 
-_CHUNK = 64          # grid points evaluated at once
 _AMBIGUOUS = 1e-10   # relative slack below which a mode choice is decided by look-ahead
 _EPS = np.finfo(float).eps
-_add = np.add.reduce   # ndarray.sum without its Python wrapper (the arrays here are tiny)
-
-
-def check_finite_gait(vals, t) -> None:
-    """Raise ValueError if a gait evaluation (l, l', l'') holds a non-finite value."""
-    # a sum is finite only if every term is (finite values this large do not occur in gaits)
-    if math.isfinite(_add(vals[0], None) + _add(vals[1], None) + _add(vals[2], None)):
-        return
-    for name, arr in zip(('length', 'velocity', 'acceleration'), vals):
-        if not np.all(np.isfinite(arr)):
-            bad = np.atleast_1d(t)[np.nonzero(~np.isfinite(np.reshape(
-                arr, (np.size(t), -1))).any(axis=1))[0][0]]
-            raise ValueError(f'gait {name} must be finite, got a non-finite value at t = '
-                             f'{float(bad)!r} s')
 
 
 def offset_matrices(masses: NDArray) -> tuple[NDArray, NDArray]:
@@ -102,8 +88,6 @@ class Segment:
     ref: int                      # stick: reference stuck body (-1 when all slide)
     x_ref: float                  # stick: its fixed position
     group: NDArray[np.bool_]      # stick: bodies stuck with ref
-    leaving: NDArray[np.bool_] | None = None   # bodies that start the segment leaving rest
-    consts: tuple | None = None   # the solver's per-segment constants of its event functions
 
     def evaluate(self, crawler: Crawler, tau: NDArray[np.float64],
                  mats: tuple[NDArray, NDArray] | None = None) -> dict:
@@ -296,13 +280,8 @@ class ExactSolver:
         self._C, self._W = offset_matrices(crawler.masses)
         # Frictionless bodies never stick and never change the dynamics: no events for them.
         self._free = (self._fp + self._fm) == 0.0
-        self._any_free = bool(self._free.any())
         self._fp_list, self._fm_list = self._fp.tolist(), self._fm.tolist()
         self._f_total = float(self._fp.sum() + self._fm.sum())   # [N], scales of the tests
-        self._WT, self._CT = self._W.T.copy(), self._C.T.copy()
-        # Import the root finder now, not at the first force event: scipy.optimize takes
-        # ~0.4 s to import, which in the middle of a real-time run is a burst of late ticks.
-        import scipy.optimize  # noqa: F401
         self.reset(t0=t0, x0=x0, v0=v0)
 
     # ------------------------------------------------------------------ state
@@ -321,13 +300,13 @@ class ExactSolver:
         self.ref = -1
         self.x_ref = 0.0
         self.segments: list = []
-        self.events: list[Event] = []
+        self.events = EventLog()
         self.n_segments = 0
         self.n_skipped_periods = 0
         self.last: Segment | None = None
         self._checkpoint = None
         self._mode_cache = None
-        self._table = None
+        self.n_evals = 0          # event-row evaluations (cost figure)
 
     # ------------------------------------------------------------- mode choice
     def _mode(self, t: float, ep: NDArray, epp: NDArray, t_limit: float):
@@ -491,9 +470,7 @@ class ExactSolver:
         if self.keep_segments:
             template = [sg for sg in self.segments[prev[6]:] if isinstance(sg, Segment)]
             self.segments.append(PeriodicBlock(self.t, n, T, D, dK, template, (k - 1) * T))
-        shifted = [Event(ev.time + j * T, ev.body, ev.old, ev.new)
-                   for j in range(1, n + 1) for ev in new_events]
-        self.events.extend(shifted)
+        self.events.add_periodic(new_events, n, T)     # stored once (memory)
         self.X += n * D
         self.x_ref += n * D
         self.K = self.K + n * dK
@@ -527,6 +504,13 @@ class ExactSolver:
             # Stuck reference body: exact velocity of the centre of mass from the gait.
             self.V = float(-ep[self.ref])
             self.X = float(self.x_ref - e[self.ref])
+        # A sliding body whose velocity is zero or points against its contact
+        # sign (e.g. l' = 0 exactly at a breakpoint) joins the zero set: its mode is chosen by
+        # the inclusion, from the actual velocity and acceleration.
+        stale = ~self.zero & ~self._free & (self.contact * (self.V + ep) <= 0.0)
+        if stale.any():
+            self.zero = self.zero | stale
+            self._mode_cache = None
         if self._mode_cache is not None:
             # the previous segment ended on a smooth boundary, not at an event: same mode
             contact, a, ref, group = self._mode_cache
@@ -546,12 +530,11 @@ class ExactSolver:
         V0 = float(-ep[ref]) if ref >= 0 else self.V
         seg = Segment(t0, t_stop, self.gait, contact, R, self.K.copy(), self.X, V0, float(a),
                       ref, x_ref, group)
-        seg.leaving = self.zero & (contact != 0)
         self._record_contact_change(t0, contact)
         if ref >= 0 and group.all() and self.gait.is_constant(t0, t_stop):
             t_ev, hits = t_stop, []   # at rest under a constant command: nothing can happen
         else:
-            t_ev, hits = self._find_event(seg, t_stop, left_limit, (ld, ldd))
+            t_ev, hits = self._find_event(seg, t_stop, left_limit)
             if hits and t_stop - t_ev <= 4.0 * self.tol:
                 # an event within the root tolerance of a breakpoint happens at the breakpoint:
                 # no sliver segment with the old piece's acceleration
@@ -633,7 +616,7 @@ class ExactSolver:
             self.X = float(seg.x_ref - self._W[seg.ref] @ l)
             g = seg.group
             K = seg.K0 + np.where(g, 0.0, seg.R) * d
-            f_slide = self._stick_consts(seg)[3]
+            f_slide = self._fext + float(seg.R[~g].sum())
             imp = self._M * (self.V - seg.V0) - f_slide * d
             fp, fm = self._fp[g], self._fm[g]
             w = (fp + fm).sum()
@@ -662,403 +645,82 @@ class ExactSolver:
             self.segments.append(seg)
 
     # ------------------------------------------------------------ event search
-    def _functions(self, seg: Segment):
-        """The segment's event functions as (labels, rows, kind data).
+    def _rows(self, seg: Segment) -> tuple[Rows, list[tuple[str, int]]]:
+        """The segment's event rows (``events.Rows``) and their labels; each row is positive
+        while the mode stays valid (MODEL.md s. 2.4):
 
-        Each function is positive while the segment's mode stays valid:
-        ``vel``: sigma_i v_i (derivative known); ``force``: slack of the group's required ground
-        force to each bound; ``rigid``: the group members' relative velocity staying zero.
+        ``vel`` i: sigma_i v_i of a sliding body (all slide: V0 + a (t - t0) + W_i l'; a body
+        r sticks: (C_i - C_r) l'); ``force`` r: the stuck group's required ground force minus
+        its lower bound, and its upper bound minus that force; ``rigid`` j: +-(C_j - C_r) l'
+        for the other members of a group stuck together (zero while the link is rigid).
         """
-        labels = []
+        n = self._m.size
+        nl = n - 1
+        c0, c1, A1, A2, labels = [], [], [], [], []
+        zero = np.zeros(nl)
+
+        def add(label, a0, a1, r1, r2):
+            labels.append(label)
+            c0.append(a0)
+            c1.append(a1)
+            A1.append(r1)
+            A2.append(r2)
         if seg.ref < 0:
-            for i in range(self._m.size):
-                labels.append(('vel', i))
+            for i in range(n):
+                if not self._free[i]:
+                    sg = float(seg.contact[i])
+                    add(('vel', i), sg * seg.V0, sg * seg.a, sg * self._W[i], zero)
         else:
-            for i in (~seg.group).nonzero()[0]:
-                labels.append(('vel', int(i)))
-            labels.append(('force', seg.ref))
-            labels.append(('force', seg.ref))
-            for j in seg.group.nonzero()[0]:
-                if j != seg.ref:
-                    labels.append(('rigid', int(j)))
-        return labels
-
-    def _event_values(self, seg: Segment, tau: NDArray, vals=None):
-        """Values G (N, k) and derivatives D (N, k; NaN where unknown) at times tau (N,);
-        ``vals``: the gait's (l, l', l'') there if known (l unused)."""
-        M = self._M
-        if vals is None:
-            vals = seg.gait._eval(tau)    # tau is a 1-D float array: skip __call__'s checks
-            check_finite_gait(vals, tau)
-        _, ld, ldd = vals
-        if seg.ref < 0:
-            sg = seg.contact.astype(float)
-            V = seg.V0 + seg.a * (tau - seg.t0)
-            G = sg * (V[:, None] + ld @ self._WT)
-            D = sg * (seg.a + ldd @ self._WT)
-            if self._any_free:
-                G[:, self._free] = math.inf
-                D[:, self._free] = math.nan
-            return G, D
-        r = seg.ref
-        relT, sg, free, f_slide, lo, hi, others = self._stick_consts(seg)
-        Gv = sg * (ld @ relT)
-        Dv = sg * (ldd @ relT)
-        if free is not None:
-            Gv[:, free] = math.inf
-            Dv[:, free] = math.nan
-        total = -M * (ldd @ self._W[r]) - f_slide    # ground force the group needs
-        k = Gv.shape[1]
-        G = np.empty((tau.size, k + 2 + len(others)))
-        G[:, :k] = Gv
-        G[:, k] = total - lo
-        G[:, k + 1] = hi - total
-        if others:
-            sd = ld @ self._CT
-            vscale = np.max(np.abs(sd), axis=1, keepdims=True) + 1e-300
-            G[:, k + 2:] = 1e-13 * vscale - np.abs(sd[:, others] - sd[:, [r]])
-        D = np.full_like(G, np.nan)
-        D[:, :k] = Dv
-        return G, D
-
-    def _stick_consts(self, seg: Segment) -> tuple:
-        """What a stick segment's event functions need besides the gait, computed once per
-        segment: relative offsets (transposed) and signs of the sliding bodies, their
-        frictionless ones (or None), the sliding bodies' force, the group's friction bounds
-        [-f_plus, f_minus] summed, and the other members of the group."""
-        if seg.consts is None:
             r, g = seg.ref, seg.group
-            slide = ~g
-            free = self._free[slide]
-            seg.consts = ((self._C[slide] - self._C[r]).T, seg.contact[slide].astype(float),
-                          free if free.any() else None, self._fext + seg.R[slide].sum(),
-                          -self._fp[g].sum(), self._fm[g].sum(),
-                          [j for j in g.nonzero()[0] if j != r])
-        return seg.consts
+            for i in range(n):
+                if not g[i] and not self._free[i]:
+                    sg = float(seg.contact[i])
+                    add(('vel', i), 0.0, 0.0, sg * (self._C[i] - self._C[r]), zero)
+            f_slide = self._fext + float(seg.R[~g].sum())
+            lo, hi = -float(self._fp[g].sum()), float(self._fm[g].sum())
+            # the ground force the group needs: total = -M W_r l'' - f_slide
+            add(('force', r), -f_slide - lo, 0.0, zero, -self._M * self._W[r])
+            add(('force', r), hi + f_slide, 0.0, zero, self._M * self._W[r])
+            for j in g.nonzero()[0]:
+                if j != r:
+                    rel = self._C[j] - self._C[r]
+                    add(('rigid', int(j)), 0.0, 0.0, rel, zero)
+                    add(('rigid', int(j)), 0.0, 0.0, -rel, zero)
+        if not labels:
+            return None, labels
+        return Rows(seg.t0, np.array(c0), np.array(c1), np.array(A1), np.array(A2)), labels
 
-    def _scalar(self, seg: Segment, col: int, deriv: bool = False):
-        """Fast scalar closure for one event function (or its derivative), for root finding."""
-        kind, _ = self._functions(seg)[col]
-        gait, M = seg.gait, self._M
-        if seg.ref < 0:
-            i = col
-            sg, w = float(seg.contact[i]), self._W[i]
-            V0, a, t0 = seg.V0, seg.a, seg.t0
-            if gait.n_links == 1:       # plain floats (two bodies)
-                at1, w0 = gait.at1, float(w[0])
-                if deriv:
-                    return lambda tt: sg * (a + w0 * at1(tt)[2])
-                return lambda tt: sg * (V0 + a * (tt - t0) + w0 * at1(tt)[1])
-            if deriv:
-                return lambda tt: sg * (a + w @ gait.at(tt)[2])
-            return lambda tt: sg * (V0 + a * (tt - t0) + w @ gait.at(tt)[1])
-        r, g = seg.ref, seg.group
-        n_vel = int((~g).sum())
-        one = gait.n_links == 1
-        if col < n_vel:
-            i = int(np.nonzero(~g)[0][col])
-            sg, w = float(seg.contact[i]), self._C[i] - self._C[r]
-            k = 2 if deriv else 1
-            if one:
-                at1, w0 = gait.at1, float(w[0])
-                return lambda tt: sg * (w0 * at1(tt)[k])
-            return lambda tt: sg * (w @ gait.at(tt)[k])
-        if col < n_vel + 2:
-            _, _, _, f_slide, lo, hi, _ = self._stick_consts(seg)
-            wr = self._W[r]
-            if one:
-                at1, w0 = gait.at1, float(wr[0])
-                if col == n_vel:
-                    return lambda tt: -M * (w0 * at1(tt)[2]) - f_slide - lo
-                return lambda tt: hi + M * (w0 * at1(tt)[2]) + f_slide
-            if col == n_vel:
-                return lambda tt: -M * (wr @ gait.at(tt)[2]) - f_slide - lo
-            return lambda tt: hi + M * (wr @ gait.at(tt)[2]) + f_slide
-        return lambda tt: float(self._event_values(seg, np.array([tt]))[0][0, col])
+    def _cap(self, gait: Gait, t0: float, t_stop: float) -> float:
+        """Largest grid step: the user's max_step, the gait's, period / 8, or the span / 8
+        (only the cost depends on it, except for gaits without derivative bounds)."""
+        cands = [self.max_step, getattr(gait, 'max_step', None),
+                 gait.period / 8.0 if gait.period else None]
+        cands = [c for c in cands if c is not None]
+        return min(cands) if cands else max((t_stop - t0) / 8.0, 1e-300)
 
-    def _scalar_pair(self, seg: Segment, col: int):
-        """(value, derivative) closure of velocity event function ``col``, one gait call each."""
-        gait = seg.gait
-        if seg.ref < 0:
-            sg, w = float(seg.contact[col]), self._W[col]
-            V0, a, t0 = seg.V0, seg.a, seg.t0
-            if gait.n_links == 1:       # plain floats (two bodies)
-                at1, w0 = gait.at1, float(w[0])
-
-                def fd1(tt: float) -> tuple[float, float]:
-                    _, ld, ldd = at1(tt)
-                    return sg * (V0 + a * (tt - t0) + w0 * ld), sg * (a + w0 * ldd)
-                return fd1
-
-            def fd(tt: float) -> tuple[float, float]:
-                _, ld, ldd = gait.at(tt)
-                return sg * (V0 + a * (tt - t0) + w @ ld), sg * (a + w @ ldd)
-            return fd
-        i = int(np.nonzero(~seg.group)[0][col])
-        sg, w = float(seg.contact[i]), self._C[i] - self._C[seg.ref]
-        if gait.n_links == 1:
-            at1, w0 = gait.at1, float(w[0])
-
-            def fd_rel1(tt: float) -> tuple[float, float]:
-                _, ld, ldd = at1(tt)
-                return sg * (w0 * ld), sg * (w0 * ldd)
-            return fd_rel1
-
-        def fd_rel(tt: float) -> tuple[float, float]:
-            _, ld, ldd = gait.at(tt)
-            return sg * (w @ ld), sg * (w @ ldd)
-        return fd_rel
-
-    def _grid_step(self, t0: float, t_stop: float) -> float:
-        """Spacing of the event-check grid: period / 64 (1/8 of the interval for an aperiodic
-        gait), never more than the user's ``max_step``."""
-        h = self.gait.period / 64.0 if self.gait.period else max((t_stop - t0) / 8.0, 1e-300)
-        return min(h, float(self.max_step)) if self.max_step is not None else h
-
-    def _find_event(self, seg: Segment, t_stop: float, left_limit: bool = False,
-                    at_start: tuple | None = None) -> tuple[float, list[tuple[str, int]]]:
-        """First event in (t0, t_stop]; at a gait breakpoint t_stop the functions are taken as
-        left limits (the gait returns the next piece's l'' there). ``at_start``: the gait's
-        (l', l'') at t0 if already known."""
-        t0 = seg.t0
-        h = self._grid_step(t0, t_stop)
-        start = t0
-        chunk = _CHUNK // 4        # most segments end within a quarter period: start short
-        table = None if left_limit else self._period_table(seg.gait, h)
-        if table is not None:
-            first = at_start if at_start is not None else seg.gait.at(t0)[1:]
-            while start < t_stop:
-                tau, vals, first = self._table_chunk(table, seg.gait, start, first, t_stop,
-                                                     chunk)
-                chunk = _CHUNK
-                G, D = self._event_values(seg, tau, vals)
-                found = self._first_bracket(seg, tau, G, D)
-                if found is not None:
-                    return found
-                start = float(tau[-1])
+    def _find_event(self, seg: Segment, t_stop: float,
+                    left_limit: bool = False) -> tuple[float, list[tuple[str, int]]]:
+        """First event in (t0, t_stop] (see ``events``): its time and labels, or (t_stop, [])."""
+        rows, labels = self._rows(seg)
+        if rows is None:
             return t_stop, []
-        while start < t_stop:
-            n = int(math.ceil((t_stop - start) / h * (1 - 4 * _EPS))) + 1
-            if n > chunk:
-                n = chunk
-                end = start + h * (n - 1)
-            else:
-                n, end = max(n, 2), t_stop
-            tau = start + h * np.arange(n)
-            tau[-1] = end
-            chunk = _CHUNK
-            if left_limit and end == t_stop:
-                tau[-1] = np.nextafter(t_stop, -math.inf)
-            G, D = self._event_values(seg, tau)
-            found = self._first_bracket(seg, tau, G, D)
-            if found is not None:
-                return found
-            start = end
-        return t_stop, []
-
-    def _period_table(self, gait: Gait, h: float):
-        """(h, l', l'') of a smooth periodic gait at the times k h, k = 0 .. T/h - 1, when its
-        event grid is the period's (h = T / 64) and it has no breakpoints; else None.
-
-        Such a gait repeats on that grid, so every segment of a run reads its grid values from
-        this one table instead of evaluating the gait again (the grid is then anchored at
-        multiples of h, not at each segment's start)."""
-        cached = self._table
-        if cached is not None and cached[0] is gait:
-            return cached[1]
-        table = None
-        T = gait.period
-        if T and h == T / 64.0 and not gait.breakpoints(-T, 2.0 * T).size:
-            _, ld, ldd = gait._eval(np.arange(64) * h)
-            check_finite_gait((ld, ld, ldd), np.arange(64) * h)
-            table = (h, ld, ldd)
-        self._table = (gait, table)
-        return table
-
-    def _table_chunk(self, table, gait: Gait, start: float, first: tuple, t_stop: float,
-                     n: int):
-        """Grid times (start, then the multiples of h in (start, t_stop), then t_stop, at most
-        n points), the gait's (l', l'') there (``first``: at start; t_stop from the gait; the
-        rest from the table), and (l', l'') at the last time (the next chunk's start)."""
-        h, ld_t, ldd_t = table
-        k0 = math.floor(start / h) + 1
-        k1 = math.ceil(t_stop / h) - 1
-        while k1 >= k0 and k1 * h >= t_stop:
-            k1 -= 1
-        m = k1 - k0 + 1                       # multiples of h strictly inside (start, t_stop)
-        last = m <= n - 2
-        if not last:
-            m = n - 1
-        ks = np.arange(k0, k0 + m)
-        tau = np.empty(m + 1 + last)
-        tau[0] = start
-        tau[1:m + 1] = ks * h
-        rows = ks % ld_t.shape[0]
-        ld = np.empty((tau.size, ld_t.shape[1]))
-        ldd = np.empty_like(ld)
-        ld[0], ldd[0] = first
-        ld[1:m + 1], ldd[1:m + 1] = ld_t[rows], ldd_t[rows]
-        if last:
-            tau[-1] = t_stop
-            _, ld[-1], ldd[-1] = gait.at(t_stop)
-        if not math.isfinite(_add(ld[0], None) + _add(ld[-1], None) + _add(ldd[0], None)
-                             + _add(ldd[-1], None)):
-            ends = [0, -1]
-            check_finite_gait((np.zeros_like(ld[ends]), ld[ends], ldd[ends]), tau[ends])
-        return tau, (None, ld, ldd), (ld[-1], ldd[-1])
-
-    def _leaves_rest(self, seg: Segment, col: int) -> bool:
-        """Whether velocity function ``col`` belongs to a body that starts the segment leaving
-        rest (its mode was chosen consistently, so it must first become positive)."""
-        if seg.leaving is None or col >= len(seg.contact):
-            return False
-        bodies = np.arange(seg.contact.size) if seg.ref < 0 else np.nonzero(~seg.group)[0]
-        return col < bodies.size and bool(seg.leaving[bodies[col]])
-
-    def _zoom(self, seg: Segment, col: int, a: float, b: float) -> tuple[float, float] | None:
-        """Bracket [t+, t-] of the first return to zero of a function that is 0 at ``a``,
-        rising there, and <= 0 at ``b``: sub-grids of 16 points, zooming towards ``a``.
-        None when it is never positive: a velocity at rounding level, not a slip."""
-        for _ in range(20):
-            sub = np.linspace(a, b, 17)
-            g = self._event_values(seg, sub)[0][:, col]
-            pos = np.nonzero(g[1:] > 0.0)[0]
-            if pos.size:
-                i = int(pos[0]) + 1
-                neg = np.nonzero(g[i + 1:] <= 0.0)[0]
-                return sub[i], sub[i + 1 + int(neg[0])] if neg.size else b
-            b = sub[1]
-        return None
-
-    def _root(self, f, a: float, b: float) -> float:
-        """Root of f in [a, b] (f(a) > 0 >= f(b)) to ``tol``, returned on the crossed side
-        (f <= 0 there), so the mode chosen at the event sees the condition violated."""
-        from scipy.optimize import brentq   # lazy: keeps `import crawler_sim` light
-        # The bracket comes from grid values; the scalar f can disagree with them at rounding
-        # level (e.g. a periodic table read at a later period): then the crossing is at an end.
-        if f(a) <= 0.0:
-            return a
-        if f(b) > 0.0:
-            return b
-        r = brentq(f, a, b, xtol=self.tol, rtol=4 * _EPS)
-        step = max(self.tol, 4 * _EPS * abs(r))
-        while r < b and f(r) > 0.0:
-            r = min(r + step, b)
-            step *= 2.0
-        return r
-
-    def _min_of(self, seg: Segment, col: int, a: float, b: float) -> float | None:
-        """Time of the minimum of velocity function ``col`` in (a, b) where its derivative
-        turns from negative to positive; None if the scalar derivative does not confirm it."""
-        from scipy.optimize import brentq
-        df = self._scalar(seg, col, deriv=True)
-        if not (df(a) < 0.0 < df(b)):
-            return None
-        return brentq(df, a, b, xtol=self.tol, rtol=4 * _EPS)
-
-    def _newton(self, fd, a: float, b: float, fa: float, fb: float) -> float:
-        """Root of a function with known derivative in [a, b] (fa > 0 >= fb): Newton from the
-        secant estimate, kept inside the bracket (bisection when it would leave), to ``tol``."""
-        t = a + (b - a) * fa / (fa - fb)
-        for _ in range(60):
-            f, df = fd(t)
-            if f > 0.0:
-                a = t
-            else:
-                b = t
-            if f == 0.0 or b - a <= self.tol:
-                return t if f <= 0.0 else b
-            step = f / df if df != 0.0 else math.inf
-            t_new = t - step
-            if abs(step) <= 0.5 * self.tol and a <= t_new <= b:
-                return t_new            # quadratic convergence: within tol of the root
-            if not (a < t_new < b):
-                t_new = 0.5 * (a + b)
-            t = t_new
-        return 0.5 * (a + b)
-
-    def _dip_floor(self, seg: Segment, tau: NDArray, G: NDArray) -> NDArray | None:
-        """Lower bounds (N-1, k) of the velocity functions between grid points, or None.
-
-        A velocity function is G = sigma (V + w . l') (w: W_i sliding, C_i - C_ref relative to
-        a stuck body), so |G''| <= J = |w| . max|l'''|; where the gait bounds its jerk, G stays
-        above the chord minus J h^2 / 8 on each grid interval (h its length).
-        """
-        jerk = seg.gait.jerk_bound(float(tau[0]), float(tau[-1]))
-        if jerk is None:
-            return None
-        if seg.ref < 0:
-            w = self._W
-        else:
-            w = self._C[~seg.group] - self._C[seg.ref]
-        J = np.abs(w) @ jerk                                   # (k_vel,)
-        h = np.diff(tau)[:, None]
-        floor = np.full((tau.size - 1, G.shape[1]), -math.inf)
-        k = J.size
-        floor[:, :k] = np.minimum(G[:-1, :k], G[1:, :k]) - J * h * h / 8.0
-        return floor
-
-    def _first_bracket(self, seg, tau, G, D):
-        if G.shape[1] == 0:
-            return None
-        nonpos = G[1:] <= 0.0
-        # dips between grid points, for functions with a known derivative
-        dip_at: dict[int, list] = {}
-        turn = (D[:-1] < 0.0) & (D[1:] > 0.0) & (G[:-1] > 0.0) & (G[1:] > 0.0)
-        if turn.any():
-            floor = self._dip_floor(seg, tau, G)
-            for k, c in zip(*turn.nonzero()):
-                if floor is not None and floor[k, c] > 0.0:
-                    continue     # provably positive between the two grid points
-                t_min = self._min_of(seg, int(c), tau[k], tau[k + 1])
-                if t_min is None:
-                    continue
-                # a dip counts when it goes below rounding level (a velocity that only touches
-                # zero, e.g. right after leaving rest, is not an event)
-                noise = 1e-13 * float(np.max(np.abs(G[:, c])))
-                if self._scalar(seg, int(c))(t_min) < -noise:
-                    dip_at.setdefault(int(k), []).append((int(c), t_min))
-        rows = nonpos.any(axis=1).nonzero()[0]
-        k_cross = int(rows[0]) if rows.size else None
-        k_dip = min(dip_at) if dip_at else None
-        if k_cross is None and k_dip is None:
-            return None
-        k = min(x for x in (k_cross, k_dip) if x is not None)
-        lo = tau[k]
-        roots = []
-        if k_cross == k:
-            for c in nonpos[k].nonzero()[0]:
-                leaving = k == 0 and tau[0] == seg.t0 and self._leaves_rest(seg, int(c))
-                if G[k, c] <= 0.0 or leaving:
-                    if leaving:
-                        # a body just left zero velocity and comes back before the next grid
-                        # point: zoom in on the first sub-interval where it turns
-                        br = self._zoom(seg, int(c), lo, tau[k + 1])
-                        if br is not None:
-                            roots.append((self._root(self._scalar(seg, int(c)), *br), int(c)))
-                    else:
-                        roots.append((lo, int(c)))   # started at or below zero: event now
-                elif np.isfinite(D[k, c]):
-                    hi, g_hi = tau[k + 1], G[k + 1, c]
-                    if D[k, c] < 0.0 < D[k + 1, c]:
-                        # rising again at the right end: the first crossing is before the
-                        # minimum (a short slip can end right at a grid point)
-                        t_min = self._min_of(seg, int(c), lo, hi)
-                        if t_min is not None:
-                            g_min = self._scalar(seg, int(c))(t_min)
-                            if g_min <= 0.0:
-                                hi, g_hi = t_min, g_min
-                    roots.append((self._newton(self._scalar_pair(seg, int(c)), lo, hi,
-                                               G[k, c], g_hi), int(c)))
-                else:
-                    roots.append((self._root(self._scalar(seg, int(c)), lo, tau[k + 1]),
-                                  int(c)))
-        for c, t_min in dip_at.get(k, []):
-            roots.append((self._root(self._scalar(seg, c), lo, t_min), c))
-        t_ev = min(r for r, _ in roots)
-        labels = self._functions(seg)
-        hits = sorted({labels[c] for r, c in roots if r <= t_ev + 2 * self.tol})
-        return t_ev, hits
+        cap = self._cap(seg.gait, seg.t0, t_stop)
+        est = None
+        for _ in range(12):
+            search = Search(seg.gait, rows, self.tol, cap)
+            h0 = None
+            if not search.known:
+                h0 = cap / 64.0
+                if est is not None:
+                    search.est = est
+            t_ev, hit = search.run(t_stop, left_limit, h0)
+            if not search.estimate_grew():
+                break
+            est = search.est     # an estimated bound proved too small: redo with the new one
+        self.n_evals += search.n_eval
+        if hit is None:
+            return t_stop, []
+        return t_ev, sorted({labels[k] for k in hit.tolist()})
 
     # ---------------------------------------------------------------- output
     def sample(self, times: NDArray[np.float64]) -> dict:
