@@ -74,7 +74,7 @@ def test_export_writes_a_bags_samples_and_events_that_match_the_run(traj, tmp_pa
     if 'AMENT_PREFIX_PATH' not in os.environ:
         monkeypatch.setenv('AMENT_PREFIX_PATH', sys.prefix)
     from crawler_sim.bag import record_trajectory
-    scene = load_scene(REPO / 'config' / 'scallop_2body.yaml')
+    scene = load_scene(REPO / 'config' / 'scenes' / 'scallop_2body.yaml')
     writer = record_trajectory(tmp_path / 'bag', traj, scene=scene_to_dict(scene))
     assert not getattr(writer, 'error', None)
     proc = run(capsys, 'export', str(tmp_path / 'bag'), '--csv', str(tmp_path / 'run.csv'))
@@ -142,7 +142,7 @@ def gait_node_gait(params_file: Path):
 def test_optimize_writes_a_gait_node_parameter_file_whose_stroke_keeps_the_limits(tmp_path,
                                                                                   capsys):
     out = tmp_path / 'best.yaml'
-    proc = run(capsys, 'optimize', str(REPO / 'config' / 'scallop_2body.yaml'), '--maxiter', '3',
+    proc = run(capsys, 'optimize', str(REPO / 'config' / 'scenes' / 'scallop_2body.yaml'), '--maxiter', '3',
                '--popsize', '4', '--max-acceleration', '1.5', '--max-speed', '0.1',
                '-o', str(out), '--history', str(tmp_path / 'hist.png'), '--history-table',
                str(tmp_path / 'hist.csv'))
@@ -166,7 +166,7 @@ def test_optimize_writes_a_gait_node_parameter_file_whose_stroke_keeps_the_limit
 
 def test_optimize_on_dask_finds_the_same_stroke_as_locally(dask_client):
     from crawler_sim.sweep.optimize import optimize
-    scene = load_scene(REPO / 'config' / 'scallop_2body.yaml')
+    scene = load_scene(REPO / 'config' / 'scenes' / 'scallop_2body.yaml')
     kw = dict(maxiter=2, popsize=4, local_maxiter=10, periods=8)
     local = optimize(scene, **kw)
     remote = optimize(scene, client=dask_client, **kw)
