@@ -48,6 +48,7 @@ import numpy as np
 import yaml
 
 from . import schema as schemas
+from .cdr import Trimmer
 from .errors import BagError
 from .naming import claim_directory
 from .topics import SCENE, SCENE_METADATA
@@ -119,6 +120,7 @@ class _Topic:
     cls: type | None
     serialization_format: str = 'cdr'
     count: int = 0
+    trimmer: Trimmer | None = None
 
     def metadata(self) -> dict[str, Any]:
         """``topics_with_message_count`` entry (version 9)."""
@@ -456,7 +458,7 @@ class BagWriter:
                           {'offered_qos_profiles': schemas.qos_yaml(qos),
                            'topic_type_hash': type_hash})
         entry = _Topic(topic, canonical, _id(cid), qos, type_hash,
-                       schemas.message_class(canonical))
+                       schemas.message_class(canonical), trimmer=Trimmer(canonical))
         self._topics[topic] = entry
         return entry
 
@@ -475,16 +477,19 @@ class BagWriter:
 
     @staticmethod
     def _serialize(entry: _Topic, msg: Any) -> bytes:
+        """CDR bytes of ``msg``, cut to their content (rclpy's surplus tail would make rosbags
+        refuse the message, see :class:`crawler_sim.bag.cdr.Trimmer`)."""
         if isinstance(msg, (bytes, bytearray, memoryview)):
             data = bytes(msg)
             if len(data) < 4:
                 raise ValueError(f'{entry.name}: {len(data)} bytes is not a CDR message')
-            return data
-        if entry.cls is not None and type(msg) is not entry.cls:
-            raise ValueError(
-                f'{entry.name}: message of type {schemas.type_of(msg)}, expected {entry.type}')
-        from rclpy.serialization import serialize_message
-        return serialize_message(msg)
+        else:
+            if entry.cls is not None and type(msg) is not entry.cls:
+                raise ValueError(f'{entry.name}: message of type {schemas.type_of(msg)}, '
+                                 f'expected {entry.type}')
+            from rclpy.serialization import serialize_message
+            data = serialize_message(msg)
+        return data if entry.trimmer is None else entry.trimmer.trim(data)
 
     def _write_scene(self, t_ns: int) -> None:
         from . import msgs
