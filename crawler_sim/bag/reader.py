@@ -89,6 +89,10 @@ class Run:
         Joint names of ``body_states`` and ``joint_states``.
     truncated : bool
         True when the file was incomplete and only its readable part was loaded.
+    t_ns : ndarray, shape (N,), int64
+        The same stamps as recorded, in integer nanoseconds: compare times in this base (``t``
+        is ``t_ns / 1e9`` and may differ from the simulated float time by up to 0.5 ns, see
+        :func:`crawler_sim.bag.clock.rows_at_ns`).
     """
 
     path: Path
@@ -108,6 +112,7 @@ class Run:
     bodies: tuple[str, ...] = ()
     linkages: tuple[str, ...] = ()
     truncated: bool = False
+    t_ns: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
 
     @property
     def p(self) -> int:
@@ -505,4 +510,5 @@ def _build_run(path: Path, ns: str, scans: list[Scan], stores: list[dict[str, _T
         bodies=_names(body),
         linkages=_names(joint),
         truncated=any(sc.truncated for sc in scans),
+        t_ns=t_ns,
     )
