@@ -326,6 +326,9 @@ def _namespace(path: Path, topics: dict[str, TopicSummary], namespace: str | Non
             raise BagError(f'{path}: no {BODY_STATES.name(ns)} topic; crawler_sim namespaces '
                            f'in this bag: {shown or "none"}')
         return ns
+    scenes = sorted(ns for topic in topics if (ns := split_topic(topic, SCENE.suffix)) is not None)
+    if not found and len(scenes) == 1:
+        return scenes[0]            # stopped before its first state: an empty run
     if not found:
         names = sorted(topics)
         listed = ', '.join(names[:8]) + (' ...' if len(names) > 8 else '')
@@ -472,8 +475,11 @@ def _build_run(path: Path, ns: str, scans: list[Scan], stores: list[dict[str, _T
     contact = _merged(stores, CONTACT_STATES.name(ns))
     joint = joint if joint is not None and joint.type == JOINT_STATES.type else None
     contact = contact if contact is not None and contact.type == CONTACT_STATES.type else None
-    if body is None:               # _namespace saw the channel, but it has no readable data
+    if body is None and BODY_STATES.name(ns) in topics:   # a channel without readable data
         raise BagError(f'{path}: {BODY_STATES.name(ns)} could not be read')
+    if body is None:               # only the scene: the recording stopped before any state
+        warnings.warn(f'{path}: no states recorded (only the scene)', BagWarning, stacklevel=3)
+        body = _Series(BODY_STATES.type, np.zeros(0, np.int64), {}, None)
     scene = _scene(stores, scans, ns)
     p = body.columns['position'].shape[1] if len(body) else _bodies_of(scene, _names(body))
     ib, ij, ic = _align([body, joint, contact], stacklevel=4)
