@@ -300,6 +300,8 @@ class BagWriter:
         if self.error is not None:
             return False
         with self._lock:
+            if self._closed or self.error is not None:      # closed by another thread meanwhile
+                return False
             return self._write(topic, type_name, msg, t_ns)
 
     def _write(self, topic: str, type_name: str, msg: Any, t_ns: int) -> bool:
