@@ -219,7 +219,9 @@ class BagWriter:
         self._flushed_count = 0              # messages on disk at the last successful flush
         self._dirty = False                  # records added since the last flush
         self._stop = threading.Event()
+        self._sync_wanted = threading.Event()
         self._thread: threading.Thread | None = None
+        self._sync_thread: threading.Thread | None = None
         self._topics: dict[str, _Topic] = {}
         self._schemas: dict[str, _Schema] = {}
         self._stats = _Stats()
@@ -253,7 +255,10 @@ class BagWriter:
         if self._flush_interval and _clock is time.monotonic and self.error is None:
             self._thread = threading.Thread(target=self._flush_loop, daemon=True,
                                             name=f'bag flush {self.name}')
+            self._sync_thread = threading.Thread(target=self._sync_loop, daemon=True,
+                                                 name=f'bag fsync {self.name}')
             self._thread.start()
+            self._sync_thread.start()
 
     @classmethod
     def create(cls, record_dir: os.PathLike | str, record_name: str | None = None, *,
@@ -332,9 +337,10 @@ class BagWriter:
         (one time step's topics reach the disk together)."""
         return self._lock
 
-    def flush_if_due(self) -> bool:
+    def flush_if_due(self, *, sync: bool = True) -> bool:
         """Flush if records are pending and ``flush_interval`` has passed since the last flush
-        (what the background thread does); True if it flushed."""
+        (what the background thread does); True if it flushed. ``sync=False`` leaves the
+        ``fsync`` to the caller (the data is with the OS already: a SIGKILL keeps it)."""
         with self._lock:
             if (self._closed or self.error is not None or not self._dirty
                     or self._flush_interval is None
@@ -342,19 +348,33 @@ class BagWriter:
                 return False
             self._guard(self._flush)
             fileno = self._fileno if self.error is None else None
-        _fsync(fileno)
+        if sync:
+            _fsync(fileno)
         return fileno is not None
 
     def _flush_loop(self) -> None:
+        """Flush thread: the open chunk to the OS every interval; fsync in the sync thread, so
+        a slow disk never delays the next flush."""
         interval = self._flush_interval or FLUSH_INTERVAL
         while not self._stop.wait(interval / 4):
             try:
-                self.flush_if_due()
+                if self.flush_if_due(sync=False):
+                    self._sync_wanted.set()
             except Exception as exc:  # noqa: BLE001 - the thread must not die silently
                 with self._lock:
                     if self.error is None:
                         self.error = f'recording to {self.mcap_path} stopped: flush failed ({exc})'
                 return
+
+    def _sync_loop(self) -> None:
+        while True:
+            self._sync_wanted.wait()
+            self._sync_wanted.clear()
+            if self._stop.is_set():
+                return
+            with self._lock:
+                fileno = None if self._closed or self.error is not None else self._fileno
+            _fsync(fileno)        # close() joins this thread before it closes the file
 
     def close(self) -> None:
         """Finish the MCAP file (summary, footer) and write metadata.yaml. Idempotent.
@@ -363,8 +383,10 @@ class BagWriter:
         as for a killed ``ros2 bag record``; :func:`crawler_sim.bag.recover` repairs the file.
         """
         self._stop.set()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join()
+        self._sync_wanted.set()
+        for thread in (self._thread, self._sync_thread):
+            if thread is not None and thread is not threading.current_thread():
+                thread.join()
         with self._lock:
             if self._closed:
                 return
@@ -552,6 +574,7 @@ class BagWriter:
             kept = f'none of the {self._stats.count} messages reached the disk'
         self.error = f'recording to {self.mcap_path} stopped: {reason}; {kept}'
         self._stop.set()
+        self._sync_wanted.set()
         warnings.warn(self.error, RuntimeWarning, stacklevel=3)
         self._close_stream()
 
