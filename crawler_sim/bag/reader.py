@@ -477,7 +477,8 @@ def _build_run(path: Path, ns: str, scans: list[Scan], stores: list[dict[str, _T
     contact = contact if contact is not None and contact.type == CONTACT_STATES.type else None
     if body is None and BODY_STATES.name(ns) in topics:   # a channel without readable data
         raise BagError(f'{path}: {BODY_STATES.name(ns)} could not be read')
-    if body is None:               # only the scene: the recording stopped before any state
+    stateless = body is None
+    if stateless:                  # only the scene: the recording stopped before any state
         warnings.warn(f'{path}: no states recorded (only the scene)', BagWarning, stacklevel=3)
         body = _Series(BODY_STATES.type, np.zeros(0, np.int64), {}, None)
     scene = _scene(stores, scans, ns)
@@ -485,7 +486,7 @@ def _build_run(path: Path, ns: str, scans: list[Scan], stores: list[dict[str, _T
     ib, ij, ic = _align([body, joint, contact], stacklevel=4)
     missing = [t.suffix for t, s in ((JOINT_STATES, joint), (CONTACT_STATES, contact))
                if s is None]
-    if missing:
+    if missing and not stateless:
         warnings.warn(f'{path}: no {" or ".join(missing)} topic in namespace {ns or "/"}',
                       BagWarning, stacklevel=3)
     n_links = max(p - 1, 0)
