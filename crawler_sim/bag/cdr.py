@@ -72,6 +72,7 @@ class Layout:
     length: int
     fields: dict[str, tuple[int, int, str]] = field(default_factory=dict)
     fixed: list[int] = field(default_factory=list)
+    end: int = 0            # bytes the content really takes (<= length, see Trimmer)
 
 
 class _Walker:
@@ -151,7 +152,56 @@ def layout(data: bytes, type_name: str) -> Layout:
         raise LayoutError('not little-endian plain CDR')
     walker = _Walker(data)
     walker.message('', type_name)
+    walker.layout.end = walker.pos
     return walker.layout
+
+
+class Trimmer:
+    """Cut the surplus bytes off rclpy's CDR serialisations of one message type.
+
+    Fast CDR sizes a message counting the alignment of the items of empty sequences, but writes
+    no such padding, so e.g. a JointTrajectory whose points have an empty ``effort`` comes out
+    4 bytes per point longer than its content. ``rclpy`` ignores the tail; rosbags refuses
+    messages with more than 3 surplus bytes ("CDR message size mismatch"). :meth:`trim` returns
+    ``data`` cut to its content (walked with :func:`layout`), unchanged when the type cannot be
+    walked. Layouts are cached per message length and reused when the bytes that fix the
+    structure (sequence counts, strings) are those of the cached message, so the common case
+    costs one tuple comparison.
+    """
+
+    def __init__(self, type_name: str) -> None:
+        self.type_name = type_name
+        self._cache: dict[int, tuple[Any, tuple, int]] = {}
+        self._walkable = True
+
+    def trim(self, data: bytes) -> bytes:
+        """``data`` without its surplus tail (bytes beyond the content)."""
+        if not self._walkable:
+            return data
+        entry = self._cache.get(len(data))
+        if entry is not None:
+            getter, values, end = entry
+            if getter(data) == values:
+                return data if end >= len(data) else data[:end]
+        try:
+            lay = layout(data, self.type_name)
+        except LayoutError:
+            return data
+        except Exception:  # noqa: BLE001 - a type rclpy cannot describe: leave it as it is
+            self._walkable = False
+            return data
+        fixed = sorted(set(lay.fixed)) or [0]
+        getter = _itemgetter(fixed)
+        self._cache[len(data)] = (getter, getter(data), lay.end)
+        return data if lay.end >= len(data) else data[:lay.end]
+
+
+def _itemgetter(positions: list[int]) -> Any:
+    from operator import itemgetter
+    if len(positions) == 1:
+        pos = positions[0]
+        return lambda data: (data[pos],)
+    return itemgetter(*positions)
 
 
 def field_value(msg: Any, path: str) -> Any:

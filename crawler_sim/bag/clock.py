@@ -40,6 +40,22 @@ def to_seconds(t_ns: NDArray[np.integer] | int) -> NDArray[np.float64] | float:
     return int(t_ns) / 1e9
 
 
+def rows_at_ns(t: NDArray[np.floating], t_ns: NDArray[np.integer]) -> NDArray[np.int64]:
+    """Row of ``t`` [s] (sorted, e.g. a simulation's sample times) recorded as each stamp of
+    ``t_ns`` [ns], or -1 where no sample rounds to that stamp.
+
+    A recording stores ``to_ns(t)``; comparing a re-simulation with it must happen in that ns
+    base: re-evaluating at ``t_ns / 1e9`` instead moves each sample by up to 0.5 ns, which is
+    a velocity difference of ``0.5e-9 * acceleration`` (3.6e-9 m/s at 7 m/s^2), not a bug.
+    """
+    sim_ns = to_ns(np.asarray(t, dtype=np.float64))
+    want = np.asarray(t_ns, dtype=np.int64)
+    idx = np.searchsorted(sim_ns, want)
+    ok = idx < len(sim_ns)
+    ok[ok] = sim_ns[idx[ok]] == want[ok]
+    return np.where(ok, idx, -1).astype(np.int64)
+
+
 def stamp(t_ns: int) -> tuple[int, int]:
     """``(sec, nanosec)`` of a ``builtin_interfaces/Time`` for ``t_ns`` [ns] >= 0."""
     return divmod(int(t_ns), NS_PER_S)

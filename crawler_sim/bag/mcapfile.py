@@ -22,6 +22,9 @@ more than :func:`chunk_limit` bytes (twice the file size, at least 1.125 MiB: wh
 with 1 MiB chunks produces), messages of one channel in a chunk may not
 overlap (an index pointing many times at one big message would be copied many times), and only
 regular files are opened (a FIFO named ``*.mcap`` would block forever).
+
+Length: over 400 lines because the two strategies share the record parsing and the bounds
+that keep hostile files harmless; splitting them would spread those checks over modules.
 """
 from __future__ import annotations
 

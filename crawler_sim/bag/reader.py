@@ -89,6 +89,10 @@ class Run:
         Joint names of ``body_states`` and ``joint_states``.
     truncated : bool
         True when the file was incomplete and only its readable part was loaded.
+    t_ns : ndarray, shape (N,), int64
+        The same stamps as recorded, in integer nanoseconds: compare times in this base (``t``
+        is ``t_ns / 1e9`` and may differ from the simulated float time by up to 0.5 ns, see
+        :func:`crawler_sim.bag.clock.rows_at_ns`).
     """
 
     path: Path
@@ -108,6 +112,7 @@ class Run:
     bodies: tuple[str, ...] = ()
     linkages: tuple[str, ...] = ()
     truncated: bool = False
+    t_ns: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
 
     @property
     def p(self) -> int:
@@ -321,6 +326,9 @@ def _namespace(path: Path, topics: dict[str, TopicSummary], namespace: str | Non
             raise BagError(f'{path}: no {BODY_STATES.name(ns)} topic; crawler_sim namespaces '
                            f'in this bag: {shown or "none"}')
         return ns
+    scenes = sorted(ns for topic in topics if (ns := split_topic(topic, SCENE.suffix)) is not None)
+    if not found and len(scenes) == 1:
+        return scenes[0]            # stopped before its first state: an empty run
     if not found:
         names = sorted(topics)
         listed = ', '.join(names[:8]) + (' ...' if len(names) > 8 else '')
@@ -467,14 +475,18 @@ def _build_run(path: Path, ns: str, scans: list[Scan], stores: list[dict[str, _T
     contact = _merged(stores, CONTACT_STATES.name(ns))
     joint = joint if joint is not None and joint.type == JOINT_STATES.type else None
     contact = contact if contact is not None and contact.type == CONTACT_STATES.type else None
-    if body is None:               # _namespace saw the channel, but it has no readable data
+    if body is None and BODY_STATES.name(ns) in topics:   # a channel without readable data
         raise BagError(f'{path}: {BODY_STATES.name(ns)} could not be read')
+    stateless = body is None
+    if stateless:                  # only the scene: the recording stopped before any state
+        warnings.warn(f'{path}: no states recorded (only the scene)', BagWarning, stacklevel=3)
+        body = _Series(BODY_STATES.type, np.zeros(0, np.int64), {}, None)
     scene = _scene(stores, scans, ns)
     p = body.columns['position'].shape[1] if len(body) else _bodies_of(scene, _names(body))
     ib, ij, ic = _align([body, joint, contact], stacklevel=4)
     missing = [t.suffix for t, s in ((JOINT_STATES, joint), (CONTACT_STATES, contact))
                if s is None]
-    if missing:
+    if missing and not stateless:
         warnings.warn(f'{path}: no {" or ".join(missing)} topic in namespace {ns or "/"}',
                       BagWarning, stacklevel=3)
     n_links = max(p - 1, 0)
@@ -505,4 +517,5 @@ def _build_run(path: Path, ns: str, scans: list[Scan], stores: list[dict[str, _T
         bodies=_names(body),
         linkages=_names(joint),
         truncated=any(sc.truncated for sc in scans),
+        t_ns=t_ns,
     )

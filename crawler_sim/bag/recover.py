@@ -27,6 +27,7 @@ from .reader import bag_files
 from .writer import ROSBAG2_METADATA, BagWriter
 
 _FILE_NUMBER = re.compile(r'_(\d+)$')
+RECOVER_CHUNK = 256 << 10        # bytes of uncompressed chunk in the recovered bag
 
 
 @dataclass
@@ -88,7 +89,9 @@ def recover(src: os.PathLike | str, dst: os.PathLike | str | None = None) -> Rec
     dst_path = Path(dst) if dst is not None else default_destination(src_path)
     for file in files:
         _check_magic(file)
-    writer = BagWriter(dst_path)
+    # small chunks: the per-chunk state (buffer, message index lists) stays well under the size
+    # of even a 1 MB source file; no flush thread (a recovery is written in one go)
+    writer = BagWriter(dst_path, chunk_size=RECOVER_CHUNK, flush_interval=None)
     result = RecoverResult(dst_path, writer.mcap_path)
     try:
         for file in files:

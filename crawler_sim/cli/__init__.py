@@ -401,8 +401,11 @@ def _replay_scene(run: Any, method: str | None) -> tuple[Any, Any]:
     scene = scene.with_run(method=method)
     t = np.asarray(run.t, dtype=float)
     tr = scene.simulate()
-    if tr.t.shape == t.shape and np.array_equal(np.rint(tr.t * 1e9), np.rint(t * 1e9)):
-        return tr.x, tr.v
+    # compare in the recorded ns base: every stamp a sample of the run (also a truncated bag)
+    from ..bag.clock import rows_at_ns
+    rows = rows_at_ns(tr.t, getattr(run, 't_ns', np.rint(t * 1e9).astype(np.int64)))
+    if rows.size and np.all(rows >= 0):
+        return tr.x[rows], tr.v[rows]
     tr = scene.with_run(t_end=max(float(t[-1]), scene.run.t_end)).simulate(t_eval=t)
     return tr.x, tr.v
 

@@ -255,3 +255,16 @@ def test_disk_full_before_the_first_flush_says_nothing_reached_the_disk(tmp_path
     assert 'none of the 100 messages reached the disk' in writer.error
     assert 'recover' not in writer.error
     writer.close()
+
+
+def test_a_bag_closed_before_its_first_state_loads_as_an_empty_run_with_its_scene(tmp_path):
+    # SIGTERM about 1 s after start: the node closes the bag holding only the scene and one
+    # diagnostics message (no state topic registered at all)
+    from diagnostic_msgs.msg import DiagnosticArray
+    w = BagWriter(tmp_path / 'early', scene={'masses': [1.0, 2.0]})
+    w.write('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', DiagnosticArray(), 5)
+    w.close()
+    with pytest.warns(BagWarning, match='no states recorded'):
+        run = load(tmp_path / 'early')
+    assert len(run) == 0 and run.p == 2 and run.x.shape == (0, 2)
+    assert run.scene['masses'] == [1.0, 2.0]
