@@ -38,11 +38,25 @@ def bench_spec(scenes: int, periods: int = 20, chunk_size: int = 250, seed: int 
     return spec_from_dict(data)
 
 
-def _cpu() -> float:
-    """CPU seconds of this process and its finished children (the local pool's workers)."""
+def _cpu(children: bool = True) -> float:
+    """CPU seconds of this process and (``children``) its finished children (the local pool's
+    workers)."""
     own = resource.getrusage(resource.RUSAGE_SELF)
-    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+    total = own.ru_utime + own.ru_stime
+    if children:
+        kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+        total += kids.ru_utime + kids.ru_stime
+    return total
+
+
+def _process_cpu() -> float:
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    return own.ru_utime + own.ru_stime
+
+
+def _worker_cpu(client) -> float:
+    """CPU seconds used so far by every Dask worker process."""
+    return float(sum(client.run(_process_cpu).values()))
 
 
 def run(scenes: int, repeat: int, workers: int, chunk_size: int,
@@ -56,7 +70,7 @@ def run(scenes: int, repeat: int, workers: int, chunk_size: int,
                            dashboard_address=':0')
     client = Client(cluster)
     startup = time.perf_counter() - t0
-    local_t, dask_t, identical, local_cpu = [], [], [], []
+    local_t, dask_t, identical, local_cpu, dask_cpu = [], [], [], [], []
     reference: pd.DataFrame | None = None
     try:
         for k in range(repeat):
@@ -65,9 +79,12 @@ def run(scenes: int, repeat: int, workers: int, chunk_size: int,
             df_local = sweep(spec, workers=workers)
             local_t.append(time.perf_counter() - t)
             local_cpu.append(_cpu() - cpu0)
+            own0, workers0 = _cpu(children=False), _worker_cpu(client)
             t = time.perf_counter()
             df_dask = sweep(spec, client=client)
             dask_t.append(time.perf_counter() - t)
+            # the scheduler and the client live in this process, the workers in their own
+            dask_cpu.append(_cpu(children=False) - own0 + _worker_cpu(client) - workers0)
             if reference is None:
                 reference = df_local
             same = df_local.equals(reference) and df_dask.equals(reference)
@@ -77,7 +94,8 @@ def run(scenes: int, repeat: int, workers: int, chunk_size: int,
                 same = False
             identical.append(same)
             log(f'repeat {k + 1}/{repeat}: local {local_t[-1]:.2f} s (CPU {local_cpu[-1]:.2f} s), '
-                f'dask {dask_t[-1]:.2f} s, bit-identical {same}, load {os.getloadavg()[0]:.2f}')
+                f'dask {dask_t[-1]:.2f} s (CPU {dask_cpu[-1]:.2f} s), bit-identical {same}, '
+                f'load {os.getloadavg()[0]:.2f}')
     finally:
         client.close()
         cluster.close()
@@ -89,7 +107,10 @@ def run(scenes: int, repeat: int, workers: int, chunk_size: int,
             'dask_overhead_pct': 100.0 * (dask_med - local_med) / local_med,
             'dask_cluster_startup_s': startup, 'bit_identical': all(identical),
             'scene_errors': errors, 'local_cpu_s': local_cpu,
-            'local_cpu_median_s': statistics.median(local_cpu),
+            'local_cpu_median_s': statistics.median(local_cpu), 'dask_cpu_s': dask_cpu,
+            'dask_cpu_median_s': statistics.median(dask_cpu),
+            'dask_cpu_overhead_pct': 100.0 * (statistics.median(dask_cpu)
+                                              / statistics.median(local_cpu) - 1.0),
             'load_average_1min': os.getloadavg()[0],
             'ms_per_scene_per_worker': 1e3 * local_med * workers / scenes}
 
@@ -121,8 +142,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f'dask (LocalCluster):  median {res["dask_median_s"]:.2f} s '
           f'(runs {", ".join(f"{t:.2f}" for t in res["dask_s"])}); cluster start-up '
           f'{res["dask_cluster_startup_s"]:.2f} s, not counted')
-    print(f'dask overhead: {res["dask_overhead_pct"]:+.1f} % (ratio '
-          f'{res["dask_median_s"] / res["local_median_s"]:.3f})')
+    print(f'dask overhead: {res["dask_overhead_pct"]:+.1f} % of wall time (ratio '
+          f'{res["dask_median_s"] / res["local_median_s"]:.3f}); CPU time median '
+          f'{res["dask_cpu_median_s"]:.2f} s, {res["dask_cpu_overhead_pct"]:+.1f} % against local')
     print(f'bit-identical DataFrames: {res["bit_identical"]}; scenes with an error: '
           f'{res["scene_errors"]}')
     if args.json:
