@@ -283,8 +283,10 @@ def run_fuzz(n_per_family: int, seed: int = 0, families=FAMILIES,
     """The long profile (``crawler-sim stress``): ``n_per_family`` cases per family from seeds
     seed, seed + 1, ...; returns counts, worst errors and the failing cases."""
     say = progress or (lambda *a: None)
-    out = {'cases': 0, 'failed': 0, 'errors': 0, 'worst_x': 0.0, 'failures': []}
+    out = {'cases': 0, 'failed': 0, 'errors': 0, 'worst_x': 0.0, 'failures': [],
+           'by_family': {}}
     for fam in families:
+        bad_before = out['failed'] + out['errors']
         for k in range(n_per_family):
             case = draw_case(fam, seed + k)
             out['cases'] += 1
@@ -297,5 +299,6 @@ def run_fuzz(n_per_family: int, seed: int = 0, families=FAMILIES,
             except Exception as exc:   # a stall or crash of the solver is a failure too
                 out['errors'] += 1
                 out['failures'].append(f'{case!r}: {type(exc).__name__}: {exc}'[:400])
-        say(f'fuzz {fam}: {out["cases"]} cases so far, {out["failed"] + out["errors"]} failed')
+        out['by_family'][fam] = f'{out["failed"] + out["errors"] - bad_before}/{n_per_family} failed'
+        say(f'fuzz {fam}: {out["by_family"][fam]}')
     return out
