@@ -44,7 +44,9 @@ def test_every_scene_file_loads_runs_and_passes_verify(path):
     assert tr.t[-1] == pytest.approx(scene.run.t_end)
     assert tr.x.shape == (len(tr), scene.crawler.p)
     if scene.run.method == 'exact':
-        report = cs.verify(tr)
+        # with the gait: the kinematic checks (required friction, slide signs, shooting)
+        report = cs.verify(tr, scene.gait)
+        assert report.kinematic
         assert report.ok(1e-9), report
 
 
@@ -93,7 +95,7 @@ def test_every_gait_type_builds_from_its_parameters_and_runs_exactly(kind):
                              'run': {'t_end': 2.0}})
     assert scene.gait.n_links == 2
     assert scene.gait_spec['type'] == kind
-    assert cs.verify(scene.simulate()).ok(1e-9)
+    assert cs.verify(scene.simulate(), scene.gait).ok(1e-9)
 
 
 def test_gait_type_names_also_match_the_class_names():
