@@ -1,5 +1,8 @@
 """Scenes: a crawler, a gait and run options described in YAML.
 
+(About 480 lines: the field checks, their ranges and the error messages belong together so
+that every message names its field the same way.)
+
 A scene file has one top-level key ``scene``::
 
     scene:
