@@ -13,7 +13,7 @@ Pass: at every sample, positions within 1e-10 m (1e-10 relative beyond 1 m) and 
 1e-10 (relative to 1 + the largest velocity) of the oracle, no exception and no stall, and, for
 ``simulate`` runs, ``verify(tr, gait).ok()``.
 
-The quick profile (``make test``) runs ``CRAWLER_SIM_FUZZ_EXAMPLES`` (default 5) derandomised
+The quick profile (``make test``) runs ``CRAWLER_SIM_FUZZ_EXAMPLES`` (default 10) derandomised
 examples per family without the example database, so CI is deterministic; shrinking is off
 (the failing case's parameters are printed instead, to rerun with ``check_case``).
 """
@@ -35,7 +35,7 @@ G = cs.gaits
 FAMILIES = ('custom', 'sinusoid', 'fourier', 'scallop', 'stroke', 'bang_bang', 'spline',
             'piecewise_cubic', 'switch_cubic', 'switch_sinusoid')
 TOL = 1e-10
-N_EXAMPLES = int(os.environ.get('CRAWLER_SIM_FUZZ_EXAMPLES', '5'))
+N_EXAMPLES = int(os.environ.get('CRAWLER_SIM_FUZZ_EXAMPLES', '10'))
 
 
 @dataclass
