@@ -1,11 +1,15 @@
 """Stress checks of numerical stability: random scenes, extremes and grazing contacts.
 
+(Over 400 lines: one check per function, and they share the auditing helpers.)
+
 Every check returns a `CheckResult` (``ok``, a message listing each problem, figures). The test
 suite (``test/test_stress.py``) runs them with small sizes and hypothesis-drawn scenes;
 `run_stress` runs them with larger sizes, many random scenes and the 1e5-period run.
 
 What is checked
 ---------------
+* the differential fuzz of issue 14 (`check_fuzz`): every gait family of test/core/test_fuzz.py,
+  the exact method against the independent oracle (test/core/oracle.py) at 1e-10;
 * every method's output passes ``verify`` at a tolerance that suits the method (`tolerances`)
   and holds no NaN or infinity;
 * method "implicit" converges to method "exact" as dt shrinks (first order);
@@ -21,6 +25,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import math
+from pathlib import Path
+import sys
 import time
 from typing import Any, Callable
 
@@ -34,7 +40,7 @@ from ..core.verify import verify
 from . import metrics
 
 __all__ = ['CheckResult', 'random_spec', 'build', 'check_random_scene', 'EXTREMES', 'GRAZING',
-           'check_long_run', 'check_tolerance_ladder', 'run_stress', 'tolerances']
+           'check_fuzz', 'check_long_run', 'check_tolerance_ladder', 'run_stress', 'tolerances']
 
 G = 9.81
 EXACT_TOL = 1e-9        # verify tolerance of method "exact"
@@ -619,6 +625,38 @@ GRAZING: dict[str, Callable[..., CheckResult]] = {
 }
 
 
+# ----------------------------------------------------------------------------- differential fuzz
+
+FUZZ_DIR = Path(__file__).resolve().parents[2] / 'test' / 'core'
+
+
+@_timed
+def check_fuzz(n_per_family: int = 30, seed: int = 0, families: tuple[str, ...] | None = None
+               ) -> CheckResult:
+    """The long profile of the differential fuzz (issue 14): ``n_per_family`` cases of every
+    gait family of test/core/test_fuzz.py (or of ``families``), exact method against the
+    independent oracle at 1e-10.
+
+    The oracle and the case generator live with the tests (test/core/oracle.py, test_fuzz.py),
+    so this check needs a source checkout; an installed package without them reports that.
+    """
+    res = CheckResult(f'differential_fuzz[{n_per_family} per family, seed {seed}]')
+    if not (FUZZ_DIR / 'test_fuzz.py').is_file():
+        res.fail(f'needs the source tree: {FUZZ_DIR / "test_fuzz.py"} not found')
+        return res
+    sys.path.insert(0, str(FUZZ_DIR))
+    try:
+        import test_fuzz   # noqa: PLC0415 (from the test tree, only when this check runs)
+    finally:
+        sys.path.remove(str(FUZZ_DIR))
+    out = test_fuzz.run_fuzz(n_per_family, seed, families or test_fuzz.FAMILIES)
+    res.figures = {k: out[k] for k in ('cases', 'failed', 'errors', 'worst_x')}
+    res.figures['by_family'] = out.get('by_family', {})
+    for text in out['failures']:
+        res.fail(text)
+    return res
+
+
 # ----------------------------------------------------------------------------- the long run
 
 def run_stress(seconds: float = 60.0, seed: int = 0,
@@ -652,6 +690,7 @@ def run_stress(seconds: float = 60.0, seed: int = 0,
         lambda: check_tolerance_ladder('stiff_hf'),
         lambda: check_tolerance_ladder('slope_climb'),
         lambda: check_long_run(100_000),
+        lambda: check_fuzz(30, seed),
     ]
     for k, check in enumerate(fixed):
         say(k, len(fixed), 'fixed checks')

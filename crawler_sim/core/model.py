@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['Crawler', 'kinematics']
+__all__ = ['Crawler', 'DERIVED_LIMIT', 'kinematics']
 
 
 def _check_scalar(name: str, value: float, *, lo: float | None = None,
@@ -44,6 +44,38 @@ def _check_vector(name: str, value: ArrayLike, p: int | None, *, positive: bool)
     return arr
 
 
+# Largest derived force [N], mass [kg] or acceleration [m/s^2] a crawler may have. Solvers
+# multiply two such quantities (force x time x velocity, mass x velocity^2, ...), so 1e100 keeps
+# every product they form far from overflow (1.8e308) and no output can turn into inf or NaN.
+DERIVED_LIMIT = 1e100
+
+
+def _check_derived(masses: NDArray, fp: NDArray, fm: NDArray, slope: float,
+                   gravity: float) -> None:
+    """Sums and products of valid single values can still overflow: check them by name."""
+    lim = DERIVED_LIMIT
+    with np.errstate(over='ignore', invalid='ignore'):
+        M = float(np.sum(masses))
+        weight = M * gravity
+        f_total = float(np.sum(fp) + np.sum(fm))
+        push = weight * abs(math.sin(slope))
+        acc = (f_total + push) / M if M > 0 else math.inf
+    if not M <= lim:
+        raise ValueError(f'masses: their sum must be <= {lim:g} kg, got {M!r} '
+                         f'(each mass must be finite and > 0, and so must their total)')
+    if not f_total <= lim:
+        raise ValueError(f'friction: sum(friction) + sum(friction_backward) must be <= {lim:g} N, '
+                         f'got {f_total!r}')
+    if not weight <= lim:
+        raise ValueError(f'gravity: gravity * sum(masses) (the total weight) must be <= '
+                         f'{lim:g} N, got {weight!r} (gravity {gravity!r} m/s^2, sum(masses) '
+                         f'{M!r} kg)')
+    if not acc <= lim:
+        raise ValueError(f'friction: (total friction + weight * |sin(slope)|) / sum(masses), the '
+                         f'largest acceleration the forces can give, must be <= {lim:g} m/s^2, '
+                         f'got {acc!r}; reduce friction or raise masses')
+
+
 @dataclass(frozen=True, init=False, eq=False)
 class Crawler:
     """A chain of p >= 2 bodies on a line.
@@ -60,6 +92,12 @@ class Crawler:
         Inclination [rad], uphill is +x, in (-pi/2, pi/2); adds ``-m_i g sin(slope)`` to body i.
     gravity : float
         Gravitational acceleration [m/s^2], finite and >= 0.
+
+    Derived quantities are checked too (ValueError naming the field): sum(masses) [kg], the
+    total friction sum(friction) + sum(friction_backward) [N], the weight gravity * sum(masses)
+    [N] and the largest acceleration (total friction + weight |sin slope|) / sum(masses)
+    [m/s^2] must each be at most ``DERIVED_LIMIT`` = 1e100, so no product a solver forms can
+    overflow into inf or NaN.
     """
 
     masses: NDArray[np.float64]
@@ -82,6 +120,7 @@ class Crawler:
         if not abs(slope) < math.pi / 2:
             raise ValueError(f'slope must be in (-pi/2, pi/2) rad, got {slope!r}')
         gravity = _check_scalar('gravity', gravity, lo=0.0, allowed='>= 0 m/s^2')
+        _check_derived(m, f, fb, slope, gravity)
         object.__setattr__(self, 'masses', m)
         object.__setattr__(self, 'friction', f)
         object.__setattr__(self, 'friction_backward', fb)
@@ -99,8 +138,17 @@ class Crawler:
             'mu_backward', mu_backward, m.size, positive=False)
         slope = _check_scalar('slope', slope, allowed='in (-pi/2, pi/2) rad')
         gravity = _check_scalar('gravity', gravity, lo=0.0, allowed='>= 0 m/s^2')
-        normal = m * gravity * math.cos(slope)
-        return cls(m, mu_f * normal, mu_b * normal, slope, gravity)
+        with np.errstate(over='ignore', invalid='ignore'):
+            normal = m * gravity * math.cos(slope)
+            f_fwd, f_bwd = mu_f * normal, mu_b * normal
+        for name, mu_arr, f in (('mu', mu_f, f_fwd), ('mu_backward', mu_b, f_bwd)):
+            bad = ~(f <= DERIVED_LIMIT)
+            if np.any(bad):
+                i = int(np.argmax(bad))
+                raise ValueError(f'{name}[{i}]: the friction force {name}[{i}] * masses[{i}] * '
+                                 f'gravity * cos(slope) must be <= {DERIVED_LIMIT:g} N, got '
+                                 f'{float(f[i])!r} (mu {float(mu_arr[i])!r}, mass {float(m[i])!r} kg)')
+        return cls(m, f_fwd, f_bwd, slope, gravity)
 
     @property
     def p(self) -> int:

@@ -1,5 +1,8 @@
 """Scenes: a crawler, a gait and run options described in YAML.
 
+(About 480 lines: the field checks, their ranges and the error messages belong together so
+that every message names its field the same way.)
+
 A scene file has one top-level key ``scene``::
 
     scene:
@@ -34,6 +37,16 @@ Every invalid value raises :class:`SceneError` with one line naming the field an
 range, e.g. ``scene.crawler.masses[1]: must be finite and > 0, got -1.0``. Unknown keys are
 errors too (a typo must not silently fall back to a default).
 
+Besides sign and finiteness, a scene's values must lie in physical ranges (``LIMITS``) wide
+enough for any crawler and narrow enough that no value reaches the solvers as a degenerate
+case (a 1e-30 s run, a 1e-12 asymmetry, a tolerance of 1 s): masses in [1e-9, 1e9] kg, mu in
+[0, 1e3], friction forces in [0, 1e12] N, gravity in [0, 1e3] m/s^2, gait lengths, rates,
+accelerations and coefficients within 1e6 in magnitude, frequency in [1e-3, 1e4] Hz, asymmetry
+in [1e-3, 0.999], gait times within [-1e7, 1e7] s at least 1e-6 s apart, t_end in [1e-6, 1e7] s,
+tol in [1e-15, 1e-6] s, max_step >= max(1e-6 s, t_end / 1e7), dt >= max(1e-9 s, t_end / 1e8),
+x0 and v0 within 1e6, penalty in [1e-6, 1e15] N s/m. Derived quantities (the sum of the masses,
+the total friction, the weight) are checked by `Crawler` and reported under scene.crawler.
+
 :func:`scene_to_dict` gives the plain-data form written into bags (friction as forces, so the
 crawler is rebuilt bit for bit); :func:`scene_from_dict` reads it back.
 """
@@ -54,8 +67,8 @@ from .model import Crawler
 from .stepper import METHODS, simulate
 from .trajectory import Trajectory
 
-__all__ = ['SceneError', 'RunOptions', 'Scene', 'GAIT_TYPES', 'load_scene', 'scene_from_dict',
-           'scene_to_dict']
+__all__ = ['SceneError', 'RunOptions', 'Scene', 'GAIT_TYPES', 'LIMITS', 'load_scene',
+           'scene_from_dict', 'scene_to_dict']
 
 
 class SceneError(ValueError):
@@ -96,6 +109,34 @@ def _number(path: str, value: Any, rule: str = 'finite', *, lo: float | None = N
 
 def _optional(path: str, value: Any, rule: str, **kw: Any) -> float | None:
     return None if value is None else _number(path, value, rule, **kw)
+
+
+#: field -> (lowest, highest, unit) allowed in a scene (see the module docstring)
+LIMITS: dict[str, tuple[float, float, str]] = {
+    'masses': (1e-9, 1e9, 'kg'), 'mu': (0.0, 1e3, ''), 'mu_backward': (0.0, 1e3, ''),
+    'friction': (0.0, 1e12, 'N'), 'friction_backward': (0.0, 1e12, 'N'),
+    'gravity': (0.0, 1e3, 'm/s^2'),
+    'mean': (-1e6, 1e6, 'm'), 'amplitude': (-1e6, 1e6, 'm'), 'l0': (-1e6, 1e6, 'm'),
+    'v0_gait': (-1e6, 1e6, 'm/s'), 'lengths': (-1e6, 1e6, 'm'),
+    'coefficients': (-1e6, 1e6, 'm'), 'accelerations': (-1e6, 1e6, 'm/s^2'),
+    'phase': (-1e6, 1e6, 'rad'), 'times': (-1e7, 1e7, 's'),
+    'frequency': (1e-3, 1e4, 'Hz'), 'asymmetry': (1e-3, 1.0 - 1e-3, ''),
+    't_end': (1e-6, 1e7, 's'), 'tol': (1e-15, 1e-6, 's'), 'x0': (-1e6, 1e6, 'm'),
+    'v0': (-1e6, 1e6, 'm/s'), 'penalty': (1e-6, 1e15, 'N s/m'),
+}
+_MIN_GAIT_SPACING = 1e-6     # s, between consecutive gait times
+
+
+def _in_range(path: str, value: Any, key: str) -> None:
+    """Every entry of ``value`` (a number or an array) within LIMITS[key]."""
+    lo, hi, unit = LIMITS[key]
+    arr = np.atleast_1d(np.asarray(value, dtype=float))
+    bad = ~((arr >= lo) & (arr <= hi))
+    if np.any(bad):
+        where = '' if arr.size == 1 else f'[{int(np.argmax(bad))}]' if arr.ndim == 1 else ''
+        got = float(arr.ravel()[int(np.argmax(bad.ravel()))])
+        raise SceneError(f'{path}{where}: must be in [{lo:g}, {hi:g}]{" " + unit if unit else ""}'
+                         f', got {got!r}')
 
 
 def _array(path: str, value: Any) -> NDArray[np.float64]:
@@ -168,6 +209,7 @@ def _crawler(spec: Any) -> Crawler:
     path = 'scene.crawler'
     d = _mapping(path, spec, _CRAWLER_KEYS, ('masses',))
     masses = _per_body(f'{path}.masses', d['masses'], None, positive=True)
+    _in_range(f'{path}.masses', masses, 'masses')
     p = masses.size
     if p < 2:
         raise SceneError(f'{path}.masses: must list p >= 2 bodies, got {p}')
@@ -184,6 +226,7 @@ def _crawler(spec: Any) -> Crawler:
         raise SceneError(f'{slope_path}: must be in (-pi/2, pi/2) rad = (-90, 90) deg, '
                          f'got {d.get("slope", d.get("slope_deg"))!r}')
     gravity = _number(f'{path}.gravity', d.get('gravity', 9.81), 'finite and >= 0 m/s^2', lo=0.0)
+    _in_range(f'{path}.gravity', gravity, 'gravity')
     has_mu, has_f = 'mu' in d, 'friction' in d
     if has_mu == has_f:
         raise SceneError(f'{path}: give exactly one of mu (coefficients) or friction '
@@ -194,9 +237,15 @@ def _crawler(spec: Any) -> Crawler:
     fwd = _per_body(f'{path}.{key}', d[key], p, positive=False)
     bwd = (_per_body(f'{path}.{key}_backward', d[f'{key}_backward'], p, positive=False)
            if f'{key}_backward' in d else None)
-    if has_mu:
-        return Crawler.from_coefficients(masses, fwd, bwd, slope, gravity)
-    return Crawler(masses, fwd, bwd, slope, gravity)
+    _in_range(f'{path}.{key}', fwd, key)
+    if bwd is not None:
+        _in_range(f'{path}.{key}_backward', bwd, f'{key}_backward')
+    try:
+        if has_mu:
+            return Crawler.from_coefficients(masses, fwd, bwd, slope, gravity)
+        return Crawler(masses, fwd, bwd, slope, gravity)
+    except ValueError as exc:     # derived quantities (sums, products); the message names them
+        raise SceneError(f'{path}.{exc}') from None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -250,8 +299,15 @@ def _gait(spec: Any, p: int) -> tuple[gaits.Gait, dict]:
             kwargs[key] = value
         elif key in _SCALAR_KEYS:
             kwargs[key] = _number(f'{path}.{key}', value, 'finite')
+            _in_range(f'{path}.{key}', kwargs[key], key)
         else:
             kwargs[key] = arr = _array(f'{path}.{key}', value)
+            _in_range(f'{path}.{key}', arr, 'v0_gait' if key == 'v0' else key)
+            if key == 'times' and arr.ndim == 1 and arr.size > 1 and np.all(np.diff(arr) > 0) \
+                    and np.diff(arr).min() < _MIN_GAIT_SPACING:
+                raise SceneError(f'{path}.times: consecutive times must be at least '
+                                 f'{_MIN_GAIT_SPACING:g} s apart, got a gap of '
+                                 f'{float(np.diff(arr).min())!r} s')
             if key in _PER_LINK_KEYS and arr.ndim == 1 and arr.size not in (1, p - 1):
                 count = '1 entry' if p == 2 else f'1 or {p - 1} entries'
                 raise SceneError(f'{path}.{key}: must have {count} (one per linkage; '
@@ -316,7 +372,7 @@ def _run(spec: Any, p: int) -> RunOptions:
         raise SceneError(f'{path}.penalty: required for method penalty (the seed\'s n, '
                          'finite and > 0 N s/m)')
     pos = 'finite and > 0 s'
-    return RunOptions(
+    opts = RunOptions(
         t_end=_number(f'{path}.t_end', d.get('t_end', 10.0), pos, lo=0.0, lo_open=True),
         method=method,
         dt=_optional(f'{path}.dt', d.get('dt'), pos, lo=0.0, lo_open=True),
@@ -325,6 +381,18 @@ def _run(spec: Any, p: int) -> RunOptions:
         max_step=_optional(f'{path}.max_step', d.get('max_step'), pos, lo=0.0, lo_open=True),
         x0=_number(f'{path}.x0', d.get('x0', 0.0), 'finite [m]'),
         v0=_number(f'{path}.v0', d.get('v0', 0.0), 'finite [m/s]'))
+    for key in ('t_end', 'tol', 'x0', 'v0'):
+        _in_range(f'{path}.{key}', getattr(opts, key), key)
+    if opts.penalty is not None:
+        _in_range(f'{path}.penalty', opts.penalty, 'penalty')
+    # steps: bounded in number (a run must end) and above the rounding of t
+    if opts.max_step is not None and opts.max_step < max(1e-6, opts.t_end / 1e7):
+        raise SceneError(f'{path}.max_step: must be >= max(1e-6 s, t_end / 1e7) = '
+                         f'{max(1e-6, opts.t_end / 1e7):g} s, got {opts.max_step!r}')
+    if opts.dt is not None and opts.dt < max(1e-9, opts.t_end / 1e8):
+        raise SceneError(f'{path}.dt: must be >= max(1e-9 s, t_end / 1e8) = '
+                         f'{max(1e-9, opts.t_end / 1e8):g} s, got {opts.dt!r}')
+    return opts
 
 
 # ---------------------------------------------------------------------------------------------

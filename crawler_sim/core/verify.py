@@ -91,7 +91,8 @@ def verify(trajectory: Trajectory, gait=None, *, substeps: int = 16) -> VerifyRe
 
     ``gait`` (the one the trajectory was simulated with; default ``trajectory.info['gait']`` when
     present) switches on the kinematic checks, which flag missed, shifted or wrong events; each
-    piece between events is checked at ``substeps`` points.
+    piece between events is checked at ``substeps`` points. They hold to rounding for the exact
+    method; the time-stepping methods ("implicit", "penalty") show their O(dt) error in them.
     """
     tr = trajectory
     c = tr.crawler

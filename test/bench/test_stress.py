@@ -272,3 +272,25 @@ def test_exact_finds_every_short_slide_whatever_the_bracketing_grid(max_step):
     tr = simulate(crawler, gait, 3.0, v0=-A * (c + 1.0), t_eval=[0.0, 3.0], max_step=max_step)
     starts = [e.time for e in tr.events if e.body == 0 and e.new == 1]
     np.testing.assert_allclose(starts, [k + (math.pi - theta) / w for k in range(3)], atol=1e-9)
+
+
+# ------------------------------------------------------------------ the long fuzz profile
+
+def test_the_stress_fuzz_check_runs_the_differential_fuzz_and_reports_its_figures():
+    # one case per family through the same path `crawler-sim stress` takes; the families the
+    # solver of today fails (test_fuzz._XFAIL) may fail here too, every other one must pass
+    res = stress.check_fuzz(2, seed=3, families=('custom', 'bang_bang', 'switch_cubic'))
+    fig = res.figures
+    assert fig['cases'] == 6
+    assert set(fig['by_family']) == {'custom', 'bang_bang', 'switch_cubic'}
+    import test_fuzz
+    for fam, text in fig['by_family'].items():
+        if fam not in test_fuzz._XFAIL:
+            assert text.startswith('0/'), (fam, res.problems)
+
+
+def test_the_stress_fuzz_check_says_what_it_needs_without_the_source_tree(monkeypatch, tmp_path):
+    monkeypatch.setattr(stress, 'FUZZ_DIR', tmp_path)
+    res = stress.check_fuzz(1)
+    assert not res.ok
+    assert 'needs the source tree' in res.problems[0]

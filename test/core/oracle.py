@@ -285,7 +285,7 @@ class Oracle:
         """Advance one closed-form phase from t0 (grid index k, grid[k] <= t0) to its end, or
         to grid[k_hi - 1] when no event comes before (then the driver continues the same
         phase from there: a cut at a grid point changes nothing in the closed form)."""
-        grid, Ed, Edd, E = self.grid, self.Ed, self.Edd, self.E
+        grid, Ed, Edd = self.grid, self.Ed, self.Edd
         k_hi = max(k_hi, k + 2)
         tg = np.concatenate([[t0], grid[k + 1:k_hi]])
         sl = slice(k + 1, k_hi)
@@ -311,7 +311,6 @@ class Oracle:
                 tc = self._first_crossing(tg, g, dg, fn, dfn)
                 if tc is not None:
                     events.append((tc, 'v', i))
-            release_at = None
         else:
             j = stuck[0]
             Fs = float(np.sum(self._force(s, sliding))) if sliding else 0.0

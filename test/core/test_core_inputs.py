@@ -223,3 +223,41 @@ def test_a_smooth_periodic_gait_turning_non_finite_mid_run_is_named_in_the_error
     name = ('length', 'velocity', 'acceleration')[which]
     with pytest.raises(ValueError, match=f'gait {name} must be finite'):
         cs.simulate(cs.Crawler([1.0, 1.0], [1.0, 1.0]), Broken(0.1, 0.02, 1.0), 1.0)
+
+
+# ---------------------------------------------------------------------------- derived quantities
+# Issue 11 point 2: each value finite and in range, but a sum or product overflows. Before the
+# fix these were accepted and every output of simulate was NaN.
+@pytest.mark.parametrize('kw,message', [
+    (dict(masses=[1e308] * 3, friction=1.0), r'^masses: their sum must be <= 1e\+100 kg'),
+    (dict(masses=[1e101, 1.0], friction=1.0), r'^masses: their sum must be <= 1e\+100 kg'),
+    (dict(masses=[1.0, 1.0], friction=[1e308, 1e308]),
+     r'^friction: sum\(friction\) \+ sum\(friction_backward\) must be <= 1e\+100 N'),
+    (dict(masses=[1.0, 1.0], friction=1.0, friction_backward=[1e308, 1e308]),
+     r'^friction: sum\(friction\) \+ sum\(friction_backward\)'),
+    (dict(masses=[1e99, 1e99], friction=1.0), r'^gravity: gravity \* sum\(masses\)'),
+    (dict(masses=[1.0, 1.0], friction=1.0, gravity=1e300), r'^gravity: gravity \* sum\(masses\)'),
+    (dict(masses=[1e-300, 1e-300], friction=[1.0, 1.0]),
+     r'^friction: \(total friction \+ weight \* \|sin\(slope\)\|\) / sum\(masses\)'),
+])
+def test_a_derived_quantity_that_overflows_is_rejected_naming_the_field_and_range(kw, message):
+    with pytest.raises(ValueError, match=message):
+        cs.Crawler(**kw)
+
+
+def test_friction_from_coefficients_that_overflows_is_rejected_naming_mu():
+    with pytest.raises(ValueError, match=r'^mu\[0\]: the friction force .* must be <= 1e\+100 N'):
+        cs.Crawler.from_coefficients([1e200, 1.0], [1e200, 0.1], gravity=1e-150)
+    with pytest.raises(ValueError, match=r'^mu_backward\[1\]'):
+        cs.Crawler.from_coefficients([1.0, 1e50], 0.1, [0.1, 1e60])
+
+
+@pytest.mark.parametrize('method', ['exact', 'implicit', 'penalty'])
+def test_a_crawler_at_the_derived_limits_gives_finite_outputs(method):
+    # the largest accepted weight and friction: every output stays finite (the limit leaves
+    # room for the products the solvers form)
+    c = cs.Crawler([1e99 / 3] * 3, [1e99 / 7] * 3, gravity=1.0, slope=0.5)
+    tr = cs.simulate(c, gaits.Sinusoid([1.0, 1.0], 0.3, 1.0), 1.0, method=method,
+                     penalty=1e6 if method == 'penalty' else None)
+    for name in ('x', 'v', 'friction', 'impulse', 'linkage_force'):
+        assert np.all(np.isfinite(getattr(tr, name))), name

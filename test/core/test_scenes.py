@@ -44,7 +44,9 @@ def test_every_scene_file_loads_runs_and_passes_verify(path):
     assert tr.t[-1] == pytest.approx(scene.run.t_end)
     assert tr.x.shape == (len(tr), scene.crawler.p)
     if scene.run.method == 'exact':
-        report = cs.verify(tr)
+        # with the gait: the kinematic checks (required friction, slide signs, shooting)
+        report = cs.verify(tr, scene.gait)
+        assert report.kinematic
         assert report.ok(1e-9), report
 
 
@@ -93,7 +95,7 @@ def test_every_gait_type_builds_from_its_parameters_and_runs_exactly(kind):
                              'run': {'t_end': 2.0}})
     assert scene.gait.n_links == 2
     assert scene.gait_spec['type'] == kind
-    assert cs.verify(scene.simulate()).ok(1e-9)
+    assert cs.verify(scene.simulate(), scene.gait).ok(1e-9)
 
 
 def test_gait_type_names_also_match_the_class_names():
@@ -175,7 +177,7 @@ BAD = [  # (edit, message the error must contain)
     (_set('gait.type', 'zigzag'), "scene.gait.type: unknown gait 'zigzag'; expected one of"),
     (_set('gait.amplitude', _DELETE), 'scene.gait.amplitude: missing (required)'),
     (_set('gait.phase', [0.0, 1.0, 2.0]), 'scene.gait.phase: must have 1 or 2 entries'),
-    (_set('gait.frequency', 0.0), 'scene.gait (sinusoid): frequency must be finite and > 0'),
+    (_set('gait.frequency', 0.0), 'scene.gait.frequency: must be in [0.001, 10000] Hz, got 0.0'),
     (_set('gait.mean', [0.1, 'a']), 'scene.gait.mean[1]: must be a number'),
     (_set('run.method', 'rk4'), "scene.run.method: unknown method 'rk4'; expected one of exact"),
     (_set('run.t_end', -1.0), 'scene.run.t_end: must be finite and > 0 s, got -1.0'),
@@ -231,3 +233,60 @@ def test_a_yaml_file_without_a_scene_key_is_not_a_scene(tmp_path):
 def test_a_missing_scene_file_is_an_os_error(tmp_path):
     with pytest.raises(FileNotFoundError):
         load_scene(tmp_path / 'nope.yaml')
+
+
+# --- issue 11 point 9: values that used to reach the solver as degenerate cases ---------------
+# Each of these was accepted by the loader and then failed inside the solver with an internal
+# message ("min() arg is an empty sequence", "float division by zero", "cannot convert float
+# infinity to integer") and exit 1, or ran forever. Found by a scan of every numeric field of the
+# shipped scenes over 0, +-1, 1e-320 .. 1e308; the allowed ranges are scene.LIMITS.
+DEGENERATE = [  # (file, field, value, message the SceneError must contain)
+    ('scallop_2body', 'run.t_end', 1e-30, 'scene.run.t_end: must be in [1e-06, 1e+07] s'),
+    ('scallop_2body', 'run.t_end', 1e30, 'scene.run.t_end: must be in [1e-06, 1e+07] s'),
+    ('scallop_2body', 'gait.asymmetry', 1e-12, 'scene.gait.asymmetry: must be in [0.001, 0.999]'),
+    ('scallop_2body', 'gait.asymmetry', 0.999999, 'scene.gait.asymmetry: must be in'),
+    ('scallop_2body', 'gait.frequency', 1e30, 'scene.gait.frequency: must be in [0.001, 10000] Hz'),
+    ('bang_bang', 'gait.frequency', 1e-300, 'scene.gait.frequency: must be in'),
+    ('bang_bang', 'run.tol', 1.0, 'scene.run.tol: must be in [1e-15, 1e-06] s'),
+    ('bang_bang', 'run.max_step', 1e-320, 'scene.run.max_step: must be >= max(1e-6 s, t_end / 1e7)'),
+    ('bang_bang', 'run.max_step', 1e-12, 'scene.run.max_step: must be >='),
+    ('wave_3body', 'run.dt', 1e-300, 'scene.run.dt: must be >= max(1e-9 s, t_end / 1e8)'),
+    ('wave_3body', 'crawler.mu', 1e30, 'scene.crawler.mu[0]: must be in [0, 1000]'),
+    ('wave_3body', 'crawler.gravity', 1e30, 'scene.crawler.gravity: must be in [0, 1000] m/s^2'),
+    ('wave_3body', 'crawler.masses', [1e308] * 3, 'scene.crawler.masses[0]: must be in'),
+    ('wave_3body', 'gait.amplitude', 1e308, 'scene.gait.amplitude: must be in [-1e+06, 1e+06] m'),
+]
+
+
+@pytest.mark.parametrize('name,field,value,message', DEGENERATE,
+                         ids=[f'{n}:{f}={v if not isinstance(v, list) else v[0]}'
+                              for n, f, v, _ in DEGENERATE])
+def test_a_degenerate_scene_value_is_a_scene_error_naming_the_field(name, field, value, message):
+    spec = yaml.safe_load((CONFIG / f'{name}.yaml').read_text())['scene']
+    _set(field, value)(spec)
+    with pytest.raises(SceneError) as info:
+        scene_from_dict(spec)
+    assert message in str(info.value)
+
+
+_CLI_CASES = DEGENERATE[:4] + DEGENERATE[6:8] + DEGENERATE[12:13]
+
+
+@pytest.mark.parametrize('name,field,value,message', _CLI_CASES,
+                         ids=[f'{f}={v if not isinstance(v, list) else v[0]}'
+                              for _, f, v, _ in _CLI_CASES])
+def test_crawler_sim_simulate_exits_2_naming_the_field_for_a_degenerate_value(
+        tmp_path, capsys, name, field, value, message):
+    # issue 11 points 2 and 9: masses [1e308] * 3 used to give NaN outputs and exit 0
+    from crawler_sim import cli
+    spec = yaml.safe_load((CONFIG / f'{name}.yaml').read_text())
+    _set(field, value)(spec['scene'])
+    path = tmp_path / 'bad.yaml'
+    path.write_text(yaml.safe_dump(spec))
+    code = cli.main(['simulate', str(path)])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert message in err
+    for internal in ('min() arg', 'division by zero', 'infinity to integer', 'internal error'):
+        assert internal not in err
+

@@ -180,3 +180,36 @@ def test_the_gait_can_come_from_the_trajectory_info():
     assert cs.verify(bad).kinematic
     assert not cs.verify(bad).ok()
     assert not cs.verify(replace(tr, info={})).kinematic
+
+
+def test_verify_flags_every_solver_trajectory_the_oracle_contradicts():
+    # Differential check of verify itself, whatever the solver's state: on issue 14's scenes
+    # and on fuzz cases known to break today's solver (Custom gaits, a sharp Scallop, a Spline),
+    # every trajectory that is off the oracle by more than 1e-7 m must fail verify(tr, gait),
+    # and every one within 1e-10 m must pass. (A stalled run has no trajectory to check.) On
+    # today's solver: 8 wrong trajectories, all flagged, and 1 right one.
+    import test_fuzz as tf
+    cases = [tf.draw_case('custom', s) for s in (100, 101, 102, 1003, 1004)]
+    cases += [tf.draw_case('scallop', 1012), tf.draw_case('spline', 2263775)]
+    for name, (c, g, T, v0) in tf.ISSUE_SCENES.items():
+        kin_g = G.Sinusoid(1.0, 0.3, 1.0) if isinstance(g, G.Custom) else g
+        cases.append(tf.Case(family='issue', seed=0, crawler=c, t_end=T, v0=v0,
+                             kin=lambda t, k=kin_g: k(np.asarray(t, float)),
+                             breakpoints=np.empty(0), timescale=0.05, gait=g, desc=name))
+    checked = {'wrong': 0, 'right': 0}
+    for case in cases:
+        try:
+            tr = cs.simulate(case.crawler, case.gait, case.t_end, v0=case.v0)
+        except (RuntimeError, ValueError):
+            continue
+        o = Oracle.for_crawler(case.crawler, case.kin, case.breakpoints)
+        x, _ = o.solve(case.t_end, tr.t, v0=case.v0, h=tf.oracle_h(case))
+        err = float(np.abs(x - tr.x).max())
+        rep = cs.verify(tr, case.gait)
+        if err > 1e-7:
+            checked['wrong'] += 1
+            assert not rep.ok(), (case, err, rep)
+        elif err <= 1e-10:
+            checked['right'] += 1
+            assert rep.ok(), (case, err, rep)
+    assert checked['wrong'] + checked['right'] >= 5, checked
