@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
 
 import crawler_sim as cs
 from crawler_sim.bench.baselines import make_ode
@@ -221,3 +222,27 @@ def test_the_step_limit_is_at_the_documented_boundary():
 def test_warm_up_runs_and_is_repeatable():
     warm_up()
     warm_up()
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(p=st.integers(2, 5), seed=st.integers(0, 2 ** 31), kind=st.sampled_from(['sin', 'scallop']))
+def test_random_scenes_give_the_same_run_in_the_kernel_and_the_python_path(p, seed, kind):
+    rng = np.random.default_rng(seed)
+    m = 10 ** rng.uniform(-1, 1, p)
+    f = 10 ** rng.uniform(-1, 1, p) * m
+    fb = f * 10 ** rng.uniform(-0.5, 0.5, p)
+    crawler = cs.Crawler(m, f, fb, slope=float(rng.uniform(-0.1, 0.1)))
+    phase = rng.uniform(0, 3, p - 1)
+    gait = (cs.gaits.Sinusoid(0.1, 0.02, float(rng.uniform(0.5, 3)), phase, n_links=p - 1)
+            if kind == 'sin' else
+            cs.gaits.Scallop(0.1, 0.02, float(rng.uniform(0.5, 3)), 0.3, phase, n_links=p - 1))
+    runs = []
+    for use_kernel in (True, False):
+        s = ImplicitSolver(crawler, gait, dt=2e-3, use_kernel=use_kernel)
+        s.advance(0.7)
+        runs.append(s)
+    a, b = runs
+    assert [(e.body, e.old, e.new) for e in a.events] == [(e.body, e.old, e.new)
+                                                          for e in b.events]
+    assert a.X == pytest.approx(b.X, abs=1e-12) and a.V == pytest.approx(b.V, abs=1e-12)
+    np.testing.assert_array_equal(a.contact, b.contact)

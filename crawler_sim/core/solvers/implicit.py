@@ -9,10 +9,11 @@ velocity. A step in which the contact mode changes is split where the transition
 (located to about 1e-12 of the step from the instantaneous mode, see ``implicit_kernel``), so
 the method converges at order 1 with a steady constant: the error of X is about
 (h / 2) (V(t) - V(0)). ``Fourier`` and ``Sinusoid`` gaits run in a compiled kernel (numba,
-cached on disk; call ``warm_up()`` once to load or build it outside a real-time loop); other
-gaits (``Custom``, piecewise) are evaluated by numpy (or their callables) for a chunk of step
-ends and stepped in the kernel; a step with a transition inside, and advances of a few steps,
-take the Python path (the same algorithm, kept as the reference the tests compare with).
+cached on disk; ``warm_up()`` loads or builds it outside a real-time loop); other gaits
+(``Custom``, piecewise) are evaluated by numpy (or their callables) for a chunk of step ends and
+stepped in the kernel. A step with a transition inside, and advances of a few steps (a node's
+tick), take the Python path: the kernel's own source run by the interpreter, which imports no
+numba and compiles nothing; the tests compare it with the compiled kernel.
 
 A run is limited to ``MAX_STEPS`` steps per ``advance`` (and per ``simulate``): a smaller dt or a
 longer interval raises ValueError naming dt and the allowed range instead of running for ever.
@@ -23,7 +24,9 @@ and the batch stepper belong together; the compiled parts are in ``implicit_kern
 """
 from __future__ import annotations
 
+import importlib.util
 import math
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -40,8 +43,21 @@ __all__ = ['ImplicitSolver', 'ImplicitBatch', 'TimeStepper', 'MAX_STEPS', 'check
 MAX_STEPS = 10 ** 9
 
 
-#: the compiled helpers (``implicit_kernel``), imported on first use: numba takes about a second
-#: to import, which ``import crawler_sim`` should not pay when no fixed-step method runs
+def _interpreted_kernel():
+    """``implicit_kernel`` run by the interpreter (no numba import, nothing to compile): the
+    Python path's helpers, and the reference the compiled kernel is tested against."""
+    path = Path(__file__).with_name('implicit_kernel.py')
+    spec = importlib.util.spec_from_file_location(__package__ + '._implicit_interpreted', path)
+    mod = importlib.util.module_from_spec(spec)
+    mod.INTERPRETED = True
+    spec.loader.exec_module(mod)
+    return mod
+
+
+#: the interpreted helpers (the Python path: node ticks, Custom gaits step by step)
+_py = _interpreted_kernel()
+#: the compiled kernel, imported on first use: importing numba takes about a second and
+#: compiling (first run on a machine) tens of seconds, which only the kernel paths pay
 kern = None
 
 
@@ -65,6 +81,9 @@ def check_steps(span: float, dt: float, what: str = 't_end') -> None:
 
 
 def _finite_gait(vals, t: float) -> None:
+    # one test for the common case: a sum is finite only if every term is
+    if math.isfinite(float(np.sum(vals[0]) + np.sum(vals[1]) + np.sum(vals[2]))):
+        return
     for name, arr in zip(('length', 'velocity', 'acceleration'), vals):
         if not np.all(np.isfinite(arr)):
             raise ValueError(f'gait {name} must be finite, got {np.asarray(arr).tolist()} at '
@@ -84,9 +103,11 @@ def fourier_form(gait: Gait) -> tuple[float, NDArray, NDArray] | None:
 
 
 def warm_up() -> None:
-    """Load (or compile, the first time on a machine: tens of seconds) every compiled kernel of
-    the fixed-step methods, so that no numba import, cache load or compilation happens later in
-    a real-time loop (about 1-2 s with a warm cache). Safe to call more than once."""
+    """Import numba and load (or compile, the first time on a machine: tens of seconds) the
+    compiled kernels: ``advance_fourier``, ``advance_table`` and ``batch_step``. A node's ticks
+    (a few steps each) take the interpreted path and never need them; call this at start where
+    long advances or ``simulate`` runs follow (about 1-2 s with a warm cache; then nothing
+    compiles in the loop). Safe to call more than once."""
     from ..gaits import Cubic
     c = Crawler([1.0, 1.0], [0.5, 1.0])
     for g in (Fourier(1.0, ([0.0], [0.1]), 1.0), Cubic(0.0, [1.0], [0.5], [0.0], [-3.0])):
@@ -107,7 +128,6 @@ class TimeStepper:
                  x0: float = 0.0, v0: float = 0.0) -> None:
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise ValueError(f'dt must be a finite step > 0 s, got {dt!r}')
-        _load_kernel()
         self.crawler = crawler
         self.gait = gait
         self.dt = float(dt)
@@ -141,7 +161,7 @@ class TimeStepper:
             if not zmask[i]:
                 contact[i] = 1 if v > 0 else -1
                 force += -self._fp[i] if v > 0 else self._fm[i]
-        a, s = kern._accel_mode(self._M, force, zmask, np.ascontiguousarray(epp), self._fp,
+        a, s = _py._accel_mode(self._M, force, zmask, np.ascontiguousarray(epp), self._fp,
                                 self._fm, kbuf, fpb, fmb, idx, contact)
         R = np.where(contact > 0, -self._fp, np.where(contact < 0, self._fm, 0.0))
         stuck = contact == 0
@@ -176,8 +196,8 @@ class TimeStepper:
         _finite_gait((l, ld, ldd), t)
         ep = np.empty(self._m.size)
         epp = np.empty(self._m.size)
-        kern.rel_rates(self._w, np.ascontiguousarray(ld, dtype=float), ep)
-        kern.rel_rates(self._w, np.ascontiguousarray(ldd, dtype=float), epp)
+        _py.rel_rates(self._w, np.ascontiguousarray(ld, dtype=float), ep)
+        _py.rel_rates(self._w, np.ascontiguousarray(ldd, dtype=float), epp)
         return ep, epp
 
     def _step(self, t_new: float) -> None:
@@ -231,7 +251,7 @@ class ImplicitSolver(TimeStepper):
                  x0: float = 0.0, v0: float = 0.0, use_kernel: bool = True,
                  locate_transitions: bool = True) -> None:
         self.use_kernel = bool(use_kernel)
-        self._max_depth = _load_kernel().MAX_DEPTH if locate_transitions else 0
+        self._max_depth = _py.MAX_DEPTH if locate_transitions else 0
         self._form: tuple = (None, None)
         super().__init__(crawler, gait, dt=dt, t0=t0, x0=x0, v0=v0)
 
@@ -270,6 +290,7 @@ class ImplicitSolver(TimeStepper):
         contact = self.contact.copy()
         R = self.R.copy()
         K = self.K.copy()
+        kern = _load_kernel()
         cap = 64 * p * (kern.MAX_DEPTH + 1)
         ev_t, ev_b = np.empty(cap), np.empty(cap, np.int64)
         ev_o, ev_n = np.empty(cap, np.int8), np.empty(cap, np.int8)
@@ -306,6 +327,7 @@ class ImplicitSolver(TimeStepper):
     def _advance_table(self, t1: float) -> None:
         """Any other gait: l', l'' at a chunk of step ends from one vectorised gait call, the
         steps in the kernel; a step with a transition inside goes through ``_step``."""
+        kern = _load_kernel()
         p = self._m.size
         cap = 64 * p
         ev_t, ev_b = np.empty(cap), np.empty(cap, np.int64)
@@ -359,7 +381,7 @@ class ImplicitSolver(TimeStepper):
         newc = np.empty(p, np.int8)
 
         def chg(c, v, ep, epp) -> bool:
-            return kern.changed(c, v, ep, epp, M, fext, fp, fm, zmask, kbuf, fpb, fmb, idx, tmp)
+            return _py.changed(c, v, ep, epp, M, fext, fp, fm, zmask, kbuf, fpb, fmb, idx, tmp)
 
         for depth in range(self._max_depth + 1):
             h = tb - lo
@@ -367,23 +389,23 @@ class ImplicitSolver(TimeStepper):
                 u = V
                 newc[:] = contact
                 break
-            u, _ = kern.prox(M / h, V, fext, kinks, fp, fm, p, idx)
+            u, _ = _py.prox(M / h, V, fext, kinks, fp, fm, p, idx)
             newc[:] = np.where(u == kinks, 0, np.where(u + epb > 0.0, 1, -1))
-            if np.array_equal(newc, contact) and (kern.first_stuck(contact) < 0 or
+            if np.array_equal(newc, contact) and (_py.first_stuck(contact) < 0 or
                                                   not chg(contact, u, epb, eppb)):
                 break
-            if depth == self._max_depth or h <= kern.BISECT_REL * self.dt:
+            if depth == self._max_depth or h <= _py.BISECT_REL * self.dt:
                 break
-            j = kern.first_stuck(contact)
-            a_lo = (fext + kern.slide_sum(contact, fp, fm)) / M
+            j = _py.first_stuck(contact)
+            a_lo = (fext + _py.slide_sum(contact, fp, fm)) / M
             uc = -epb[j] if j >= 0 else V + a_lo * h
             if not chg(contact, uc, epb, eppb):
                 u = uc                      # the prox's change was its O(h) stick test
                 newc[:] = contact
                 break
             a, b = lo, tb
-            for _ in range(kern._BISECT):
-                if b - a <= kern.BISECT_REL * self.dt:
+            for _ in range(_py._BISECT):
+                if b - a <= _py.BISECT_REL * self.dt:
                     break
                 mid = a + 0.5 * (b - a)
                 ep, epp = self._rates(mid)
@@ -395,11 +417,11 @@ class ImplicitSolver(TimeStepper):
             tau = b
             ep, epp = self._rates(tau)
             vt = -ep[j] if j >= 0 else V + a_lo * (tau - lo)
-            kern.new_mode(contact, vt, ep, epp, M, fext, fp, fm, zmask, kbuf, fpb, fmb, idx,
+            _py.new_mode(contact, vt, ep, epp, M, fext, fp, fm, zmask, kbuf, fpb, fmb, idx,
                           newc)
             hh = tau - lo
             if hh > 0.0:
-                kern.interval_friction(contact, V, vt, hh, M, fext, fp, fm, R)
+                _py.interval_friction(contact, V, vt, hh, M, fext, fp, fm, R)
                 X += hh * vt
                 K += hh * R
             self.contact = contact
@@ -408,7 +430,7 @@ class ImplicitSolver(TimeStepper):
             V, lo = vt, tau
         hh = tb - lo
         if hh > 0.0:
-            kern.interval_friction(newc, V, u, hh, M, fext, fp, fm, R)
+            _py.interval_friction(newc, V, u, hh, M, fext, fp, fm, R)
         X += hh * u
         K += hh * R
         self.contact = contact

@@ -26,7 +26,16 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+try:
+    INTERPRETED                 # set by ``implicit.py`` for its interpreted copy of this module
+except NameError:
+    INTERPRETED = False
+if INTERPRETED:                 # the Python path: the same functions, run by the interpreter
+    def njit(*args, **kwargs):
+        return lambda f: f
+else:
+    from numba import njit
 
 __all__ = ['prox', 'rel_rates', 'changed', 'new_mode', 'interval_friction', 'first_stuck',
            'slide_sum', 'fourier_rates', 'advance_fourier', 'MAX_DEPTH', 'BISECT_REL']
