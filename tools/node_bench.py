@@ -17,6 +17,8 @@ as one trajectory, so it costs no CPU during the run. Scenarios (issue 11 and 12
   trajectories/s: real-time factor and p99. Floors >= 0.95 and < 5 ms.
 - ``huge``: real time; one valid 100k-point trajectory is sent: its intake time (parse and
   checks, reported by the node) and the real-time factor and p99 afterwards. Floor < 100 ms.
+- ``record`` (not in the default list): alternated pairs of ``realtime`` runs without and with
+  recording every output to a bag; the median extra CPU (issue 5's floor: at most 10 %).
 
 Each scenario runs ``--repeats`` times; the medians are printed, with a baseline measured in
 this process: the core engine alone (actuator + exact solver, no ROS) flat out on the same
@@ -93,7 +95,8 @@ def _huge_trajectory(n: int = 100_000):
     return msg
 
 
-def run(scenario: str, seconds: float, method: str, env: dict) -> dict:
+def run(scenario: str, seconds: float, method: str, env: dict,
+        extra: tuple[str, ...] = ()) -> dict:
     import rclpy
     from diagnostic_msgs.msg import DiagnosticArray
     from nav_msgs.msg import Odometry
@@ -109,7 +112,7 @@ def run(scenario: str, seconds: float, method: str, env: dict) -> dict:
     sim = start('sim_node', env, '--params-file',
                 str(_share() / 'config' / 'ros' / 'crawler_sim.yaml'),
                 '-p', f'method:={method}', '-p', f'real_time_factor:={0.0 if fast else 1.0}',
-                '-p', 'start_paused:=true', '-p', 'diagnostics_period:=1.0')
+                '-p', 'start_paused:=true', '-p', 'diagnostics_period:=1.0', *extra)
     gait = start('gait_node', env, '-p', 'use_sim_time:=true', '-p', 'mode:=trajectory',
                  '-p', 'preload:=true', '-p', f'duration:={GAIT_SECONDS}', '-p', 'rate:=50.0')
     procs = [sim, gait]
@@ -202,6 +205,20 @@ def main() -> int:
           f'{args.repeats}, {os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}')
     print(f'  baseline (this process): core engine alone flat out {base:.1f}x real time')
     for scenario in args.only.split(','):
+        if scenario == 'record':
+            import tempfile
+            extra = []
+            with tempfile.TemporaryDirectory() as tmp:
+                for k in range(args.repeats):
+                    base = run('realtime', args.seconds, args.method, env)
+                    rec = run('realtime', args.seconds, args.method, env, extra=(
+                        '-p', 'record:=true', '-p', f'record_dir:={tmp}',
+                        '-p', f'record_name:=bag{k}'))
+                    extra.append(rec['cpu_percent'] / base['cpu_percent'] - 1.0)
+            print(f'  record   | recording every output adds {100 * statistics.median(extra):.1f} '
+                  f'% to the node\'s CPU time (median of {len(extra)} alternated pairs: '
+                  f'{", ".join(f"{100 * e:+.1f}" for e in extra)} %; floor 10 %)', flush=True)
+            continue
         runs = [run(scenario, args.seconds, args.method, env) for _ in range(args.repeats)]
 
         def med(key: str) -> float:
