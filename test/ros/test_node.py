@@ -546,6 +546,12 @@ class FakeBag:
         self.path, self.scene, self.rows, self.closed, self.error = path, scene, [], False, None
         FakeBag.instances.append(self)
 
+    @classmethod
+    def create(cls, record_dir, record_name, *, scene, topics=None):
+        bag = cls(f'{record_dir}/{record_name}', scene)
+        bag.topics = topics
+        return bag
+
     def write(self, topic, type_name, msg, t_ns):
         self.rows.append((topic, type_name, t_ns))
 

@@ -7,8 +7,8 @@ published in between, so the outputs keep their sim-time grid; they go out up to
 period early in wall time). A tick that starts more than one tick period after its wall
 deadline is counted as late, and the loop catches up by running the due ticks back to back
 (beyond :data:`MAX_LAG` of lag it gives up on the lost time and re-anchors).
-Diagnostics go out every ``diagnostics_period`` wall seconds and the bag is flushed on a wall
-timer (``recording.FLUSH_PERIOD``), both from this loop, so neither waits for a message.
+Diagnostics go out every ``diagnostics_period`` wall seconds from this loop, so they do not
+wait for a message; the bag flushes itself on a wall timer in its own thread (crawler_sim.bag).
 """
 from __future__ import annotations
 
@@ -52,11 +52,9 @@ def _loop(node) -> None:
     anchor_wall = now()
     anchor_tick = 0
     next_diag = anchor_wall + node._cfg.diagnostics_period
-    next_flush = anchor_wall
     ok = node.context.ok
     counters = node.counters
     lateness = node._diag
-    recorder = node.recorder
     if counters['ticks'] == 0:
         with node._lock:
             node._publish_outputs()       # the initial state at t = 0 (a bag starts there)
@@ -70,9 +68,6 @@ def _loop(node) -> None:
         if t >= next_diag:
             node._publish_diagnostics(t)
             next_diag = t + node._cfg.diagnostics_period
-        if t >= next_flush:
-            recorder.maybe_flush(time.monotonic())
-            next_flush = t + 0.1
         if node.paused:
             node.take_inputs()        # count (and warn about) commands while paused too
             time.sleep(0.01)

@@ -116,7 +116,15 @@ class SimNode(Node):
             scene = {k: (list(v) if isinstance(v, (list, tuple)) else v)
                      for k, v in self._cfg.values.items()}
             scene['crawler'] = self._cfg.crawler.to_dict()
-            self.recorder.open(self._cfg.record_dir, self._cfg.record_name, scene)
+            # every topic the run records, so the bag holds their schemas and channels from its
+            # first millisecond (a run killed before its first chunk is still readable)
+            recorded = {**self.outputs.topics(), 'linkage_cmd': M.OUTPUT_TYPES['linkage_cmd'],
+                        '~/applied_command': M.OUTPUT_TYPES['applied_command'],
+                        'linkage_trajectory': 'trajectory_msgs/msg/JointTrajectory',
+                        'events': 'std_msgs/msg/Int32MultiArray',
+                        '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray'}
+            topics = {self._absolute_topic(name): type_ for name, type_ in recorded.items()}
+            self.recorder.open(self._cfg.record_dir, self._cfg.record_name, scene, topics)
 
     # ------------------------------------------------------------------ compatibility
     @property

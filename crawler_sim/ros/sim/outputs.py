@@ -73,6 +73,10 @@ class Outputs:
             node.destroy_publisher(self.clock_pub)
             self.clock_pub = None
 
+    def topics(self) -> dict[str, str]:
+        """``{topic: type}`` of the grid outputs this node publishes (as given, unresolved)."""
+        return {topic: M.OUTPUT_TYPES[name] for name, topic, *_ in self._grid}
+
     def publish(self, state_of: Callable[[], Any], t_ns: int, masses, record=None) -> None:
         """Publish /clock and every output taken by someone at sim time ``t_ns``; ``record``
         (topic, type, bytes, t_ns) gets each output before it is published, so what a

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import math
 from typing import Any
 
+from crawler_sim.bag.naming import check_record_name
 from crawler_sim.core.actuator import ActuatorLimits
 from crawler_sim.core.engine import EngineConfig
 from crawler_sim.core.model import Crawler
@@ -206,6 +207,8 @@ class SimConfig:
         _per_body('penalty', v['penalty'], p, 0.0, MAX_VALUE, lo_open=True)
         if v['method'] not in METHODS:
             raise ValueError(f'method must be one of {", ".join(METHODS)}, got {v["method"]!r}')
+        if v['record_name']:      # a bag name stays inside record_dir: refused before the run
+            check_record_name(v['record_name'])
         crawler = Crawler(masses, fwd, bwd, v['slope'], v['gravity'])
         lo, hi = v['min_length'], v['max_length']
         if not lo < hi:

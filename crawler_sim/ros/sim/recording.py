@@ -2,33 +2,16 @@
 
 Recording never stops the simulation: an error closes the bag, is logged once and is reported
 in the diagnostics (``recording_error``). Topics are recorded under their resolved names
-(``~/x`` and relative names expanded as ROS does). The bag is flushed every
-:data:`FLUSH_PERIOD` wall seconds by the loop (:meth:`Recorder.maybe_flush`), whether or not
-a message arrives, so a SIGKILL loses at most that much of the run.
+(``~/x`` and relative names expanded as ROS does). The bag's folder is confined to
+``record_dir`` and unique per process (``BagWriter.create``); the writer flushes itself every
+0.5 wall seconds from its own thread, whether or not a message arrives, so a SIGKILL loses at
+most that much of the run and the node's loop never waits on the disk.
 """
 from __future__ import annotations
 
-import os
-import time
 from typing import Any, Callable
 
-__all__ = ['Recorder', 'bag_name', 'applied_trajectory', 'FLUSH_PERIOD']
-
-FLUSH_PERIOD = 0.5      # wall s between two flushes of the bag
-
-
-def bag_name(record_name: str, when: float | None = None) -> str:
-    """The bag's directory name: ``record_name``, or ``crawler_sim_<date>-<time>-<pid>``
-    (unique per process, so two nodes started in the same second do not collide). A name
-    that would leave ``record_dir`` (a path separator, ``..``) raises ValueError."""
-    if not record_name:
-        stamp = time.strftime('%Y%m%d-%H%M%S', time.localtime(when))
-        return f'crawler_sim_{stamp}-{os.getpid()}'
-    if (os.sep in record_name or '/' in record_name or record_name in ('.', '..')
-            or os.path.isabs(record_name)):
-        raise ValueError(f'record_name {record_name!r} must be a plain name inside record_dir '
-                         '(no path separators, not . or ..)')
-    return record_name
+__all__ = ['Recorder', 'applied_trajectory']
 
 
 def applied_trajectory(raw: bytes, stamp_ns: int, t_ns: int) -> bytes:
@@ -52,7 +35,6 @@ class Recorder:
         self.bag = None
         self.path = ''
         self.error = ''
-        self._last_flush = time.monotonic()
 
     @property
     def on(self) -> bool:
@@ -61,21 +43,11 @@ class Recorder:
     def open(self, record_dir: str, record_name: str, scene: dict[str, Any],
              topics: dict[str, str] | None = None) -> None:
         """Start recording; on failure set ``error`` and stay off."""
-        path = os.path.join(record_dir, record_name or '?')
+        path = f'{record_dir}/{record_name or "<default name>"}'
         try:
             from crawler_sim.bag import BagWriter
-            create = getattr(BagWriter, 'create', None)
-            if create is not None:       # confines and uniquifies the name itself
-                self.bag = create(record_dir, record_name, scene=scene, topics=topics)
-                path = str(getattr(self.bag, 'path', path))
-            else:
-                path = os.path.join(record_dir, bag_name(record_name))
-                if os.path.exists(path):
-                    raise FileExistsError(f'{path} exists: choose another record_name')
-                os.makedirs(record_dir, exist_ok=True)
-                self.bag = BagWriter(path, scene=scene)
-            self.path = path
-            self._last_flush = time.monotonic()
+            self.bag = BagWriter.create(record_dir, record_name, scene=scene, topics=topics)
+            path = self.path = str(self.bag.path)
             self._log.info(f'recording to {path}')
         except Exception as exc:  # recording must never stop the simulation
             self.error = f'{type(exc).__name__}: {exc}'
@@ -93,16 +65,6 @@ class Recorder:
             bag.write(name, type_name, msg, t_ns)
             if getattr(bag, 'error', None):
                 raise RuntimeError(bag.error)
-        except Exception as exc:
-            self._fail(exc)
-
-    def maybe_flush(self, now: float) -> None:
-        """Flush when FLUSH_PERIOD wall seconds passed since the last flush."""
-        if self.bag is None or now - self._last_flush < FLUSH_PERIOD:
-            return
-        self._last_flush = now
-        try:
-            self.bag.flush()
         except Exception as exc:
             self._fail(exc)
 
