@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..gaits import Gait
+from ..gaits import Fourier, Gait, Sinusoid
 from ..model import Crawler
 from ..trajectory import Event, EventLog
 from .contact import solve_inclusion, split_friction
@@ -262,6 +262,8 @@ class ExactSolver:
     displacement, so whole periods are skipped and stored as one ``PeriodicBlock``
     (``periodic_skip=False`` turns this off).
     """
+
+    use_kernel = True     # compiled search for Fourier / Sinusoid gaits (``kernel``)
 
     def __init__(self, crawler: Crawler, gait: Gait, *, t0: float = 0.0, x0: float = 0.0,
                  v0: float = 0.0, tol: float = 1e-13, max_step: float | None = None,
@@ -705,6 +707,23 @@ class ExactSolver:
         if rows is None:
             return t_stop, []
         cap = self._cap(seg.gait, seg.t0, t_stop)
+        if self.use_kernel and type(seg.gait) in (Fourier, Sinusoid):
+            from . import kernel      # imports numba: only when a trigonometric gait runs
+            # trigonometric gait: the same search compiled, the gait evaluated inside
+            end = float(np.nextafter(t_stop, -math.inf)) if left_limit else t_stop
+            if end <= seg.t0:
+                return t_stop, []
+            b2, b1 = rows.bounds(seg.gait, seg.t0, t_stop)
+            t_ev, hit = kernel.search(seg.t0, end, rows, kernel.coefficients(seg.gait), b2, b1,
+                                      self.tol, cap)
+            if t_ev < 0.0:
+                check_finite_gait(seg.gait._eval(np.array([seg.t0, end])), [seg.t0, end])
+                raise ValueError('gait values must be finite')
+            if not math.isfinite(t_ev):
+                return t_stop, []
+            if t_ev >= end and end < t_stop:
+                t_ev = t_stop     # the left limit at a breakpoint: the event is the breakpoint
+            return t_ev, sorted({labels[k] for k in np.nonzero(hit)[0].tolist()})
         est = None
         for _ in range(12):
             search = Search(seg.gait, rows, self.tol, cap)
