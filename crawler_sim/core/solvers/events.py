@@ -148,7 +148,8 @@ class Search:
         """A step from a that the bounds are likely to accept (sets the cost only)."""
         g = np.where(active, np.maximum(ga, 0.0), math.inf)
         with np.errstate(divide='ignore', invalid='ignore'):
-            h = np.fmax(np.sqrt(8.0 * g / b2), 2.0 * g / b1)     # NaN: inf / inf
+            # bounds that leave half of g(a): the next point passes unless g drops by half
+            h = np.fmax(np.sqrt(4.0 * g / b2), g / b1)     # NaN: inf / inf
         h = float(np.where(np.isnan(h), math.inf, h).min(initial=math.inf))
         return min(max(h, 64.0 * self.tol), self.cap)
 

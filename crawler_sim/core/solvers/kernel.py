@@ -1,4 +1,4 @@
-"""Compiled event search for trigonometric gaits (`Fourier`, `Sinusoid`): ``events.Search`` in numba.
+"""Compiled event search for trigonometric gaits (`Fourier`, `Sinusoid`): ``events`` in numba.
 
 Same rows, bounds and rules as ``events`` (see its docstring), one point at a time instead of
 chunks, with the gait l' and l'' evaluated inside the kernel from its Fourier coefficients:
@@ -71,8 +71,8 @@ if True:  # (one block, indented)
             if watch[r]:
                 continue
             g = max(ga[r], 0.0)
-            h2 = math.sqrt(8.0 * g / B2[r]) if B2[r] > 0 else math.inf
-            h1 = 2.0 * g / B1[r] if B1[r] > 0 else math.inf
+            h2 = math.sqrt(4.0 * g / B2[r]) if B2[r] > 0 else math.inf
+            h1 = g / B1[r] if B1[r] > 0 else math.inf
             h = min(h, max(h2, h1))
         return min(max(h, 64.0 * tol), cap)
 
