@@ -37,7 +37,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from ..gaits import Fourier, Gait, Sinusoid
+from ..gaits import Fourier, Gait, Scallop, Sinusoid
 from ..model import Crawler
 from ..trajectory import Event, EventLog
 from .contact import solve_inclusion, split_friction
@@ -78,7 +78,7 @@ class ExactSolver:
     (``periodic_skip=False`` turns this off).
     """
 
-    use_kernel = True     # compiled search for Fourier / Sinusoid gaits (``kernel``)
+    use_kernel = True     # compiled search for Fourier / Sinusoid / Scallop gaits (``kernel``)
 
     def __init__(self, crawler: Crawler, gait: Gait, *, t0: float = 0.0, x0: float = 0.0,
                  v0: float = 0.0, tol: float = 1e-13, max_step: float | None = None,
@@ -523,7 +523,7 @@ class ExactSolver:
         if rows is None:
             return t_stop, []
         cap = self._cap(seg.gait, seg.t0, t_stop)
-        if self.use_kernel and type(seg.gait) in (Fourier, Sinusoid):
+        if self.use_kernel and type(seg.gait) in (Fourier, Scallop, Sinusoid):
             from . import kernel      # imports numba: only when a trigonometric gait runs
             # trigonometric gait: the same search compiled, the gait evaluated inside
             end = float(np.nextafter(t_stop, -math.inf)) if left_limit else t_stop
