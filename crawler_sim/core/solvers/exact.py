@@ -37,7 +37,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from ..gaits import Fourier, Gait, Scallop, Sinusoid
+from ..gaits import Cubic, Fourier, Gait, PiecewiseCubic, Scallop, Sinusoid
 from ..model import Crawler
 from ..trajectory import Event, EventLog
 from .contact import solve_inclusion, split_friction
@@ -47,6 +47,7 @@ from .segments import PeriodicBlock, Segment, _split_impulse, evaluate_rows, off
 __all__ = ['ExactSolver', 'PeriodicBlock', 'Segment', 'evaluate_rows', 'offset_matrices',
            'check_finite_gait']
 
+_COMPILED = (Fourier, Sinusoid, Scallop, Cubic, PiecewiseCubic)   # gaits the kernel evaluates
 _AMBIGUOUS = 1e-10   # relative slack below which a mode choice is decided by look-ahead
 _EPS = np.finfo(float).eps
 
@@ -78,7 +79,7 @@ class ExactSolver:
     (``periodic_skip=False`` turns this off).
     """
 
-    use_kernel = True     # compiled search for Fourier / Sinusoid / Scallop gaits (``kernel``)
+    use_kernel = True     # compiled search for the gaits in _COMPILED (``kernel``)
 
     def __init__(self, crawler: Crawler, gait: Gait, *, t0: float = 0.0, x0: float = 0.0,
                  v0: float = 0.0, tol: float = 1e-13, max_step: float | None = None,
@@ -99,6 +100,9 @@ class ExactSolver:
         self._free = (self._fp + self._fm) == 0.0
         self._fp_list, self._fm_list = self._fp.tolist(), self._fm.tolist()
         self._f_total = float(self._fp.sum() + self._fm.sum())   # [N], scales of the tests
+        if self.use_kernel and type(gait) in _COMPILED:
+            from . import kernel    # numba: loaded here, not in the first (real-time) advance
+            kernel.warm()
         self.reset(t0=t0, x0=x0, v0=v0)
 
     # ------------------------------------------------------------------ state
@@ -523,7 +527,7 @@ class ExactSolver:
         if rows is None:
             return t_stop, []
         cap = self._cap(seg.gait, seg.t0, t_stop)
-        if self.use_kernel and type(seg.gait) in (Fourier, Scallop, Sinusoid):
+        if self.use_kernel and type(seg.gait) in _COMPILED:
             from . import kernel      # imports numba: only when a trigonometric gait runs
             # trigonometric gait: the same search compiled, the gait evaluated inside
             end = float(np.nextafter(t_stop, -math.inf)) if left_limit else t_stop

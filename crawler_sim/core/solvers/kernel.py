@@ -1,4 +1,4 @@
-"""Compiled event search for `Fourier`, `Sinusoid` and `Scallop` gaits: ``events`` in numba.
+"""Compiled event search for the trigonometric and cubic gaits: ``events`` in numba.
 
 Same rows, bounds and rules as ``events`` (see its docstring), one point at a time instead of
 chunks, with the gait l' and l'' evaluated inside the kernel: from the Fourier coefficients,
@@ -25,6 +25,19 @@ from numba import njit
 if True:  # (one block, indented)
     @njit(cache=True)
     def rates(t, kind, freq, cosc, sinc, ld, ldd):
+        if kind == 2:
+            # constant-jerk pieces (gaits.cubic): sinc rows (start, t0), cosc rows
+            # (l0, v0, a0, jerk) per linkage; the expressions of cubic_values
+            k = 0
+            while k + 1 < sinc.shape[0] and sinc[k + 1, 0] <= t:
+                k += 1
+            d = t - sinc[k, 1]
+            for j in range(ld.size):
+                a0 = cosc[k, 4 * j + 2]
+                jk = cosc[k, 4 * j + 3]
+                ld[j] = cosc[k, 4 * j + 1] + d * (a0 + 0.5 * d * jk)
+                ldd[j] = a0 + d * jk
+            return
         th = 2.0 * math.pi * ((freq * t) % 1.0)
         w = 2.0 * math.pi * freq
         if kind == 1:
@@ -211,8 +224,10 @@ if True:  # (one block, indented)
 
 def coefficients(gait):
     """(kind, freq, P1, P2) of a Fourier / Sinusoid (kind 0: cos and sin coefficients, shape
-    (n_links, K)) or Scallop gait (kind 1: rows amplitude, phase - pi r, c, s), or None."""
-    from ..gaits import Fourier, Scallop, Sinusoid
+    (n_links, K)), Scallop (kind 1: rows amplitude, phase - pi r, c, s) or Cubic /
+    PiecewiseCubic gait (kind 2: rows of (l0, v0, a0, jerk) per linkage, and of (start, t0)
+    per piece), or None."""
+    from ..gaits import Cubic, Fourier, PiecewiseCubic, Scallop, Sinusoid
     cached = getattr(gait, '_kernel_coefficients', None)
     if cached is not None:
         return cached
@@ -228,6 +243,11 @@ def coefficients(gait):
         rows = np.column_stack([gait.amplitude, gait.phase - math.pi * gait.asymmetry,
                                 np.full(n, gait._c), np.full(n, gait._s)])
         out = (1, gait.frequency, np.ascontiguousarray(rows), np.zeros((n, 1)))
+    elif type(gait) in (Cubic, PiecewiseCubic):
+        pieces = [gait] if type(gait) is Cubic else gait.pieces
+        starts = [gait.t0] if type(gait) is Cubic else gait._starts
+        coef = np.array([[x for row in pc._rows for x in row] for pc in pieces])
+        out = (2, 1.0, coef, np.array([[st, pc.t0] for st, pc in zip(starts, pieces)]))
     else:
         return None
     gait._kernel_coefficients = out
@@ -241,3 +261,18 @@ def search(t0: float, end: float, rows, coef, B2, B1, tol: float, cap: float):
                    np.ascontiguousarray(rows.A2), int(kind), float(freq), p1, p2,
                    np.ascontiguousarray(B2, dtype=float), np.ascontiguousarray(B1, dtype=float),
                    float(tol), float(cap))
+
+
+_WARM = False
+
+
+def warm() -> None:
+    """Load (or compile) the kernel now with one tiny search, so the first real search of a
+    real-time loop does not pay for it (about 0.1-1 s per process with a warm disk cache)."""
+    global _WARM
+    if _WARM:
+        return
+    one = np.ones(1)
+    z = np.zeros((1, 1))
+    _search(0.0, 1.0, one, one * 0.0, np.ones((1, 1)), z, 0, 1.0, z, z, one, one, 1e-13, 1.0)
+    _WARM = True
