@@ -155,3 +155,30 @@ def test_stick_then_slip_of_a_cubic_onset_matches_the_closed_form():
     ev = [e for e in tr.events if e.body == 0 and e.time > 0]
     assert ev and ev[0].old == 0 and ev[0].new == -1
     assert abs(ev[0].time - 0.5) <= 1e-15 * 4
+
+
+@pytest.mark.parametrize('seed', range(5))
+def test_the_compiled_search_finds_the_events_of_the_python_search(seed, monkeypatch):
+    # kernel.py (numba, the gait evaluated inside) and events.Search (numpy chunks) are two
+    # implementations of the same rules; each is the other's reference, event by event.
+    from crawler_sim.core.solvers.exact import ExactSolver
+    rng = np.random.default_rng(seed)
+    p = 2 + seed % 3
+    m = rng.uniform(0.5, 2.0, p)
+    c = cs.Crawler(m, rng.uniform(0.3, 2.0, p) * m, slope=0.05 * (seed % 3))
+    if seed < 3:
+        g = gaits.Fourier(np.full(p - 1, 1.0), (rng.uniform(-0.1, 0.1, (p - 1, 2)),
+                                                rng.uniform(-0.2, 0.2, (p - 1, 2))), 1.3)
+    else:      # sharp and mild Scallops, phases lagging along the body
+        g = gaits.Scallop(1.0, rng.uniform(0.1, 0.3, p - 1), 1.1, (0.07, 0.35)[seed - 3],
+                          -0.8 * np.arange(p - 1))
+    runs = []
+    for compiled in (True, False):
+        monkeypatch.setattr(ExactSolver, 'use_kernel', compiled)
+        runs.append(cs.simulate(c, g, 4.0, periodic_skip=False))
+    a, b = runs
+    assert len(a.events) == len(b.events) > 5
+    for x, y in zip(a.events, b.events):
+        assert (x.body, x.old, x.new) == (y.body, y.old, y.new)
+        assert abs(x.time - y.time) <= 1e-13
+    np.testing.assert_allclose(a.x[-1], b.x[-1], rtol=0, atol=1e-12)

@@ -57,14 +57,26 @@ def test_t_end_beyond_the_float_time_resolution_is_refused_naming_t_end():
         cs.simulate(cs.Crawler([1, 1], [1, 1]), gaits.Sinusoid(1.0, 0.3, 1.0), 1e15)
 
 
-def test_a_1e7_s_periodic_run_with_1001_samples_stays_under_200_MB():
+@pytest.mark.parametrize('compiled', [False, True])
+def test_a_1e7_s_periodic_run_with_1001_samples_does_not_grow_memory(compiled):
+    # peak RSS after a 10 s run, then after a 1e7 s run (1001 samples each), in a fresh
+    # process: the long run must not add more than 50 MB.
     code = ('import resource, numpy as np, crawler_sim as cs\n'
+            'from crawler_sim.core.solvers.exact import ExactSolver\n'
+            f'ExactSolver.use_kernel = {compiled}\n'
             'c = cs.Crawler([1.0, 1.0], [5.0, 10.0])\n'
             'g = cs.gaits.Fourier(1.0, ([0.0, 0.0], [0.3, 0.09]), 5.0)\n'
+            'def peak(): return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024\n'
+            'cs.simulate(c, g, 10.0, t_eval=np.linspace(0, 10.0, 1001))\n'
+            'short = peak()\n'
             'tr = cs.simulate(c, g, 1e7, t_eval=np.linspace(0, 1e7, 1001))\n'
             'assert np.all(np.isfinite(tr.x)) and len(tr.events) > 1e8\n'
-            'print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)\n')
+            'print(short, peak())\n')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                          timeout=600)
     assert out.returncode == 0, out.stderr
-    assert float(out.stdout.split()[-1]) < 200.0
+    short, long_ = map(float, out.stdout.split()[-2:])
+    # growth only: the baseline depends on the environment (numba's import and cache load
+    # alone take ~130 MB; under colcon's test environment the process starts far higher).
+    # Measured by hand (tools/exact_speed.py's machine): 38 MB whole process without numba.
+    assert long_ - short < 50.0, (short, long_)

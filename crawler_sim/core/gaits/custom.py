@@ -57,11 +57,10 @@ class Custom(Gait):
         return super().__call__(t)
 
     def _eval(self, t: NDArray[np.float64]) -> Triple:
-        out = [np.empty((t.size, self.n_links)) for _ in range(3)]
-        for k, tk in enumerate(t.tolist()):
-            for arr, fn in zip(out, self._fns):
-                arr[k] = np.asarray(fn(tk), dtype=float)
-        return tuple(out)
+        ts = t.tolist()
+        # one conversion per derivative (floats or arrays alike), not one per time
+        return tuple(np.array([fn(tk) for tk in ts], dtype=float).reshape(t.size, self.n_links)
+                     for fn in self._fns)
 
     def breakpoints(self, t0: float, t1: float) -> NDArray[np.float64]:
         b = self._breaks

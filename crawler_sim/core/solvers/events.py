@@ -148,7 +148,8 @@ class Search:
         """A step from a that the bounds are likely to accept (sets the cost only)."""
         g = np.where(active, np.maximum(ga, 0.0), math.inf)
         with np.errstate(divide='ignore', invalid='ignore'):
-            h = np.fmax(np.sqrt(8.0 * g / b2), 2.0 * g / b1)     # NaN: inf / inf
+            # bounds that leave half of g(a): the next point passes unless g drops by half
+            h = np.fmax(np.sqrt(4.0 * g / b2), g / b1)     # NaN: inf / inf
         h = float(np.where(np.isnan(h), math.inf, h).min(initial=math.inf))
         return min(max(h, 64.0 * self.tol), self.cap)
 
@@ -172,7 +173,11 @@ class Search:
         return np.where(watch, g < -self._noise, g <= 0.0)
 
     def _scan(self, a: float, end: float, ga: NDArray, watch: NDArray, h0, t_stop):
-        """Scan [a, end] from a (proven up to a). Returns (t, hits) or (t_stop, None)."""
+        """Scan [a, end] from a (proven up to a). Returns (t, hits) or (t_stop, None).
+
+        Each chunk is checked at once: interval i runs from point i - 1 to point i (point 0 is
+        a); a watched row becomes ordinary after its first point above the noise level.
+        """
         noise = self._noise
         b2, b1 = self._bounds(a, min(a + self.cap, end))
         h = self._step(ga, ~watch, b2, b1) if h0 is None else min(h0, self.cap)
@@ -183,21 +188,29 @@ class Search:
             if tau[-1] >= end:
                 tau = np.append(tau[tau < end], end)
             G = self._eval(tau)
-            self._observe(np.concatenate(([a], tau)), np.vstack([ga, G]))
+            ta = np.concatenate(([a], tau))
+            Ga = np.vstack([ga, G])
+            self._observe(ta, Ga)
             b2, b1 = self._bounds(a, float(tau[-1]))
-            failed = False
-            for i in range(tau.size):
-                tb, gb = float(tau[i]), G[i]
-                if self._bad(gb, watch).any():
-                    return self._refine(a, tb, ga, gb, watch, t_stop, end)
-                ok = (self._lower(tb - a, ga, gb, b2, b1) > 0.0) | watch
-                if not ok.all() and tb - a > self.tol:
-                    failed = True
-                    h = max(0.25 * (tb - a), 0.5 * self.tol)
-                    break
-                watch = watch & ~(gb > noise)
-                a, ga = tb, gb
-            if not failed:
+            # watch state on each interval: not yet above the noise at its start point
+            w = watch & ~np.logical_or.accumulate(Ga[:-1] > noise, axis=0)
+            bad = np.where(w, G < -noise, G <= 0.0).any(axis=1)
+            hs = np.diff(ta)[:, None]
+            lo = np.maximum(np.minimum(Ga[:-1], G) - b2 * (hs * hs / 8.0),
+                            0.5 * (Ga[:-1] + G) - b1 * (hs / 2.0))
+            fail = ~((lo > 0.0) | w).all(axis=1) & (hs[:, 0] > self.tol)
+            k_bad = int(np.argmax(bad)) if bad.any() else tau.size
+            k_fail = int(np.argmax(fail)) if fail.any() else tau.size
+            if k_bad < tau.size and k_bad <= k_fail:
+                return self._refine(float(ta[k_bad]), float(tau[k_bad]), Ga[k_bad], G[k_bad],
+                                    w[k_bad], t_stop, end)
+            k = min(k_fail, tau.size)          # intervals 0 .. k-1 are proven
+            if k > 0:
+                watch = w[k - 1] & ~(G[k - 1] > noise)
+                a, ga = float(tau[k - 1]), G[k - 1]
+            if k < tau.size:
+                h = max(0.25 * float(hs[k, 0]), 0.5 * self.tol)
+            else:
                 rule = self._step(ga, ~watch, b2, b1)
                 # estimated bounds: grow at most 2x per chunk, so the estimate sees the gait
                 h = rule if self.known else min(rule, 2.0 * h)

@@ -1,0 +1,278 @@
+"""Compiled event search for the trigonometric and cubic gaits: ``events`` in numba.
+
+Same rows, bounds and rules as ``events`` (see its docstring), one point at a time instead of
+chunks, with the gait l' and l'' evaluated inside the kernel: from the Fourier coefficients,
+
+    l_j(t) = mean_j + sum_k a_jk cos(k th) + b_jk sin(k th),  th = 2 pi (f t mod 1),
+
+or from the Scallop's closed form (``gaits.smooth.Scallop``). The bounds are those of the whole
+segment (a Scallop's local ones from its bins), so steps are smaller than the Python search's
+in a slow phase, and cost about 0.1 us each.
+
+numba with ``cache=True`` (compiled once per machine into __pycache__, then loaded in about a
+tenth of a second): it needs no build step in colcon or setup.py, numba is already a dependency
+of the implicit kernels, and the kernel stays plain Python for reading and testing. ``exact``
+imports this module only when a trigonometric gait is run, so ``import crawler_sim`` and ROS
+nodes that never run one do not import numba.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+if True:  # (one block, indented)
+    @njit(cache=True)
+    def rates(t, kind, freq, cosc, sinc, ld, ldd):
+        if kind == 2:
+            # constant-jerk pieces (gaits.cubic): sinc rows (start, t0), cosc rows
+            # (l0, v0, a0, jerk) per linkage; the expressions of cubic_values
+            k = 0
+            while k + 1 < sinc.shape[0] and sinc[k + 1, 0] <= t:
+                k += 1
+            d = t - sinc[k, 1]
+            for j in range(ld.size):
+                a0 = cosc[k, 4 * j + 2]
+                jk = cosc[k, 4 * j + 3]
+                ld[j] = cosc[k, 4 * j + 1] + d * (a0 + 0.5 * d * jk)
+                ldd[j] = a0 + d * jk
+            return
+        th = 2.0 * math.pi * ((freq * t) % 1.0)
+        w = 2.0 * math.pi * freq
+        if kind == 1:
+            # Scallop (gaits.smooth): cosc rows hold (amplitude, phase - pi r, c, s)
+            for j in range(cosc.shape[0]):
+                amp, off, c, s = cosc[j, 0], cosc[j, 1], cosc[j, 2], cosc[j, 3]
+                x = th + off
+                cx = math.cos(x)
+                sx = math.sin(x)
+                inv_d = 1.0 / (1.0 - c * cx)
+                sin_phi = s * sx * inv_d
+                cos_phi = (cx - c) * inv_d
+                dphi = s * inv_d
+                ddphi = -s * c * sx * inv_d ** 2
+                ld[j] = amp * w * cos_phi * dphi
+                ldd[j] = amp * w ** 2 * (cos_phi * ddphi - sin_phi * dphi ** 2)
+            return
+        nl, nk = cosc.shape
+        for j in range(nl):
+            s1 = 0.0
+            s2 = 0.0
+            for k in range(nk):
+                wk = w * (k + 1)
+                c = math.cos((k + 1) * th)
+                s = math.sin((k + 1) * th)
+                s1 += wk * (sinc[j, k] * c - cosc[j, k] * s)
+                s2 -= wk * wk * (cosc[j, k] * c + sinc[j, k] * s)
+            ld[j] = s1
+            ldd[j] = s2
+
+    @njit(cache=True)
+    def values(t, t0, c0, c1, A1, A2, kind, freq, cosc, sinc, ld, ldd, g):
+        rates(t, kind, freq, cosc, sinc, ld, ldd)
+        K, nl = A1.shape
+        for r in range(K):
+            v = c0[r] + c1[r] * (t - t0)
+            for j in range(nl):
+                v += A1[r, j] * ld[j] + A2[r, j] * ldd[j]
+            g[r] = v
+
+    @njit(cache=True)
+    def bad_any(g, watch, noise):
+        for r in range(g.size):
+            if (watch[r] and g[r] < -noise[r]) or (not watch[r] and g[r] <= 0.0):
+                return True
+        return False
+
+    @njit(cache=True)
+    def proven(h, ga, gb, watch, B2, B1):
+        for r in range(ga.size):
+            if watch[r]:
+                continue
+            lo2 = min(ga[r], gb[r]) - B2[r] * (h * h / 8.0)
+            lo1 = 0.5 * (ga[r] + gb[r]) - B1[r] * (h / 2.0)
+            if max(lo2, lo1) <= 0.0:
+                return False
+        return True
+
+    @njit(cache=True)
+    def step(ga, watch, B2, B1, tol, cap):
+        h = math.inf
+        for r in range(ga.size):
+            if watch[r]:
+                continue
+            g = max(ga[r], 0.0)
+            h2 = math.sqrt(4.0 * g / B2[r]) if B2[r] > 0 else math.inf
+            h1 = g / B1[r] if B1[r] > 0 else math.inf
+            h = min(h, max(h2, h1))
+        return min(max(h, 64.0 * tol), cap)
+
+    @njit(cache=True)
+    def _search(t0, end, c0, c1, A1, A2, kind, freq, cosc, sinc, B2, B1, tol, cap):
+        """First event in (t0, end]: (t, hit rows), or (inf, empty) when there is none."""
+        K, nl = A1.shape
+        ld = np.empty(nl)
+        ldd = np.empty(nl)
+        ga = np.empty(K)
+        values(t0, t0, c0, c1, A1, A2, kind, freq, cosc, sinc, ld, ldd, ga)
+        noise = np.empty(K)
+        watch = np.empty(K, dtype=np.bool_)
+        for r in range(K):
+            sc = abs(c0[r]) + abs(c1[r]) * (end - t0)
+            for j in range(nl):
+                sc += abs(A1[r, j] * ld[j]) + abs(A2[r, j] * ldd[j])
+            noise[r] = 1e-13 * sc + 1e-300
+            watch[r] = ga[r] <= 0.0
+        a = t0
+        h = step(ga, watch, B2, B1, tol, cap)
+        for r in range(K):
+            if watch[r]:
+                h = min(h, max(1e3 * tol, 1e-9 * (end - a)))
+        gm = np.empty(K)
+        gb = np.empty(K)
+        gs = np.empty(K)
+        fa = np.empty(K)
+        fb = np.empty(K)
+        have_b = False       # a point b > a where some row is bad (the bracket)
+        b = math.inf
+        saved = False        # a bracket put aside while [a, m] is scanned
+        sb = math.inf
+        lim = end            # scanning limit while a bracket is put aside
+        side = 0
+        w_hist0 = math.inf
+        w_hist1 = math.inf
+        w_hist2 = math.inf
+        for _ in range(100000):
+            if have_b:
+                m = 0.5 * (a + b)
+                if not (a < m < b):
+                    break
+                w = b - a
+                if w < 0.5 * w_hist0:
+                    f = 1.0
+                    for r in range(K):
+                        bad = (watch[r] and gb[r] < -noise[r]) or (
+                            not watch[r] and gb[r] <= 0.0)
+                        den = fa[r] - fb[r]
+                        if bad and den != 0.0:
+                            fr = fa[r] / den
+                            if fr < f:
+                                f = fr
+                    if 0.0 < f < 1.0 and a < a + f * w < b:
+                        m = a + f * w
+                w_hist0, w_hist1, w_hist2 = w_hist1, w_hist2, w
+            else:
+                if a >= lim:
+                    if saved:        # the put-aside part is proven: back to its bracket
+                        have_b = True
+                        saved = False
+                        b = sb
+                        gb[:] = gs
+                        for r in range(K):
+                            lvl = -noise[r] if watch[r] else 0.0
+                            fa[r] = ga[r] - lvl
+                            fb[r] = gb[r] - lvl
+                        lim = end
+                        side = 0
+                        continue
+                    return math.inf, gb[:0] > 0.0
+                m = min(a + h, lim)
+            values(m, t0, c0, c1, A1, A2, kind, freq, cosc, sinc, ld, ldd, gm)
+            if not np.all(np.isfinite(gm)):
+                return -1.0, gb[:0] > 0.0          # non-finite gait: the caller raises
+            if bad_any(gm, watch, noise):
+                saved = False
+                lim = end
+                have_b = True
+                b = m
+                gb[:] = gm
+                for r in range(K):
+                    lvl = -noise[r] if watch[r] else 0.0
+                    fb[r] = gm[r] - lvl
+                    fa[r] = (ga[r] - lvl) * (0.5 if side == -1 else 1.0)
+                side = -1
+                continue
+            if m - a > tol and not proven(m - a, ga, gm, watch, B2, B1):
+                if have_b:           # scan [a, m] first, the bracket put aside
+                    saved = True
+                    sb = b
+                    gs[:] = gb
+                    have_b = False
+                    lim = m
+                h = max(0.25 * (m - a), 0.5 * tol)
+                continue
+            for r in range(K):
+                if watch[r] and gm[r] > noise[r]:
+                    watch[r] = False
+            a = m
+            ga[:] = gm
+            if have_b:
+                for r in range(K):
+                    lvl = -noise[r] if watch[r] else 0.0
+                    fa[r] = ga[r] - lvl
+                    if side == 1:
+                        fb[r] *= 0.5
+                side = 1
+            else:
+                h = step(ga, watch, B2, B1, tol, cap)
+        hits = np.empty(K, dtype=np.bool_)
+        for r in range(K):
+            hits[r] = (watch[r] and gb[r] < -noise[r]) or (not watch[r] and gb[r] <= 0.0)
+        return b, hits
+
+
+def coefficients(gait):
+    """(kind, freq, P1, P2) of a Fourier / Sinusoid (kind 0: cos and sin coefficients, shape
+    (n_links, K)), Scallop (kind 1: rows amplitude, phase - pi r, c, s) or Cubic /
+    PiecewiseCubic gait (kind 2: rows of (l0, v0, a0, jerk) per linkage, and of (start, t0)
+    per piece), or None."""
+    from ..gaits import Cubic, Fourier, PiecewiseCubic, Scallop, Sinusoid
+    cached = getattr(gait, '_kernel_coefficients', None)
+    if cached is not None:
+        return cached
+    if type(gait) is Fourier:
+        out = (0, gait.frequency, np.ascontiguousarray(gait.cos), np.ascontiguousarray(gait.sin))
+    elif type(gait) is Sinusoid:
+        # A sin(w t + phi) = A sin(phi) cos(w t) + A cos(phi) sin(w t)
+        a = gait.amplitude
+        out = (0, gait.frequency, (a * np.sin(gait.phase))[:, None].copy(),
+               (a * np.cos(gait.phase))[:, None].copy())
+    elif type(gait) is Scallop:
+        n = gait.n_links
+        rows = np.column_stack([gait.amplitude, gait.phase - math.pi * gait.asymmetry,
+                                np.full(n, gait._c), np.full(n, gait._s)])
+        out = (1, gait.frequency, np.ascontiguousarray(rows), np.zeros((n, 1)))
+    elif type(gait) in (Cubic, PiecewiseCubic):
+        pieces = [gait] if type(gait) is Cubic else gait.pieces
+        starts = [gait.t0] if type(gait) is Cubic else gait._starts
+        coef = np.array([[x for row in pc._rows for x in row] for pc in pieces])
+        out = (2, 1.0, coef, np.array([[st, pc.t0] for st, pc in zip(starts, pieces)]))
+    else:
+        return None
+    gait._kernel_coefficients = out
+    return out
+
+
+def search(t0: float, end: float, rows, coef, B2, B1, tol: float, cap: float):
+    """Run the compiled search; returns (t, hit rows as a bool array) or (inf, empty)."""
+    kind, freq, p1, p2 = coef
+    return _search(float(t0), float(end), rows.c0, rows.c1, np.ascontiguousarray(rows.A1),
+                   np.ascontiguousarray(rows.A2), int(kind), float(freq), p1, p2,
+                   np.ascontiguousarray(B2, dtype=float), np.ascontiguousarray(B1, dtype=float),
+                   float(tol), float(cap))
+
+
+_WARM = False
+
+
+def warm() -> None:
+    """Load (or compile) the kernel now with one tiny search, so the first real search of a
+    real-time loop does not pay for it (about 0.1-1 s per process with a warm disk cache)."""
+    global _WARM
+    if _WARM:
+        return
+    one = np.ones(1)
+    z = np.zeros((1, 1))
+    _search(0.0, 1.0, one, one * 0.0, np.ones((1, 1)), z, 0, 1.0, z, z, one, one, 1e-13, 1.0)
+    _WARM = True

@@ -1,0 +1,210 @@
+"""Closed-form pieces of the exact method's solution and their evaluation (MODEL.md s. 2).
+
+``Segment``: one piece between events (every body sliding: X quadratic in t; a body stuck:
+its position fixed and the group's friction what holds it). ``PeriodicBlock``: n repetitions
+of one period of segments, shifted. ``evaluate_rows`` samples many segments at once.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..gaits import Gait
+from ..model import Crawler
+from .contact import split_friction
+
+__all__ = ['PeriodicBlock', 'Segment', 'evaluate_rows', 'offset_matrices']
+
+
+def offset_matrices(masses: NDArray) -> tuple[NDArray, NDArray]:
+    """Matrices C (p, p-1) and W (p, p-1) with s = C l (offsets from body 0) and e = W l
+    (offsets from the centre of mass), so that derivatives follow by the same product."""
+    p = masses.size
+    C = np.tril(np.ones((p, p - 1)), -1)
+    W = C - (masses / masses.sum()) @ C
+    return C, W
+
+
+@dataclass(slots=True)
+class PeriodicBlock:
+    """``n`` repetitions of one period of segments (``template``), each shifted forward by
+    ``D`` [m] in position and ``dK`` [N s] in impulse: the steady crawl, stored once."""
+
+    t0: float
+    n: int
+    T: float
+    D: float
+    dK: NDArray[np.float64]
+    template: list
+    template_t0: float
+
+    @property
+    def t1(self) -> float:
+        return self.t0 + self.n * self.T
+
+
+@dataclass(slots=True)
+class Segment:
+    """One closed-form piece of the solution on [t0, t1]."""
+
+    t0: float
+    t1: float
+    gait: Gait
+    contact: NDArray[np.int8]     # (p,)
+    R: NDArray[np.float64]        # (p,) ground force of the sliding bodies (group entries unused)
+    K0: NDArray[np.float64]       # (p,) impulse at t0
+    X0: float                     # slide: centre of mass at t0
+    V0: float                     # slide: its velocity at t0
+    a: float                      # slide: its acceleration
+    ref: int                      # stick: reference stuck body (-1 when all slide)
+    x_ref: float                  # stick: its fixed position
+    group: NDArray[np.bool_]      # stick: bodies stuck with ref
+
+    def evaluate(self, crawler: Crawler, tau: NDArray[np.float64],
+                 mats: tuple[NDArray, NDArray] | None = None) -> dict:
+        """Exact state at the times ``tau`` (shape (N,), inside [t0, t1]); ``mats`` are the
+        crawler's ``offset_matrices`` (computed if not given)."""
+        m = crawler.masses
+        M = m.sum()
+        l, ld, ldd = self.gait(tau)
+        C, W = mats if mats is not None else offset_matrices(m)
+        e, ep, epp = l @ W.T, ld @ W.T, ldd @ W.T
+        d = tau - self.t0
+        n = tau.size
+        if self.ref < 0:
+            X = self.X0 + d * (self.V0 + 0.5 * self.a * d)
+            V = self.V0 + self.a * d
+            x = X[:, None] + e
+            v = V[:, None] + ep
+            A = np.full(n, self.a)
+            R = np.broadcast_to(self.R, (n, m.size)).copy()
+            K = self.K0 + np.multiply.outer(d, self.R)
+        else:
+            r = self.ref
+            s, sd = l @ C.T, ld @ C.T
+            x = self.x_ref + (s - s[:, r:r + 1])
+            v = sd - sd[:, r:r + 1]
+            A = -epp[:, r]
+            V = -ep[:, r]
+            slide = ~self.group
+            f_slide = crawler.external_force + self.R[slide].sum()
+            R = np.broadcast_to(np.where(slide, self.R, 0.0), (n, m.size)).copy()
+            K = self.K0 + np.multiply.outer(d, np.where(slide, self.R, 0.0))
+            g = self.group
+            fp, fm = crawler.friction[g], crawler.friction_backward[g]
+            total = M * A - f_slide                      # ground force on the group
+            R[:, g] = -split_friction(-total, fp, fm)
+            # Impulse of the group: integral of total = M (V - V(t0)) - f_slide d, split the same
+            # way (the split is affine in the total, so it commutes with the integral).
+            imp = M * (V - self.V0) - f_slide * d    # V0 = -e_r'(t0) for stick segments
+            K[:, g] = self.K0[g] + _split_impulse(imp, d, fp, fm)
+        grav = crawler.gravity_forces
+        body_force = R + grav - m * (A[:, None] + epp)
+        lam = np.cumsum(body_force, axis=1)[:, :-1]
+        contact = np.broadcast_to(self.contact, (n, m.size)).copy()
+        free = (crawler.friction + crawler.friction_backward) == 0.0
+        if free.any():
+            # no friction, no stick: these bodies' state is just the sign of their velocity
+            contact[:, free] = np.sign(v[:, free])
+        return {'x': x, 'v': v, 'friction': R, 'impulse': K, 'linkage_force': lam,
+                'lengths': l, 'rates': ld, 'contact': contact}
+
+
+def evaluate_rows(crawler: Crawler, pieces: list, owner: NDArray[np.int64],
+                  tau: NDArray[np.float64], mats: tuple[NDArray, NDArray]) -> dict:
+    """Exact states of many segments at once: row i is ``pieces[owner[i]]`` at time ``tau[i]``.
+
+    The same closed forms as ``Segment.evaluate`` (slide: X quadratic in t; stick: the reference
+    body fixed, the group's friction the affine split of what holds it), with every per-segment
+    quantity gathered per row, so sampling a run costs a fixed number of array operations
+    instead of a fixed number per segment. ``mats``: the crawler's ``offset_matrices``.
+    """
+    C, W = mats
+    m = crawler.masses
+    M = float(m.sum())
+    p, n = m.size, tau.size
+    fp, fm = crawler.friction, crawler.friction_backward
+    l, ld, ldd = _gait_rows(pieces, owner, tau)
+    e, ep, epp = l @ W.T, ld @ W.T, ldd @ W.T
+    rows = np.arange(n)
+    t0, X0, V0, a, ref, x_ref = (np.array(v, dtype=float)[owner] for v in zip(
+        *((sg.t0, sg.X0, sg.V0, sg.a, sg.ref, sg.x_ref) for sg in pieces)))
+    stick = ref >= 0
+    r = np.where(stick, ref, 0).astype(np.int64)
+    d = tau - t0
+    group = np.array([sg.group for sg in pieces])[owner]              # (n, p)
+    contact = np.array([sg.contact for sg in pieces])[owner]          # (n, p)
+    R = np.where(group, 0.0, np.array([sg.R for sg in pieces])[owner])  # sliding bodies' force
+    K0 = np.array([sg.K0 for sg in pieces])[owner]
+    # slide rows
+    X = X0 + d * (V0 + 0.5 * a * d)
+    V = V0 + a * d
+    x = X[:, None] + e
+    v = V[:, None] + ep
+    A = a.copy()
+    if stick.any():
+        s, sd = l @ C.T, ld @ C.T
+        st = np.nonzero(stick)[0]
+        rs = r[st]
+        x[st] = x_ref[st, None] + (s[st] - s[st, rs][:, None])
+        v[st] = sd[st] - sd[st, rs][:, None]
+        A[st] = -epp[st, rs]
+        V[st] = -ep[st, rs]
+    f_slide = crawler.external_force + R.sum(axis=1)
+    K = K0 + d[:, None] * R
+    if stick.any():
+        # the group's friction: each member at the same fraction of its interval
+        # (``contact.split_friction``), and its impulse, the integral of that affine split
+        width = fp + fm
+        g = group[st]
+        wg = (g * width).sum(axis=1)
+        fm_g = (g * fm).sum(axis=1)
+        ok = wg > 0
+        wsafe = np.where(ok, wg, 1.0)
+        total = M * A[st] - f_slide[st]
+        theta = np.where(ok, np.clip((-total + fm_g) / wsafe, 0.0, 1.0), 0.0)
+        Rg = fm - theta[:, None] * width
+        imp = M * (V[st] - V0[st]) - f_slide[st] * d[st]
+        Kg = fm * d[st, None] - ((-imp + fm_g * d[st]) / wsafe)[:, None] * width
+        Kg = np.where(ok[:, None], Kg, 0.0)
+        R[st] = np.where(g, Rg, R[st])
+        K[st] = np.where(g, K0[st] + Kg, K[st])
+    body_force = R + crawler.gravity_forces - m * (A[:, None] + epp)
+    lam = np.cumsum(body_force, axis=1)[:, :-1]
+    contact = contact.copy()
+    free = (fp + fm) == 0.0
+    if free.any():
+        # no friction, no stick: these bodies' state is just the sign of their velocity
+        contact[:, free] = np.sign(v[:, free])
+    return {'x': x, 'v': v, 'friction': R, 'impulse': K, 'linkage_force': lam,
+            'lengths': l, 'rates': ld, 'contact': contact,
+            'indeterminate': group.sum(axis=1) > 1}
+
+
+def _gait_rows(pieces: list, owner: NDArray[np.int64], tau: NDArray[np.float64]):
+    """(l, l', l'') at ``tau[i]`` from the gait of ``pieces[owner[i]]`` (one call per gait)."""
+    gaits = {id(sg.gait): sg.gait for sg in pieces}
+    if len(gaits) == 1:
+        return pieces[0].gait(tau)
+    which = np.array([id(sg.gait) for sg in pieces], dtype=object)[owner]
+    out = None
+    for key, gait in gaits.items():
+        sel = np.nonzero(which == key)[0]
+        vals = gait(tau[sel])
+        if out is None:
+            out = tuple(np.empty((tau.size,) + v.shape[1:]) for v in vals)
+        for o, v in zip(out, vals):
+            o[sel] = v
+    return out
+
+
+def _split_impulse(imp: NDArray, d: NDArray, fp: NDArray, fm: NDArray) -> NDArray:
+    """Integral of the affine split of ``split_friction`` (ground-force sign), shape (N, n)."""
+    width = fp + fm
+    w = width.sum()
+    if w <= 0:
+        return np.zeros((imp.size, fp.size))
+    # R_j = fm_j - theta width_j with theta = (sum fm - total) / w, affine in the total force.
+    return fm * d[:, None] - np.multiply.outer((-imp + fm.sum() * d) / w, width)
