@@ -246,19 +246,8 @@ _QUICK = settings(max_examples=N_EXAMPLES, derandomize=True, database=None, dead
                   phases=[Phase.explicit, Phase.generate],
                   suppress_health_check=list(HealthCheck))
 
-# Families the exact solver of today fails in the quick profile (issue 14); the exact helper's
-# rewrite should make them pass, then the integrator removes these marks.
-_XFAIL = {
-    'custom': 'issue 14: the bracketing grid of an aperiodic Custom gait misses whole '
-              'oscillations (dx off by up to 1e-2 m)',
-    'spline': 'issue 14: a stick-to-slip release of a Spline gait is missed (the required '
-              'force leaves its bound by 3 %, dx off by 2e-3 m; the oracle is confirmed by a '
-              'converging implicit prox)',
-}
 
-
-@pytest.mark.parametrize('family', [pytest.param(f, marks=pytest.mark.xfail(
-    strict=False, reason=_XFAIL[f])) if f in _XFAIL else f for f in FAMILIES])
+@pytest.mark.parametrize('family', FAMILIES)
 @_QUICK
 @given(seed=st.integers(0, 2 ** 32 - 1))
 def test_exact_agrees_with_the_oracle(family, seed):
@@ -278,16 +267,7 @@ ISSUE_SCENES = {   # issue 14's reproducers: (crawler, gait, t_end, v0)
                                 G.Scallop(1.0, .15, 0.6227466888177834, .4),
                                 6 / 0.6227466888177834, 6.0),
 }
-_ISSUE_XFAIL = {
-    'custom_sine_4s': 'issue 14: dx 0.150 instead of 1.13894',
-    'custom_sine_4.25s': 'issue 14: "stalled at t = 0.0"',
-    'sharp_scallop': 'issue 14: missed short slip inside a stick (dx -0.19387035)',
-    'scallop_period_boundary': 'issue 14: "min() arg is an empty sequence"',
-}
-
-
-@pytest.mark.parametrize('name', [pytest.param(n, marks=pytest.mark.xfail(
-    strict=False, reason=_ISSUE_XFAIL[n])) if n in _ISSUE_XFAIL else n for n in ISSUE_SCENES])
+@pytest.mark.parametrize('name', list(ISSUE_SCENES))
 def test_the_issue_scenes_agree_with_the_oracle(name):
     c, g, T, v0 = ISSUE_SCENES[name]
     kin_g = G.Sinusoid(1.0, 0.3, 1.0) if isinstance(g, G.Custom) else g

@@ -481,3 +481,18 @@ def test_piecewise_cubic_small_and_large_evaluations_agree_bit_for_bit():
         one = pc.at(float(t[k]))
         for a, b in zip(big, one):
             assert np.array_equal(a[k], b)
+
+
+def test_a_spline_gives_a_snap_bound_only_between_its_knots():
+    """Cubic between knots: where snap_bound says 0, l'' must be exactly affine (checked on
+    samples); an interval holding a knot (l''' jumps) gets None. Periodic knots wrap."""
+    sp = gaits.Spline([0.0, 0.3, 0.7, 1.0], [1.0, 1.2, 0.9, 1.0], periodic=True)
+    for t0, t1, inside in ((0.1, 0.2, True), (0.2, 0.4, False), (1.35, 1.39, True),
+                           (1.25, 1.35, False), (-0.05, 0.05, False), (0.0, 2.0, False)):
+        sb = sp.snap_bound(t0, t1)
+        assert (sb is not None) == inside, (t0, t1, sb)
+        if inside:
+            t = np.linspace(t0, t1, 7)
+            acc = sp.acceleration(t)[:, 0]
+            line = acc[0] + (acc[-1] - acc[0]) * (t - t0) / (t1 - t0)
+            assert np.max(np.abs(acc - line)) < 1e-9 * (1 + np.max(np.abs(acc)))

@@ -268,3 +268,15 @@ class Spline(Gait):
         # the jerk is 6 c3 on each knot interval (constant there, jumping at the knots), zero
         # outside a clamped spline's range: the largest over all intervals bounds it everywhere
         return 6.0 * np.max(np.abs(self._spline.c[0]), axis=0).reshape(self.n_links)
+
+    def snap_bound(self, t0: float, t1: float) -> NDArray[np.float64] | None:
+        # cubic between knots (l'''' = 0 there); l''' jumps at the knots, so an interval that
+        # holds one gets no snap bound
+        t0, t1 = _interval(t0, t1)
+        knots = self.times
+        if self.periodic:
+            k = math.floor((t0 - knots[0]) / self.period)
+            knots = np.concatenate((knots + k * self.period, knots + (k + 1) * self.period))
+        if np.any((knots > t0) & (knots < t1)) or (self.periodic and t1 - t0 >= self.period):
+            return None
+        return np.zeros(self.n_links)
