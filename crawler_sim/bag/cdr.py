@@ -21,6 +21,9 @@ Padding bytes are ignored: Fast CDR leaves them uninitialised.
 prototype with ``serialize_message``, walks it with the same :func:`layout`, and then makes each
 message by copying the template and packing only the numbers into it (a few microseconds instead
 of the Python-to-C conversion of the whole message).
+
+Module size: about 470 lines, over the ~400 guide: one layout walker serves the decoder, the
+encoder and the trimmer; split apart they would each need the alignment rules it holds.
 """
 from __future__ import annotations
 

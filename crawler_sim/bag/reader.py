@@ -3,6 +3,9 @@
 Topics are matched by suffix (``/body_states``, ``/crawler1/body_states``...), see
 :mod:`crawler_sim.bag.topics`. The hot topics are decoded by :class:`crawler_sim.bag.cdr.Decoder`
 (vectorized, checked against rclpy), chunk by chunk while the file is scanned.
+
+Module size: about 520 lines, over the ~400 guide: the chunk scan, the per-topic decoders and
+the memory budget all read one scan state (splitting them would pass it around in pieces).
 """
 from __future__ import annotations
 

@@ -66,6 +66,10 @@ actuator's state (l, l', l'') when the trajectory starts (unless the first point
 after the last point the reference holds the last position. The reference then goes through the
 same actuator (with r' and r'' as feedforward), so the limits above hold for trajectories too and
 a feasible, smooth trajectory is tracked with a lag of about one tick.
+
+Module size: about 430 lines, over the ~400 guide: the servo law, the derivation of its gains
+(about a third of the lines are that derivation) and ``TrajectoryReference`` share the actuator's
+time base and limits.
 """
 from __future__ import annotations
 
