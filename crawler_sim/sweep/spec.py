@@ -4,7 +4,7 @@ A spec file has one top-level key ``sweep``::
 
     sweep:
       name: friction_vs_asymmetry          # optional; defaults to the file name
-      base:                                # a scene, as under ``scene:`` in config/*.yaml
+      base:                                # a scene, as under ``scene:`` in config/scenes/*.yaml
         crawler: {masses: [1.0, 1.0], mu: 0.3}
         gait: {type: scallop, mean: 0.1, amplitude: 0.02, frequency: 1.0, asymmetry: 0.5}
       periods: 20                          # gait periods per scene (>= 4; base run.t_end unused)

@@ -42,7 +42,7 @@ def test_run_t_ns_holds_the_recorded_stamps(tmp_path):
 def test_a_truncated_offline_bag_replays_as_a_match(tmp_path):
     from crawler_sim.cli import _record, _replay
     from crawler_sim.core.scene import load_scene
-    scene = load_scene(REPO / 'config' / 'scallop_2body.yaml').with_run(t_end=3.0)
+    scene = load_scene(REPO / 'config' / 'scenes' / 'scallop_2body.yaml').with_run(t_end=3.0)
     tr = scene.simulate()
     _record(tmp_path / 'full', scene, tr)
     data = (tmp_path / 'full' / 'full_0.mcap').read_bytes()
@@ -56,3 +56,14 @@ def test_a_truncated_offline_bag_replays_as_a_match(tmp_path):
     res = _replay(run, None, 1e-9)
     assert res['match'], res
     assert res['max_velocity_error'] == 0.0 and res['max_position_error'] == 0.0
+
+
+def test_samples_sharing_a_ns_stamp_are_matched_in_order():
+    # an event 0.3 ns after a regular sample: both record as 1_250_000_000 ns; the second
+    # recorded row must map to the second sample, not again to the first
+    from crawler_sim.bag.clock import rows_at_ns
+    t = np.array([1.0, 1.25, 1.25 + 3e-10, 1.5])
+    stamps = np.array([1_000_000_000, 1_250_000_000, 1_250_000_000, 1_500_000_000])
+    assert rows_at_ns(t, stamps).tolist() == [0, 1, 2, 3]
+    assert rows_at_ns(t, stamps[:3]).tolist() == [0, 1, 2]          # a truncated bag
+    assert rows_at_ns(t, np.array([1_250_000_001])).tolist() == [-1]

@@ -277,16 +277,13 @@ def test_exact_finds_every_short_slide_whatever_the_bracketing_grid(max_step):
 # ------------------------------------------------------------------ the long fuzz profile
 
 def test_the_stress_fuzz_check_runs_the_differential_fuzz_and_reports_its_figures():
-    # one case per family through the same path `crawler-sim stress` takes; the families the
-    # solver of today fails (test_fuzz._XFAIL) may fail here too, every other one must pass
+    # one case per family through the same path `crawler-sim stress` takes: every one must pass
     res = stress.check_fuzz(2, seed=3, families=('custom', 'bang_bang', 'switch_cubic'))
     fig = res.figures
     assert fig['cases'] == 6
     assert set(fig['by_family']) == {'custom', 'bang_bang', 'switch_cubic'}
-    import test_fuzz
     for fam, text in fig['by_family'].items():
-        if fam not in test_fuzz._XFAIL:
-            assert text.startswith('0/'), (fam, res.problems)
+        assert text.startswith('0/'), (fam, res.problems)
 
 
 def test_the_stress_fuzz_check_says_what_it_needs_without_the_source_tree(monkeypatch, tmp_path):

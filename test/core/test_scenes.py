@@ -262,7 +262,7 @@ DEGENERATE = [  # (file, field, value, message the SceneError must contain)
                          ids=[f'{n}:{f}={v if not isinstance(v, list) else v[0]}'
                               for n, f, v, _ in DEGENERATE])
 def test_a_degenerate_scene_value_is_a_scene_error_naming_the_field(name, field, value, message):
-    spec = yaml.safe_load((CONFIG / f'{name}.yaml').read_text())['scene']
+    spec = yaml.safe_load((CONFIG / 'scenes' / f'{name}.yaml').read_text())['scene']
     _set(field, value)(spec)
     with pytest.raises(SceneError) as info:
         scene_from_dict(spec)
@@ -279,7 +279,7 @@ def test_crawler_sim_simulate_exits_2_naming_the_field_for_a_degenerate_value(
         tmp_path, capsys, name, field, value, message):
     # issue 11 points 2 and 9: masses [1e308] * 3 used to give NaN outputs and exit 0
     from crawler_sim import cli
-    spec = yaml.safe_load((CONFIG / f'{name}.yaml').read_text())
+    spec = yaml.safe_load((CONFIG / 'scenes' / f'{name}.yaml').read_text())
     _set(field, value)(spec['scene'])
     path = tmp_path / 'bad.yaml'
     path.write_text(yaml.safe_dump(spec))

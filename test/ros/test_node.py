@@ -517,7 +517,9 @@ def test_at_rest_the_stepper_gets_constant_pieces(ros, monkeypatch):
 
 def test_diagnostics_report_the_figures_with_byte_levels(ros):
     # 100 Hz ticks: a tick is late only 10 ms after its deadline (a loaded test host is fine)
-    sim = ros.sim(diagnostics_period=0.1, integration_rate=100.0,
+    # the paced loop runs a publish period's ticks back to back, so a diagnostics window must
+    # span several publish periods (here 5) for its real-time factor to mean anything
+    sim = ros.sim(diagnostics_period=0.5, integration_rate=100.0,
                   publish_rate=10.0)
     diags = ros.listen(DiagnosticArray, '/diagnostics')
     loop = threading.Thread(target=sim.run, daemon=True)
