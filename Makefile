@@ -36,7 +36,7 @@ $(STAMP): requirements.txt
 
 build: $(INSTALL_STAMP)
 
-$(INSTALL_STAMP): $(STAMP) setup.py setup.cfg package.xml $(wildcard config/*.yaml config/bench/*.yaml) $(wildcard crawler_sim/*.py crawler_sim/*/*.py crawler_sim/*/*/*.py)
+$(INSTALL_STAMP): $(STAMP) setup.py setup.cfg package.xml $(wildcard config/*/* launch/*.py scripts/*) $(wildcard crawler_sim/*.py crawler_sim/*/*.py crawler_sim/*/*/*.py)
 	source $(VENV)/bin/activate && colcon --log-base log build --paths . --build-base build --install-base install --symlink-install
 	touch $@
 
