@@ -460,6 +460,18 @@ def load_scene(path: str | Path) -> Scene:
         with the file name.
     """
     path = Path(path)
+    section = read_section(path, 'scene', 'a scene', SceneError)
+    try:
+        return scene_from_dict(section, name=path.stem)
+    except SceneError as exc:
+        raise SceneError(f'{path}: {exc}') from None
+
+
+def read_section(path: Path, key: str, kind: str, error: type[Exception]) -> Any:
+    """The value under the top-level ``key`` of the YAML file ``path`` (safe loader, YAML 1.2
+    floats). Malformed YAML or a missing key raise ``error`` naming the file, and the line
+    and column where known (OSError if the file cannot be read).
+    """
     text = path.read_text(encoding='utf-8')
     try:
         data = yaml.load(text, Loader=_Loader)  # noqa: S506 (a SafeLoader subclass)
@@ -467,13 +479,10 @@ def load_scene(path: str | Path) -> Scene:
         mark = getattr(exc, 'problem_mark', None)
         where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''
         problem = getattr(exc, 'problem', None) or str(exc).splitlines()[0]
-        raise SceneError(f'{path}: invalid YAML{where}: {problem}') from None
-    if not isinstance(data, Mapping) or 'scene' not in data:
-        raise SceneError(f'{path}: not a scene file (no top-level "scene:" key)')
-    try:
-        return scene_from_dict(data['scene'], name=path.stem)
-    except SceneError as exc:
-        raise SceneError(f'{path}: {exc}') from None
+        raise error(f'{path}: invalid YAML{where}: {problem}') from None
+    if not isinstance(data, Mapping) or key not in data:
+        raise error(f'{path}: not {kind} file (no top-level "{key}:" key)')
+    return data[key]
 
 
 def scene_to_dict(scene: Scene) -> dict:

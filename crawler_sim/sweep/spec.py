@@ -43,9 +43,8 @@ import re
 from typing import Any, Iterator, Mapping
 
 import numpy as np
-import yaml
 
-from ..core.scene import Scene, SceneError, _Loader, scene_from_dict
+from ..core.scene import Scene, SceneError, read_section, scene_from_dict
 
 __all__ = ['SpecError', 'SweepSpec', 'load_spec', 'spec_from_dict', 'apply_params']
 
@@ -304,13 +303,8 @@ def _check_path(where: str, path: Any) -> None:
 def load_spec(path: str | Path) -> SweepSpec:
     """Read and check a sweep YAML file (OSError if unreadable, SpecError if invalid)."""
     path = Path(path)
+    section = read_section(path, 'sweep', 'a sweep', SpecError)
     try:
-        data = yaml.load(path.read_text(encoding='utf-8'), Loader=_Loader)  # noqa: S506
-    except yaml.YAMLError as exc:
-        raise SpecError(f'{path}: invalid YAML: {str(exc).splitlines()[0]}') from None
-    if not isinstance(data, Mapping) or 'sweep' not in data:
-        raise SpecError(f'{path}: not a sweep file (no top-level "sweep:" key)')
-    try:
-        return spec_from_dict(data['sweep'], name=path.stem)
+        return spec_from_dict(section, name=path.stem)
     except SpecError as exc:
         raise SpecError(f'{path}: {exc}') from None

@@ -309,6 +309,21 @@ def prox2(c, u_ref, force, k0, k1, fp0, fp1, fm0, fm1):
 
 
 @njit(cache=True)
+def log_changes(t, contact, newc, ev_t, ev_b, ev_o, ev_n, n_ev):
+    """Append an event (t, body, old, new) for each body whose contact differs in ``newc``,
+    adopt ``newc`` into ``contact``; returns the new event count."""
+    for i in range(contact.size):
+        if newc[i] != contact[i]:
+            ev_t[n_ev] = t
+            ev_b[n_ev] = i
+            ev_o[n_ev] = contact[i]
+            ev_n[n_ev] = newc[i]
+            n_ev += 1
+            contact[i] = newc[i]
+    return n_ev
+
+
+@njit(cache=True)
 def split_step(t, tb, V, X, contact, R, K, epb, eppb, w, M, fext, fp, fm, freq, ca, sb, dt,
                max_depth, ev_t, ev_b, ev_o, ev_n, n_ev, wf, idx, zmask, newc, tmp):
     """One step [t, tb] from (V, X, contact) with e', e'' = epb, eppb at tb: the Moreau-Jean
@@ -370,14 +385,7 @@ def split_step(t, tb, V, X, contact, R, K, epb, eppb, w, M, fext, fp, fm, freq, 
             X += hh * vt
             for i in range(p):
                 K[i] += hh * R[i]
-        for i in range(p):
-            if newc[i] != contact[i]:
-                ev_t[n_ev] = tau
-                ev_b[n_ev] = i
-                ev_o[n_ev] = contact[i]
-                ev_n[n_ev] = newc[i]
-                n_ev += 1
-                contact[i] = newc[i]
+        n_ev = log_changes(tau, contact, newc, ev_t, ev_b, ev_o, ev_n, n_ev)
         V = vt
         lo = tau
     hh = tb - lo
@@ -386,13 +394,7 @@ def split_step(t, tb, V, X, contact, R, K, epb, eppb, w, M, fext, fp, fm, freq, 
     X += hh * u
     for i in range(p):
         K[i] += hh * R[i]
-        if newc[i] != contact[i]:
-            ev_t[n_ev] = tb
-            ev_b[n_ev] = i
-            ev_o[n_ev] = contact[i]
-            ev_n[n_ev] = newc[i]
-            n_ev += 1
-            contact[i] = newc[i]
+    n_ev = log_changes(tb, contact, newc, ev_t, ev_b, ev_o, ev_n, n_ev)
     return u, X, n_ev
 
 
@@ -541,15 +543,9 @@ def advance_table(st, contact, R, K, w, M, fext, fp, fm, times, LD, LDD, k0, max
         X += h * u
         for i in range(p):
             K[i] += h * R[i]
-            if newc[i] != contact[i]:
-                ev_t[n_ev] = tb
-                ev_b[n_ev] = i
-                ev_o[n_ev] = contact[i]
-                ev_n[n_ev] = newc[i]
-                n_ev += 1
-                contact[i] = newc[i]
             ep_out[i] = epb[i]
             epp_out[i] = eppb[i]
+        n_ev = log_changes(tb, contact, newc, ev_t, ev_b, ev_o, ev_n, n_ev)
         A = (u - V) / h
         V = u
         t = tb
