@@ -137,13 +137,9 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
               f'# mean speed {res.best["mean_speed"]:.6g} m/s, cost of transport '
               f'{res.best["cost_of_transport"]:.6g}\n')
     scene_file.write_text(header + yaml.safe_dump({'scene': best_scene}, sort_keys=False))
-    node = gait_node_params(res)
-    if node is not None:
-        out.write_text(header + '# play: ros2 run crawler_sim gait_node --ros-args '
-                       f'--params-file {out.name}\n' + yaml.safe_dump(node, sort_keys=False))
-    else:
-        _info(f'gait_node cannot play a {args.family} stroke yet; wrote the gait as a scene '
-              f'({scene_file}) only')
+    node = gait_node_params(res, str(scene_file.resolve()))
+    out.write_text(header + '# play: ros2 run crawler_sim gait_node --ros-args '
+                   f'--params-file {out.name}\n' + yaml.safe_dump(node, sort_keys=False))
     if args.history:
         from ..sweep.figures import optimize_history
         optimize_history(res, args.history)
@@ -159,14 +155,13 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
             ('mean speed', f'{res.best["mean_speed"]:.6g} m/s'),
             ('cost of transport', f'{res.best["cost_of_transport"]:.6g}'),
             ('scene', str(scene_file))]
-    if node is not None:
-        rows.append(('gait_node params', str(out)))
+    rows.append(('gait_node params', str(out)))
     if args.json:
         print(json.dumps({'params': params, 'best': {k: (v if not isinstance(v, float) or
                                                           math.isfinite(v) else None)
                                                       for k, v in res.best.items()},
                           'scene': str(scene_file),
-                          'gait_node_params': str(out) if node is not None else None}, indent=2))
+                          'gait_node_params': str(out)}, indent=2))
     else:
         _print_table(rows)
     return EXIT_OK
@@ -204,7 +199,7 @@ def register(add: Add, positive: Callable[[str], float],
     p.add_argument('--objective', choices=('speed', 'cot'), default='speed',
                    help='speed (maximise) or cot (minimise cost of transport); default speed')
     p.add_argument('--family', choices=('scallop', 'stroke', 'fourier'), default='scallop',
-                   help='stroke family (default scallop, which gait_node plays)')
+                   help='stroke family (default scallop; gait_node plays every family)')
     p.add_argument('--harmonics', type=int, default=3, metavar='K', help='fourier harmonics')
     p.add_argument('--max-speed', type=positive, default=0.5, metavar='V',
                    help="largest |l'| [m/s] (sim_node's actuator_max_speed, default 0.5)")

@@ -58,6 +58,16 @@ def make_gait(name: str, n_links: int, mean: float, amplitude: float, frequency:
     raise ValueError(f'gait must be one of {", ".join(GAITS)}, got {name!r}')
 
 
+def gait_from_file(path: str) -> gaits.Gait:
+    """The gait of the scene file ``path``; ValueError naming gait_file when it cannot be read
+    or is not a valid scene."""
+    from crawler_sim.core.scene import load_scene, SceneError
+    try:
+        return load_scene(path).gait
+    except (OSError, SceneError) as exc:
+        raise ValueError(f'gait_file: {exc}') from None
+
+
 def _desc(text: str, lo: float | None = None, hi: float | None = None,
           integer: bool = False) -> ParameterDescriptor:
     d = ParameterDescriptor(description=text, read_only=True)
@@ -107,8 +117,14 @@ class GaitNode(Node):
             raise ValueError('preload needs mode trajectory and a duration > 0')
         if self.mode not in MODES:
             raise ValueError(f'mode must be one of {", ".join(MODES)}, got {self.mode!r}')
-        self.gait = make_gait(p['gait'], p['n_links'], p['mean'], p['amplitude'],
-                              p['frequency'], p['asymmetry'], p['phase_lag'])
+        gait_file = self.declare_parameter('gait_file', '', _desc(
+            'A scene YAML file (top-level "scene:", e.g. the OUT_scene.yaml of crawler-sim '
+            'optimize): play its gait, of any family, instead of the gait parameters above')).value
+        self.gait = (gait_from_file(gait_file) if gait_file else
+                     make_gait(p['gait'], p['n_links'], p['mean'], p['amplitude'],
+                               p['frequency'], p['asymmetry'], p['phase_lag']))
+        if gait_file:
+            p = {'gait_file': gait_file, 'n_links': self.gait.n_links}
         self._rate = rate
         if self.mode == 'command':
             self._pub = self.create_publisher(Float64MultiArray, 'linkage_cmd', 10)
@@ -124,7 +140,8 @@ class GaitNode(Node):
         else:
             self.create_timer(1.0 / rate, self._on_timer)
         topic = 'linkage_cmd' if self.mode == 'command' else 'linkage_trajectory'
-        self.get_logger().info(f'playing {p["gait"]} on {topic} at {rate} Hz: {p}')
+        what = p.get('gait_file') or p['gait']
+        self.get_logger().info(f'playing {what} on {topic} at {rate} Hz: {p}')
 
     def _on_timer(self) -> None:
         now = self.get_clock().now().nanoseconds

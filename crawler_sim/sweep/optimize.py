@@ -246,12 +246,16 @@ def optimize(base: Scene, *, objective: str = 'speed', family_name: str = 'scall
     return OptimizeResult(fam, objective, x, best, fam.gait(x), history)
 
 
-def gait_node_params(result: OptimizeResult) -> dict | None:
+def gait_node_params(result: OptimizeResult, scene_file: str | None = None) -> dict | None:
     """The ROS 2 parameter file content (``gait_node: ros__parameters: ...``) that makes
-    gait_node play the best stroke, or None when gait_node cannot play the family."""
+    gait_node play the best stroke: its own gait parameters for a Scallop of one mean length,
+    otherwise ``gait_file`` pointing at ``scene_file`` (the scene with the best gait); None
+    when neither applies."""
     fam = result.family
     if fam.name != 'scallop' or len(set(fam.mean)) != 1:
-        return None
+        if scene_file is None:
+            return None
+        return {'gait_node': {'ros__parameters': {'gait_file': str(scene_file)}}}
     p = result.params
     return {'gait_node': {'ros__parameters': {
         'gait': 'scallop', 'n_links': fam.n_links, 'mean': float(fam.mean[0]),

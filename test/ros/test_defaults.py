@@ -243,3 +243,12 @@ def test_a_record_name_outside_record_dir_is_refused_as_a_parameter(name):
     values['record_name'] = name
     with pytest.raises(ValueError, match='record_name'):
         SimConfig.from_values(values)
+
+
+def test_gait_node_names_a_gait_file_it_cannot_play(tmp_path):
+    from crawler_sim.ros.gait_node import gait_from_file
+    bad = tmp_path / 'not_a_scene.yaml'
+    bad.write_text('gait_node:\n  ros__parameters: {}\n')
+    for path in (tmp_path / 'missing.yaml', bad):
+        with pytest.raises(ValueError, match='gait_file'):
+            gait_from_file(str(path))

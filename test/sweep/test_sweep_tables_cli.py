@@ -192,3 +192,19 @@ def test_the_sweep_command_runs_on_a_scheduler_address_with_the_same_result(dask
     assert proc.returncode == 0, proc.stderr
     assert dask_client.scheduler.address in proc.stdout
     pd.testing.assert_frame_equal(read_table(remote), read_table(local), check_exact=True)
+
+
+@pytest.mark.parametrize('family', ['stroke', 'fourier'])
+def test_optimize_writes_a_file_gait_node_plays_for_every_family(tmp_path, capsys, family):
+    """Families gait_node has no parameters for go through ``gait_file``: the gait a real
+    gait_node builds from OUT must be the best scene's gait (compared on a grid of a period)."""
+    out = tmp_path / 'best.yaml'
+    proc = run(capsys, 'optimize', str(REPO / 'config' / 'scenes' / 'scallop_2body.yaml'),
+               '--family', family, '--maxiter', '2', '--popsize', '3', '-o', str(out))
+    assert proc.returncode == 0, proc.stderr
+    played = gait_node_gait(out)
+    best = load_scene(tmp_path / 'best_scene.yaml').gait
+    assert type(played) is type(best)
+    t = np.linspace(0.0, 2.0 * best.period, 1001)
+    for a, b in zip(played(t), best(t)):
+        np.testing.assert_array_equal(a, b)
