@@ -309,6 +309,22 @@ def prox2(c, u_ref, force, k0, k1, fp0, fp1, fm0, fm1):
 
 
 @njit(cache=True)
+def prox_mode(M, h, V, fext, epb, fp, fm, idx, kinks, contact, newc):
+    """One implicit step of length h from V at rates ``epb``: (u, s, same) of ``prox``, with
+    the contact it gives in ``newc`` (0 at a kink, else the sign of the body's velocity) and
+    whether that equals ``contact``."""
+    p = contact.size
+    for i in range(p):
+        kinks[i] = -epb[i]
+    u, s = prox(M / h, V, fext, kinks, fp, fm, p, idx)
+    same = True
+    for i in range(p):
+        newc[i] = 0 if u == kinks[i] else (1 if u + epb[i] > 0.0 else -1)
+        same = same and newc[i] == contact[i]
+    return u, s, same
+
+
+@njit(cache=True)
 def log_changes(t, contact, newc, ev_t, ev_b, ev_o, ev_n, n_ev):
     """Append an event (t, body, old, new) for each body whose contact differs in ``newc``,
     adopt ``newc`` into ``contact``; returns the new event count."""
@@ -342,13 +358,7 @@ def split_step(t, tb, V, X, contact, R, K, epb, eppb, w, M, fext, fp, fm, freq, 
             for i in range(p):
                 newc[i] = contact[i]
             break
-        for i in range(p):
-            kinks[i] = -epb[i]
-        u, s = prox(M / h, V, fext, kinks, fp, fm, p, idx)
-        same = True
-        for i in range(p):
-            newc[i] = 0 if u == kinks[i] else (1 if u + epb[i] > 0.0 else -1)
-            same = same and newc[i] == contact[i]
+        u, s, same = prox_mode(M, h, V, fext, epb, fp, fm, idx, kinks, contact, newc)
         if same and (first_stuck(contact) < 0 or not changed(
                 contact, u, epb, eppb, M, fext, fp, fm, zmask, kbuf, fpb, fmb, idx, tmp)):
             break
@@ -415,7 +425,6 @@ def advance_fourier(st, contact, R, K, w, M, fext, fp, fm, freq, ca, sb, t1, dt,
     ldd = np.empty(p - 1)
     epb = np.empty(p)
     eppb = np.empty(p)
-    kinks = np.empty(p)
     idx = np.empty(p, np.int64)
     wf = np.empty((8, p))
     zmask = np.empty(p, np.bool_)
@@ -520,13 +529,7 @@ def advance_table(st, contact, R, K, w, M, fext, fp, fm, times, LD, LDD, k0, max
         rel_rates(w, LD[k], epb)
         rel_rates(w, LDD[k], eppb)
         h = tb - t
-        for i in range(p):
-            kinks[i] = -epb[i]
-        u, s = prox(M / h, V, fext, kinks, fp, fm, p, idx)
-        same = True
-        for i in range(p):
-            newc[i] = 0 if u == kinks[i] else (1 if u + epb[i] > 0.0 else -1)
-            same = same and newc[i] == contact[i]
+        u, s, same = prox_mode(M, h, V, fext, epb, fp, fm, idx, kinks, contact, newc)
         ok = same and (first_stuck(contact) < 0 or not changed(
             contact, u, epb, eppb, M, fext, fp, fm, zmask, kbuf, fpb, fmb, idx, tmp))
         if not ok and max_depth > 0:
