@@ -47,6 +47,8 @@ from .segments import PeriodicBlock, Segment, _split_impulse, evaluate_rows, off
 __all__ = ['ExactSolver', 'PeriodicBlock', 'Segment', 'evaluate_rows', 'offset_matrices',
            'check_finite_gait']
 
+_STALL_ULPS = 64          # a segment this short (in floats of t) makes no progress
+_STALL_SEGMENTS = 256    # consecutive such segments before the solver reports a stall
 _COMPILED = (Fourier, Sinusoid, Scallop, Cubic, PiecewiseCubic)   # gaits the kernel evaluates
 _AMBIGUOUS = 1e-10   # relative slack below which a mode choice is decided by look-ahead
 _EPS = np.finfo(float).eps
@@ -258,8 +260,12 @@ class ExactSolver:
                 t_stop = float(breaks[0])
             t_before = self.t
             self._segment(t_stop, left_limit=bool(breaks.size))
-            guard = guard + 1 if self.t == t_before else 0
-            if guard > 8:   # repeated zero-length segments: a degenerate mode loop
+            # a degenerate mode loop: segments that advance by nothing or by a few floats
+            # (events at adjacent floats that flip the mode back and forth) for longer than
+            # any cascade of simultaneous events (at most a few per body) could last
+            tiny = self.t - t_before <= _STALL_ULPS * _EPS * max(abs(self.t), 1.0)
+            guard = guard + 1 if tiny else 0
+            if guard > _STALL_SEGMENTS:
                 raise RuntimeError(f'exact solver stalled at t = {self.t!r} s; '
                                    'report this scene (try method="implicit")')
             if T and self.t == t_stop and t_stop == k_next * T:
