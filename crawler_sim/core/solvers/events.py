@@ -59,9 +59,9 @@ def check_finite_gait(vals, t) -> None:
 class Rows:
     """Event rows g = c0 + c1 (t - t0) + l' A1^T + l'' A2^T, shape (K,) each (A: (K, n_links)).
 
-    Rows that start at or below zero (a body leaving rest, a rigid pair) are *watched*: they
-    become ordinary rows once above 1e-13 of their scale, and trigger an event only when they
-    go below minus that level.
+    Rows that start at or below their noise level, 1e-13 of their scale (a body leaving rest,
+    a rigid pair), are *watched*: they become ordinary rows once above that level, and trigger
+    an event only when they go below minus that level.
     """
 
     t0: float
@@ -164,7 +164,7 @@ class Search:
         scale = (np.abs(r.c0) + np.abs(r.c1) * (t_stop - t0) + np.abs(ld) @ np.abs(r.A1).T
                  + np.abs(ldd) @ np.abs(r.A2).T)[0]
         self._noise = 1e-13 * scale + 1e-300    # below it a watched row counts as zero
-        watch = ga <= 0.0
+        watch = ga <= self._noise      # zero to rounding: watched (see Rows)
         if end <= t0:
             return t_stop, None
         return self._scan(t0, end, ga, watch, h0, t_stop)

@@ -331,12 +331,21 @@ class ExactSolver:
             # Stuck reference body: exact velocity of the centre of mass from the gait.
             self.V = float(-ep[self.ref])
             self.X = float(self.x_ref - e[self.ref])
-        # A sliding body whose velocity is zero or points against its contact
-        # sign (e.g. l' = 0 exactly at a breakpoint) joins the zero set: its mode is chosen by
-        # the inclusion, from the actual velocity and acceleration.
-        stale = ~self.zero & ~self._free & (self.contact * (self.V + ep) <= 0.0)
+        # A sliding body whose velocity is zero or points against its contact sign (l' = 0
+        # exactly at a breakpoint, or a jump of l' where the actuator settles to rest): the
+        # contact sign comes from the actual velocity; only a body at exactly zero velocity
+        # joins the zero set, where the inclusion chooses its mode from the acceleration.
+        # (Sending a body with v != 0 to the inclusion can pick the sign opposite to v: the
+        # segment then ends one float later on that body's velocity row, again and again.)
+        v = self.V + ep
+        stale = ~self.zero & ~self._free & (self.contact * v <= 0.0)
         if stale.any():
-            self.zero = self.zero | stale
+            moving = stale & (v != 0.0)
+            if moving.any():
+                flipped = self.contact.copy()
+                flipped[moving] = np.sign(v[moving])
+                self._record_contact_change(t0, flipped)
+            self.zero = self.zero | (stale & ~moving)
             self._mode_cache = None
         if self._mode_cache is not None:
             # the previous segment ended on a smooth boundary, not at an event: same mode
@@ -542,6 +551,10 @@ class ExactSolver:
             b2, b1 = rows.bounds(seg.gait, seg.t0, t_stop)
             t_ev, hit = kernel.search(seg.t0, end, rows, kernel.coefficients(seg.gait), b2, b1,
                                       self.tol, cap)
+            if t_ev == -2.0:
+                raise RuntimeError(f'exact solver: the event search ran out of steps on '
+                                   f'[{seg.t0!r}, {end!r}] s; report this scene (try '
+                                   'method="implicit")')
             if t_ev < 0.0:
                 check_finite_gait(seg.gait._eval(np.array([seg.t0, end])), [seg.t0, end])
                 raise ValueError('gait values must be finite')

@@ -22,6 +22,8 @@ import math
 import numpy as np
 from numba import njit
 
+_MAX_STEPS = 10_000_000   # grid and narrowing steps of one search (about 1 s): a safety net
+
 if True:  # (one block, indented)
     @njit(cache=True)
     def rates(t, kind, freq, cosc, sinc, ld, ldd):
@@ -123,7 +125,9 @@ if True:  # (one block, indented)
             for j in range(nl):
                 sc += abs(A1[r, j] * ld[j]) + abs(A2[r, j] * ldd[j])
             noise[r] = 1e-13 * sc + 1e-300
-            watch[r] = ga[r] <= 0.0
+            # a row at zero to within its rounding noise (a rigid pair, a body at rest)
+            # is watched: a row of +1e-16 stuck there would otherwise need ~1e-9 s steps
+            watch[r] = ga[r] <= noise[r]
         a = t0
         h = step(ga, watch, B2, B1, tol, cap)
         for r in range(K):
@@ -143,7 +147,7 @@ if True:  # (one block, indented)
         w_hist0 = math.inf
         w_hist1 = math.inf
         w_hist2 = math.inf
-        for _ in range(100000):
+        for _ in range(_MAX_STEPS):
             if have_b:
                 m = 0.5 * (a + b)
                 if not (a < m < b):
@@ -216,6 +220,8 @@ if True:  # (one block, indented)
                 side = 1
             else:
                 h = step(ga, watch, B2, B1, tol, cap)
+        if not have_b:
+            return -2.0, gb[:0] > 0.0          # out of steps: the caller raises
         hits = np.empty(K, dtype=np.bool_)
         for r in range(K):
             hits[r] = (watch[r] and gb[r] < -noise[r]) or (not watch[r] and gb[r] <= 0.0)
