@@ -42,7 +42,8 @@ def test_a_pip_installed_sim_node_records_a_bag_rosbags_reads_without_the_ament_
     env['PYTHONUNBUFFERED'] = '1'
     # the installed copy runs, not this checkout
     probe = 'import crawler_sim; print(crawler_sim.__file__)'
-    where = subprocess.run([sys.executable, '-c', probe], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60)
+    where = subprocess.run([sys.executable, '-c', probe], cwd=tmp_path, env=env,
+                           capture_output=True, text=True, timeout=60)
     assert where.stdout.startswith(str(pip_target)), where.stdout + where.stderr
     out, err = open(tmp_path / 'sim.out', 'w+'), open(tmp_path / 'sim.err', 'w+')
     sim = subprocess.Popen([str(pip_target / 'bin' / 'sim_node'), '--ros-args',
