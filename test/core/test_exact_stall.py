@@ -59,3 +59,40 @@ def test_a_row_at_zero_to_rounding_that_goes_negative_is_an_event_python(eps0):
     gait, rows, w = _grazing_rows(eps0)
     t, hit = Search(gait, rows, 1e-13, 0.125).run(1.0, False)
     assert 0.0 < t < 1e-4 and hit is not None and hit.tolist() == [0]
+
+
+def test_a_link_whose_velocity_is_a_few_ulps_splits_its_stuck_pair_instead_of_stalling():
+    """A user's tanh step, l = 1 + 0.05 tanh((t - 0.5) / 0.02), on two equal bodies: both are
+    stuck while l' is exactly 0 in floats; at t = 0.1188 s, l' becomes 5.6e-16 (one rounding
+    quantum of 1 - tanh^2). The two ends' accelerations differ by 5.6e-14, within the tie
+    tolerance that merges a rigid pair into one kink, so the pair was kept stuck, found not rigid
+    one float later, and so on: "stalled at t = 0.11876905069203364". A link found not rigid is
+    now never merged. Equal bodies and frictions started at V = 0: the centre of mass stays at
+    0.475 m (the symmetry of test_core_invariants), so at l(1) = 1.05 m, x = 0.475 -+ 0.525 =
+    (-0.05, 1.0); the oracle gives the same. Advanced in 0.1 s syncs, as a node would (one
+    advance over the whole second is correct but slow: the global jerk estimate makes the
+    search step tiny on the near-zero tail, a known cost of gaits without local bounds)."""
+    import sys
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from oracle import Oracle
+    from crawler_sim import Crawler
+    from crawler_sim.core.solvers.exact import ExactSolver
+    w, A = 0.02, 0.05
+
+    def th(t):
+        return math.tanh((t - 0.5) / w)
+    gait = gaits.Custom(lambda t: 1 + A * th(t), lambda t: A / w * (1 - th(t) ** 2),
+                        lambda t: -2 * A / w ** 2 * th(t) * (1 - th(t) ** 2))
+    crawler = Crawler([1, 1], [1, 1])
+    solver = ExactSolver(crawler, gait)
+    for k in range(1, 11):
+        solver.advance(0.1 * k)
+    x = solver.current()['x']
+
+    def kin(t):
+        h = np.tanh((np.asarray(t) - 0.5) / w)
+        return ((1 + A * h)[:, None], (A / w * (1 - h * h))[:, None],
+                (-2 * A / w ** 2 * h * (1 - h * h))[:, None])
+    ref, _ = Oracle.for_crawler(crawler, kin).solve(1.0, [0.0, 1.0], h=1e-5)
+    np.testing.assert_allclose(x, ref[1], rtol=0, atol=1e-10)
+    np.testing.assert_allclose(x, [-A, 1.0], rtol=0, atol=1e-6)   # symmetry, by hand

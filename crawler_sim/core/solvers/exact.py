@@ -141,17 +141,22 @@ class ExactSolver:
             return contact, (self._fext + R.sum()) / self._M, -1, np.zeros_like(zero)
         choice = self._solve_mode(ep, epp, contact)
         span = max(t_limit - t, 0.0)
-        if choice[4] or (choice[3].sum() > 1 and not self._rigid(choice[3], t, span)):
+        loose = choice[3].sum() > 1 and not self._rigid(choice[3], t, span)
+        if choice[4] or loose:
             # Degenerate tie, or bodies at rest together whose link is not rigid beyond this
             # instant: decide by the inclusion a little later (same zero set).
             # Near t the deciding quantities grow from zero, so only their sign matters: a
             # tighter ambiguity threshold there, and the furthest look-ahead if still unsure.
+            # A link that is not rigid must not be merged into one kink either, however close
+            # its ends' accelerations (l' and l'' of a few ulps, e.g. a tanh gait's tail):
+            # a merged group would be found not rigid again one float later, for ever.
             for rel in (1e-9, 1e-7, 1e-5):
                 dt = min(rel * max(span, self._timescale()), 0.5 * span) if span > 0 else 0.0
                 if dt <= 0.0:
                     break
                 _, ld2, ldd2 = self.gait.at(t + dt)
-                choice = self._solve_mode(self._W @ ld2, self._W @ ldd2, contact, slack=1e-14)
+                choice = self._solve_mode(self._W @ ld2, self._W @ ldd2, contact, slack=1e-14,
+                                          merge=not loose)
                 if not choice[4]:
                     break
         return choice[:4]
@@ -203,7 +208,7 @@ class ExactSolver:
         return new, A, -1, group, bool(ambiguous)
 
     def _solve_mode(self, ep: NDArray, epp: NDArray, contact: NDArray,
-                    slack: float = _AMBIGUOUS):
+                    slack: float = _AMBIGUOUS, merge: bool = True):
         zero = self.zero
         fp, fm, M = self._fp, self._fm, self._M
         idx = zero.nonzero()[0]
@@ -223,7 +228,7 @@ class ExactSolver:
             return self._solve_mode_one(int(idx[0]), float(force), epp, contact, slack)
         acc_scale = max(float(np.max(np.abs(epp))), (fp.sum() + fm.sum() + abs(force)) / M,
                         1e-300)
-        kinks = _merge_ties(-epp[zero], 1e-13 * acc_scale)
+        kinks = _merge_ties(-epp[zero], 1e-13 * acc_scale) if merge else -epp[zero]
         A, s = solve_inclusion(M, 0.0, force, kinks, fp[zero], fm[zero])
         rel = np.zeros_like(epp)
         rel[idx] = A - kinks                 # body accelerations (ties merged)
@@ -564,7 +569,7 @@ class ExactSolver:
                 t_ev = t_stop     # the left limit at a breakpoint: the event is the breakpoint
             return t_ev, sorted({labels[k] for k in np.nonzero(hit)[0].tolist()})
         est = None
-        for _ in range(12):
+        for _ in range(16):
             search = Search(seg.gait, rows, self.tol, cap)
             h0 = None
             if not search.known:
@@ -572,13 +577,32 @@ class ExactSolver:
                 if est is not None:
                     search.est = est
             t_ev, hit = search.run(t_stop, left_limit, h0)
-            if not search.estimate_grew():
+            self.n_evals += search.n_eval
+            if search.estimate_grew():
+                est = search.est     # an estimated bound proved too small: redo with it
+                continue
+            if search.known or self._end_consistent(search, hit, t_stop, left_limit):
                 break
-            est = search.est     # an estimated bound proved too small: redo with the new one
-        self.n_evals += search.n_eval
+            # estimated bounds: a row that ends below zero without being reported was
+            # crossed between two samples; redo with 64 times the estimate
+            est = 64.0 * np.maximum(search.est, search.used)
+        else:
+            raise RuntimeError(f'exact solver: no consistent event on [{seg.t0!r}, {t_stop!r}] s '
+                               'with estimated gait bounds; give the Custom gait jerk_bound= '
+                               'or max_step=')
         if hit is None:
             return t_stop, []
         return t_ev, sorted({labels[k] for k in hit.tolist()})
+
+    @staticmethod
+    def _end_consistent(search: Search, hit, t_stop: float, left_limit: bool) -> bool:
+        """The end-of-segment check: a segment that ends without an event has every row above
+        minus its noise level at its end (else an event was crossed between two samples).
+        (At an event, rows crossing within ``tol`` of it may sit just below zero: not checked.)"""
+        if hit is not None:
+            return True
+        end = float(np.nextafter(t_stop, -math.inf)) if left_limit else t_stop
+        return bool((search._eval(np.array([end]))[0] >= -search._noise).all())
 
     # ---------------------------------------------------------------- output
     def sample(self, times: NDArray[np.float64]) -> dict:
