@@ -338,14 +338,16 @@ class ExactSolver:
             self.X = float(self.x_ref - e[self.ref])
         # A sliding body whose velocity is zero or points against its contact sign (l' = 0
         # exactly at a breakpoint, or a jump of l' where the actuator settles to rest): the
-        # contact sign comes from the actual velocity; only a body at exactly zero velocity
-        # joins the zero set, where the inclusion chooses its mode from the acceleration.
-        # (Sending a body with v != 0 to the inclusion can pick the sign opposite to v: the
-        # segment then ends one float later on that body's velocity row, again and again.)
+        # contact sign comes from the actual velocity; only a body at zero velocity (to the
+        # rounding of V + e_i') joins the zero set, where the inclusion chooses its mode from
+        # the acceleration. (Sending a moving body to the inclusion can pick the sign opposite
+        # to v: the segment then ends one float later on its velocity row, again and again;
+        # taking the sign of a rounding residue, -4e-18 m/s for a body rigidly carried by a
+        # stuck one, makes two such bodies trade places every float.)
         v = self.V + ep
         stale = ~self.zero & ~self._free & (self.contact * v <= 0.0)
         if stale.any():
-            moving = stale & (v != 0.0)
+            moving = stale & (np.abs(v) > 16.0 * _EPS * (abs(self.V) + np.abs(ep)))
             if moving.any():
                 flipped = self.contact.copy()
                 flipped[moving] = np.sign(v[moving])
