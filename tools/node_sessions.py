@@ -166,6 +166,8 @@ def main(argv=None) -> int:
     print(f'wall time per session: median {statistics.median(walls):.2f} s, max '
           f'{max(walls):.2f} s (real-time factor median '
           f'{args.seconds / statistics.median(walls):.1f})')
+    slow = max(results, key=lambda r: r['wall'])
+    print(f'slowest session: seed {slow["seed"]} (p = {slow["p"]}), {slow["wall"]:.2f} s')
     for r in (fallbacks + crashes)[:8]:
         first = r['failures'][0] if r['failures'] else r['crash']
         print(f'  seed {r["seed"]} (p = {r["p"]}): {first[:160]}')

@@ -54,6 +54,13 @@ _AMBIGUOUS = 1e-10   # relative slack below which a mode choice is decided by lo
 _EPS = np.finfo(float).eps
 
 
+def _dot(row: list, vec: list) -> float:
+    acc = 0.0
+    for w, y in zip(row, vec):
+        acc += w * y
+    return acc
+
+
 def _merge_ties(kinks: NDArray, eps: float) -> NDArray:
     """Snap kinks closer than ``eps`` to one value: bodies rigidly linked have equal relative
     accelerations mathematically but not always bitwise, and must be seen as one group."""
@@ -101,6 +108,11 @@ class ExactSolver:
         # Frictionless bodies never stick and never change the dynamics: no events for them.
         self._free = (self._fp + self._fm) == 0.0
         self._fp_list, self._fm_list = self._fp.tolist(), self._fm.tolist()
+        # plain-float copies for ``current`` (called at every publish tick of a node)
+        self._W_rows, self._C_rows = self._W.tolist(), self._C.tolist()
+        self._m_list = self._m.tolist()
+        self._g_list = crawler.gravity_forces.tolist()
+        self._free_idx = np.nonzero(self._free)[0].tolist()
         self._f_total = float(self._fp.sum() + self._fm.sum())   # [N], scales of the tests
         if self.use_kernel and type(gait) in _COMPILED:
             from . import kernel    # numba: loaded here, not in the first (real-time) advance
@@ -405,38 +417,63 @@ class ExactSolver:
 
     def current(self) -> dict:
         """The state at the current time as one output row (left limit at an event): the
-        same closed form as ``Segment.evaluate``, for one time, without array overhead."""
+        same closed form as ``Segment.evaluate``, for one time, in plain floats (a node calls
+        it at every publish tick; numpy's per-call cost on arrays of p entries was 165 us)."""
         seg = self.last if (self.last is not None and self.last.t1 == self.t) else \
             self.provisional()
         t = self.t
-        l, ld, ldd = seg.gait.at(t)
-        W, C, m, M = self._W, self._C, self._m, self._M
-        epp = W @ ldd
+        l, ld, ldd = (a.tolist() for a in seg.gait.at(t))
+        p = len(self._m_list)
+        W, C, m, M = self._W_rows, self._C_rows, self._m_list, self._M
+        dot = _dot
+        epp = [dot(W[i], ldd) for i in range(p)]
         d = t - seg.t0
+        R = seg.R.tolist()
+        K = seg.K0.tolist()
         if seg.ref < 0:
             X = seg.X0 + d * (seg.V0 + 0.5 * seg.a * d)
             V = seg.V0 + seg.a * d
-            x, v, A = X + W @ l, V + W @ ld, seg.a
-            R = seg.R.copy()
-            K = seg.K0 + seg.R * d
+            x = [X + dot(W[i], l) for i in range(p)]
+            v = [V + dot(W[i], ld) for i in range(p)]
+            A = seg.a
+            K = [K[i] + R[i] * d for i in range(p)]
         else:
-            r, g = seg.ref, seg.group
-            s, sd = C @ l, C @ ld
-            x, v, A = seg.x_ref + (s - s[r]), sd - sd[r], -epp[r]
-            slide_R = np.where(g, 0.0, seg.R)
-            f_slide = self._fext + slide_R.sum()
-            R = slide_R.copy()
-            R[g] = -split_friction(f_slide - M * A, self._fp[g], self._fm[g])
-            imp = M * (-(W[r] @ ld) - seg.V0) - f_slide * d
-            K = seg.K0 + slide_R * d
-            K[g] += _split_impulse(np.array([imp]), np.array([d]), self._fp[g], self._fm[g])[0]
+            r, g = seg.ref, seg.group.tolist()
+            s = [dot(C[i], l) for i in range(p)]
+            sd = [dot(C[i], ld) for i in range(p)]
+            x = [seg.x_ref + (s[i] - s[r]) for i in range(p)]
+            v = [sd[i] - sd[r] for i in range(p)]
+            A = -epp[r]
+            R = [0.0 if g[i] else R[i] for i in range(p)]
+            f_slide = self._fext + sum(R)
+            K = [K[i] + R[i] * d for i in range(p)]
+            # the group's friction and impulse: the affine split of ``split_friction`` and
+            # ``_split_impulse`` (each body at the same fraction of its own interval)
+            fp = [self._fp_list[i] for i in range(p) if g[i]]
+            fm = [self._fm_list[i] for i in range(p) if g[i]]
+            w = sum(fp) + sum(fm)
+            members = [i for i in range(p) if g[i]]
+            if w > 0:
+                theta = min(max((f_slide - M * A + sum(fm)) / w, 0.0), 1.0)
+                imp = M * (-dot(W[r], ld) - seg.V0) - f_slide * d
+                q = (-imp + sum(fm) * d) / w
+                for i, fpi, fmi in zip(members, fp, fm):
+                    R[i] = fmi - theta * (fpi + fmi)
+                    K[i] += fmi * d - q * (fpi + fmi)
+            else:
+                for i in members:
+                    R[i] = 0.0
         contact = seg.contact.copy()
-        if self._free.any():
-            contact[self._free] = np.sign(v[self._free])
-        lam = np.cumsum(R + self.crawler.gravity_forces - m * (A + epp))[:-1]
-        return {'x': x, 'v': v, 'friction': R, 'impulse': K, 'linkage_force': lam,
-                'lengths': l, 'rates': ld, 'contact': contact,
-                'indeterminate': bool(seg.group.sum() > 1)}
+        for i in self._free_idx:         # no friction, no stick: the sign of the velocity
+            contact[i] = (v[i] > 0) - (v[i] < 0)
+        lam, acc = [], 0.0
+        for i in range(p - 1):
+            acc += R[i] + self._g_list[i] - m[i] * (A + epp[i])
+            lam.append(acc)
+        return {'x': np.array(x), 'v': np.array(v), 'friction': np.array(R),
+                'impulse': np.array(K), 'linkage_force': np.array(lam),
+                'lengths': np.array(l), 'rates': np.array(ld), 'contact': contact,
+                'indeterminate': bool(seg.ref >= 0 and sum(g) > 1)}
 
     def _record_contact_change(self, t: float, contact: NDArray) -> None:
         old = self.contact
