@@ -259,33 +259,45 @@ class TrajectoryReference:
         if tau <= kt[0]:
             return (list(_row(self._p, 0)), list(_row(self._v, 0)),
                     list(_row(self._a, 0)))
-        # the segment holding tau: kt[k] <= tau < kt[k+1], by bisection (O(log n): a
-        # trajectory may hold up to a million points)
-        k = bisect_right(kt, tau) - 1
-        h = kt[k + 1] - kt[k]
-        s = (tau - kt[k]) / h
-        P0, P1 = _row(self._p, k), _row(self._p, k + 1)
-        if self.order > 1:
-            V0, V1 = _row(self._v, k), _row(self._v, k + 1)
-            A0, A1 = _row(self._a, k), _row(self._a, k + 1)
+        # A 1 kHz actuator evaluates each segment of a 50 Hz trajectory 20 times in a row: the
+        # segment and its per-linkage coefficients are kept until tau leaves it (same floats as
+        # computing them every call, so the reference is bit-identical).
+        seg = getattr(self, '_seg', None)
+        if seg is None or not (seg[0] <= tau < seg[1]):
+            seg = self._seg = self._segment(bisect_right(kt, tau) - 1)
+        t_k, _t_next, h, coeffs = seg
+        s = (tau - t_k) / h
         r, rd, rdd = [], [], []
-        for i in range(self.n_links):
-            p0, p1 = P0[i], P1[i]
-            if self.order == 1:
-                r.append(p0 + s * (p1 - p0))
-                rd.append((p1 - p0) / h)
+        if self.order == 1:
+            for p0, dp, slope in coeffs:
+                r.append(p0 + s * dp)
+                rd.append(slope)
                 rdd.append(0.0)
-                continue
-            v0, v1 = V0[i] * h, V1[i] * h
-            a0, a1 = A0[i] * h * h, A1[i] * h * h
-            c = _hermite(p0, v0, a0, p1, v1, a1, self.order)
-            x = c[0] + s * (c[1] + s * (c[2] + s * (c[3] + s * (c[4] + s * c[5]))))
-            xd = c[1] + s * (2 * c[2] + s * (3 * c[3] + s * (4 * c[4] + s * 5 * c[5])))
-            xdd = 2 * c[2] + s * (6 * c[3] + s * (12 * c[4] + s * 20 * c[5]))
+            return r, rd, rdd
+        h2 = h * h
+        for c0, c1, c2, c3, c4, c5 in coeffs:
+            x = c0 + s * (c1 + s * (c2 + s * (c3 + s * (c4 + s * c5))))
+            xd = c1 + s * (2 * c2 + s * (3 * c3 + s * (4 * c4 + s * 5 * c5)))
+            xdd = 2 * c2 + s * (6 * c3 + s * (12 * c4 + s * 20 * c5))
             r.append(x)
             rd.append(xd / h)
-            rdd.append(xdd / (h * h))
+            rdd.append(xdd / h2)
         return r, rd, rdd
+
+    def _segment(self, k: int) -> tuple[float, float, float, list[tuple[float, ...]]]:
+        """(t_k, t_k+1, h, per-linkage coefficients) of segment k [s from ``t_start``]: for
+        order 1 (p0, p1 - p0, slope), else the Hermite coefficients on s in [0, 1]."""
+        kt = self._t
+        h = kt[k + 1] - kt[k]
+        P0, P1 = _row(self._p, k), _row(self._p, k + 1)
+        if self.order == 1:
+            coeffs = [(P0[i], P1[i] - P0[i], (P1[i] - P0[i]) / h) for i in range(self.n_links)]
+            return kt[k], kt[k + 1], h, coeffs
+        V0, V1 = _row(self._v, k), _row(self._v, k + 1)
+        A0, A1 = _row(self._a, k), _row(self._a, k + 1)
+        coeffs = [_hermite(P0[i], V0[i] * h, A0[i] * h * h, P1[i], V1[i] * h, A1[i] * h * h,
+                           self.order) for i in range(self.n_links)]
+        return kt[k], kt[k + 1], h, coeffs
 
 
 def _row(rows, k: int) -> list[float]:
