@@ -141,17 +141,49 @@ def jerk_law(l: float, v: float, a: float, r: float, rd: float, rdd: float, dt: 
     """
     kp, kv, ka = k
     vmax, amax = max_speed, max_acceleration
-    v_d = rd + _sqrt_p(r - l, kp, 0.5 * amax)
-    v_d = min(max(v_d, -vmax), vmax)
+    # One call per linkage per 1 kHz tick: the clamps are written as comparisons instead of
+    # builtin min/max calls (about half the cost). Each keeps builtin min/max's choice exactly
+    # (the earlier argument on ties, so also the sign of a zero), hence the same bits.
+    e = r - l
+    linear = 0.5 * amax / (kp * kp)          # _sqrt_p inlined (a_brake = amax / 2)
+    if e > linear:
+        v_d = rd + math.sqrt(2.0 * (0.5 * amax) * (e - 0.5 * linear))
+    elif e < -linear:
+        v_d = rd + -math.sqrt(2.0 * (0.5 * amax) * (-e - 0.5 * linear))
+    else:
+        v_d = rd + kp * e
+    if -vmax > v_d:                          # min(max(v_d, -vmax), vmax)
+        v_d = -vmax
+    if vmax < v_d:
+        v_d = vmax
     a_d = rdd + kv * (v_d - v)
-    a_d = min(max(a_d, -amax), amax)
+    if -amax > a_d:                          # min(max(a_d, -amax), amax)
+        a_d = -amax
+    if amax < a_d:
+        a_d = amax
     j = ka * (a_d - a)
     dt2 = dt * dt
-    hi = min((amax - a) / dt, 2.0 * (vmax - v - a * dt) / dt2, (vmax - v - 1.5 * a * dt) / dt2)
-    lo = max((-amax - a) / dt, 2.0 * (-vmax - v - a * dt) / dt2, (-vmax - v - 1.5 * a * dt) / dt2)
+    hi = (amax - a) / dt                     # min of three
+    x = 2.0 * (vmax - v - a * dt) / dt2
+    if x < hi:
+        hi = x
+    x = (vmax - v - 1.5 * a * dt) / dt2
+    if x < hi:
+        hi = x
+    lo = (-amax - a) / dt                    # max of three
+    x = 2.0 * (-vmax - v - a * dt) / dt2
+    if x > lo:
+        lo = x
+    x = (-vmax - v - 1.5 * a * dt) / dt2
+    if x > lo:
+        lo = x
     if lo > hi:            # only through rounding at the boundary; -a/dt is always admissible
         return -a / dt
-    return min(max(j, lo), hi)
+    if lo > j:                               # min(max(j, lo), hi)
+        j = lo
+    if hi < j:
+        j = hi
+    return j
 
 
 #: (l, l', l'') of a constant-jerk piece after d seconds: the expression of ``gaits.Cubic``
