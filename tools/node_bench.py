@@ -199,6 +199,10 @@ def main() -> int:
     args = parser.parse_args()
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     env = _workspace_env(dict(os.environ))
+    # the nodes run this checkout's crawler_sim (the one the baseline imports), not the one the
+    # colcon install's build/ links to: a worktree measures its own code
+    here = str(Path(__file__).resolve().parents[1])
+    env['PYTHONPATH'] = os.pathsep.join([here, env.get('PYTHONPATH', '')]).rstrip(os.pathsep)
     base = statistics.median(engine_baseline() for _ in range(3))
     print(f'sim_node benchmark: two-body default, method {args.method}, 1 kHz integration, '
           f'every output at 100 Hz with a subscriber, {args.seconds:g} s per run, median of '

@@ -141,17 +141,49 @@ def jerk_law(l: float, v: float, a: float, r: float, rd: float, rdd: float, dt: 
     """
     kp, kv, ka = k
     vmax, amax = max_speed, max_acceleration
-    v_d = rd + _sqrt_p(r - l, kp, 0.5 * amax)
-    v_d = min(max(v_d, -vmax), vmax)
+    # One call per linkage per 1 kHz tick: the clamps are written as comparisons instead of
+    # builtin min/max calls (about half the cost). Each keeps builtin min/max's choice exactly
+    # (the earlier argument on ties, so also the sign of a zero), hence the same bits.
+    e = r - l
+    linear = 0.5 * amax / (kp * kp)          # _sqrt_p inlined (a_brake = amax / 2)
+    if e > linear:
+        v_d = rd + math.sqrt(2.0 * (0.5 * amax) * (e - 0.5 * linear))
+    elif e < -linear:
+        v_d = rd + -math.sqrt(2.0 * (0.5 * amax) * (-e - 0.5 * linear))
+    else:
+        v_d = rd + kp * e
+    if -vmax > v_d:                          # min(max(v_d, -vmax), vmax)
+        v_d = -vmax
+    if vmax < v_d:
+        v_d = vmax
     a_d = rdd + kv * (v_d - v)
-    a_d = min(max(a_d, -amax), amax)
+    if -amax > a_d:                          # min(max(a_d, -amax), amax)
+        a_d = -amax
+    if amax < a_d:
+        a_d = amax
     j = ka * (a_d - a)
     dt2 = dt * dt
-    hi = min((amax - a) / dt, 2.0 * (vmax - v - a * dt) / dt2, (vmax - v - 1.5 * a * dt) / dt2)
-    lo = max((-amax - a) / dt, 2.0 * (-vmax - v - a * dt) / dt2, (-vmax - v - 1.5 * a * dt) / dt2)
+    hi = (amax - a) / dt                     # min of three
+    x = 2.0 * (vmax - v - a * dt) / dt2
+    if x < hi:
+        hi = x
+    x = (vmax - v - 1.5 * a * dt) / dt2
+    if x < hi:
+        hi = x
+    lo = (-amax - a) / dt                    # max of three
+    x = 2.0 * (-vmax - v - a * dt) / dt2
+    if x > lo:
+        lo = x
+    x = (-vmax - v - 1.5 * a * dt) / dt2
+    if x > lo:
+        lo = x
     if lo > hi:            # only through rounding at the boundary; -a/dt is always admissible
         return -a / dt
-    return min(max(j, lo), hi)
+    if lo > j:                               # min(max(j, lo), hi)
+        j = lo
+    if hi < j:
+        j = hi
+    return j
 
 
 #: (l, l', l'') of a constant-jerk piece after d seconds: the expression of ``gaits.Cubic``
@@ -259,33 +291,45 @@ class TrajectoryReference:
         if tau <= kt[0]:
             return (list(_row(self._p, 0)), list(_row(self._v, 0)),
                     list(_row(self._a, 0)))
-        # the segment holding tau: kt[k] <= tau < kt[k+1], by bisection (O(log n): a
-        # trajectory may hold up to a million points)
-        k = bisect_right(kt, tau) - 1
-        h = kt[k + 1] - kt[k]
-        s = (tau - kt[k]) / h
-        P0, P1 = _row(self._p, k), _row(self._p, k + 1)
-        if self.order > 1:
-            V0, V1 = _row(self._v, k), _row(self._v, k + 1)
-            A0, A1 = _row(self._a, k), _row(self._a, k + 1)
+        # A 1 kHz actuator evaluates each segment of a 50 Hz trajectory 20 times in a row: the
+        # segment and its per-linkage coefficients are kept until tau leaves it (same floats as
+        # computing them every call, so the reference is bit-identical).
+        seg = getattr(self, '_seg', None)
+        if seg is None or not (seg[0] <= tau < seg[1]):
+            seg = self._seg = self._segment(bisect_right(kt, tau) - 1)
+        t_k, _t_next, h, coeffs = seg
+        s = (tau - t_k) / h
         r, rd, rdd = [], [], []
-        for i in range(self.n_links):
-            p0, p1 = P0[i], P1[i]
-            if self.order == 1:
-                r.append(p0 + s * (p1 - p0))
-                rd.append((p1 - p0) / h)
+        if self.order == 1:
+            for p0, dp, slope in coeffs:
+                r.append(p0 + s * dp)
+                rd.append(slope)
                 rdd.append(0.0)
-                continue
-            v0, v1 = V0[i] * h, V1[i] * h
-            a0, a1 = A0[i] * h * h, A1[i] * h * h
-            c = _hermite(p0, v0, a0, p1, v1, a1, self.order)
-            x = c[0] + s * (c[1] + s * (c[2] + s * (c[3] + s * (c[4] + s * c[5]))))
-            xd = c[1] + s * (2 * c[2] + s * (3 * c[3] + s * (4 * c[4] + s * 5 * c[5])))
-            xdd = 2 * c[2] + s * (6 * c[3] + s * (12 * c[4] + s * 20 * c[5]))
+            return r, rd, rdd
+        h2 = h * h
+        for c0, c1, c2, c3, c4, c5 in coeffs:
+            x = c0 + s * (c1 + s * (c2 + s * (c3 + s * (c4 + s * c5))))
+            xd = c1 + s * (2 * c2 + s * (3 * c3 + s * (4 * c4 + s * 5 * c5)))
+            xdd = 2 * c2 + s * (6 * c3 + s * (12 * c4 + s * 20 * c5))
             r.append(x)
             rd.append(xd / h)
-            rdd.append(xdd / (h * h))
+            rdd.append(xdd / h2)
         return r, rd, rdd
+
+    def _segment(self, k: int) -> tuple[float, float, float, list[tuple[float, ...]]]:
+        """(t_k, t_k+1, h, per-linkage coefficients) of segment k [s from ``t_start``]: for
+        order 1 (p0, p1 - p0, slope), else the Hermite coefficients on s in [0, 1]."""
+        kt = self._t
+        h = kt[k + 1] - kt[k]
+        P0, P1 = _row(self._p, k), _row(self._p, k + 1)
+        if self.order == 1:
+            coeffs = [(P0[i], P1[i] - P0[i], (P1[i] - P0[i]) / h) for i in range(self.n_links)]
+            return kt[k], kt[k + 1], h, coeffs
+        V0, V1 = _row(self._v, k), _row(self._v, k + 1)
+        A0, A1 = _row(self._a, k), _row(self._a, k + 1)
+        coeffs = [_hermite(P0[i], V0[i] * h, A0[i] * h * h, P1[i], V1[i] * h, A1[i] * h * h,
+                           self.order) for i in range(self.n_links)]
+        return kt[k], kt[k + 1], h, coeffs
 
 
 def _row(rows, k: int) -> list[float]:

@@ -196,3 +196,54 @@ def test_a_settled_actuator_hands_the_solver_constant_pieces():
     act = Actuator([0.1, 0.1], 1e-3, ActuatorLimits())
     piece = act.step(0.0, 1e-3)
     assert isinstance(piece, Cubic) and piece.is_constant(0.0, 1e-3)
+
+
+def _jerk_law_spec(l, v, a, r, rd, rdd, dt, k, vmax, amax):
+    """jerk_law as first written, with builtin min/max (the spec the fast version must match
+    bit for bit)."""
+    kp, kv, ka = k
+    e, ab = r - l, 0.5 * amax
+    lin = ab / (kp * kp)
+    s = (math.sqrt(2.0 * ab * (e - 0.5 * lin)) if e > lin
+         else -math.sqrt(2.0 * ab * (-e - 0.5 * lin)) if e < -lin else kp * e)
+    v_d = min(max(rd + s, -vmax), vmax)
+    a_d = min(max(rdd + kv * (v_d - v), -amax), amax)
+    j = ka * (a_d - a)
+    dt2 = dt * dt
+    hi = min((amax - a) / dt, 2.0 * (vmax - v - a * dt) / dt2, (vmax - v - 1.5 * a * dt) / dt2)
+    lo = max((-amax - a) / dt, 2.0 * (-vmax - v - a * dt) / dt2, (-vmax - v - 1.5 * a * dt) / dt2)
+    return -a / dt if lo > hi else min(max(j, lo), hi)
+
+
+def test_jerk_law_equals_its_min_max_spec_bit_for_bit_including_clamps_and_ties():
+    rng = np.random.default_rng(7)
+    for _ in range(20000):
+        vmax, amax = rng.choice([0.05, 0.5, 2.0]), rng.choice([0.5, 5.0, 50.0])
+        dt = rng.choice([1e-3, 1e-2, 0.1])
+        k = gains(rng.choice([2.0, 5.0, 20.0]), dt)
+        l = 0.1
+        r = l + rng.choice([0.0, 1e-9, -1e-6, 1e-3, -0.05, 0.3])
+        v = float(rng.choice([0.0, -0.0, vmax, -vmax, rng.uniform(-vmax, vmax)]))
+        a = float(rng.choice([0.0, amax, -amax, rng.uniform(-amax, amax)]))
+        rd, rdd = float(rng.choice([0.0, rng.normal(0, vmax)])), float(rng.normal(0, amax))
+        args = (l, v, a, r, rd, rdd, dt, k, vmax, amax)
+        got, want = jerk_law(*args), _jerk_law_spec(*args)
+        assert got == want and math.copysign(1.0, got) == math.copysign(1.0, want), args
+
+
+@pytest.mark.parametrize('order', [1, 3, 5])
+def test_a_reference_evaluated_in_any_time_order_equals_a_fresh_one_at_each_time(order):
+    # the reference keeps its current segment between calls; jumping back, forward, to the ends
+    # and between segments must give what a reference that never cached anything gives
+    rng = np.random.default_rng(order)
+    times = np.cumsum(rng.uniform(0.005, 0.05, 30))
+    pos = rng.uniform(0.05, 0.15, (30, 2))
+    vel = rng.normal(size=(30, 2)) if order >= 3 else None
+    acc = rng.normal(size=(30, 2)) if order == 5 else None
+    state = [(0.1, 0.01, 0.2), (0.12, -0.02, 0.0)]
+    ref = TrajectoryReference.from_arrays(2.0, state, times, pos, vel, acc)
+    ts = np.concatenate([2.0 + np.arange(0.0, times[-1] + 0.01, 1e-3),
+                         rng.uniform(1.9, 2.1 + times[-1], 300), 2.0 + times[::-1]])
+    for t in ts.tolist():
+        fresh = TrajectoryReference.from_arrays(2.0, state, times, pos, vel, acc)
+        assert ref(t) == fresh(t), t
