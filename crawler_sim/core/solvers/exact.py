@@ -142,6 +142,11 @@ class ExactSolver:
         self._checkpoint = None
         self._mode_cache = None
         self.n_evals = 0          # event-row evaluations (cost figure)
+        n_buf = 256               # segment records per call of the compiled loop
+        self._buffers = (np.empty((n_buf, 6)), np.empty(n_buf, np.int64),
+                         np.empty((n_buf, p), np.int8), np.empty((n_buf, p)),
+                         np.empty((n_buf, p)), np.empty(9))
+        self._zeros_links = np.zeros(p - 1)
 
     # ------------------------------------------------------------- mode choice
     def _mode(self, t: float, ep: NDArray, epp: NDArray, t_limit: float):
@@ -276,7 +281,8 @@ class ExactSolver:
             if breaks.size:
                 t_stop = float(breaks[0])
             t_before = self.t
-            self._segment(t_stop, left_limit=bool(breaks.size))
+            if not self._drive(t_stop, bool(breaks.size)):
+                self._segment(t_stop, left_limit=bool(breaks.size))
             # a degenerate mode loop: segments that advance by nothing or by a few floats
             # (events at adjacent floats that flip the mode back and forth) for longer than
             # any cascade of simultaneous events (at most a few per body) could last
@@ -287,6 +293,88 @@ class ExactSolver:
                                    'report this scene (try method="implicit")')
             if T and self.t == t_stop and t_stop == k_next * T:
                 self._period_boundary(k_next, T, t1)
+
+    def _drive(self, t_stop: float, left_limit: bool) -> bool:
+        """Run the compiled segment loop (``driver``) towards t_stop; False when the next
+        segment needs the Python path (see ``driver``) or the gait is not compiled."""
+        gait = self.gait
+        if not (self.use_kernel and type(gait) in _COMPILED):
+            return False
+        cache = self._mode_cache
+        if cache is not None and cache[3].sum() > 1:
+            return False
+        from . import driver, kernel
+        kind, freq, p1, p2 = kernel.coefficients(gait)
+        mean = getattr(gait, 'mean', None)
+        if mean is None:
+            mean = self._zeros_links
+        jerk = gait.jerk_bound(self.t, t_stop)
+        snap = gait.snap_bound(self.t, t_stop)
+        has_snap = snap is not None
+        buf = self._buffers
+        state = buf[5]
+        # copies: the solver's arrays may be shared with kept segments
+        prev = self.contact
+        K, contact, zero = self.K.copy(), self.contact.copy(), self.zero.copy()
+        status = driver.drive(
+            self.t, float(t_stop), left_limit, 0, self.X, self.V, K, contact, zero, self.ref, self.x_ref, cache is not None,
+            float(cache[1]) if cache is not None else 0.0,
+            self._W, self._C, self._fp, self._fm, self._free, self._fext, self._M,
+            self._f_total, kind, freq, mean, p1, p2, np.asarray(jerk, dtype=float),
+            np.asarray(snap if has_snap else jerk, dtype=float), has_snap, self.tol,
+            self._cap(gait, self.t, t_stop), *buf)
+        n = int(state[6])
+        self.K, self.contact, self.zero = K, contact, zero
+        if n:
+            self._store(n, prev)
+        self.t, self.X, self.V, self.x_ref = (float(v) for v in state[:4])
+        self.ref = int(state[4])
+        if state[7]:
+            g = np.zeros(self._m.size, dtype=bool)
+            if self.ref >= 0:
+                g[self.ref] = True
+            self._mode_cache = (self.contact, float(state[8]), self.ref, g)
+        elif n:
+            self._mode_cache = None
+        if status == driver.STALLED:
+            raise RuntimeError(f'exact solver stalled at t = {self.t!r} s; '
+                               'report this scene (try method="implicit")')
+        if status == driver.NO_STEPS:
+            raise RuntimeError(f'exact solver: the event search ran out of steps after '
+                               f't = {self.t!r} s; report this scene (try method="implicit")')
+        if status == driver.NONFINITE:
+            check_finite_gait(gait._eval(np.array([self.t, t_stop])), [self.t, t_stop])
+            raise ValueError('gait values must be finite')
+        return status != driver.NEED_PYTHON or n > 0
+
+    def _store(self, n: int, prev: NDArray) -> None:
+        """Turn the driver's first n segment records into ``Segment`` objects and their
+        contact changes into events (``prev``: the contact before the first)."""
+        seg_f, seg_ref, seg_contact, seg_R, seg_K0, _ = self._buffers
+        rows = seg_f[:n].tolist()
+        refs = seg_ref[:n].tolist()
+        contacts = seg_contact[:n]
+        for k in range(n):
+            c = contacts[k]
+            if not np.array_equal(c, prev):
+                for i in (c != prev).nonzero()[0].tolist():
+                    self.events.append(Event(rows[k][0], i, int(prev[i]), int(c[i])))
+            prev = c
+        self.n_segments += n
+        keep = range(n) if self.keep_segments else range(n - 1, n)
+        p = self._m.size
+        seg = None
+        for k in keep:
+            t0, t1, X0, V0, a, x_ref = rows[k]
+            r = refs[k]
+            group = np.zeros(p, dtype=bool)
+            if r >= 0:
+                group[r] = True
+            seg = Segment(t0, t1, self.gait, contacts[k].copy(), seg_R[k].copy(),
+                          seg_K0[k].copy(), X0, V0, a, r, x_ref, group)
+            if self.keep_segments:
+                self.segments.append(seg)
+        self.last = seg
 
     def _signature(self):
         return (self.contact.tobytes(), self.zero.tobytes(), self.ref)
