@@ -49,7 +49,7 @@ def _grazing_rows(eps0: float) -> tuple:
 def test_a_row_at_zero_to_rounding_that_goes_negative_is_an_event_compiled(eps0):
     gait, rows, w = _grazing_rows(eps0)
     b2, b1 = rows.bounds(gait, 0.0, 1.0)
-    t, hit = kernel.search(0.0, 1.0, rows, kernel.coefficients(gait), b2, b1, 1e-13, 0.125)
+    t, hit, _ = kernel.search(0.0, 1.0, rows, kernel.coefficients(gait), b2, b1, 1e-13, 0.125)
     # the row is below -noise (1e-13 of its scale 0.6 w) once 0.15 w^3 t^2 > 4e-13: t ~ 1e-6 s;
     # any answer past 1e-4 s (or "no event", inf) misses the event
     assert 0.0 < t < 1e-4 and hit.tolist() == [True]

@@ -27,7 +27,7 @@ from numba import njit
 
 from .kernel import _search, rates
 
-REACHED, NEED_PYTHON, FULL, STALLED, NONFINITE, NO_STEPS = 0, 1, 2, 3, 4, 5
+REACHED, NEED_PYTHON, FULL, STALLED, NONFINITE, NO_STEPS, PERIODIC = 0, 1, 2, 3, 4, 5, 6
 _EPS = 2.220446049250313e-16
 _STALL_ULPS = 64
 _STALL_SEGMENTS = 256
@@ -71,22 +71,33 @@ if True:  # (one block, indented)
         return acc
 
     @njit(cache=True)
-    def drive(t, t_stop, left_limit, guard,
+    def drive(t, t_stop, left_limit, t_end, T, tol, cap,
               X, V, K, contact, zero, ref, x_ref, cache_ok, cache_a,
-              W, C, fp, fm, free, fext, M, f_total,
-              kind, freq, mean, cosc, sinc, jerk, snap, has_snap, tol, cap,
-              seg_f, seg_ref, seg_contact, seg_R, seg_K0, state):
-        """Integrate from ``t`` towards ``t_stop`` segment by segment (see the module doc).
+              W, C, fp, fm, free, fext, M, f_total, v_acc,
+              kind, freq, mean, cosc, sinc, jerk, snap, has_snap,
+              ck_f, ck_K, ck_contact, ck_zero,
+              seg_f, seg_ref, seg_contact, seg_R, seg_K0, ev_t, ev_i, state):
+        """Integrate from ``t`` towards ``t_stop`` (a gait breakpoint when ``left_limit``, or
+        the end of the caller's advance ``t_end``) segment by segment (see the module doc).
+
+        ``T`` > 0: the period; segments end at its multiples and the state there is compared
+        with the checkpoint of the previous one (``ExactSolver._period_boundary``):
+        ``ck_f`` = (k, X, V, x_ref, ref, segment index, event index, written here), with
+        ``ck_K``, ``ck_contact``, ``ck_zero`` (k = -1: none). On a repeat the call returns
+        ``PERIODIC`` at that multiple, the checkpoint left at the previous one.
 
         State in/out: ``K`` (p,), ``contact`` (p,) int8, ``zero`` (p,) bool are updated in
-        place; the floats come back in ``state`` = [t, X, V, x_ref, ref, guard, n_segments,
-        cache_ok, cache_a]. Segment k is ``seg_f[k]`` = (t0, t1, X0, V0, a, x_ref),
-        ``seg_ref[k]``, ``seg_contact[k]``, ``seg_R[k]``, ``seg_K0[k]``. Returns a status.
+        place; the floats come back in ``state`` = [t, X, V, x_ref, ref, -, n_segments,
+        cache_ok, cache_a, n_evals, n_events, k]. Segment k is ``seg_f[k]`` = (t0, t1, X0,
+        V0, a, x_ref), ``seg_ref[k]``, ``seg_contact[k]``, ``seg_R[k]``, ``seg_K0[k]``; event
+        k (a contact change) is at ``ev_t[k]`` for body ``ev_i[k, 0]`` from ``ev_i[k, 1]`` to
+        ``ev_i[k, 2]``. Returns a status.
         """
         p, nl = W.shape
         l = np.empty(nl)
         ld = np.empty(nl)
         ldd = np.empty(nl)
+        ld3 = np.empty(nl)
         e = np.empty(p)
         ep = np.empty(p)
         epp = np.empty(p)
@@ -99,15 +110,30 @@ if True:  # (one block, indented)
         A2 = np.zeros((p + 2, nl))
         lab_kind = np.empty(p + 2, np.int64)
         lab_body = np.empty(p + 2, np.int64)
-        end = np.nextafter(t_stop, -math.inf) if left_limit else t_stop
         n = 0
+        n_ev = 0
+        n_eval = 0
+        k_at = -1
+        guard = 0
         status = REACHED
         while t < t_stop:
             if n == n_max:
                 status = FULL
                 break
+            # this segment's span: to t_stop or the next multiple of the period
+            ts = t_stop
+            left = left_limit
+            k_next = -1
+            if T > 0.0:
+                k_next = math.floor(t / T * (1 + 4 * _EPS) + 4 * _EPS) + 1
+                if k_next * T < t_stop:
+                    ts = k_next * T
+                    left = False
+                elif k_next * T == t_stop:
+                    left = False
+            end = np.nextafter(ts, -math.inf) if left else ts
             lengths(t, kind, freq, mean, cosc, sinc, l)
-            rates(t, kind, freq, cosc, sinc, ld, ldd)
+            rates(t, kind, freq, cosc, sinc, ld, ldd, ld3)
             finite = True
             for j in range(nl):
                 if not (math.isfinite(l[j]) and math.isfinite(ld[j]) and math.isfinite(ldd[j])):
@@ -180,6 +206,12 @@ if True:  # (one block, indented)
                     X, V = X_s, V_s
                     status = NEED_PYTHON
                     break
+                if contact[j] != cj:
+                    ev_t[n_ev] = t
+                    ev_i[n_ev, 0] = j
+                    ev_i[n_ev, 1] = contact[j]
+                    ev_i[n_ev, 2] = cj
+                    n_ev += 1
                 contact[j] = cj
             if new_ref >= 0:
                 if new_ref != ref:
@@ -242,7 +274,7 @@ if True:  # (one block, indented)
                         A2[nr, j] = sgn * M * W[ref, j]
                     nr += 1
             # ---- search
-            t_ev = t_stop
+            t_ev = ts
             n_hit = 0
             hits = np.zeros(p, np.bool_)
             if nr > 0 and end > t0:
@@ -270,8 +302,9 @@ if True:  # (one block, indented)
                             b2 = math.inf
                     B2[r] = b2
                     B1[r] = b1 if (has2 and c1[r] == 0.0 and not has1) else math.inf
-                tt, hit = _search(t0, end, c0[:nr], c1[:nr], A1[:nr], A2[:nr], kind, freq,
-                                  cosc, sinc, B2, B1, tol, cap)
+                tt, hit, n_sev = _search(t0, end, c0[:nr], c1[:nr], A1[:nr], A2[:nr], kind,
+                                        freq, cosc, sinc, B2, B1, tol, cap)
+                n_eval += n_sev
                 if tt == -2.0:
                     status = NO_STEPS
                     break
@@ -280,15 +313,15 @@ if True:  # (one block, indented)
                     break
                 if math.isfinite(tt):
                     t_ev = tt
-                    if t_ev >= end and end < t_stop:
-                        t_ev = t_stop
+                    if t_ev >= end and end < ts:
+                        t_ev = ts
                     for r in range(nr):
                         if hit[r]:
                             n_hit += 1
                             if lab_kind[r] == 0:
                                 hits[lab_body[r]] = True
-                    if t_stop - t_ev <= 4.0 * tol:
-                        t_ev = t_stop
+                    if ts - t_ev <= 4.0 * tol:
+                        t_ev = ts
             # ---- close (ExactSolver._close)
             d = t_ev - t0
             if ref < 0:
@@ -299,7 +332,7 @@ if True:  # (one block, indented)
                     zero[i] = False
             else:
                 lengths(t_ev, kind, freq, mean, cosc, sinc, l)
-                rates(t_ev, kind, freq, cosc, sinc, ld, ldd)
+                rates(t_ev, kind, freq, cosc, sinc, ld, ldd, ld3)
                 V = -_dot(W, ref, ld)
                 X = x_ref - _dot(W, ref, l)
                 for i in range(p):
@@ -312,7 +345,7 @@ if True:  # (one block, indented)
                     K[ref] += fm[ref] * d - ((-imp + fm[ref] * d) / w) * (fp[ref] + fm[ref])
             if n_hit > 0:
                 if ref < 0:
-                    rates(t_ev, kind, freq, cosc, sinc, ld, ldd)
+                    rates(t_ev, kind, freq, cosc, sinc, ld, ldd, ld3)
                 for i in range(p):
                     if hits[i]:
                         zero[i] = True
@@ -326,9 +359,35 @@ if True:  # (one block, indented)
             if guard > _STALL_SEGMENTS:
                 status = STALLED
                 break
-            if n_hit == 0 and not left_limit and t >= t_stop:
+            if n_hit == 0 and not left and t >= ts:
                 cache_ok = True     # ended on a smooth boundary: the next segment keeps the mode
                 cache_a = a
+            if k_next > 0 and t == k_next * T:
+                # ---- period boundary (ExactSolver._period_boundary)
+                same = ck_f[0] == k_next - 1 and ck_f[4] == ref
+                if same:
+                    for i in range(p):
+                        if ck_contact[i] != contact[i] or ck_zero[i] != zero[i]:
+                            same = False
+                if same and ref < 0:
+                    v_tol = 16.0 * (tol * v_acc + _EPS * (abs(V) + abs(ck_f[2])))
+                    same = abs(V - ck_f[2]) <= v_tol
+                if same and math.floor((t_end - t) / T * (1 + 4 * _EPS)) >= 1:
+                    k_at = k_next
+                    status = PERIODIC
+                    break
+                ck_f[0] = k_next
+                ck_f[1] = X
+                ck_f[2] = V
+                ck_f[3] = x_ref
+                ck_f[4] = ref
+                ck_f[5] = n
+                ck_f[6] = n_ev
+                ck_f[7] = 1.0
+                for i in range(p):
+                    ck_K[i] = K[i]
+                    ck_contact[i] = contact[i]
+                    ck_zero[i] = zero[i]
         state[0] = t
         state[1] = X
         state[2] = V
@@ -338,4 +397,7 @@ if True:  # (one block, indented)
         state[6] = n
         state[7] = 1.0 if cache_ok else 0.0
         state[8] = cache_a
+        state[9] = n_eval
+        state[10] = n_ev
+        state[11] = k_at
         return status

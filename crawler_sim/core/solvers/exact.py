@@ -42,7 +42,8 @@ from ..model import Crawler
 from ..trajectory import Event, EventLog
 from .contact import solve_inclusion, split_friction
 from .events import Rows, Search, check_finite_gait
-from .segments import PeriodicBlock, Segment, _split_impulse, evaluate_rows, offset_matrices
+from .segments import (PeriodicBlock, Segment, SegmentChunk, SegmentList, _split_impulse,
+                       evaluate_rows, offset_matrices)
 
 __all__ = ['ExactSolver', 'PeriodicBlock', 'Segment', 'evaluate_rows', 'offset_matrices',
            'check_finite_gait']
@@ -114,6 +115,8 @@ class ExactSolver:
         self._g_list = crawler.gravity_forces.tolist()
         self._free_idx = np.nonzero(self._free)[0].tolist()
         self._f_total = float(self._fp.sum() + self._fm.sum())   # [N], scales of the tests
+        # largest friction acceleration [m/s^2] (the periodic check's velocity tolerance)
+        self._v_acc = float((self._fp.sum() + self._fm.sum() + abs(self._fext)) / self._M)
         if self.use_kernel and type(gait) in _COMPILED:
             from . import kernel    # numba: loaded here, not in the first (real-time) advance
             kernel.warm()
@@ -134,7 +137,7 @@ class ExactSolver:
         self.K = np.zeros(p)
         self.ref = -1
         self.x_ref = 0.0
-        self.segments: list = []
+        self.segments = SegmentList()
         self.events = EventLog()
         self.n_segments = 0
         self.n_skipped_periods = 0
@@ -142,11 +145,25 @@ class ExactSolver:
         self._checkpoint = None
         self._mode_cache = None
         self.n_evals = 0          # event-row evaluations (cost figure)
-        n_buf = 256               # segment records per call of the compiled loop
+        n_buf = 512               # segment records per call of the compiled loop
         self._buffers = (np.empty((n_buf, 6)), np.empty(n_buf, np.int64),
                          np.empty((n_buf, p), np.int8), np.empty((n_buf, p)),
-                         np.empty((n_buf, p)), np.empty(9))
+                         np.empty((n_buf, p)), np.empty(n_buf), np.empty((n_buf, 3), np.int64),
+                         np.empty(12))
+        self._ck = (np.empty(8), np.empty(p), np.empty(p, np.int8), np.empty(p, bool))
         self._zeros_links = np.zeros(p - 1)
+
+    @property
+    def last(self) -> Segment | None:
+        """The last segment integrated (None after a skipped period)."""
+        x = self._last
+        if isinstance(x, tuple):          # a record of the compiled loop
+            x = self._last = x[0].segment(x[1])
+        return x
+
+    @last.setter
+    def last(self, seg) -> None:
+        self._last = seg
 
     # ------------------------------------------------------------- mode choice
     def _mode(self, t: float, ep: NDArray, epp: NDArray, t_limit: float):
@@ -272,7 +289,12 @@ class ExactSolver:
         t1 = float(t1)
         guard = 0
         T = self.gait.period if self.periodic_skip else None
+        fast = self.use_kernel and type(self.gait) in _COMPILED
         while self.t < t1:
+            if fast and self._drive(t1, T):
+                # the compiled loop made progress (and checks its own stalls)
+                guard = 0
+                continue
             t_stop = t1
             if T:
                 k_next = math.floor(self.t / T * (1 + 4 * _EPS) + 4 * _EPS) + 1
@@ -281,8 +303,7 @@ class ExactSolver:
             if breaks.size:
                 t_stop = float(breaks[0])
             t_before = self.t
-            if not self._drive(t_stop, bool(breaks.size)):
-                self._segment(t_stop, left_limit=bool(breaks.size))
+            self._segment(t_stop, left_limit=bool(breaks.size))
             # a degenerate mode loop: segments that advance by nothing or by a few floats
             # (events at adjacent floats that flip the mode back and forth) for longer than
             # any cascade of simultaneous events (at most a few per body) could last
@@ -294,41 +315,59 @@ class ExactSolver:
             if T and self.t == t_stop and t_stop == k_next * T:
                 self._period_boundary(k_next, T, t1)
 
-    def _drive(self, t_stop: float, left_limit: bool) -> bool:
-        """Run the compiled segment loop (``driver``) towards t_stop; False when the next
-        segment needs the Python path (see ``driver``) or the gait is not compiled."""
+    def _drive(self, t1: float, T: float | None) -> bool:
+        """Run the compiled segment loop (``driver``) from t towards t1 (or the gait's next
+        breakpoint); False when it made no progress: the next segment needs the Python path."""
+        from . import driver, kernel
         gait = self.gait
-        if not (self.use_kernel and type(gait) in _COMPILED):
-            return False
         cache = self._mode_cache
         if cache is not None and cache[3].sum() > 1:
             return False
-        from . import driver, kernel
+        breaks = gait.breakpoints(self.t, t1)
+        t_stop = float(breaks[0]) if breaks.size else t1
         kind, freq, p1, p2 = kernel.coefficients(gait)
-        mean = getattr(gait, 'mean', None)
-        if mean is None:
-            mean = self._zeros_links
-        jerk = gait.jerk_bound(self.t, t_stop)
+        mean = getattr(gait, 'mean', self._zeros_links)
+        jerk = np.asarray(gait.jerk_bound(self.t, t_stop), dtype=float)
         snap = gait.snap_bound(self.t, t_stop)
         has_snap = snap is not None
-        buf = self._buffers
-        state = buf[5]
+        snap = np.asarray(snap, dtype=float) if has_snap else jerk
+        seg_f, seg_ref, seg_contact, seg_R, seg_K0, ev_t, ev_i, state = self._buffers
+        ck_f, ck_K, ck_contact, ck_zero = self._ck
+        ck = self._checkpoint
+        ck_f[7] = 0.0
+        if ck is None:
+            ck_f[0] = -1.0
+        else:
+            ck_f[:5] = (ck[0], ck[2], ck[3], ck[5], ck[1][2])
+            ck_K[:] = ck[4]
+            ck_contact[:] = np.frombuffer(ck[1][0], dtype=np.int8)
+            ck_zero[:] = np.frombuffer(ck[1][1], dtype=bool)
         # copies: the solver's arrays may be shared with kept segments
         prev = self.contact
         K, contact, zero = self.K.copy(), self.contact.copy(), self.zero.copy()
         status = driver.drive(
-            self.t, float(t_stop), left_limit, 0, self.X, self.V, K, contact, zero, self.ref, self.x_ref, cache is not None,
+            self.t, t_stop, bool(breaks.size), t1, T or 0.0, self.tol,
+            self._cap(gait, self.t, t_stop),
+            self.X, self.V, K, contact, zero, self.ref, self.x_ref, cache is not None,
             float(cache[1]) if cache is not None else 0.0,
             self._W, self._C, self._fp, self._fm, self._free, self._fext, self._M,
-            self._f_total, kind, freq, mean, p1, p2, np.asarray(jerk, dtype=float),
-            np.asarray(snap if has_snap else jerk, dtype=float), has_snap, self.tol,
-            self._cap(gait, self.t, t_stop), *buf)
-        n = int(state[6])
+            self._f_total, self._v_acc, kind, freq, mean, p1, p2, jerk, snap, has_snap,
+            ck_f, ck_K, ck_contact, ck_zero,
+            seg_f, seg_ref, seg_contact, seg_R, seg_K0, ev_t, ev_i, state)
+        n, n_ev = int(state[6]), int(state[10])
+        self.n_evals += int(state[9])
+        n_kept, n_events = len(self.segments), len(self.events)
         self.K, self.contact, self.zero = K, contact, zero
         if n:
-            self._store(n, prev)
+            self._store(n, n_ev, prev)
         self.t, self.X, self.V, self.x_ref = (float(v) for v in state[:4])
         self.ref = int(state[4])
+        if ck_f[7]:
+            sig = (ck_contact.tobytes(), ck_zero.tobytes(), int(ck_f[4]))
+            self._checkpoint = (int(ck_f[0]), sig, float(ck_f[1]), float(ck_f[2]), ck_K.copy(),
+                                float(ck_f[3]),
+                                n_kept + int(ck_f[5]) if self.keep_segments else 0,
+                                n_events + int(ck_f[6]))
         if state[7]:
             g = np.zeros(self._m.size, dtype=bool)
             if self.ref >= 0:
@@ -336,45 +375,33 @@ class ExactSolver:
             self._mode_cache = (self.contact, float(state[8]), self.ref, g)
         elif n:
             self._mode_cache = None
-        if status == driver.STALLED:
+        if status == driver.PERIODIC:
+            self._period_boundary(int(state[11]), T, t1)
+        elif status == driver.STALLED:
             raise RuntimeError(f'exact solver stalled at t = {self.t!r} s; '
                                'report this scene (try method="implicit")')
-        if status == driver.NO_STEPS:
+        elif status == driver.NO_STEPS:
             raise RuntimeError(f'exact solver: the event search ran out of steps after '
                                f't = {self.t!r} s; report this scene (try method="implicit")')
-        if status == driver.NONFINITE:
+        elif status == driver.NONFINITE:
             check_finite_gait(gait._eval(np.array([self.t, t_stop])), [self.t, t_stop])
             raise ValueError('gait values must be finite')
         return status != driver.NEED_PYTHON or n > 0
 
-    def _store(self, n: int, prev: NDArray) -> None:
-        """Turn the driver's first n segment records into ``Segment`` objects and their
-        contact changes into events (``prev``: the contact before the first)."""
-        seg_f, seg_ref, seg_contact, seg_R, seg_K0, _ = self._buffers
-        rows = seg_f[:n].tolist()
-        refs = seg_ref[:n].tolist()
-        contacts = seg_contact[:n]
-        for k in range(n):
-            c = contacts[k]
-            if not np.array_equal(c, prev):
-                for i in (c != prev).nonzero()[0].tolist():
-                    self.events.append(Event(rows[k][0], i, int(prev[i]), int(c[i])))
-            prev = c
+    def _store(self, n: int, n_ev: int, prev: NDArray) -> None:
+        """Keep the driver's first n segment records (as one ``SegmentChunk``, turned into
+        ``Segment`` objects only when read) and its n_ev contact changes as events."""
+        seg_f, seg_ref, seg_contact, seg_R, seg_K0, ev_t, ev_i, _ = self._buffers
+        if n_ev:
+            t_list = ev_t[:n_ev].tolist()
+            for t, (i, old, new) in zip(t_list, ev_i[:n_ev].tolist()):
+                self.events.append(Event(t, i, old, new))
+        chunk = SegmentChunk(self.gait, seg_f[:n].copy(), seg_ref[:n].copy(),
+                             seg_contact[:n].copy(), seg_R[:n].copy(), seg_K0[:n].copy())
         self.n_segments += n
-        keep = range(n) if self.keep_segments else range(n - 1, n)
-        p = self._m.size
-        seg = None
-        for k in keep:
-            t0, t1, X0, V0, a, x_ref = rows[k]
-            r = refs[k]
-            group = np.zeros(p, dtype=bool)
-            if r >= 0:
-                group[r] = True
-            seg = Segment(t0, t1, self.gait, contacts[k].copy(), seg_R[k].copy(),
-                          seg_K0[k].copy(), X0, V0, a, r, x_ref, group)
-            if self.keep_segments:
-                self.segments.append(seg)
-        self.last = seg
+        if self.keep_segments:
+            self.segments.extend_chunk(chunk)
+        self.last = (chunk, n - 1)
 
     def _signature(self):
         return (self.contact.tobytes(), self.zero.tobytes(), self.ref)
@@ -389,7 +416,7 @@ class ExactSolver:
             return
         # Repeated to the solver's own accuracy: event times are known to ``tol`` seconds, so
         # velocities to about tol times the largest acceleration friction can produce.
-        acc = (self._fp.sum() + self._fm.sum() + abs(self._fext)) / self._M
+        acc = self._v_acc
         v_tol = 16.0 * (self.tol * acc + _EPS * (abs(self.V) + abs(prev[3])))
         if self.ref < 0 and abs(self.V - prev[3]) > v_tol:
             return
@@ -681,8 +708,9 @@ class ExactSolver:
             if end <= seg.t0:
                 return t_stop, []
             b2, b1 = rows.bounds(seg.gait, seg.t0, t_stop)
-            t_ev, hit = kernel.search(seg.t0, end, rows, kernel.coefficients(seg.gait), b2, b1,
-                                      self.tol, cap)
+            t_ev, hit, n_eval = kernel.search(seg.t0, end, rows, kernel.coefficients(seg.gait),
+                                              b2, b1, self.tol, cap)
+            self.n_evals += n_eval
             if t_ev == -2.0:
                 raise RuntimeError(f'exact solver: the event search ran out of steps on '
                                    f'[{seg.t0!r}, {end!r}] s; report this scene (try '
@@ -740,7 +768,7 @@ class ExactSolver:
         """
         segs = self.segments
         n_t = times.size
-        starts = np.array([sg.t0 for sg in segs])
+        starts = segs.starts()
         idx = np.clip(np.searchsorted(starts, times, side='right') - 1, 0, len(segs) - 1)
         local = times.astype(float).copy()
         shift_x = np.zeros(n_t)

@@ -25,8 +25,9 @@ from numba import njit
 _MAX_STEPS = 10_000_000   # grid and narrowing steps of one search (about 1 s): a safety net
 
 if True:  # (one block, indented)
-    @njit(cache=True)
-    def rates(t, kind, freq, cosc, sinc, ld, ldd):
+    @njit(cache=True, inline='always')
+    def rates(t, kind, freq, cosc, sinc, ld, ldd, ld3):
+        """l', l'' and l''' of the kernel's gaits at t (into ld, ldd, ld3)."""
         if kind == 2:
             # constant-jerk pieces (gaits.cubic): sinc rows (start, t0), cosc rows
             # (l0, v0, a0, jerk) per linkage; the expressions of cubic_values
@@ -39,11 +40,15 @@ if True:  # (one block, indented)
                 jk = cosc[k, 4 * j + 3]
                 ld[j] = cosc[k, 4 * j + 1] + d * (a0 + 0.5 * d * jk)
                 ldd[j] = a0 + d * jk
+                ld3[j] = jk
             return
-        th = 2.0 * math.pi * ((freq * t) % 1.0)
+        ft = freq * t
+        th = 2.0 * math.pi * (ft - math.floor(ft))     # phase in cycles first (large t)
         w = 2.0 * math.pi * freq
         if kind == 1:
-            # Scallop (gaits.smooth): cosc rows hold (amplitude, phase - pi r, c, s)
+            # Scallop (gaits.smooth): cosc rows hold (amplitude, phase - pi r, c, s);
+            # phi''' = -s c (cos x / D^2 - 2 c sin^2 x / D^3), and
+            # l''' = amp w^3 (cos phi (phi''' - phi'^3) - 3 sin phi phi' phi'')
             for j in range(cosc.shape[0]):
                 amp, off, c, s = cosc[j, 0], cosc[j, 1], cosc[j, 2], cosc[j, 3]
                 x = th + off
@@ -54,70 +59,107 @@ if True:  # (one block, indented)
                 cos_phi = (cx - c) * inv_d
                 dphi = s * inv_d
                 ddphi = -s * c * sx * inv_d ** 2
+                dddphi = -s * c * (cx * inv_d ** 2 - 2.0 * c * sx * sx * inv_d ** 3)
                 ld[j] = amp * w * cos_phi * dphi
                 ldd[j] = amp * w ** 2 * (cos_phi * ddphi - sin_phi * dphi ** 2)
+                ld3[j] = amp * w ** 3 * (cos_phi * (dddphi - dphi ** 3)
+                                         - 3.0 * sin_phi * dphi * ddphi)
             return
+        # harmonics k by the angle-addition recurrence from cos th, sin th: two
+        # trigonometric calls per time instead of two per harmonic (rounding ~k eps)
         nl, nk = cosc.shape
+        c_1 = math.cos(th)
+        s_1 = math.sin(th)
         for j in range(nl):
-            s1 = 0.0
-            s2 = 0.0
-            for k in range(nk):
-                wk = w * (k + 1)
-                c = math.cos((k + 1) * th)
-                s = math.sin((k + 1) * th)
-                s1 += wk * (sinc[j, k] * c - cosc[j, k] * s)
-                s2 -= wk * wk * (cosc[j, k] * c + sinc[j, k] * s)
-            ld[j] = s1
-            ldd[j] = s2
+            ld[j] = 0.0
+            ldd[j] = 0.0
+            ld3[j] = 0.0
+        c = c_1
+        s = s_1
+        for k in range(nk):
+            wk = w * (k + 1)
+            wk2 = wk * wk
+            wk3 = wk2 * wk
+            for j in range(nl):
+                a_ = cosc[j, k]
+                b_ = sinc[j, k]
+                ld[j] += wk * (b_ * c - a_ * s)
+                ldd[j] -= wk2 * (a_ * c + b_ * s)
+                ld3[j] += wk3 * (a_ * s - b_ * c)
+            c, s = c * c_1 - s * s_1, s * c_1 + c * s_1
 
-    @njit(cache=True)
-    def values(t, t0, c0, c1, A1, A2, kind, freq, cosc, sinc, ld, ldd, g):
-        rates(t, kind, freq, cosc, sinc, ld, ldd)
+    @njit(cache=True, inline='always')
+    def values(t, t0, c0, c1, A1, A2, kind, freq, cosc, sinc, ld, ldd, ld3, g, dg):
+        """The rows g (see ``events.Rows``) and their time derivatives dg at t."""
+        rates(t, kind, freq, cosc, sinc, ld, ldd, ld3)
         K, nl = A1.shape
         for r in range(K):
             v = c0[r] + c1[r] * (t - t0)
+            dv = c1[r]
             for j in range(nl):
                 v += A1[r, j] * ld[j] + A2[r, j] * ldd[j]
+                dv += A1[r, j] * ldd[j] + A2[r, j] * ld3[j]
             g[r] = v
+            dg[r] = dv
 
-    @njit(cache=True)
+    @njit(cache=True, inline='always')
     def bad_any(g, watch, noise):
         for r in range(g.size):
             if (watch[r] and g[r] < -noise[r]) or (not watch[r] and g[r] <= 0.0):
                 return True
         return False
 
-    @njit(cache=True)
-    def proven(h, ga, gb, watch, B2, B1):
+    @njit(cache=True, inline='always')
+    def proven(h, ga, gb, da, db, watch, B2, B1):
+        """True if every unwatched row is proven > 0 on an interval of length h with end
+        values ga, gb and end slopes da, db: the best of four lower bounds, each rigorous
+        where |g''| <= B2 (chord: min - B2 h^2 / 8; Taylor from either end:
+        g(a) + g'(a) tau - B2 tau^2 / 2, concave, so its minimum is at an end) or
+        |g'| <= B1 (mean of the ends - B1 h / 2)."""
         for r in range(ga.size):
             if watch[r]:
                 continue
-            lo2 = min(ga[r], gb[r]) - B2[r] * (h * h / 8.0)
-            lo1 = 0.5 * (ga[r] + gb[r]) - B1[r] * (h / 2.0)
-            if max(lo2, lo1) <= 0.0:
+            q = B2[r] * (h * h)
+            lo = max(min(ga[r], gb[r]) - q / 8.0, 0.5 * (ga[r] + gb[r]) - B1[r] * (h / 2.0))
+            lo = max(lo, min(ga[r], ga[r] + da[r] * h - q / 2.0))
+            lo = max(lo, min(gb[r], gb[r] - db[r] * h - q / 2.0))
+            if lo <= 0.0:
                 return False
         return True
 
-    @njit(cache=True)
-    def step(ga, watch, B2, B1, tol, cap):
+    @njit(cache=True, inline='always')
+    def step(ga, da, watch, B2, B1, tol, cap):
+        """A step from a that ``proven`` accepts from a's value and slope alone (just inside
+        the first zero of each row's Taylor lower bound, or of g(a) - B1 tau): near a simple
+        root this is a Newton step from the left, so the approach converges fast."""
         h = math.inf
         for r in range(ga.size):
             if watch[r]:
                 continue
             g = max(ga[r], 0.0)
-            h2 = math.sqrt(4.0 * g / B2[r]) if B2[r] > 0 else math.inf
+            d = da[r]
+            b2 = B2[r]
+            if b2 == 0.0:
+                ht = g / (-d) if d < 0.0 else math.inf
+            elif b2 < math.inf:
+                ht = (d + math.sqrt(d * d + 2.0 * b2 * g)) / b2
+            else:
+                ht = 0.0
             h1 = g / B1[r] if B1[r] > 0 else math.inf
-            h = min(h, max(h2, h1))
+            h = min(h, 0.9999 * max(ht, h1))
         return min(max(h, 64.0 * tol), cap)
 
     @njit(cache=True)
     def _search(t0, end, c0, c1, A1, A2, kind, freq, cosc, sinc, B2, B1, tol, cap):
-        """First event in (t0, end]: (t, hit rows), or (inf, empty) when there is none."""
+        """First event in (t0, end]: (t, hit rows, number of evaluations), or (inf, empty, n)
+        when there is none."""
         K, nl = A1.shape
         ld = np.empty(nl)
         ldd = np.empty(nl)
+        ld3 = np.empty(nl)
         ga = np.empty(K)
-        values(t0, t0, c0, c1, A1, A2, kind, freq, cosc, sinc, ld, ldd, ga)
+        da = np.empty(K)
+        values(t0, t0, c0, c1, A1, A2, kind, freq, cosc, sinc, ld, ldd, ld3, ga, da)
         noise = np.empty(K)
         watch = np.empty(K, dtype=np.bool_)
         for r in range(K):
@@ -129,13 +171,17 @@ if True:  # (one block, indented)
             # is watched: a row of +1e-16 stuck there would otherwise need ~1e-9 s steps
             watch[r] = ga[r] <= noise[r]
         a = t0
-        h = step(ga, watch, B2, B1, tol, cap)
+        n_eval = 1
+        h = step(ga, da, watch, B2, B1, tol, cap)
         for r in range(K):
             if watch[r]:
                 h = min(h, max(1e3 * tol, 1e-9 * (end - a)))
         gm = np.empty(K)
+        dm = np.empty(K)
         gb = np.empty(K)
+        db = np.empty(K)
         gs = np.empty(K)
+        ds = np.empty(K)
         fa = np.empty(K)
         fb = np.empty(K)
         have_b = False       # a point b > a where some row is bad (the bracket)
@@ -163,8 +209,16 @@ if True:  # (one block, indented)
                             fr = fa[r] / den
                             if fr < f:
                                 f = fr
-                    if 0.0 < f < 1.0 and a < a + f * w < b:
-                        m = a + f * w
+                    if 0.0 < f < 1.0:
+                        # a secant point within one float of an end: the adjacent float
+                        # (else the bracket shrinks only by bisection, ~40 halvings)
+                        ms = a + f * w
+                        if ms <= a:
+                            ms = np.nextafter(a, math.inf)
+                        elif ms >= b:
+                            ms = np.nextafter(b, -math.inf)
+                        if a < ms < b:
+                            m = ms
                 w_hist0, w_hist1, w_hist2 = w_hist1, w_hist2, w
             else:
                 if a >= lim:
@@ -173,6 +227,7 @@ if True:  # (one block, indented)
                         saved = False
                         b = sb
                         gb[:] = gs
+                        db[:] = ds
                         for r in range(K):
                             lvl = -noise[r] if watch[r] else 0.0
                             fa[r] = ga[r] - lvl
@@ -180,28 +235,31 @@ if True:  # (one block, indented)
                         lim = end
                         side = 0
                         continue
-                    return math.inf, gb[:0] > 0.0
+                    return math.inf, gb[:0] > 0.0, n_eval
                 m = min(a + h, lim)
-            values(m, t0, c0, c1, A1, A2, kind, freq, cosc, sinc, ld, ldd, gm)
-            if not np.all(np.isfinite(gm)):
-                return -1.0, gb[:0] > 0.0          # non-finite gait: the caller raises
+            values(m, t0, c0, c1, A1, A2, kind, freq, cosc, sinc, ld, ldd, ld3, gm, dm)
+            n_eval += 1
+            if not (np.all(np.isfinite(gm)) and np.all(np.isfinite(dm))):
+                return -1.0, gb[:0] > 0.0, n_eval   # non-finite gait: the caller raises
             if bad_any(gm, watch, noise):
                 saved = False
                 lim = end
                 have_b = True
                 b = m
                 gb[:] = gm
+                db[:] = dm
                 for r in range(K):
                     lvl = -noise[r] if watch[r] else 0.0
                     fb[r] = gm[r] - lvl
                     fa[r] = (ga[r] - lvl) * (0.5 if side == -1 else 1.0)
                 side = -1
                 continue
-            if m - a > tol and not proven(m - a, ga, gm, watch, B2, B1):
+            if m - a > tol and not proven(m - a, ga, gm, da, dm, watch, B2, B1):
                 if have_b:           # scan [a, m] first, the bracket put aside
                     saved = True
                     sb = b
                     gs[:] = gb
+                    ds[:] = db
                     have_b = False
                     lim = m
                 h = max(0.25 * (m - a), 0.5 * tol)
@@ -211,6 +269,7 @@ if True:  # (one block, indented)
                     watch[r] = False
             a = m
             ga[:] = gm
+            da[:] = dm
             if have_b:
                 for r in range(K):
                     lvl = -noise[r] if watch[r] else 0.0
@@ -219,13 +278,13 @@ if True:  # (one block, indented)
                         fb[r] *= 0.5
                 side = 1
             else:
-                h = step(ga, watch, B2, B1, tol, cap)
+                h = step(ga, da, watch, B2, B1, tol, cap)
         if not have_b:
-            return -2.0, gb[:0] > 0.0          # out of steps: the caller raises
+            return -2.0, gb[:0] > 0.0, n_eval   # out of steps: the caller raises
         hits = np.empty(K, dtype=np.bool_)
         for r in range(K):
             hits[r] = (watch[r] and gb[r] < -noise[r]) or (not watch[r] and gb[r] <= 0.0)
-        return b, hits
+        return b, hits, n_eval
 
 
 def coefficients(gait):
@@ -261,7 +320,8 @@ def coefficients(gait):
 
 
 def search(t0: float, end: float, rows, coef, B2, B1, tol: float, cap: float):
-    """Run the compiled search; returns (t, hit rows as a bool array) or (inf, empty)."""
+    """Run the compiled search; returns (t, hit rows as a bool array, number of evaluations)
+    or (inf, empty, n)."""
     kind, freq, p1, p2 = coef
     return _search(float(t0), float(end), rows.c0, rows.c1, np.ascontiguousarray(rows.A1),
                    np.ascontiguousarray(rows.A2), int(kind), float(freq), p1, p2,

@@ -6,6 +6,7 @@ of one period of segments, shifted. ``evaluate_rows`` samples many segments at o
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,7 +16,8 @@ from ..gaits import Gait
 from ..model import Crawler
 from .contact import split_friction
 
-__all__ = ['PeriodicBlock', 'Segment', 'evaluate_rows', 'offset_matrices']
+__all__ = ['PeriodicBlock', 'Segment', 'SegmentChunk', 'SegmentList', 'evaluate_rows',
+           'offset_matrices']
 
 
 def offset_matrices(masses: NDArray) -> tuple[NDArray, NDArray]:
@@ -110,6 +112,70 @@ class Segment:
             contact[:, free] = np.sign(v[:, free])
         return {'x': x, 'v': v, 'friction': R, 'impulse': K, 'linkage_force': lam,
                 'lengths': l, 'rates': ld, 'contact': contact}
+
+
+@dataclass(slots=True)
+class SegmentChunk:
+    """Consecutive segments of the compiled loop (``driver``) as flat records, one row each:
+    ``f`` = (t0, t1, X0, V0, a, x_ref), ``ref``, ``contact``, ``R``, ``K0``; a stuck body is
+    stuck alone (its group is ``ref``)."""
+
+    gait: Gait
+    f: NDArray[np.float64]
+    ref: NDArray[np.int64]
+    contact: NDArray[np.int8]
+    R: NDArray[np.float64]
+    K0: NDArray[np.float64]
+
+    def segment(self, k: int) -> Segment:
+        t0, t1, X0, V0, a, x_ref = self.f[k].tolist()
+        r = int(self.ref[k])
+        group = np.zeros(self.contact.shape[1], dtype=bool)
+        if r >= 0:
+            group[r] = True
+        return Segment(t0, t1, self.gait, self.contact[k].copy(), self.R[k].copy(),
+                       self.K0[k].copy(), X0, V0, a, r, x_ref, group)
+
+
+class SegmentList(Sequence):
+    """The exact solver's kept pieces in time order: ``Segment`` and ``PeriodicBlock`` objects,
+    and records of ``SegmentChunk`` turned into ``Segment`` objects when first read (most of a
+    long run is never read one segment at a time)."""
+
+    def __init__(self) -> None:
+        self._items: list = []       # Segment | PeriodicBlock | (chunk, row)
+        self._t0: list[float] = []
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def _get(self, k: int):
+        item = self._items[k]
+        if isinstance(item, tuple):
+            item = self._items[k] = item[0].segment(item[1])
+        return item
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self._get(i) for i in range(*k.indices(len(self._items)))]
+        if k < 0:
+            k += len(self._items)
+        if not 0 <= k < len(self._items):
+            raise IndexError('segment index out of range')
+        return self._get(k)
+
+    def append(self, item) -> None:
+        self._items.append(item)
+        self._t0.append(item.t0)
+
+    def extend_chunk(self, chunk: SegmentChunk) -> None:
+        n = chunk.f.shape[0]
+        self._items.extend((chunk, k) for k in range(n))
+        self._t0.extend(chunk.f[:, 0].tolist())
+
+    def starts(self) -> NDArray[np.float64]:
+        """Start times of the pieces, without building them."""
+        return np.array(self._t0)
 
 
 def evaluate_rows(crawler: Crawler, pieces: list, owner: NDArray[np.int64],
