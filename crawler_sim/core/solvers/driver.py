@@ -71,7 +71,26 @@ if True:  # (one block, indented)
         return acc
 
     @njit(cache=True)
-    def drive(t, t_stop, left_limit, t_end, T, tol, cap,
+    def _mode_one(j, force, epp, fp, fm, f_total, M, slack):
+        """``ExactSolver._solve_mode_one``: (a, contact of j, ambiguous) when body j alone is at
+        rest and the others push with ``force`` [N]."""
+        e2 = epp[j]
+        need = -M * e2 - force                 # ground force on j if it sticks
+        acc_scale = (f_total + abs(force)) / M
+        for i in range(epp.size):
+            acc_scale = max(acc_scale, abs(epp[i]))
+        acc_scale = max(acc_scale, 1e-300)
+        if need < -fp[j]:
+            a = (force - fp[j]) / M
+            return a, 1, abs(a + e2) <= slack * acc_scale
+        if need > fm[j]:
+            a = (force + fm[j]) / M
+            return a, -1, abs(a + e2) <= slack * acc_scale
+        f_scale = max(max(f_total, abs(force)), max(M * acc_scale, 1e-300))
+        return -e2, 0, fp[j] + fm[j] > 0 and min(need + fp[j], fm[j] - need) <= slack * f_scale
+
+    @njit(cache=True)
+    def drive(t, t_stop, left_limit, t_end, T, tscale, tol, cap,
               X, V, K, contact, zero, ref, x_ref, cache_ok, cache_a,
               W, C, fp, fm, free, fext, M, f_total, v_acc,
               kind, freq, mean, cosc, sinc, jerk, snap, has_snap,
@@ -80,7 +99,8 @@ if True:  # (one block, indented)
         """Integrate from ``t`` towards ``t_stop`` (a gait breakpoint when ``left_limit``, or
         the end of the caller's advance ``t_end``) segment by segment (see the module doc).
 
-        ``T`` > 0: the period; segments end at its multiples and the state there is compared
+        ``tscale``: the look-ahead time scale of ``ExactSolver._timescale``. ``T`` > 0: the
+        period; segments end at its multiples and the state there is compared
         with the checkpoint of the previous one (``ExactSolver._period_boundary``):
         ``ck_f`` = (k, X, V, x_ref, ref, segment index, event index, written here), with
         ``ck_K``, ``ck_contact``, ``ck_zero`` (k = -1: none). On a repeat the call returns
@@ -98,6 +118,9 @@ if True:  # (one block, indented)
         ld = np.empty(nl)
         ldd = np.empty(nl)
         ld3 = np.empty(nl)
+        ld2 = np.empty(nl)
+        ldd2 = np.empty(nl)
+        epp2 = np.empty(p)
         e = np.empty(p)
         ep = np.empty(p)
         epp = np.empty(p)
@@ -180,29 +203,25 @@ if True:  # (one block, indented)
                     if i != j:
                         total += -fp[i] if contact[i] > 0 else fm[i]
                 force = fext + total
-                e2 = epp[j]
-                need = -M * e2 - force
-                acc_scale = (f_total + abs(force)) / M
-                for i in range(p):
-                    acc_scale = max(acc_scale, abs(epp[i]))
-                acc_scale = max(acc_scale, 1e-300)
-                if need < -fp[j]:
-                    a = (force - fp[j]) / M
-                    cj = 1
-                elif need > fm[j]:
-                    a = (force + fm[j]) / M
-                    cj = -1
-                else:
-                    a = -e2
-                    cj = 0
-                    new_ref = j
+                a, cj, ambiguous = _mode_one(j, force, epp, fp, fm, f_total, M, _AMBIGUOUS)
+                if ambiguous:
+                    # a tie (at the bound just after a force event, say): decided by the
+                    # inclusion a little later, as ExactSolver._mode does
+                    span = max(ts - t, 0.0)
+                    for rel in (1e-9, 1e-7, 1e-5):
+                        dt = min(rel * max(span, tscale), 0.5 * span) if span > 0 else 0.0
+                        if dt <= 0.0:
+                            break
+                        rates(t + dt, kind, freq, cosc, sinc, ld2, ldd2, ld3)
+                        for i in range(p):
+                            epp2[i] = _dot(W, i, ldd2)
+                        a, cj, ambiguous = _mode_one(j, force, epp2, fp, fm, f_total, M, 1e-14)
+                        if not ambiguous:
+                            break
                 if cj == 0:
-                    f_scale = max(max(f_total, abs(force)), max(M * acc_scale, 1e-300))
-                    ambiguous = fp[j] + fm[j] > 0 and min(need + fp[j], fm[j] - need) <= \
-                        _AMBIGUOUS * f_scale
-                else:
-                    ambiguous = abs(a + e2) <= _AMBIGUOUS * acc_scale
-                if ambiguous or (new_ref >= 0 and p == 1):
+                    new_ref = j
+                    a = -epp[j]
+                if cj == 0 and p == 1:
                     X, V = X_s, V_s
                     status = NEED_PYTHON
                     break

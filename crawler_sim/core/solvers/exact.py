@@ -346,7 +346,7 @@ class ExactSolver:
         prev = self.contact
         K, contact, zero = self.K.copy(), self.contact.copy(), self.zero.copy()
         status = driver.drive(
-            self.t, t_stop, bool(breaks.size), t1, T or 0.0, self.tol,
+            self.t, t_stop, bool(breaks.size), t1, T or 0.0, self._timescale(), self.tol,
             self._cap(gait, self.t, t_stop),
             self.X, self.V, K, contact, zero, self.ref, self.x_ref, cache is not None,
             float(cache[1]) if cache is not None else 0.0,
