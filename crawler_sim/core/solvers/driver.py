@@ -25,7 +25,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .kernel import _search, rates
+from .kernel import _search_ws, rates
 
 REACHED, NEED_PYTHON, FULL, STALLED, NONFINITE, NO_STEPS, PERIODIC = 0, 1, 2, 3, 4, 5, 6
 _EPS = 2.220446049250313e-16
@@ -133,6 +133,12 @@ if True:  # (one block, indented)
         A2 = np.zeros((p + 2, nl))
         lab_kind = np.empty(p + 2, np.int64)
         lab_body = np.empty(p + 2, np.int64)
+        B2 = np.empty(p + 2)
+        B1 = np.empty(p + 2)
+        work = np.empty((14, max(p + 2, nl)))
+        watch = np.empty(p + 2, np.bool_)
+        hit = np.empty(p + 2, np.bool_)
+        hits = np.zeros(p, np.bool_)
         n = 0
         n_ev = 0
         n_eval = 0
@@ -295,10 +301,9 @@ if True:  # (one block, indented)
             # ---- search
             t_ev = ts
             n_hit = 0
-            hits = np.zeros(p, np.bool_)
+            for i in range(p):
+                hits[i] = False
             if nr > 0 and end > t0:
-                B2 = np.empty(nr)
-                B1 = np.empty(nr)
                 for r in range(nr):
                     b2 = 0.0
                     b1 = 0.0
@@ -321,8 +326,9 @@ if True:  # (one block, indented)
                             b2 = math.inf
                     B2[r] = b2
                     B1[r] = b1 if (has2 and c1[r] == 0.0 and not has1) else math.inf
-                tt, hit, n_sev = _search(t0, end, c0[:nr], c1[:nr], A1[:nr], A2[:nr], kind,
-                                        freq, cosc, sinc, B2, B1, tol, cap)
+                tt, n_sev = _search_ws(t0, end, c0[:nr], c1[:nr], A1[:nr], A2[:nr], kind, freq,
+                                       cosc, sinc, B2[:nr], B1[:nr], tol, cap, work,
+                                       watch[:nr], hit[:nr])
                 n_eval += n_sev
                 if tt == -2.0:
                     status = NO_STEPS

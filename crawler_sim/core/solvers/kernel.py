@@ -154,14 +154,31 @@ if True:  # (one block, indented)
         """First event in (t0, end]: (t, hit rows, number of evaluations), or (inf, empty, n)
         when there is none."""
         K, nl = A1.shape
-        ld = np.empty(nl)
-        ldd = np.empty(nl)
-        ld3 = np.empty(nl)
-        ga = np.empty(K)
-        da = np.empty(K)
-        values(t0, t0, c0, c1, A1, A2, kind, freq, cosc, sinc, ld, ldd, ld3, ga, da)
-        noise = np.empty(K)
+        work = np.empty((14, max(K, nl)))
         watch = np.empty(K, dtype=np.bool_)
+        hits = np.zeros(K, dtype=np.bool_)
+        t, n_eval = _search_ws(t0, end, c0, c1, A1, A2, kind, freq, cosc, sinc, B2, B1, tol,
+                               cap, work, watch, hits)
+        if t >= 0.0 and math.isfinite(t):
+            return t, hits, n_eval
+        return t, hits[:0], n_eval
+
+    @njit(cache=True)
+    def _search_ws(t0, end, c0, c1, A1, A2, kind, freq, cosc, sinc, B2, B1, tol, cap, work,
+                   watch, hits):
+        """``_search`` with its work arrays given (the compiled loop calls it once per
+        segment: allocations cost as much as the evaluations): ``work`` of shape
+        (14, >= max(K, n_links)), ``watch`` and ``hits`` (K,) bool. Returns (t, number of
+        evaluations), t = inf when there is no event, -1 for a non-finite gait value, -2 when
+        out of steps; the rows hit at t are set in ``hits``."""
+        K, nl = A1.shape
+        ld = work[0, :nl]
+        ldd = work[1, :nl]
+        ld3 = work[2, :nl]
+        ga = work[3, :K]
+        da = work[4, :K]
+        values(t0, t0, c0, c1, A1, A2, kind, freq, cosc, sinc, ld, ldd, ld3, ga, da)
+        noise = work[5, :K]
         for r in range(K):
             sc = abs(c0[r]) + abs(c1[r]) * (end - t0)
             for j in range(nl):
@@ -176,14 +193,14 @@ if True:  # (one block, indented)
         for r in range(K):
             if watch[r]:
                 h = min(h, max(1e3 * tol, 1e-9 * (end - a)))
-        gm = np.empty(K)
-        dm = np.empty(K)
-        gb = np.empty(K)
-        db = np.empty(K)
-        gs = np.empty(K)
-        ds = np.empty(K)
-        fa = np.empty(K)
-        fb = np.empty(K)
+        gm = work[6, :K]
+        dm = work[7, :K]
+        gb = work[8, :K]
+        db = work[9, :K]
+        gs = work[10, :K]
+        ds = work[11, :K]
+        fa = work[12, :K]
+        fb = work[13, :K]
         have_b = False       # a point b > a where some row is bad (the bracket)
         b = math.inf
         saved = False        # a bracket put aside while [a, m] is scanned
@@ -235,12 +252,12 @@ if True:  # (one block, indented)
                         lim = end
                         side = 0
                         continue
-                    return math.inf, gb[:0] > 0.0, n_eval
+                    return math.inf, n_eval
                 m = min(a + h, lim)
             values(m, t0, c0, c1, A1, A2, kind, freq, cosc, sinc, ld, ldd, ld3, gm, dm)
             n_eval += 1
             if not (np.all(np.isfinite(gm)) and np.all(np.isfinite(dm))):
-                return -1.0, gb[:0] > 0.0, n_eval   # non-finite gait: the caller raises
+                return -1.0, n_eval   # non-finite gait: the caller raises
             if bad_any(gm, watch, noise):
                 saved = False
                 lim = end
@@ -280,11 +297,10 @@ if True:  # (one block, indented)
             else:
                 h = step(ga, da, watch, B2, B1, tol, cap)
         if not have_b:
-            return -2.0, gb[:0] > 0.0, n_eval   # out of steps: the caller raises
-        hits = np.empty(K, dtype=np.bool_)
+            return -2.0, n_eval   # out of steps: the caller raises
         for r in range(K):
             hits[r] = (watch[r] and gb[r] < -noise[r]) or (not watch[r] and gb[r] <= 0.0)
-        return b, hits, n_eval
+        return b, n_eval
 
 
 def coefficients(gait):
