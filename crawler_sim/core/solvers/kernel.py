@@ -103,6 +103,14 @@ if True:  # (one block, indented)
             dg[r] = dv
 
     @njit(cache=True, inline='always')
+    def _finite2(x, y):
+        # a loop, not np.isfinite: that allocates a temporary array at every evaluation
+        for r in range(x.size):
+            if not (math.isfinite(x[r]) and math.isfinite(y[r])):
+                return False
+        return True
+
+    @njit(cache=True, inline='always')
     def bad_any(g, watch, noise):
         for r in range(g.size):
             if (watch[r] and g[r] < -noise[r]) or (not watch[r] and g[r] <= 0.0):
@@ -256,7 +264,7 @@ if True:  # (one block, indented)
                 m = min(a + h, lim)
             values(m, t0, c0, c1, A1, A2, kind, freq, cosc, sinc, ld, ldd, ld3, gm, dm)
             n_eval += 1
-            if not (np.all(np.isfinite(gm)) and np.all(np.isfinite(dm))):
+            if not _finite2(gm, dm):
                 return -1.0, n_eval   # non-finite gait: the caller raises
             if bad_any(gm, watch, noise):
                 saved = False
