@@ -187,66 +187,29 @@ def evaluate_rows(crawler: Crawler, pieces: list, owner: NDArray[np.int64],
     quantity gathered per row, so sampling a run costs a fixed number of array operations
     instead of a fixed number per segment. ``mats``: the crawler's ``offset_matrices``.
     """
+    from .sampling import closed_form      # numba: loaded with the first sample
     C, W = mats
     m = crawler.masses
-    M = float(m.sum())
     p, n = m.size, tau.size
-    fp, fm = crawler.friction, crawler.friction_backward
     l, ld, ldd = _gait_rows(pieces, owner, tau)
-    e, ep, epp = l @ W.T, ld @ W.T, ldd @ W.T
-    rows = np.arange(n)
-    t0, X0, V0, a, ref, x_ref = (np.array(v, dtype=float)[owner] for v in zip(
-        *((sg.t0, sg.X0, sg.V0, sg.a, sg.ref, sg.x_ref) for sg in pieces)))
-    stick = ref >= 0
-    r = np.where(stick, ref, 0).astype(np.int64)
-    d = tau - t0
+    t0, X0, V0, a, x_ref = (np.array(v, dtype=float)[owner] for v in zip(
+        *((sg.t0, sg.X0, sg.V0, sg.a, sg.x_ref) for sg in pieces)))
+    ref = np.array([sg.ref for sg in pieces], dtype=np.int64)[owner]
     group = np.array([sg.group for sg in pieces])[owner]              # (n, p)
-    contact = np.array([sg.contact for sg in pieces])[owner]          # (n, p)
-    R = np.where(group, 0.0, np.array([sg.R for sg in pieces])[owner])  # sliding bodies' force
-    K0 = np.array([sg.K0 for sg in pieces])[owner]
-    # slide rows
-    X = X0 + d * (V0 + 0.5 * a * d)
-    V = V0 + a * d
-    x = X[:, None] + e
-    v = V[:, None] + ep
-    A = a.copy()
-    if stick.any():
-        s, sd = l @ C.T, ld @ C.T
-        st = np.nonzero(stick)[0]
-        rs = r[st]
-        x[st] = x_ref[st, None] + (s[st] - s[st, rs][:, None])
-        v[st] = sd[st] - sd[st, rs][:, None]
-        A[st] = -epp[st, rs]
-        V[st] = -ep[st, rs]
-    f_slide = crawler.external_force + R.sum(axis=1)
-    K = K0 + d[:, None] * R
-    if stick.any():
-        # the group's friction: each member at the same fraction of its interval
-        # (``contact.split_friction``), and its impulse, the integral of that affine split
-        width = fp + fm
-        g = group[st]
-        wg = (g * width).sum(axis=1)
-        fm_g = (g * fm).sum(axis=1)
-        ok = wg > 0
-        wsafe = np.where(ok, wg, 1.0)
-        total = M * A[st] - f_slide[st]
-        theta = np.where(ok, np.clip((-total + fm_g) / wsafe, 0.0, 1.0), 0.0)
-        Rg = fm - theta[:, None] * width
-        imp = M * (V[st] - V0[st]) - f_slide[st] * d[st]
-        Kg = fm * d[st, None] - ((-imp + fm_g * d[st]) / wsafe)[:, None] * width
-        Kg = np.where(ok[:, None], Kg, 0.0)
-        R[st] = np.where(g, Rg, R[st])
-        K[st] = np.where(g, K0[st] + Kg, K[st])
-    body_force = R + crawler.gravity_forces - m * (A[:, None] + epp)
-    lam = np.cumsum(body_force, axis=1)[:, :-1]
-    contact = contact.copy()
-    free = (fp + fm) == 0.0
-    if free.any():
-        # no friction, no stick: these bodies' state is just the sign of their velocity
-        contact[:, free] = np.sign(v[:, free])
+    contact = np.array([sg.contact for sg in pieces], dtype=np.int8)[owner]
+    R0 = np.array([sg.R for sg in pieces], dtype=float)[owner]
+    K0 = np.array([sg.K0 for sg in pieces], dtype=float)[owner]
+    x, v, R, K = (np.empty((n, p)) for _ in range(4))
+    lam = np.empty((n, p - 1))
+    state = np.empty((n, p), dtype=np.int8)
+    indeterminate = np.empty(n, dtype=bool)
+    closed_form(np.ascontiguousarray(l, dtype=float), np.ascontiguousarray(ld, dtype=float),
+                np.ascontiguousarray(ldd, dtype=float), W, C, m, crawler.friction,
+                crawler.friction_backward, float(crawler.external_force),
+                crawler.gravity_forces, t0, X0, V0, a, ref, x_ref, group, contact, R0, K0,
+                np.ascontiguousarray(tau, dtype=float), x, v, R, K, lam, state, indeterminate)
     return {'x': x, 'v': v, 'friction': R, 'impulse': K, 'linkage_force': lam,
-            'lengths': l, 'rates': ld, 'contact': contact,
-            'indeterminate': group.sum(axis=1) > 1}
+            'lengths': l, 'rates': ld, 'contact': state, 'indeterminate': indeterminate}
 
 
 def _gait_rows(pieces: list, owner: NDArray[np.int64], tau: NDArray[np.float64]):
