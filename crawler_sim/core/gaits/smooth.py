@@ -108,6 +108,7 @@ class Fourier(Gait):
         self._m0 = np.vstack([a_t, b_t])
         self._m1 = np.vstack([wk * b_t, -wk * a_t])
         self._m2 = np.vstack([-wk ** 2 * a_t, -wk ** 2 * b_t])
+        self._rows = None          # plain-float coefficients of ``at``, built on first use
 
     def _eval(self, t: NDArray[np.float64]) -> Triple:
         # Reduce to the phase in cycles first so that large t keeps full accuracy.
@@ -115,6 +116,28 @@ class Fourier(Gait):
         arg = th[:, None] * self._k
         cs = np.hstack([np.cos(arg), np.sin(arg)])
         return self.mean + cs @ self._m0, cs @ self._m1, cs @ self._m2
+
+    def at(self, t: float) -> Triple:
+        # the series of _eval in scalar math (numpy's per-call cost dominates for a few terms)
+        ft = self.frequency * t
+        th = 2.0 * math.pi * (ft % 1.0)
+        w = 2.0 * math.pi * self.frequency
+        if self._rows is None:
+            self._rows = [list(zip(a, b)) for a, b in zip(self.cos.tolist(), self.sin.tolist())]
+            self._means = self.mean.tolist()
+        cs = [(math.cos(k * th), math.sin(k * th)) for k in range(1, self.cos.shape[1] + 1)]
+        l, ld, ldd = [], [], []
+        for mean, row in zip(self._means, self._rows):
+            s0 = s1 = s2 = 0.0
+            for k, ((a, b), (c, s)) in enumerate(zip(row, cs), start=1):
+                wk = w * k
+                s0 += a * c + b * s
+                s1 += wk * (b * c - a * s)
+                s2 -= wk * wk * (a * c + b * s)
+            l.append(mean + s0)
+            ld.append(s1)
+            ldd.append(s2)
+        return np.array(l), np.array(ld), np.array(ldd)
 
     def is_constant(self, t0: float, t1: float) -> bool:
         return not (np.any(self.cos) or np.any(self.sin))

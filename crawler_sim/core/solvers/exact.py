@@ -393,9 +393,7 @@ class ExactSolver:
         ``Segment`` objects only when read) and its n_ev contact changes as events."""
         seg_f, seg_ref, seg_contact, seg_R, seg_K0, ev_t, ev_i, _ = self._buffers
         if n_ev:
-            t_list = ev_t[:n_ev].tolist()
-            for t, (i, old, new) in zip(t_list, ev_i[:n_ev].tolist()):
-                self.events.append(Event(t, i, old, new))
+            self.events.extend(map(Event, ev_t[:n_ev].tolist(), *ev_i[:n_ev].T.tolist()))
         chunk = SegmentChunk(self.gait, seg_f[:n].copy(), seg_ref[:n].copy(),
                              seg_contact[:n].copy(), seg_R[:n].copy(), seg_K0[:n].copy())
         self.n_segments += n
