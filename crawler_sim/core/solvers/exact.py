@@ -316,9 +316,9 @@ class ExactSolver:
                 self._period_boundary(k_next, T, t1)
 
     def _drive(self, t1: float, T: float | None) -> bool:
-        """Run the compiled segment loop (``driver``) from t towards t1 (or the gait's next
+        """Run the compiled segment loop (``kernel.drive``) from t towards t1 (or the gait's next
         breakpoint); False when it made no progress: the next segment needs the Python path."""
-        from . import driver, kernel
+        from . import kernel
         gait = self.gait
         cache = self._mode_cache
         if cache is not None and cache[3].sum() > 1:
@@ -345,7 +345,7 @@ class ExactSolver:
         # copies: the solver's arrays may be shared with kept segments
         prev = self.contact
         K, contact, zero = self.K.copy(), self.contact.copy(), self.zero.copy()
-        status = driver.drive(
+        status = kernel.drive(
             self.t, t_stop, bool(breaks.size), t1, T or 0.0, self._timescale(), self.tol,
             self._cap(gait, self.t, t_stop),
             self.X, self.V, K, contact, zero, self.ref, self.x_ref, cache is not None,
@@ -375,21 +375,21 @@ class ExactSolver:
             self._mode_cache = (self.contact, float(state[8]), self.ref, g)
         elif n:
             self._mode_cache = None
-        if status == driver.PERIODIC:
+        if status == kernel.PERIODIC:
             self._period_boundary(int(state[11]), T, t1)
-        elif status == driver.STALLED:
+        elif status == kernel.STALLED:
             raise RuntimeError(f'exact solver stalled at t = {self.t!r} s; '
                                'report this scene (try method="implicit")')
-        elif status == driver.NO_STEPS:
+        elif status == kernel.NO_STEPS:
             raise RuntimeError(f'exact solver: the event search ran out of steps after '
                                f't = {self.t!r} s; report this scene (try method="implicit")')
-        elif status == driver.NONFINITE:
+        elif status == kernel.NONFINITE:
             check_finite_gait(gait._eval(np.array([self.t, t_stop])), [self.t, t_stop])
             raise ValueError('gait values must be finite')
-        return status != driver.NEED_PYTHON or n > 0
+        return status != kernel.NEED_PYTHON or n > 0
 
     def _store(self, n: int, n_ev: int, prev: NDArray) -> None:
-        """Keep the driver's first n segment records (as one ``SegmentChunk``, turned into
+        """Keep the compiled loop's first n segment records (as one ``SegmentChunk``, turned into
         ``Segment`` objects only when read) and its n_ev contact changes as events."""
         seg_f, seg_ref, seg_contact, seg_R, seg_K0, ev_t, ev_i, _ = self._buffers
         if n_ev:

@@ -116,7 +116,7 @@ class Segment:
 
 @dataclass(slots=True)
 class SegmentChunk:
-    """Consecutive segments of the compiled loop (``driver``) as flat records, one row each:
+    """Consecutive segments of the compiled loop (``kernel.drive``) as flat records, one row each:
     ``f`` = (t0, t1, X0, V0, a, x_ref), ``ref``, ``contact``, ``R``, ``K0``; a stuck body is
     stuck alone (its group is ``ref``)."""
 
