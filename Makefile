@@ -38,6 +38,8 @@ build: $(INSTALL_STAMP)
 
 $(INSTALL_STAMP): $(STAMP) setup.py setup.cfg package.xml $(wildcard config/*/* launch/*.py scripts/*) $(wildcard crawler_sim/*.py crawler_sim/*/*.py crawler_sim/*/*/*.py)
 	source $(VENV)/bin/activate && colcon --log-base log build --paths . --build-base build --install-base install --symlink-install
+	# numba's disk cache of the exact kernels, so no test or node pays the first compilation
+	$(PY) -c 'from crawler_sim.core.solvers.kernel import precompile; precompile()'
 	touch $@
 
 clean:

@@ -117,10 +117,11 @@ class ExactSolver:
         self._f_total = float(self._fp.sum() + self._fm.sum())   # [N], scales of the tests
         # largest friction acceleration [m/s^2] (the periodic check's velocity tolerance)
         self._v_acc = float((self._fp.sum() + self._fm.sum() + abs(self._fext)) / self._M)
+        self.reset(t0=t0, x0=x0, v0=v0)
         if self.use_kernel and type(gait) in _COMPILED:
             from . import kernel    # numba: loaded here, not in the first (real-time) advance
-            kernel.warm()
-        self.reset(t0=t0, x0=x0, v0=v0)
+            if not kernel.warm():
+                self._drive(self.t, None)    # a call that integrates nothing: loads drive
 
     # ------------------------------------------------------------------ state
     def reset(self, *, t0: float = 0.0, x0: float = 0.0, v0: float = 0.0) -> None:

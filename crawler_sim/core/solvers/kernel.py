@@ -779,13 +779,26 @@ def search(t0: float, end: float, rows, coef, B2, B1, tol: float, cap: float):
 _WARM = False
 
 
-def warm() -> None:
-    """Load (or compile) the kernel now with one tiny search, so the first real search of a
-    real-time loop does not pay for it (about 0.1-1 s per process with a warm disk cache)."""
+def warm() -> bool:
+    """Load (or compile) the search now with one tiny search, so the first real search of a
+    real-time loop does not pay for it (about 0.1-1 s per process with a warm disk cache).
+    True if it was already loaded; the caller then loads ``drive`` with a call that
+    integrates nothing (``ExactSolver``: the argument types come from there)."""
     global _WARM
     if _WARM:
-        return
+        return True
     one = np.ones(1)
     z = np.zeros((1, 1))
     _search(0.0, 1.0, one, one * 0.0, np.ones((1, 1)), z, 0, 1.0, z, z, one, one, 1e-13, 1.0)
     _WARM = True
+    return False
+
+
+def precompile() -> None:
+    """Compile every kernel of the exact method into numba's disk cache (``make build`` runs
+    it: the first compilation takes 10-20 s, later processes load it in about a second)."""
+    from ..gaits import Fourier
+    from ..model import Crawler
+    from ..stepper import simulate
+    simulate(Crawler([1.0, 1.0], [0.5, 1.0]), Fourier(1.0, ([0.0], [0.3]), 1.0), 2.0,
+             t_eval=[0.0, 1.0, 2.0])
