@@ -13,6 +13,10 @@
   t = 3.243 s was missed, and the state was inconsistent from then on. A row at zero to within
   its rounding noise is now *watched* (an event only below minus the noise), and a search that
   runs out of steps raises instead of answering "no event".
+* Seeds 35 and 88 (the Taylor step of the compiled search, this round): the step to the first
+  zero of g + g' h - B2 h^2 / 2 was computed as (g' + sqrt(g'^2 + 2 B2 g)) / B2, which cancels to
+  0 for g' < 0 when B2 g << g'^2 (a jerk bound of 3e-17: the actuator's pieces), and 0 / 0 -> 0
+  for a constant row (g' = 0, B2 = 0: constant acceleration); steps of 64 tol ran out of steps.
 """
 import math
 from pathlib import Path
@@ -28,12 +32,26 @@ from crawler_sim.core.solvers.events import Rows, Search
 SESSIONS = Path(__file__).resolve().parents[2] / 'tools' / 'node_sessions.py'
 
 
-@pytest.mark.parametrize('seed', [20, 128, 2383])
+@pytest.mark.parametrize('seed', [20, 35, 88, 128, 2383])
 def test_node_sessions_that_stalled_run_to_the_end_on_the_exact_method(seed):
     session = runpy.run_path(str(SESSIONS))['session']
     r = session(seed, 10.0, 'exact')
     assert r['failures'] == [] and r['method'] == 'exact', r
     assert r['finite'] and not r['crash'], r
+
+
+def test_the_taylor_step_of_nearly_linear_and_constant_rows_is_not_zero():
+    # g = 1, g' = -2, |g''| <= 1e-30: the first zero of 1 - 2 h - 5e-31 h^2 is 0.5 (by hand);
+    # g = 1, g' = 0, g'' = 0: never zero, the step is the cap; the step stays just inside
+    one, off = np.ones(1), np.zeros(1, dtype=bool)
+    h = kernel.step(one, np.array([-2.0]), off, np.array([1e-30]), np.array([math.inf]),
+                    1e-13, 10.0)
+    assert 0.4999 <= h < 0.5
+    assert kernel.step(one, np.zeros(1), off, np.zeros(1), np.array([math.inf]), 1e-13,
+                       10.0) == 10.0
+    # the step is proven by the Taylor bound from its left end alone
+    assert kernel.proven(h, one, one - 2 * h, np.array([-2.0]), np.array([-2.0]), off,
+                         np.array([1e-30]), np.array([math.inf]))
 
 
 def _grazing_rows(eps0: float) -> tuple:

@@ -178,7 +178,10 @@ if True:  # (one block, indented)
                 # (d < 0 with b2 g << d^2: a tiny jerk bound, a nearly linear row)
                 q = math.sqrt(d * d + 2.0 * b2 * g)
                 if d <= 0.0:
-                    ht = 2.0 * g / (q - d) if q - d > 0.0 else 0.0
+                    if q - d > 0.0:
+                        ht = 2.0 * g / (q - d)
+                    else:          # d = 0 and b2 g = 0: a constant row is never crossed
+                        ht = math.inf if g > 0.0 else 0.0
                 else:
                     ht = (d + q) / b2 if b2 > 0.0 else math.inf
             h1 = g / B1[r] if B1[r] > 0 else math.inf
