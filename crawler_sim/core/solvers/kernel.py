@@ -334,6 +334,14 @@ if True:  # (one block, indented)
                         fb[r] *= 0.5
                 side = 1
             else:
+                for r in range(K):
+                    # a row come down to its rounding noise with no slope to cross zero in
+                    # the shortest step (a velocity settling onto zero as the command comes to
+                    # rest) is zero as far as floats tell: watched, like a row starting there
+                    # (its Taylor steps would shrink to ~sqrt(noise / B2) for ever)
+                    if (not watch[r] and ga[r] <= noise[r]
+                            and abs(da[r]) * (64.0 * tol) <= noise[r]):
+                        watch[r] = True
                 h = step(ga, da, watch, B2, B1, tol, cap)
         if not have_b:
             return -2.0, n_eval   # out of steps: the caller raises
