@@ -34,7 +34,6 @@ import threading
 import time
 from typing import Any
 
-import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import CallbackGroup
 from rclpy.node import Node
@@ -370,7 +369,8 @@ class SimNode(Node):
     # ------------------------------------------------------------------ outputs
     def _publish_outputs(self) -> None:
         st = self._engine.state
-        if not (np.isfinite(st.x).all() and np.isfinite(st.v).all()):
+        row = M.Row(st)          # the numbers as floats, once for the check and every encoder
+        if not row.finite():
             # never publish a non-finite value: count it, report it and start again
             self.counters['nonfinite_outputs'] += 1
             self._log.error('non-finite state: outputs withheld, resetting',
@@ -378,7 +378,7 @@ class SimNode(Node):
             self._build(self._cfg, self._t_ns)
             return
         self._last_state = st
-        self.outputs.publish(lambda: st, self._t_ns, self._cfg.crawler.masses,
+        self.outputs.publish(row, self._t_ns, self._cfg.crawler.masses,
                              self.recorder.write if self.recorder.on else None)
 
     def diagnostics(self, wall_now: float | None = None):
