@@ -9,7 +9,10 @@ subscriber (this process, taking raw bytes), the crawler moving: gait_node prelo
 as one trajectory, so it costs no CPU during the run. Scenarios (issue 11 and 12 floors):
 
 - ``flat``: real_time_factor 0: speed-up over real time (sim s per wall s, from the sim_time of
-  successive /diagnostics and their arrival times). Floor >= 20x.
+  successive /diagnostics and their arrival times). Floor >= 20x. Also the node's CPU per
+  simulated second: on a machine with fewer free cores than busy processes (this one, the
+  subscribers and gait_node all run flat out) the speed-up follows the share of a core the node
+  gets, this figure does not.
 - ``realtime``: real_time_factor 1: CPU of the sim_node process in % of one core (from /proc,
   after a warm-up) and tick lateness p99 (per diagnostics period: median period and worst).
   Floors <= 10 % and < 1 ms.
@@ -185,6 +188,8 @@ def run(scenario: str, seconds: float, method: str, env: dict,
         first, last = steady[0], steady[-1]
         out['speedup'] = ((float(last['sim_time']) - float(first['sim_time']))
                           / (last['received'] - first['received']))
+        # the node's own cost, whatever share of a core it got on a busy machine
+        out['cpu_ms_per_sim_s'] = 1e3 * cpu / out['speedup']
     return out
 
 
@@ -232,6 +237,8 @@ def main() -> int:
         if scenario == 'flat':
             parts.append(f'speed-up {med("speedup"):.2f}x (engine alone {base:.1f}x: '
                          f'ratio {med("speedup") / base:.2f}; floor 20x)')
+            parts.append(f'node CPU {med("cpu_ms_per_sim_s"):.1f} ms per sim s (a whole core '
+                         f'would give {1e3 / med("cpu_ms_per_sim_s"):.0f}x)')
         else:
             parts.append(f'real-time factor {med("rtf"):.3f}, tick lateness p99 '
                          f'{med("p99_median_ms"):.3f} ms (worst period '

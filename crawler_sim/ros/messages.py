@@ -8,6 +8,7 @@ one conversion point to ``builtin_interfaces/Time``. Float arrays go in as ``arr
 from __future__ import annotations
 
 from functools import lru_cache
+import math
 import struct
 from typing import Any, Iterable, Mapping, Sequence
 
@@ -166,6 +167,35 @@ def applied_command_msg(t_ns: int, lengths: Sequence[float]) -> JointState:
     return joint_state(t_ns, linkage_names(len(lengths)), lengths, zeros, zeros)
 
 
+class Row:
+    """The numbers of a core ``State`` as Python lists (``contact`` as ints), converted once per
+    publish tick and shared by every encoder (each ``tolist`` of a p-entry array costs about as
+    much as packing it). ``source`` is the state itself (the builders of a shape's first message
+    take it), ``x_array``/``v_array`` its arrays for the centre of mass."""
+
+    __slots__ = ('x', 'v', 'friction', 'contact', 'linkage_force', 'lengths', 'rates',
+                 'x_array', 'v_array', 'source')
+
+    def __init__(self, state) -> None:
+        self.source = state
+        self.x_array, self.v_array = state.x, state.v
+        self.x = _floats(state.x)
+        self.v = _floats(state.v)
+        self.friction = _floats(state.friction)
+        self.linkage_force = _floats(state.linkage_force)
+        self.lengths = _floats(state.lengths)
+        self.rates = _floats(state.rates)
+        contact = state.contact
+        self.contact = (contact.tolist() if isinstance(contact, np.ndarray)
+                        else [int(c) for c in contact])
+
+    def finite(self) -> bool:
+        """Whether every published number of the state is finite."""
+        isfinite = math.isfinite
+        return all(map(isfinite, self.x + self.v + self.friction + self.linkage_force
+                       + self.lengths + self.rates))
+
+
 #: ROS type of each output of the node (and of the inputs it records)
 OUTPUT_TYPES = {
     'joint_states': 'sensor_msgs/msg/JointState',
@@ -179,6 +209,7 @@ OUTPUT_TYPES = {
 }
 _STAMP = ('header.stamp.sec', 'header.stamp.nanosec')
 _JOINTS = (_STAMP, ('position',), ('velocity',), ('effort',))
+_ODOM = (_STAMP, ('pose.pose.position.x',), ('twist.twist.linear.x',))
 _MISSING = object()
 
 
@@ -201,6 +232,8 @@ class OutputEncoder:
         self._serialize, self._encoder_class, self._layout_error = (
             serialize_message, Encoder, LayoutError)
         self._encoders: dict[tuple, Any] = {}
+        self._masses_of: Any = _MISSING       # the masses argument of the cached conversion
+        self._masses: tuple = ()
         self.fast = 0
         self.slow = 0
 
@@ -212,16 +245,18 @@ class OutputEncoder:
 
     def joint_states(self, state, t_ns: int, masses=None) -> bytes:
         return self._joints('joint_states', t_ns, state.lengths, state.rates,
-                            state.linkage_force, lambda: joint_states_msg(state, t_ns))
+                            state.linkage_force, lambda: joint_states_msg(_source(state), t_ns))
 
     def body_states(self, state, t_ns: int, masses=None) -> bytes:
         return self._joints('body_states', t_ns, state.x, state.v, state.friction,
-                            lambda: body_states_msg(state, t_ns))
+                            lambda: body_states_msg(_source(state), t_ns))
 
     def contacts_stamped(self, state, t_ns: int, masses=None) -> bytes:
-        contact = np.asarray(state.contact, dtype=float)
+        contact = state.contact
+        if type(contact) is not list:
+            contact = np.asarray(contact, dtype=float)
         return self._joints('contacts_stamped', t_ns, contact, state.v, state.friction,
-                            lambda: contacts_stamped_msg(state, t_ns))
+                            lambda: contacts_stamped_msg(_source(state), t_ns))
 
     def applied_command(self, lengths: Sequence[float], t_ns: int) -> bytes:
         """``~/applied_command`` (see :func:`applied_command_msg`)."""
@@ -236,19 +271,31 @@ class OutputEncoder:
                             lambda: float64_array_msg(values))
 
     def contact_states(self, state, t_ns: int = 0, masses=None) -> bytes:
-        contact = np.asarray(state.contact, dtype=np.int8).tolist()
+        contact = state.contact
+        if type(contact) is not list:
+            contact = np.asarray(contact, dtype=np.int8).tolist()
         return self._encode(('contact_states', len(contact)), (('data',),), (contact,),
-                            lambda: contact_states_msg(state))
+                            lambda: contact_states_msg(_source(state)))
 
     def odom(self, state, t_ns: int, masses=None) -> bytes:
-        com_x, com_v = centre_of_mass(state.x, state.v, masses)
-        groups = (_STAMP, ('pose.pose.position.x',), ('twist.twist.linear.x',))
-        return self._encode(('odom',), groups, (divmod(t_ns, 1_000_000_000), (com_x,), (com_v,)),
-                            lambda: odom_msg(state, masses, t_ns))
+        x, v = getattr(state, 'x_array', state.x), getattr(state, 'v_array', state.v)
+        if masses is self._masses_of:         # centre_of_mass's arithmetic, masses converted once
+            m, total = self._masses
+            com_x, com_v = (float(m @ np.asarray(x, dtype=np.float64)) / total,
+                            float(m @ np.asarray(v, dtype=np.float64)) / total)
+        else:
+            com_x, com_v = centre_of_mass(x, v, masses)
+            if masses is not None:
+                m = np.asarray(masses, dtype=np.float64)
+                self._masses_of, self._masses = masses, (m, float(m.sum()))
+        return self._encode(('odom',), _ODOM, (divmod(t_ns, 1_000_000_000), (com_x,), (com_v,)),
+                            lambda: odom_msg(_source(state), masses, t_ns))
 
     def markers(self, state, t_ns: int, masses=None) -> bytes:
-        xs = state.x.tolist()
-        contact = state.contact.tolist()
+        xs = _floats(state.x)
+        contact = state.contact
+        if type(contact) is not list:
+            contact = contact.tolist()
         p = len(xs)
         stamp = divmod(t_ns, 1_000_000_000)
         values: list = []
@@ -257,7 +304,7 @@ class OutputEncoder:
         for j in range(p - 1):
             values += (stamp, (xs[j],), (xs[j + 1],))
         return self._encode(('markers', p), _marker_groups(p), values,
-                            lambda: markers_msg(state, t_ns))
+                            lambda: markers_msg(_source(state), t_ns))
 
     def _joints(self, kind: str, t_ns: int, position, velocity, effort, build) -> bytes:
         values = (divmod(t_ns, 1_000_000_000), _floats(position), _floats(velocity),
@@ -271,6 +318,8 @@ class OutputEncoder:
                 encoder = self._encoder_class(build(), OUTPUT_TYPES[key[0]], groups)
             except self._layout_error:
                 encoder = None                    # this shape always goes through the builder
+            else:
+                encoder = _Packer.of(encoder, values)
             self._encoders[key] = encoder
         if encoder is None:
             self.slow += 1
@@ -279,7 +328,78 @@ class OutputEncoder:
         return encoder.encode(*values)
 
 
+class _Packer:
+    """A template :class:`crawler_sim.bag.cdr.Encoder` as ONE ``struct.Struct`` spanning the
+    whole message: the bytes between the changing groups are ``s`` fields packed from constant
+    bytes, so a message is one ``pack`` call (no copy of the template, one pack per group and
+    conversion to bytes each time). :meth:`of` keeps the Encoder itself wherever the two
+    would not give the same bytes."""
+
+    __slots__ = ('_struct', '_consts', '_tail')
+
+    def __init__(self, template: bytes, spans: list[tuple[int, int, str]]) -> None:
+        fmt, consts, pos = '<', [], 0
+        for start, end, group_fmt in spans:
+            if start < pos:
+                raise ValueError('groups overlap or are out of order')
+            fmt += (f'{start - pos}s' if start > pos else '') + group_fmt
+            consts.append(template[pos:start] if start > pos else None)
+            pos = end
+        if pos < len(template):
+            fmt += f'{len(template) - pos}s'
+        self._struct = struct.Struct(fmt)
+        self._consts = tuple(consts)
+        self._tail = template[pos:] if pos < len(template) else None
+
+    @classmethod
+    def of(cls, encoder, values):
+        """A packer for ``encoder`` that gives its bytes for ``values`` (the first message of
+        the shape), else ``encoder``."""
+        try:
+            from crawler_sim.bag.cdr import layout
+            fields = layout(encoder.template, encoder.type_name).fields
+            spans = []
+            for group in encoder.groups:
+                group_fmt, start, end = '', None, None
+                for path in group:
+                    offset, n, dtype = fields[path]
+                    start = offset if start is None else start
+                    if end is not None and offset != end:
+                        raise ValueError(f'{path} does not follow its group')
+                    group_fmt += f'{n}{_STRUCT_CODE[dtype]}'
+                    end = offset + n * np.dtype(dtype).itemsize
+                spans.append((start, end, group_fmt))
+            packer = cls(encoder.template, spans)
+            if packer.encode(*values) != encoder.encode(*values):
+                return encoder
+        except (KeyError, ValueError, struct.error, TypeError):
+            return encoder
+        return packer
+
+    def encode(self, *values) -> bytes:
+        args: list = []
+        for const, group in zip(self._consts, values):
+            if const is not None:
+                args.append(const)
+            args += group
+        if self._tail is not None:
+            args.append(self._tail)
+        return self._struct.pack(*args)
+
+
+#: struct code of each numpy dtype string of a CDR layout
+_STRUCT_CODE = {'|u1': 'B', '|i1': 'b', '<i2': 'h', '<u2': 'H', '<i4': 'i', '<u4': 'I',
+                '<f4': 'f', '<i8': 'q', '<u8': 'Q', '<f8': 'd'}
+
+
+def _source(state):
+    """The core ``State`` (or duck) behind a :class:`Row`, for the builders."""
+    return state.source if type(state) is Row else state
+
+
 def _floats(values) -> list[float]:
+    if type(values) is list:
+        return values
     return values.tolist() if isinstance(values, np.ndarray) else [float(x) for x in values]
 
 

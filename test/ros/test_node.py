@@ -34,6 +34,7 @@ from crawler_sim import Stepper
 import crawler_sim.bag
 from crawler_sim.ros import messages as M
 from crawler_sim.core.actuator import Actuator
+from crawler_sim.core.engine import Engine
 from crawler_sim.bag.cdr import LayoutError, zero_padding
 from crawler_sim.ros.gait_node import GaitNode
 from crawler_sim.core.gaits import Cubic
@@ -656,6 +657,54 @@ def test_output_bytes_equal_serialize_message_of_the_builders(p):
         assert enc.linkage_cmd(lengths) == zero_padding(
             serialize_message(M.float64_array_msg(lengths)), 'std_msgs/msg/Float64MultiArray')
     assert enc.slow == 0 and enc.fast == 6 * 7
+
+
+@pytest.mark.parametrize('p', [2, 3, 7])
+def test_a_row_of_a_state_encodes_the_bytes_of_the_state(p):
+    """The node converts a state to lists once per publish tick (``M.Row``) and every encoder
+    packs from them: the bytes are those of the builders' messages, first message of a shape
+    (the template, built from the row's state) included, awkward numbers included."""
+    rng = np.random.default_rng(10 + p)
+    masses = rng.uniform(0.1, 10.0, size=p)
+    builders = {'joint_states': lambda s, t: M.joint_states_msg(s, t),
+                'body_states': lambda s, t: M.body_states_msg(s, t),
+                'contact_states': lambda s, t: M.contact_states_msg(s),
+                'contacts_stamped': lambda s, t: M.contacts_stamped_msg(s, t),
+                'odom': lambda s, t: M.odom_msg(s, masses, t),
+                'markers': lambda s, t: M.markers_msg(s, t)}
+    from_rows, from_states = M.OutputEncoder(), M.OutputEncoder()
+    for k in range(5):
+        st, t_ns = random_state(rng, p), int(rng.integers(0, 2**31 * 10**9))
+        row = M.Row(st)
+        assert row.finite() == all(np.isfinite(a).all() for a in (
+            st.x, st.v, st.friction, st.linkage_force, st.lengths, st.rates))
+        for name, build in builders.items():
+            ref = zero_padding(serialize_message(build(st, t_ns)), M.OUTPUT_TYPES[name])
+            assert from_rows.encode(name, row, t_ns, masses) == ref, name
+            assert from_states.encode(name, st, t_ns, masses) == ref, name
+    assert from_rows.slow == 0 and from_rows.fast == 5 * 6
+
+
+def test_a_state_with_a_non_finite_number_is_withheld_and_the_node_resets(ros, monkeypatch):
+    sim = ros.sim()
+    box = ros.listen(JointState, '/body_states')
+    ticks(sim, 20)
+    ros.until(lambda: len(box) >= 2, 'two body_states')
+    real = Engine.state
+
+    def broken(engine):               # finite x and v, a NaN friction
+        st = real.fget(engine)
+        return st._replace(friction=np.full_like(st.friction, np.nan))
+    monkeypatch.setattr(Engine, 'state', property(broken))
+    t_ns = sim.sim_time_ns
+    ticks(sim, 20)
+    assert sim.counters['nonfinite_outputs'] == 2
+    monkeypatch.setattr(Engine, 'state', real)
+    ticks(sim, 10)
+    ros.until(lambda: ns_from_stamp(box[-1].header.stamp) == t_ns + 30_000_000,
+              'body_states after the broken ones')
+    assert all(math.isfinite(f) for m in box for f in m.effort)
+    assert t_ns + 10_000_000 not in [ns_from_stamp(m.header.stamp) for m in box]
 
 
 def test_an_output_without_a_template_goes_through_the_builder(monkeypatch):

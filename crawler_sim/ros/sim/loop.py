@@ -100,4 +100,4 @@ def _loop(node) -> None:
                     node._anchor_needed = True
         with node._lock:              # a pause that arrived meanwhile wins
             if not node.paused:
-                node.tick()
+                node._tick()          # node.tick() without taking the lock a second time

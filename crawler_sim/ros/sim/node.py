@@ -23,7 +23,7 @@ or trajectory, then one actuator piece; every ``publish_every`` ticks the engine
 queued pieces exactly and the outputs go out. A state that is not finite is never published
 (it is counted in ``nonfinite_outputs`` and the simulation resets).
 
-Module size: about 420 lines, just over the ~400 guide: ``SimNode`` is where the pieces of
+Module size: about 430 lines, just over the ~400 guide: ``SimNode`` is where the pieces of
 ``ros/sim`` meet (services, parameter callbacks, tick, shutdown); every responsibility it
 delegates lives in its own module.
 """
@@ -34,7 +34,6 @@ import threading
 import time
 from typing import Any
 
-import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import CallbackGroup
 from rclpy.node import Node
@@ -209,22 +208,26 @@ class SimNode(Node):
         tick): it only defers destruction, and they are destroyed only with the node, after
         the loop has stopped.
         """
-        taken = None
         with self._lock:
-            for take, msg_type, raw, handler in self._takes:
+            return self._take_inputs()
+
+    def _take_inputs(self) -> int:
+        """:meth:`take_inputs` for a caller that holds the lock (the tick)."""
+        taken = None
+        for take, msg_type, raw, handler in self._takes:
+            got = take(msg_type, raw)
+            while got is not None:
+                if taken is None:
+                    taken = []
+                taken.append((got[1].get('received_timestamp', 0), len(taken), handler,
+                              got[0]))
                 got = take(msg_type, raw)
-                while got is not None:
-                    if taken is None:
-                        taken = []
-                    taken.append((got[1].get('received_timestamp', 0), len(taken), handler,
-                                  got[0]))
-                    got = take(msg_type, raw)
-            if taken is None:
-                return 0
-            if len(taken) > 1:
-                taken.sort(key=lambda item: item[:2])
-            for _, _, handler, msg in taken:
-                handler(msg)
+        if taken is None:
+            return 0
+        if len(taken) > 1:
+            taken.sort(key=lambda item: item[:2])
+        for _, _, handler, msg in taken:
+            handler(msg)
         return len(taken)
 
     def _on_command(self, msg: Float64MultiArray) -> None:
@@ -307,35 +310,39 @@ class SimNode(Node):
     def tick(self) -> None:
         """Advance one integration step (also callable directly, e.g. from tests)."""
         with self._lock:
-            self.take_inputs()
-            if self._pending_cfg is not None:
-                cfg, self._pending_cfg = self._pending_cfg, None
-                self._apply_config(cfg)
-            t0_ns = self._t_ns
-            if self._pending_cmd is not None:
-                self._apply_command(t0_ns)
-            elif self._pending_traj is not None:
-                self._apply_trajectory(t0_ns)
-            engine = self._engine
-            synced = engine.tick()
-            self._t_ns = engine.t_ns
-            self.counters['ticks'] += 1
-            if not synced:
-                return
-            if engine.failures:
-                self.counters['solver_failures'] += len(engine.failures)
-                self._solver_error = engine.failures[-1] + '; continuing with method implicit'
-                self._log.error(self._solver_error, throttle_duration_sec=1.0)
-                engine.failures.clear()
-            events = engine.pop_events()
-            if events:
-                self.counters['solver_events'] += len(events)
-                if self.recorder.on:
-                    for ev in events:
-                        self.recorder.write('events', 'std_msgs/msg/Int32MultiArray',
-                                            M.event_msg(ev.body, ev.old, ev.new),
-                                            round(ev.time * 1e9))
-            self._publish_outputs()
+            self._tick()
+
+    def _tick(self) -> None:
+        """:meth:`tick` for a caller that holds the lock (the loop)."""
+        self._take_inputs()
+        if self._pending_cfg is not None:
+            cfg, self._pending_cfg = self._pending_cfg, None
+            self._apply_config(cfg)
+        t0_ns = self._t_ns
+        if self._pending_cmd is not None:
+            self._apply_command(t0_ns)
+        elif self._pending_traj is not None:
+            self._apply_trajectory(t0_ns)
+        engine = self._engine
+        synced = engine.tick()
+        self._t_ns = engine.t_ns
+        self.counters['ticks'] += 1
+        if not synced:
+            return
+        if engine.failures:
+            self.counters['solver_failures'] += len(engine.failures)
+            self._solver_error = engine.failures[-1] + '; continuing with method implicit'
+            self._log.error(self._solver_error, throttle_duration_sec=1.0)
+            engine.failures.clear()
+        events = engine.pop_events()
+        if events:
+            self.counters['solver_events'] += len(events)
+            if self.recorder.on:
+                for ev in events:
+                    self.recorder.write('events', 'std_msgs/msg/Int32MultiArray',
+                                        M.event_msg(ev.body, ev.old, ev.new),
+                                        round(ev.time * 1e9))
+        self._publish_outputs()
 
     def _apply_command(self, t_ns: int) -> None:
         cmd, self._pending_cmd = self._pending_cmd, None
@@ -370,7 +377,8 @@ class SimNode(Node):
     # ------------------------------------------------------------------ outputs
     def _publish_outputs(self) -> None:
         st = self._engine.state
-        if not (np.isfinite(st.x).all() and np.isfinite(st.v).all()):
+        row = M.Row(st)          # the numbers as floats, once for the check and every encoder
+        if not row.finite():
             # never publish a non-finite value: count it, report it and start again
             self.counters['nonfinite_outputs'] += 1
             self._log.error('non-finite state: outputs withheld, resetting',
@@ -378,7 +386,7 @@ class SimNode(Node):
             self._build(self._cfg, self._t_ns)
             return
         self._last_state = st
-        self.outputs.publish(lambda: st, self._t_ns, self._cfg.crawler.masses,
+        self.outputs.publish(row, self._t_ns, self._cfg.crawler.masses,
                              self.recorder.write if self.recorder.on else None)
 
     def diagnostics(self, wall_now: float | None = None):

@@ -8,7 +8,7 @@ microseconds and a late subscriber then misses at most that many messages.
 """
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
@@ -77,10 +77,11 @@ class Outputs:
         """``{topic: type}`` of the grid outputs this node publishes (as given, unresolved)."""
         return {topic: M.OUTPUT_TYPES[name] for name, topic, *_ in self._grid}
 
-    def publish(self, state_of: Callable[[], Any], t_ns: int, masses, record=None) -> None:
-        """Publish /clock and every output taken by someone at sim time ``t_ns``; ``record``
-        (topic, type, bytes, t_ns) gets each output before it is published, so what a
-        subscriber has seen is in the bag."""
+    def publish(self, state: Any, t_ns: int, masses, record=None) -> None:
+        """Publish /clock and every output taken by someone at sim time ``t_ns``; ``state`` is
+        a core ``State`` or its :class:`crawler_sim.ros.messages.Row` (or a callable returning
+        one, called only if someone takes an output); ``record`` (topic, type, bytes, t_ns) gets
+        each output before it is published, so what a subscriber has seen is in the bag."""
         if self.clock_pub is not None:
             self._clock_raw(M.clock_cdr(t_ns))
         if record is not None:
@@ -93,7 +94,7 @@ class Outputs:
             takers = self._takers
         if not takers:
             return
-        st = state_of()
+        st = state() if callable(state) else state
         types = M.OUTPUT_TYPES
         for name, topic, _pub, encode, publish_raw in takers:
             data = encode(st, t_ns, masses)
