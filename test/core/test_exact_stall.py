@@ -19,7 +19,10 @@
   for a constant row (g' = 0, B2 = 0: constant acceleration); steps of 64 tol ran out of steps.
   Seed 141: a relative velocity settling onto zero with the command (5.6e-17 m/s, slope 1e-14)
   never crosses it; Taylor steps of ~sqrt(noise / B2) = 8e-10 s ran out of steps. Such a row is
-  now watched, like a row that starts at zero.
+  now watched, like a row that starts at zero. Seed 337: bodies 0 and 2 stuck as a rigid pair
+  whose link rates cancel to -5.3e-16 m/s, not 0 (mirrored commands): the rigid rows' noise,
+  1e-13 of |l'| ~ 1e-15, was 1e-27, so the pair split one float later, for ever. A row declared
+  zero by the mode counts its start value as noise too.
 """
 import math
 from pathlib import Path
@@ -35,7 +38,7 @@ from crawler_sim.core.solvers.events import Rows, Search
 SESSIONS = Path(__file__).resolve().parents[2] / 'tools' / 'node_sessions.py'
 
 
-@pytest.mark.parametrize('seed', [20, 35, 88, 128, 141, 2383])
+@pytest.mark.parametrize('seed', [20, 35, 88, 128, 141, 337, 2383])
 def test_node_sessions_that_stalled_run_to_the_end_on_the_exact_method(seed):
     session = runpy.run_path(str(SESSIONS))['session']
     r = session(seed, 10.0, 'exact')

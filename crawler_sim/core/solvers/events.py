@@ -61,7 +61,8 @@ class Rows:
 
     Rows that start at or below their noise level, 1e-13 of their scale (a body leaving rest,
     a rigid pair), are *watched*: they become ordinary rows once above that level, and trigger
-    an event only when they go below minus that level.
+    an event only when they go below minus that level; the mode declared such a row zero, so
+    its start value is rounding too and the level is at least 4 times its magnitude.
     """
 
     t0: float
@@ -165,6 +166,9 @@ class Search:
                  + np.abs(ldd) @ np.abs(r.A2).T)[0]
         self._noise = 1e-13 * scale + 1e-300    # below it a watched row counts as zero
         watch = ga <= self._noise      # zero to rounding: watched (see Rows)
+        # declared zero by the mode at t0: its value there is rounding, so at least that
+        # much is noise (kernel._search_ws, the same rule)
+        self._noise = np.where(watch, np.maximum(self._noise, 4.0 * np.abs(ga)), self._noise)
         if end <= t0:
             return t_stop, None
         return self._scan(t0, end, ga, watch, h0, t_stop)

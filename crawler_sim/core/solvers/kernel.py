@@ -226,6 +226,11 @@ if True:  # (one block, indented)
             # a row at zero to within its rounding noise (a rigid pair, a body at rest)
             # is watched: a row of +1e-16 stuck there would otherwise need ~1e-9 s steps
             watch[r] = ga[r] <= noise[r]
+            if watch[r]:
+                # the mode declared this row zero at t0 (a body at rest, a rigid link): its
+                # value there is rounding, so at least that much is noise (a rigid pair whose
+                # link rates cancel to -5e-16 m/s, not to 0, would split again every float)
+                noise[r] = max(noise[r], 4.0 * abs(ga[r]))
         a = t0
         n_eval = 1
         h = step(ga, da, watch, B2, B1, tol, cap)
