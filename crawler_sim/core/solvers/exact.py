@@ -42,8 +42,8 @@ from ..model import Crawler
 from ..trajectory import Event, EventLog
 from .contact import solve_inclusion, split_friction
 from .events import Rows, Search, check_finite_gait
-from .segments import (PeriodicBlock, Segment, SegmentChunk, SegmentList, _split_impulse,
-                       evaluate_rows, offset_matrices)
+from .segments import (PeriodicBlock, Records, Segment, SegmentChunk, SegmentList,
+                       _split_impulse, evaluate_records, evaluate_rows, offset_matrices)
 
 __all__ = ['ExactSolver', 'PeriodicBlock', 'Segment', 'evaluate_rows', 'offset_matrices',
            'check_finite_gait']
@@ -762,34 +762,20 @@ class ExactSolver:
     def sample(self, times: NDArray[np.float64]) -> dict:
         """Exact states at ``times`` (sorted, within the integrated span) from kept segments.
 
-        Times inside a ``PeriodicBlock`` are mapped onto its template period and shifted, so
-        every segment is evaluated once, for all the times that fall on it.
+        Times inside a ``PeriodicBlock`` are mapped onto its template period and shifted; the
+        segments' constants are gathered from their table (``SegmentList.records``), so no
+        ``Segment`` object is built for the compiled loop's segments.
         """
         segs = self.segments
         n_t = times.size
-        starts = segs.starts()
-        idx = np.clip(np.searchsorted(starts, times, side='right') - 1, 0, len(segs) - 1)
+        table, row_of = segs.records()
+        idx = np.clip(np.searchsorted(segs.starts(), times, side='right') - 1, 0, len(segs) - 1)
+        owner = row_of[idx]
         local = times.astype(float).copy()
         shift_x = np.zeros(n_t)
         shift_k = np.zeros((n_t, self._m.size))
-        pieces: list[Segment] = []
-        number: dict[int, int] = {}
-
-        def key(seg: Segment) -> int:
-            if id(seg) not in number:
-                number[id(seg)] = len(pieces)
-                pieces.append(seg)
-            return number[id(seg)]
-
-        seg_key = np.full(len(segs), -1, dtype=np.int64)
-        blocks = []
-        for k in np.unique(idx).tolist():
-            if isinstance(segs[k], PeriodicBlock):
-                blocks.append(k)
-            else:
-                seg_key[k] = key(segs[k])
-        owner = seg_key[idx]
-        for k in blocks:
+        parts, n_rows = [table], table.ref.size
+        for k in np.unique(idx[owner < 0]).tolist():
             sel = (idx == k).nonzero()[0]
             piece = segs[k]
             j = np.clip(np.floor((times[sel] - piece.t0) / piece.T).astype(int) + 1, 1, piece.n)
@@ -798,14 +784,14 @@ class ExactSolver:
             t_starts = np.array([sg.t0 for sg in tpl])
             t_ends = np.array([sg.t1 for sg in tpl])
             sub = np.clip(np.searchsorted(t_starts, loc, side='right') - 1, 0, len(tpl) - 1)
-            tpl_key = np.full(len(tpl), -1, dtype=np.int64)
-            for m in np.unique(sub).tolist():
-                tpl_key[m] = key(tpl[m])
-            owner[sel] = tpl_key[sub]
+            owner[sel] = n_rows + sub
+            parts.append(Records.from_segments(tpl))
+            n_rows += len(tpl)
             local[sel] = np.clip(loc, t_starts[sub], t_ends[sub])
             shift_x[sel] = j * piece.D
             shift_k[sel] = np.multiply.outer(j, piece.dK)
-        out = evaluate_rows(self.crawler, pieces, owner, local, (self._C, self._W))
+        out = evaluate_records(self.crawler, Records.concat(parts), owner, local,
+                               (self._C, self._W))
         out['x'] += shift_x[:, None]
         out['impulse'] += shift_k
         return out

@@ -16,8 +16,8 @@ from ..gaits import Gait
 from ..model import Crawler
 from .contact import split_friction
 
-__all__ = ['PeriodicBlock', 'Segment', 'SegmentChunk', 'SegmentList', 'evaluate_rows',
-           'offset_matrices']
+__all__ = ['PeriodicBlock', 'Records', 'Segment', 'SegmentChunk', 'SegmentList',
+           'evaluate_records', 'evaluate_rows', 'offset_matrices']
 
 
 def offset_matrices(masses: NDArray) -> tuple[NDArray, NDArray]:
@@ -137,6 +137,62 @@ class SegmentChunk:
                        self.K0[k].copy(), X0, V0, a, r, x_ref, group)
 
 
+@dataclass(slots=True)
+class Records:
+    """Segment constants as arrays, one row per segment (what ``evaluate_records`` gathers):
+    ``f`` = (t0, X0, V0, a, x_ref), ``ref``, ``group``, ``contact``, ``R``, ``K0``; the gait of
+    row k is ``gaits[gait_id[k]]``."""
+
+    f: NDArray[np.float64]
+    ref: NDArray[np.int64]
+    group: NDArray[np.bool_]
+    contact: NDArray[np.int8]
+    R: NDArray[np.float64]
+    K0: NDArray[np.float64]
+    gait_id: NDArray[np.int64]
+    gaits: list
+
+    @classmethod
+    def from_segments(cls, segs: list) -> Records:
+        gaits = list({id(sg.gait): sg.gait for sg in segs}.values())
+        ids = {id(g): k for k, g in enumerate(gaits)}
+        return cls(np.array([(sg.t0, sg.X0, sg.V0, sg.a, sg.x_ref) for sg in segs], dtype=float),
+                   np.array([sg.ref for sg in segs], dtype=np.int64),
+                   np.array([sg.group for sg in segs], dtype=bool),
+                   np.array([sg.contact for sg in segs], dtype=np.int8),
+                   np.array([sg.R for sg in segs], dtype=float),
+                   np.array([sg.K0 for sg in segs], dtype=float),
+                   np.array([ids[id(sg.gait)] for sg in segs], dtype=np.int64), gaits)
+
+    @classmethod
+    def from_chunk(cls, chunk: SegmentChunk) -> Records:
+        n, p = chunk.contact.shape
+        group = np.zeros((n, p), dtype=bool)
+        stuck = chunk.ref >= 0
+        group[stuck.nonzero()[0], chunk.ref[stuck]] = True
+        return cls(chunk.f[:, [0, 2, 3, 4, 5]], chunk.ref, group, chunk.contact, chunk.R,
+                   chunk.K0, np.zeros(n, dtype=np.int64), [chunk.gait])
+
+    @classmethod
+    def concat(cls, parts: list) -> Records:
+        if len(parts) == 1:
+            return parts[0]
+        gaits: list = []
+        ids: dict = {}
+        gait_id = []
+        for part in parts:
+            remap = []
+            for g in part.gaits:
+                if id(g) not in ids:
+                    ids[id(g)] = len(gaits)
+                    gaits.append(g)
+                remap.append(ids[id(g)])
+            gait_id.append(np.array(remap, dtype=np.int64)[part.gait_id])
+        return cls(*(np.concatenate([getattr(q, k) for q in parts])
+                     for k in ('f', 'ref', 'group', 'contact', 'R', 'K0')),
+                   np.concatenate(gait_id), gaits)
+
+
 class SegmentList(Sequence):
     """The exact solver's kept pieces in time order: ``Segment`` and ``PeriodicBlock`` objects,
     and records of ``SegmentChunk`` turned into ``Segment`` objects when first read (most of a
@@ -145,6 +201,10 @@ class SegmentList(Sequence):
     def __init__(self) -> None:
         self._items: list = []       # Segment | PeriodicBlock | (chunk, row)
         self._t0: list[float] = []
+        self._row: list[int] = []    # row of each item in ``records()`` (-1: PeriodicBlock)
+        self._parts: list = []       # Records, concatenated by ``records()``
+        self._n_rows = 0
+        self._table: Records | None = None
 
     def __len__(self) -> int:
         return len(self._items)
@@ -167,11 +227,31 @@ class SegmentList(Sequence):
     def append(self, item) -> None:
         self._items.append(item)
         self._t0.append(item.t0)
+        if isinstance(item, PeriodicBlock):
+            self._row.append(-1)
+        else:
+            self._add_rows(Records.from_segments([item]))
 
     def extend_chunk(self, chunk: SegmentChunk) -> None:
         n = chunk.f.shape[0]
         self._items.extend((chunk, k) for k in range(n))
         self._t0.extend(chunk.f[:, 0].tolist())
+        self._add_rows(Records.from_chunk(chunk))
+
+    def _add_rows(self, part: Records) -> None:
+        n = part.ref.size
+        self._row.extend(range(self._n_rows, self._n_rows + n))
+        self._n_rows += n
+        self._parts.append(part)
+        self._table = None
+
+    def records(self) -> tuple[Records, NDArray[np.int64]]:
+        """Every segment's constants as one ``Records`` table, and each item's row in it (-1
+        for a ``PeriodicBlock``), without building ``Segment`` objects."""
+        if self._table is None:
+            self._table = Records.concat(self._parts)
+            self._parts = [self._table]
+        return self._table, np.array(self._row, dtype=np.int64)
 
     def starts(self) -> NDArray[np.float64]:
         """Start times of the pieces, without building them."""
@@ -180,25 +260,28 @@ class SegmentList(Sequence):
 
 def evaluate_rows(crawler: Crawler, pieces: list, owner: NDArray[np.int64],
                   tau: NDArray[np.float64], mats: tuple[NDArray, NDArray]) -> dict:
-    """Exact states of many segments at once: row i is ``pieces[owner[i]]`` at time ``tau[i]``.
+    """Exact states of many segments at once: row i is ``pieces[owner[i]]`` at time ``tau[i]``
+    (``evaluate_records`` on the pieces' constants)."""
+    return evaluate_records(crawler, Records.from_segments(pieces), owner, tau, mats)
+
+
+def evaluate_records(crawler: Crawler, rec: Records, owner: NDArray[np.int64],
+                     tau: NDArray[np.float64], mats: tuple[NDArray, NDArray]) -> dict:
+    """Exact states of many segments at once: row i is segment ``owner[i]`` of ``rec`` at time
+    ``tau[i]``.
 
     The same closed forms as ``Segment.evaluate`` (slide: X quadratic in t; stick: the reference
     body fixed, the group's friction the affine split of what holds it), with every per-segment
-    quantity gathered per row, so sampling a run costs a fixed number of array operations
-    instead of a fixed number per segment. ``mats``: the crawler's ``offset_matrices``.
+    quantity gathered per row and the arithmetic compiled (``sampling.closed_form``), so sampling
+    a run costs one gait call per gait and one loop over the rows. ``mats``: the crawler's
+    ``offset_matrices``.
     """
     from .sampling import closed_form      # numba: loaded with the first sample
     C, W = mats
     m = crawler.masses
     p, n = m.size, tau.size
-    l, ld, ldd = _gait_rows(pieces, owner, tau)
-    t0, X0, V0, a, x_ref = (np.array(v, dtype=float)[owner] for v in zip(
-        *((sg.t0, sg.X0, sg.V0, sg.a, sg.x_ref) for sg in pieces)))
-    ref = np.array([sg.ref for sg in pieces], dtype=np.int64)[owner]
-    group = np.array([sg.group for sg in pieces])[owner]              # (n, p)
-    contact = np.array([sg.contact for sg in pieces], dtype=np.int8)[owner]
-    R0 = np.array([sg.R for sg in pieces], dtype=float)[owner]
-    K0 = np.array([sg.K0 for sg in pieces], dtype=float)[owner]
+    l, ld, ldd = _gait_values(rec, owner, tau)
+    f = rec.f[owner]
     x, v, R, K = (np.empty((n, p)) for _ in range(4))
     lam = np.empty((n, p - 1))
     state = np.empty((n, p), dtype=np.int8)
@@ -206,21 +289,24 @@ def evaluate_rows(crawler: Crawler, pieces: list, owner: NDArray[np.int64],
     closed_form(np.ascontiguousarray(l, dtype=float), np.ascontiguousarray(ld, dtype=float),
                 np.ascontiguousarray(ldd, dtype=float), W, C, m, crawler.friction,
                 crawler.friction_backward, float(crawler.external_force),
-                crawler.gravity_forces, t0, X0, V0, a, ref, x_ref, group, contact, R0, K0,
+                crawler.gravity_forces, f[:, 0].copy(), f[:, 1].copy(), f[:, 2].copy(),
+                f[:, 3].copy(), rec.ref[owner], f[:, 4].copy(), rec.group[owner],
+                rec.contact[owner], rec.R[owner], rec.K0[owner],
                 np.ascontiguousarray(tau, dtype=float), x, v, R, K, lam, state, indeterminate)
     return {'x': x, 'v': v, 'friction': R, 'impulse': K, 'linkage_force': lam,
             'lengths': l, 'rates': ld, 'contact': state, 'indeterminate': indeterminate}
 
 
-def _gait_rows(pieces: list, owner: NDArray[np.int64], tau: NDArray[np.float64]):
-    """(l, l', l'') at ``tau[i]`` from the gait of ``pieces[owner[i]]`` (one call per gait)."""
-    gaits = {id(sg.gait): sg.gait for sg in pieces}
-    if len(gaits) == 1:
-        return pieces[0].gait(tau)
-    which = np.array([id(sg.gait) for sg in pieces], dtype=object)[owner]
+def _gait_values(rec: Records, owner: NDArray[np.int64], tau: NDArray[np.float64]):
+    """(l, l', l'') at ``tau[i]`` from the gait of row ``owner[i]`` (one call per gait)."""
+    if len(rec.gaits) == 1:
+        return rec.gaits[0](tau)
+    which = rec.gait_id[owner]
     out = None
-    for key, gait in gaits.items():
+    for key, gait in enumerate(rec.gaits):
         sel = np.nonzero(which == key)[0]
+        if not sel.size:
+            continue
         vals = gait(tau[sel])
         if out is None:
             out = tuple(np.empty((tau.size,) + v.shape[1:]) for v in vals)
