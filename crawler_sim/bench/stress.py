@@ -193,10 +193,21 @@ def check_random_scene(spec: dict, *, divs: tuple[int, ...] = (100, 400, 1600),
         im = simulate(crawler, gait, t_end, 'implicit', dt=T / d, t_eval=grid, v0=v0)
         audit(res, im, f'implicit dt=T/{d}', IMPLICIT_TOL)
         errs.append(float(np.max(np.abs(im.x - ex.x))) if _finite(im) else math.inf)
+    # A stiff scene (a body of 1e-3 kg against 1e2 N of friction, or a heavy body launched at
+    # v0 against 669 N: time scales of 1e-4 to 5e-5 s) is not yet in the first-order regime at
+    # T/1600: up to four finer steps before calling it a failure (stress seed 7: scene 1490,
+    # errors 9.1e-6, 9.1e-6, 9.0e-6, then 3.0e-6; scene 3121, 1.3e-6 down to T/25600, where
+    # the independent oracle agrees with the exact run to 9e-11).
+    levels = list(divs)
+    while not _converges(errs[-3:], scale) and len(levels) < len(divs) + 4:
+        levels.append(4 * levels[-1])
+        im = simulate(crawler, gait, t_end, 'implicit', dt=T / levels[-1], t_eval=grid, v0=v0)
+        errs.append(float(np.max(np.abs(im.x - ex.x))) if _finite(im) else math.inf)
     res.figures.update(err_implicit=errs, scale=scale)
-    if not _converges(errs, scale):
+    if not _converges(errs[-3:], scale):
         res.fail(f'implicit does not converge to exact: max |x - x_exact| = '
-                 f'{", ".join(f"{e:.3e}" for e in errs)} at dt = T/{divs} (scale {scale:.3e} m)')
+                 f'{", ".join(f"{e:.3e}" for e in errs)} at dt = T/{tuple(levels)} '
+                 f'(scale {scale:.3e} m)')
     pe = simulate(crawler, gait, t_end, 'penalty', dt=T / divs[0], penalty=penalty, t_eval=grid,
                   v0=v0)
     audit(res, pe, 'penalty', tolerances(crawler, 'penalty', pe, penalty))
