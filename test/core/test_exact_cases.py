@@ -182,3 +182,44 @@ def test_the_compiled_search_finds_the_events_of_the_python_search(seed, monkeyp
         assert (x.body, x.old, x.new) == (y.body, y.old, y.new)
         assert abs(x.time - y.time) <= 1e-13
     np.testing.assert_allclose(a.x[-1], b.x[-1], rtol=0, atol=1e-12)
+
+
+def _random_strokes(rng, n_links: int, n_pieces: int, dt: float) -> gaits.PiecewiseCubic:
+    """Constant-jerk pieces as the node's actuator makes them: l and l' continuous at every
+    join, l'' continuous at most joins and jumping at some (breakpoints)."""
+    from crawler_sim.core.gaits.cubic import cubic_values
+    l, v, a = np.full(n_links, 1.0), np.zeros(n_links), np.zeros(n_links)
+    starts, pieces = [], []
+    for k in range(n_pieces):
+        t0 = k * dt
+        if rng.random() < 0.3:
+            a = rng.uniform(-2.0, 2.0, n_links)          # a jump of l'': a breakpoint
+        jerk = rng.choice([0.0, 1.0, -1.0], n_links) * rng.uniform(0.0, 60.0, n_links)
+        starts.append(t0)
+        pieces.append(gaits.Cubic(t0, l, v, a, jerk))
+        l, v, a = cubic_values(l, v, a, jerk, dt)
+    return gaits.PiecewiseCubic(starts, pieces)
+
+
+@pytest.mark.parametrize('seed', range(6))
+def test_the_compiled_loop_matches_the_python_loop_on_actuator_pieces(seed, monkeypatch):
+    # The node's gaits (constant-jerk pieces with breakpoints) through kernel.drive and through
+    # ExactSolver._segment with the Python search (events.Search): two implementations of the
+    # same rules, each the other's reference, event by event and in the final state.
+    from crawler_sim.core.solvers.exact import ExactSolver
+    rng = np.random.default_rng(100 + seed)
+    p = 2 + seed % 3
+    m = rng.uniform(0.5, 2.0, p)
+    c = cs.Crawler(m, rng.uniform(0.3, 2.0, p) * m, slope=0.05 * (seed % 2))
+    g = _random_strokes(rng, p - 1, 40, 0.05)
+    runs = []
+    for compiled in (True, False):
+        monkeypatch.setattr(ExactSolver, 'use_kernel', compiled)
+        runs.append(cs.simulate(c, g, 2.0, periodic_skip=False))
+    a, b = runs
+    assert len(a.events) == len(b.events) > 3
+    for x, y in zip(a.events, b.events):
+        assert (x.body, x.old, x.new) == (y.body, y.old, y.new)
+        assert abs(x.time - y.time) <= 1e-12
+    np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(a.friction, b.friction, rtol=0, atol=1e-9)
