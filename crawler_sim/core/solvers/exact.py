@@ -19,10 +19,15 @@ The event search (``events``) proves each piece of a segment free of events from
 event functions' derivatives, which follow from the gait's ``jerk_bound`` / ``snap_bound``, or
 splits it, and narrows the first bracketed event to ``tol`` seconds.
 
-Module size: about 600 lines, over the ~400 guide, because the mode choice, the integration
-loop with its periodic skip and the event rows all read and write the solver state; the closed
-forms (``segments``), the search (``events``, ``kernel``) and the inclusion (``contact``) live
-in their own modules.
+For the gaits the kernel evaluates, the segment loop itself runs compiled (``kernel.drive``,
+called from ``_drive``) with the same rules; this module's ``_segment`` remains the reference
+and the path for everything the compiled loop hands back (groups of bodies stuck together, a
+contact sign contradicted by the velocity, other gaits).
+
+Module size: about 800 lines, over the ~400 guide, because the mode choice, the integration
+loop with its periodic skip, the event rows and the hand-over to the compiled loop all read and
+write the solver state; the closed forms (``segments``, ``sampling``), the search (``events``,
+``kernel``) and the inclusion (``contact``) live in their own modules.
 
 Guarantee: for a gait whose ``jerk_bound`` (and ``snap_bound``, where it gives one) are true
 bounds (every built-in gait, and a ``Custom`` gait given ``jerk_bound=``), no contact event is
