@@ -48,12 +48,16 @@ def test_node_sessions_that_stalled_run_to_the_end_on_the_exact_method(seed):
 
 def test_the_taylor_step_of_nearly_linear_and_constant_rows_is_not_zero():
     # g = 1, g' = -2, |g''| <= 1e-30: the first zero of 1 - 2 h - 5e-31 h^2 is 0.5 (by hand);
-    # g = 1, g' = 0, g'' = 0: never zero, the step is the cap; the step stays just inside
+    # g = 1, g' = 0, g'' = 0: never zero, the step is unbounded (the cap, a cost setting, holds
+    # only while some row is watched); the step stays just inside
     one, off = np.ones(1), np.zeros(1, dtype=bool)
     h = kernel.step(one, np.array([-2.0]), off, np.array([1e-30]), np.array([math.inf]),
                     1e-13, 10.0)
     assert 0.4999 <= h < 0.5
     assert kernel.step(one, np.zeros(1), off, np.zeros(1), np.array([math.inf]), 1e-13,
+                       10.0) == math.inf
+    two, watched = np.ones(2), np.array([False, True])
+    assert kernel.step(two, np.zeros(2), watched, np.zeros(2), np.full(2, math.inf), 1e-13,
                        10.0) == 10.0
     # the step is proven by the Taylor bound from its left end alone
     assert kernel.proven(h, one, one - 2 * h, np.array([-2.0]), np.array([-2.0]), off,

@@ -165,8 +165,10 @@ if True:  # (one block, indented)
         the first zero of each row's Taylor lower bound, or of g(a) - B1 tau): near a simple
         root this is a Newton step from the left, so the approach converges fast."""
         h = math.inf
+        watched = False
         for r in range(ga.size):
             if watch[r]:
+                watched = True
                 continue
             g = max(ga[r], 0.0)
             d = da[r]
@@ -186,7 +188,9 @@ if True:  # (one block, indented)
                     ht = (d + q) / b2 if b2 > 0.0 else math.inf
             h1 = g / B1[r] if B1[r] > 0 else math.inf
             h = min(h, 0.9999 * max(ht, h1))
-        return min(max(h, 64.0 * tol), cap)
+        # ``cap`` (a cost setting) only while a row is watched: a watched row is checked at the
+        # search points alone, so they stay dense; the others are proven whatever the step
+        return min(max(h, 64.0 * tol), cap) if watched else max(h, 64.0 * tol)
 
     @njit(cache=True)
     def _search(t0, end, c0, c1, A1, A2, kind, freq, cosc, sinc, B2, B1, tol, cap):
