@@ -161,7 +161,6 @@ def test_stick_then_slip_of_a_cubic_onset_matches_the_closed_form():
 def test_the_compiled_search_finds_the_events_of_the_python_search(seed, monkeypatch):
     # kernel.py (numba, the gait evaluated inside) and events.Search (numpy chunks) are two
     # implementations of the same rules; each is the other's reference, event by event.
-    from crawler_sim.core.solvers.exact import ExactSolver
     rng = np.random.default_rng(seed)
     p = 2 + seed % 3
     m = rng.uniform(0.5, 2.0, p)
@@ -172,16 +171,26 @@ def test_the_compiled_search_finds_the_events_of_the_python_search(seed, monkeyp
     else:      # sharp and mild Scallops, phases lagging along the body
         g = gaits.Scallop(1.0, rng.uniform(0.1, 0.3, p - 1), 1.1, (0.07, 0.35)[seed - 3],
                           -0.8 * np.arange(p - 1))
+    a, b = _compiled_and_python(c, g, 4.0, monkeypatch)
+    _same_events(a, b, 5, 1e-13)
+    np.testing.assert_allclose(a.x[-1], b.x[-1], rtol=0, atol=1e-12)
+
+
+def _compiled_and_python(c, g, t_end: float, monkeypatch) -> list:
+    """The same run with the compiled search and loop (kernel) and without (Python)."""
+    from crawler_sim.core.solvers.exact import ExactSolver
     runs = []
     for compiled in (True, False):
         monkeypatch.setattr(ExactSolver, 'use_kernel', compiled)
-        runs.append(cs.simulate(c, g, 4.0, periodic_skip=False))
-    a, b = runs
-    assert len(a.events) == len(b.events) > 5
+        runs.append(cs.simulate(c, g, t_end, periodic_skip=False))
+    return runs
+
+
+def _same_events(a, b, at_least: int, tol: float) -> None:
+    assert len(a.events) == len(b.events) > at_least
     for x, y in zip(a.events, b.events):
         assert (x.body, x.old, x.new) == (y.body, y.old, y.new)
-        assert abs(x.time - y.time) <= 1e-13
-    np.testing.assert_allclose(a.x[-1], b.x[-1], rtol=0, atol=1e-12)
+        assert abs(x.time - y.time) <= tol
 
 
 def _random_strokes(rng, n_links: int, n_pieces: int, dt: float) -> gaits.PiecewiseCubic:
@@ -206,20 +215,12 @@ def test_the_compiled_loop_matches_the_python_loop_on_actuator_pieces(seed, monk
     # The node's gaits (constant-jerk pieces with breakpoints) through kernel.drive and through
     # ExactSolver._segment with the Python search (events.Search): two implementations of the
     # same rules, each the other's reference, event by event and in the final state.
-    from crawler_sim.core.solvers.exact import ExactSolver
     rng = np.random.default_rng(100 + seed)
     p = 2 + seed % 3
     m = rng.uniform(0.5, 2.0, p)
     c = cs.Crawler(m, rng.uniform(0.3, 2.0, p) * m, slope=0.05 * (seed % 2))
     g = _random_strokes(rng, p - 1, 40, 0.05)
-    runs = []
-    for compiled in (True, False):
-        monkeypatch.setattr(ExactSolver, 'use_kernel', compiled)
-        runs.append(cs.simulate(c, g, 2.0, periodic_skip=False))
-    a, b = runs
-    assert len(a.events) == len(b.events) > 3
-    for x, y in zip(a.events, b.events):
-        assert (x.body, x.old, x.new) == (y.body, y.old, y.new)
-        assert abs(x.time - y.time) <= 1e-12
+    a, b = _compiled_and_python(c, g, 2.0, monkeypatch)
+    _same_events(a, b, 3, 1e-12)
     np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-12)
     np.testing.assert_allclose(a.friction, b.friction, rtol=0, atol=1e-9)
