@@ -18,8 +18,10 @@
   0 for g' < 0 when B2 g << g'^2 (a jerk bound of 3e-17: the actuator's pieces), and 0 / 0 -> 0
   for a constant row (g' = 0, B2 = 0: constant acceleration); steps of 64 tol ran out of steps.
   Seed 141: a relative velocity settling onto zero with the command (5.6e-17 m/s, slope 1e-14)
-  never crosses it; Taylor steps of ~sqrt(noise / B2) = 8e-10 s ran out of steps. Such a row is
-  now watched, like a row that starts at zero. Seed 337: bodies 0 and 2 stuck as a rigid pair
+  never crosses it; Taylor steps of ~sqrt(noise / B2) = 8e-10 s ran out of steps. A row come
+  down to its rounding noise without the slope to cross zero in the shortest step is now an
+  event (watching it instead, as a first fix did, missed a velocity touching zero between two
+  search points: `crawler-sim stress --seed 11`, scene 224, body 1 of p = 12 sticks for 1.8 ms). Seed 337: bodies 0 and 2 stuck as a rigid pair
   whose link rates cancel to -5.3e-16 m/s, not 0 (mirrored commands): the rigid rows' noise,
   1e-13 of |l'| ~ 1e-15, was 1e-27, so the pair split one float later, for ever. A row declared
   zero by the mode counts its start value as noise too.
@@ -126,3 +128,23 @@ def test_a_link_whose_velocity_is_a_few_ulps_splits_its_stuck_pair_instead_of_st
     ref, _ = Oracle.for_crawler(crawler, kin).solve(1.0, [0.0, 1.0], h=1e-5)
     np.testing.assert_allclose(x, ref[1], rtol=0, atol=1e-10)
     np.testing.assert_allclose(x, [-A, 1.0], rtol=0, atol=1e-6)   # symmetry, by hand
+
+
+def test_a_velocity_that_touches_zero_is_a_stick_on_the_compiled_path(monkeypatch):
+    # stress seed 11, random scene 224 (p = 12, a Sinusoid): body 1 slides backward, its
+    # velocity touches zero at t = 0.13224 s and it sticks until 0.13404 s; the Python search
+    # (events.Search, no slopes, written apart) is the reference here
+    from crawler_sim.bench import stress
+    from crawler_sim.core.solvers.exact import ExactSolver
+    import crawler_sim as cs
+    rng = np.random.default_rng(11)
+    for _ in range(225):
+        spec = stress.random_spec(rng)
+    crawler, gait, _, _ = stress.build(spec)
+    runs = []
+    for compiled in (True, False):
+        monkeypatch.setattr(ExactSolver, 'use_kernel', compiled)
+        runs.append(cs.simulate(crawler, gait, 0.2, periodic_skip=False))
+    ev = [[(e.body, e.old, e.new) for e in r.events if 0.13 < e.time < 0.135] for r in runs]
+    assert ev[1] == [(1, -1, 0), (1, 0, -1)]
+    assert ev[0] == ev[1]

@@ -215,6 +215,8 @@ if True:  # (one block, indented)
         evaluations), t = inf when there is no event, -1 for a non-finite gait value, -2 when
         out of steps; the rows hit at t are set in ``hits``."""
         K, nl = A1.shape
+        for r in range(K):
+            hits[r] = False
         ld = work[0, :nl]
         ldd = work[1, :nl]
         ld3 = work[2, :nl]
@@ -343,14 +345,19 @@ if True:  # (one block, indented)
                         fb[r] *= 0.5
                 side = 1
             else:
+                settled = False
                 for r in range(K):
                     # a row come down to its rounding noise with no slope to cross zero in
-                    # the shortest step (a velocity settling onto zero as the command comes to
-                    # rest) is zero as far as floats tell: watched, like a row starting there
-                    # (its Taylor steps would shrink to ~sqrt(noise / B2) for ever)
+                    # the shortest step is zero as far as floats tell: an event here, and the
+                    # mode is decided again (a velocity settling onto zero with the command,
+                    # whose Taylor steps would shrink to ~sqrt(noise / B2) for ever; a
+                    # velocity touching zero, where the body sticks)
                     if (not watch[r] and ga[r] <= noise[r]
                             and abs(da[r]) * (64.0 * tol) <= noise[r]):
-                        watch[r] = True
+                        hits[r] = True
+                        settled = True
+                if settled:
+                    return a, n_eval
                 h = step(ga, da, watch, B2, B1, tol, cap)
         if not have_b:
             return -2.0, n_eval   # out of steps: the caller raises
