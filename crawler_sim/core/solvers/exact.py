@@ -349,7 +349,6 @@ class ExactSolver:
             ck_contact[:] = np.frombuffer(ck[1][0], dtype=np.int8)
             ck_zero[:] = np.frombuffer(ck[1][1], dtype=bool)
         # copies: the solver's arrays may be shared with kept segments
-        prev = self.contact
         K, contact, zero = self.K.copy(), self.contact.copy(), self.zero.copy()
         status = kernel.drive(
             self.t, t_stop, bool(breaks.size), t1, T or 0.0, self._timescale(), self.tol,
@@ -365,7 +364,7 @@ class ExactSolver:
         n_kept, n_events = len(self.segments), len(self.events)
         self.K, self.contact, self.zero = K, contact, zero
         if n:
-            self._store(n, n_ev, prev)
+            self._store(n, n_ev)
         self.t, self.X, self.V, self.x_ref = (float(v) for v in state[:4])
         self.ref = int(state[4])
         if ck_f[7]:
@@ -394,7 +393,7 @@ class ExactSolver:
             raise ValueError('gait values must be finite')
         return status != kernel.NEED_PYTHON or n > 0
 
-    def _store(self, n: int, n_ev: int, prev: NDArray) -> None:
+    def _store(self, n: int, n_ev: int) -> None:
         """Keep the compiled loop's first n segment records (as one ``SegmentChunk``, turned into
         ``Segment`` objects only when read) and its n_ev contact changes as events."""
         seg_f, seg_ref, seg_contact, seg_R, seg_K0, ev_t, ev_i, _ = self._buffers

@@ -202,7 +202,7 @@ class SegmentList(Sequence):
         self._items: list = []       # Segment | PeriodicBlock | (chunk, row)
         self._t0: list[float] = []
         self._row: list[int] = []    # row of each item in ``records()`` (-1: PeriodicBlock)
-        self._parts: list = []       # Records, concatenated by ``records()``
+        self._parts: list = []       # Records, or lists of Segments, joined by ``records()``
         self._n_rows = 0
         self._table: Records | None = None
 
@@ -229,8 +229,15 @@ class SegmentList(Sequence):
         self._t0.append(item.t0)
         if isinstance(item, PeriodicBlock):
             self._row.append(-1)
+            return
+        # a segment of the Python path: gathered with its neighbours when the table is read
+        self._row.append(self._n_rows)
+        self._n_rows += 1
+        if self._parts and isinstance(self._parts[-1], list):
+            self._parts[-1].append(item)
         else:
-            self._add_rows(Records.from_segments([item]))
+            self._parts.append([item])
+        self._table = None
 
     def extend_chunk(self, chunk: SegmentChunk) -> None:
         n = chunk.f.shape[0]
@@ -249,7 +256,8 @@ class SegmentList(Sequence):
         """Every segment's constants as one ``Records`` table, and each item's row in it (-1
         for a ``PeriodicBlock``), without building ``Segment`` objects."""
         if self._table is None:
-            self._table = Records.concat(self._parts)
+            self._table = Records.concat([Records.from_segments(q) if isinstance(q, list) else q
+                                          for q in self._parts])
             self._parts = [self._table]
         return self._table, np.array(self._row, dtype=np.int64)
 
