@@ -38,6 +38,8 @@ segment is redone whenever a later value contradicts the estimate (reliable, not
 from __future__ import annotations
 
 import math
+import weakref
+from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
@@ -56,6 +58,9 @@ __all__ = ['ExactSolver', 'PeriodicBlock', 'Segment', 'evaluate_rows', 'offset_m
 _STALL_ULPS = 64          # a segment this short (in floats of t) makes no progress
 _STALL_SEGMENTS = 256    # consecutive such segments before the solver reports a stall
 _COMPILED = (Fourier, Sinusoid, Scallop, Cubic, PiecewiseCubic)   # gaits the kernel evaluates
+# an Event from a (time, body, old, new) tuple at C speed (the namedtuple constructor is a
+# Python function: ~0.4 us per event, as much as the compiled loop spends on a segment)
+_new_event = partial(tuple.__new__, Event)
 _AMBIGUOUS = 1e-10   # relative slack below which a mode choice is decided by look-ahead
 _EPS = np.finfo(float).eps
 
@@ -83,6 +88,40 @@ def _merge_ties(kinks: NDArray, eps: float) -> NDArray:
     return res
 
 
+class _Constants:
+    """What the solver derives from a crawler, computed once per ``Crawler`` (a simulation
+    sweep or a node builds many solvers for one crawler): arrays and, for ``current`` (called
+    at every publish tick of a node), plain-float copies."""
+
+    def __init__(self, crawler: Crawler) -> None:
+        self.m = crawler.masses
+        self.M = float(crawler.masses.sum())                 # [kg]
+        self.fp, self.fm = crawler.friction, crawler.friction_backward   # [N]
+        self.fext = crawler.external_force                   # [N]
+        self.C, self.W = offset_matrices(crawler.masses)
+        # Frictionless bodies never stick and never change the dynamics: no events for them.
+        self.free = (self.fp + self.fm) == 0.0
+        self.f_total = float(self.fp.sum() + self.fm.sum())  # [N], scales of the tests
+        # largest friction acceleration [m/s^2] (the periodic check's velocity tolerance)
+        self.v_acc = float((self.f_total + abs(self.fext)) / self.M)
+        self.fp_list, self.fm_list = self.fp.tolist(), self.fm.tolist()
+        self.W_rows, self.C_rows = self.W.tolist(), self.C.tolist()
+        self.m_list = self.m.tolist()
+        self.g_list = crawler.gravity_forces.tolist()
+        self.free_idx = np.nonzero(self.free)[0].tolist()
+
+
+_CONSTANTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _constants(crawler: Crawler) -> _Constants:
+    """The crawler's ``_Constants`` (a Crawler is immutable: its arrays are read-only)."""
+    k = _CONSTANTS.get(crawler)
+    if k is None:
+        k = _CONSTANTS[crawler] = _Constants(crawler)
+    return k
+
+
 class ExactSolver:
     """Event-driven integrator with a streaming interface (see ``crawler_sim.core.stepper``).
 
@@ -105,27 +144,17 @@ class ExactSolver:
         self.max_step = max_step
         self.keep_segments = keep_segments
         self.periodic_skip = periodic_skip
-        self._m = crawler.masses
-        self._M = float(crawler.masses.sum())
-        self._fp = crawler.friction
-        self._fm = crawler.friction_backward
-        self._fext = crawler.external_force
-        self._C, self._W = offset_matrices(crawler.masses)
-        # Frictionless bodies never stick and never change the dynamics: no events for them.
-        self._free = (self._fp + self._fm) == 0.0
-        self._fp_list, self._fm_list = self._fp.tolist(), self._fm.tolist()
-        # plain-float copies for ``current`` (called at every publish tick of a node)
-        self._W_rows, self._C_rows = self._W.tolist(), self._C.tolist()
-        self._m_list = self._m.tolist()
-        self._g_list = crawler.gravity_forces.tolist()
-        self._free_idx = np.nonzero(self._free)[0].tolist()
-        self._f_total = float(self._fp.sum() + self._fm.sum())   # [N], scales of the tests
-        # largest friction acceleration [m/s^2] (the periodic check's velocity tolerance)
-        self._v_acc = float((self._fp.sum() + self._fm.sum() + abs(self._fext)) / self._M)
+        k = _constants(crawler)
+        self._m, self._M, self._fp, self._fm, self._fext = k.m, k.M, k.fp, k.fm, k.fext
+        self._C, self._W, self._free = k.C, k.W, k.free
+        self._f_total, self._v_acc = k.f_total, k.v_acc
+        self._fp_list, self._fm_list, self._m_list = k.fp_list, k.fm_list, k.m_list
+        self._g_list, self._W_rows, self._C_rows, self._free_idx = (k.g_list, k.W_rows,
+                                                                    k.C_rows, k.free_idx)
         self.reset(t0=t0, x0=x0, v0=v0)
         if self.use_kernel and type(gait) in _COMPILED:
             from . import kernel    # numba: loaded here, not in the first (real-time) advance
-            if not kernel.warm():
+            if not kernel.warm(kernel.coefficients(gait)[0]):
                 self._drive(self.t, None)    # a call that integrates nothing: loads drive
 
     # ------------------------------------------------------------------ state
@@ -398,7 +427,8 @@ class ExactSolver:
         ``Segment`` objects only when read) and its n_ev contact changes as events."""
         seg_f, seg_ref, seg_contact, seg_R, seg_K0, ev_t, ev_i, _ = self._buffers
         if n_ev:
-            self.events.extend(map(Event, ev_t[:n_ev].tolist(), *ev_i[:n_ev].T.tolist()))
+            self.events.extend(map(_new_event, zip(ev_t[:n_ev].tolist(),
+                                                   *ev_i[:n_ev].T.tolist())))
         chunk = SegmentChunk(self.gait, seg_f[:n].copy(), seg_ref[:n].copy(),
                              seg_contact[:n].copy(), seg_R[:n].copy(), seg_K0[:n].copy())
         self.n_segments += n

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from itertools import repeat
 
 import numpy as np
 from numpy.typing import NDArray
@@ -241,7 +242,7 @@ class SegmentList(Sequence):
 
     def extend_chunk(self, chunk: SegmentChunk) -> None:
         n = chunk.f.shape[0]
-        self._items.extend((chunk, k) for k in range(n))
+        self._items.extend(zip(repeat(chunk, n), range(n)))
         self._t0.extend(chunk.f[:, 0].tolist())
         self._add_rows(Records.from_chunk(chunk))
 
