@@ -768,6 +768,16 @@ if True:  # the segment loop (one block, indented)
         return status
 
 
+@njit(cache=True)
+def gait_values(tau, kind, freq, mean, cosc, sinc, l, ld, ldd):
+    """l, l' and l'' of a kernel gait at the times ``tau`` (rows of l, ld, ldd): the sampling
+    of a run (``segments.evaluate_records``) without the numpy gait's dozen array operations."""
+    ld3 = np.empty(l.shape[1])
+    for k in range(tau.size):
+        lengths(tau[k], kind, freq, mean, cosc, sinc, l[k])
+        rates(tau[k], kind, freq, cosc, sinc, ld[k], ldd[k], ld3)
+
+
 def coefficients(gait):
     """(kind, freq, P1, P2) of a Fourier / Sinusoid (kind FOURIER: cos and sin coefficients,
     shape (n_links, K)), Scallop (SCALLOP: rows amplitude, phase - pi r, c, s) or Cubic /

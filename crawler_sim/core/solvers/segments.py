@@ -290,7 +290,6 @@ def evaluate_records(crawler: Crawler, rec: Records, owner: NDArray[np.int64],
     m = crawler.masses
     p, n = m.size, tau.size
     l, ld, ldd = _gait_values(rec, owner, tau)
-    f = rec.f[owner]
     x, v, R, K = (np.empty((n, p)) for _ in range(4))
     lam = np.empty((n, p - 1))
     state = np.empty((n, p), dtype=np.int8)
@@ -298,10 +297,9 @@ def evaluate_records(crawler: Crawler, rec: Records, owner: NDArray[np.int64],
     closed_form(np.ascontiguousarray(l, dtype=float), np.ascontiguousarray(ld, dtype=float),
                 np.ascontiguousarray(ldd, dtype=float), W, C, m, crawler.friction,
                 crawler.friction_backward, float(crawler.external_force),
-                crawler.gravity_forces, f[:, 0].copy(), f[:, 1].copy(), f[:, 2].copy(),
-                f[:, 3].copy(), rec.ref[owner], f[:, 4].copy(), rec.group[owner],
-                rec.contact[owner], rec.R[owner], rec.K0[owner],
-                np.ascontiguousarray(tau, dtype=float), x, v, R, K, lam, state, indeterminate)
+                crawler.gravity_forces, rec.f, rec.ref, rec.group, rec.contact, rec.R, rec.K0,
+                owner, np.ascontiguousarray(tau, dtype=float), x, v, R, K, lam, state,
+                indeterminate)
     return {'x': x, 'v': v, 'friction': R, 'impulse': K, 'linkage_force': lam,
             'lengths': l, 'rates': ld, 'contact': state, 'indeterminate': indeterminate}
 
@@ -309,19 +307,38 @@ def evaluate_records(crawler: Crawler, rec: Records, owner: NDArray[np.int64],
 def _gait_values(rec: Records, owner: NDArray[np.int64], tau: NDArray[np.float64]):
     """(l, l', l'') at ``tau[i]`` from the gait of row ``owner[i]`` (one call per gait)."""
     if len(rec.gaits) == 1:
-        return rec.gaits[0](tau)
+        return _values(rec.gaits[0], tau)
     which = rec.gait_id[owner]
     out = None
     for key, gait in enumerate(rec.gaits):
         sel = np.nonzero(which == key)[0]
         if not sel.size:
             continue
-        vals = gait(tau[sel])
+        vals = _values(gait, tau[sel])
         if out is None:
             out = tuple(np.empty((tau.size,) + v.shape[1:]) for v in vals)
         for o, v in zip(out, vals):
             o[sel] = v
     return out
+
+
+
+def _values(gait: Gait, tau: NDArray[np.float64]):
+    """The gait's (l, l', l''), shape (N, n_links) each, at the times ``tau``: compiled for the
+    trigonometric gaits of the exact method's kernel, else the gait's own call (the kernel
+    finds a time's constant-jerk piece by a linear scan: fine for a node's few pieces per
+    call, not for sampling a long recorded command)."""
+    from . import kernel
+    coef = kernel.coefficients(gait)
+    if coef is None or coef[0] == kernel.CUBIC:
+        return gait(tau)
+    kind, freq, p1, p2 = coef
+    n = gait.n_links
+    l, ld, ldd = (np.empty((tau.size, n)) for _ in range(3))
+    kernel.gait_values(np.ascontiguousarray(tau, dtype=float), kind, float(freq),
+                       np.asarray(getattr(gait, 'mean', np.zeros(n)), dtype=float), p1, p2,
+                       l, ld, ldd)
+    return l, ld, ldd
 
 
 def _split_impulse(imp: NDArray, d: NDArray, fp: NDArray, fm: NDArray) -> NDArray:
