@@ -195,6 +195,72 @@ def make_ode(crawler: Crawler, gait: gaits.Gait, model: str, reg: float):
     return rhs, jac, rel
 
 
+def _two_rates(gait: gaits.Gait) -> Callable[[float], tuple[float, float]]:
+    """(l', l'') of a one-linkage gait in scalar math (a Fourier gait written out: the baseline
+    pays for one series per right-hand side, as hand-written code would), else ``gait.at``."""
+    if isinstance(gait, gaits.Fourier) and gait.n_links == 1:
+        f = gait.frequency
+        w = TWO_PI * f
+        coef = [((k + 1) * w, float(a), float(b)) for k, (a, b) in
+                enumerate(zip(gait.cos[0].tolist(), gait.sin[0].tolist()))]
+
+        def fourier(t: float) -> tuple[float, float]:
+            th = TWO_PI * ((f * t) % 1.0)
+            ld = ldd = 0.0
+            for k, (wk, a, b) in enumerate(coef, start=1):
+                c, s = math.cos(k * th), math.sin(k * th)
+                ld += wk * (b * c - a * s)
+                ldd -= wk * wk * (a * c + b * s)
+            return ld, ldd
+        return fourier
+
+    def generic(t: float) -> tuple[float, float]:
+        _, ld, ldd = gait.at(t)
+        return float(ld[0]), float(ldd[0])
+    return generic
+
+
+def seed_penalised_lsoda(crawler: Crawler, gait: gaits.Gait, t_end: float, t_eval: NDArray, *,
+                         n: float = 1e8, rtol: float = 1e-10, atol: float = 1e-10,
+                         max_step: float = math.inf) -> NDArray:
+    """x_0 [m] at ``t_eval`` from scipy LSODA on the seed's penalised ODE itself (seed eq. 4,
+    MODEL.md s. 4), two bodies, in the seed's own state (x_0, y = x_0'):
+
+        M y' + clip(n y, -f+_0, f-_0) + clip(n (y + l'), -f+_1, f-_1) = F_ext - m_1 l'',
+
+    with its analytic Jacobian; body 0 starts at rest at x = 0. (``run_baseline`` integrates
+    the same model in the centre of mass's (X, V); on the issue 14 scenes LSODA takes very
+    different steps in the two sets of coordinates: in (X, V) it steps over whole strokes of
+    m = (1, 2), f = (1, 1) in 3.6 ms and ends 0.8 m off.)"""
+    if crawler.p != 2:
+        raise ValueError(f'seed_penalised_lsoda needs p = 2 bodies, got {crawler.p}')
+    m1 = float(crawler.masses[1])
+    M = float(crawler.masses.sum())
+    (fp0, fp1), (fm0, fm1) = crawler.friction.tolist(), crawler.friction_backward.tolist()
+    fext = float(crawler.external_force)
+    rates = _two_rates(gait)
+
+    def rhs(t: float, s: NDArray) -> list[float]:
+        y = float(s[1])
+        ld, ldd = rates(t)
+        z0, z1 = n * y, n * (y + ld)
+        r0 = fp0 if z0 > fp0 else (-fm0 if z0 < -fm0 else z0)
+        r1 = fp1 if z1 > fp1 else (-fm1 if z1 < -fm1 else z1)
+        return [y, (fext - m1 * ldd - r0 - r1) / M]
+
+    def jac(t: float, s: NDArray) -> list[list[float]]:
+        y = float(s[1])
+        z0, z1 = n * y, n * (y + rates(t)[0])
+        d = (n if -fm0 < z0 < fp0 else 0.0) + (n if -fm1 < z1 < fp1 else 0.0)
+        return [[0.0, 1.0], [0.0, -d / M]]
+
+    sol = solve_ivp(rhs, (0.0, float(t_end)), [0.0, 0.0], method='LSODA', jac=jac, rtol=rtol,
+                    atol=atol, t_eval=np.asarray(t_eval, dtype=float), max_step=max_step)
+    if sol.status != 0:
+        raise RuntimeError(f'LSODA on the seed ODE failed: {sol.message}')
+    return sol.y[0]
+
+
 def run_baseline(crawler: Crawler, gait: gaits.Gait, t_end: float, t_eval: NDArray, *,
                  solver: str, model: str, reg: float, rtol: float, atol: float,
                  budget: float = 10.0, dense: bool = False,

@@ -65,3 +65,13 @@ def test_it_agrees_with_the_exact_method_on_random_two_body_scenes(seed):
     assert abs(ex.x[-1, 0] - ref['x0']) <= 1e-10
     assert np.max(np.abs(ex.com - ref['com'])) <= 1e-10
     assert math.isfinite(ref['x0'])
+
+
+def test_the_seed_lsoda_baseline_evaluates_the_gait_as_the_gait_does():
+    # the bench's LSODA baseline writes the Fourier series out in scalar math
+    from crawler_sim.bench.baselines import _two_rates
+    gait = cs.gaits.Fourier(1.0, ([0.1, -0.2], [0.3, 0.09]), 1.7)
+    rates = _two_rates(gait)
+    for t in np.random.default_rng(3).uniform(0.0, 20.0, 50):
+        _, ld, ldd = gait.at(float(t))
+        assert rates(float(t)) == pytest.approx((ld[0], ldd[0]), rel=0, abs=1e-12)
