@@ -163,9 +163,9 @@ def _sample_times(t_end: float, t_eval: ArrayLike | None, dt: float | None) -> N
         n = int(round(t_end / dt)) + 1 if dt is not None and t_end / dt <= 1e6 else 1001
         return np.linspace(0.0, t_end, max(n, 2))
     t = np.asarray(t_eval, dtype=float).ravel()
-    if t.size == 0 or not np.all(np.isfinite(t)):
+    if t.size == 0 or not np.isfinite(t).all():
         raise ValueError('t_eval must be a non-empty list of finite times in [0, t_end] s')
-    if np.any(np.diff(t) < 0) or t[0] < 0 or t[-1] > t_end:
+    if t[0] < 0 or t[-1] > t_end or (t[1:] < t[:-1]).any():
         raise ValueError(f't_eval must be sorted and within [0, {t_end}] s')
     return t
 

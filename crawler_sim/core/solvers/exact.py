@@ -803,13 +803,17 @@ class ExactSolver:
         segs = self.segments
         n_t = times.size
         table, row_of = segs.records()
-        idx = np.clip(np.searchsorted(segs.starts(), times, side='right') - 1, 0, len(segs) - 1)
+        idx = np.searchsorted(segs.starts(), times, side='right') - 1
+        np.clip(idx, 0, len(segs) - 1, out=idx)
         owner = row_of[idx]
-        local = times.astype(float).copy()
+        local = np.array(times, dtype=float)
+        blocks = (owner < 0).nonzero()[0]
+        if not blocks.size:       # no skipped period among the sampled times
+            return evaluate_records(self.crawler, table, owner, local, (self._C, self._W))
         shift_x = np.zeros(n_t)
         shift_k = np.zeros((n_t, self._m.size))
         parts, n_rows = [table], table.ref.size
-        for k in np.unique(idx[owner < 0]).tolist():
+        for k in np.unique(idx[blocks]).tolist():
             sel = (idx == k).nonzero()[0]
             piece = segs[k]
             j = np.clip(np.floor((times[sel] - piece.t0) / piece.T).astype(int) + 1, 1, piece.n)

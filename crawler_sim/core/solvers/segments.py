@@ -206,6 +206,8 @@ class SegmentList(Sequence):
         self._parts: list = []       # Records, or lists of Segments, joined by ``records()``
         self._n_rows = 0
         self._table: Records | None = None
+        self._row_array: NDArray | None = None    # _row and _t0 as arrays, once read
+        self._t0_array: NDArray | None = None
 
     def __len__(self) -> int:
         return len(self._items)
@@ -260,11 +262,15 @@ class SegmentList(Sequence):
             self._table = Records.concat([Records.from_segments(q) if isinstance(q, list) else q
                                           for q in self._parts])
             self._parts = [self._table]
-        return self._table, np.array(self._row, dtype=np.int64)
+        if self._row_array is None or self._row_array.size != len(self._row):
+            self._row_array = np.array(self._row, dtype=np.int64)
+        return self._table, self._row_array
 
     def starts(self) -> NDArray[np.float64]:
         """Start times of the pieces, without building them."""
-        return np.array(self._t0)
+        if self._t0_array is None or self._t0_array.size != len(self._t0):
+            self._t0_array = np.array(self._t0)
+        return self._t0_array
 
 
 def evaluate_rows(crawler: Crawler, pieces: list, owner: NDArray[np.int64],
