@@ -312,8 +312,10 @@ class SimNode(Node):
         with self._lock:
             self._tick()
 
-    def _tick(self) -> None:
-        """:meth:`tick` for a caller that holds the lock (the loop)."""
+    def _tick(self, to_grid: bool = False) -> None:
+        """:meth:`tick` for a caller that holds the lock (the loop). ``to_grid``: go on ticking
+        up to the next publish tick (inputs are taken at the first tick only; the flat-out
+        loop: the same states as single ticks with no input arriving in between)."""
         self._take_inputs()
         if self._pending_cfg is not None:
             cfg, self._pending_cfg = self._pending_cfg, None
@@ -324,9 +326,13 @@ class SimNode(Node):
         elif self._pending_traj is not None:
             self._apply_trajectory(t0_ns)
         engine = self._engine
-        synced = engine.tick()
+        if to_grid:
+            self.counters['ticks'] += engine.tick_to_grid()
+            synced = True
+        else:
+            synced = engine.tick()
+            self.counters['ticks'] += 1
         self._t_ns = engine.t_ns
-        self.counters['ticks'] += 1
         if not synced:
             return
         if engine.failures:
