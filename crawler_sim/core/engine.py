@@ -129,7 +129,7 @@ class Engine:
             self._events.extend(self.stepper.pop_events())
             return
         gait = pieces[0] if len(pieces) == 1 or all(pc is pieces[0] for pc in pieces) \
-            else PiecewiseCubic(starts, pieces)
+            else PiecewiseCubic.trusted(starts, pieces)
         try:
             self.stepper.advance(t1, gait)
         except (ValueError, RuntimeError, ArithmeticError) as exc:
