@@ -130,8 +130,10 @@ class PiecewiseCubic(Gait):
         for k in range(1, len(pieces)):
             nxt = pieces[k]
             d = sl[k] - prev.t0
-            if any(r[2] + d * r[3] != n[2] for r, n in zip(prev._rows, nxt._rows)):
-                jumps.append(sl[k])
+            for r, n in zip(prev._rows, nxt._rows):
+                if r[2] + d * r[3] != n[2]:
+                    jumps.append(sl[k])
+                    break
             prev = nxt
         self._jumps = np.array(jumps)
         self._constant = [pc._constant for pc in pieces]
