@@ -447,20 +447,6 @@ class Actuator:
             if t0 >= traj.end_time:
                 self.trajectory = None          # hold the last point as a plain target
                 self.target = list(ref[0])
-            if self.trajectory is not None:
-                # following: every linkage runs the law (the loop below, without its branches)
-                l0, v0, a0 = self.l, self.v, self.a
-                k, dt, vmax, amax = self._k, self.dt, lim.max_speed, lim.max_acceleration
-                l1, v1, a1, jerk = [], [], [], []
-                for l, v, a, r, rd, rdd in zip(l0, v0, a0, *ref):
-                    j = jerk_law(l, v, a, r, rd, rdd, dt, k, vmax, amax)
-                    jerk.append(j)
-                    l, v, a = cubic_end(l, v, a, j, d)
-                    l1.append(l)
-                    v1.append(v)
-                    a1.append(a)
-                self.l, self.v, self.a = l1, v1, a1
-                return Cubic.trusted(t0, l0, v0, a0, jerk)
         elif self._rest_piece is not None:
             return self._rest_piece
         l0, v0, a0 = list(self.l), list(self.v), list(self.a)
