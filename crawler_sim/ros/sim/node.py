@@ -20,7 +20,9 @@ Timing. Sim time is an integer number of nanoseconds that advances by ``dt`` per
 is deterministic: the same commands taking effect at the same ticks give bit-identical states.
 A tick: take the inputs that arrived, apply pending parameter changes, then the pending command
 or trajectory, then one actuator piece; every ``publish_every`` ticks the engine integrates the
-queued pieces exactly and the outputs go out. A state that is not finite is never published
+queued pieces exactly and the outputs go out (flat out, the loop runs a publish period's ticks in
+one call and takes the inputs at its first tick, see :mod:`.loop`). A state that is not finite
+is never published
 (it is counted in ``nonfinite_outputs`` and the simulation resets).
 
 Module size: about 430 lines, just over the ~400 guide: ``SimNode`` is where the pieces of
