@@ -10,7 +10,8 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .gaits import Gait, _positive as positive
+from .gaits import Cubic, Gait, PiecewiseCubic, _positive as positive
+from .gaits.cubic import cubic_values
 from .model import Crawler
 from .solvers.exact import ExactSolver
 from .solvers.implicit import ImplicitSolver, check_steps
@@ -20,6 +21,7 @@ from .trajectory import Event, State, Trajectory
 __all__ = ['METHODS', 'Stepper', 'simulate']
 
 METHODS = ('exact', 'implicit', 'penalty')
+_PIECES = (Cubic, PiecewiseCubic)
 _KEYS = ('x', 'v', 'friction', 'impulse', 'linkage_force', 'lengths', 'rates', 'contact')
 
 
@@ -45,6 +47,13 @@ def _check_finite(name: str, value) -> float:
 
 def check_gait(gait: Gait, crawler: Crawler, t: float) -> None:
     """Raise ValueError if the gait's shape does not match p or it is not finite at t."""
+    if type(gait) in _PIECES and gait.n_links == crawler.p - 1:
+        # the node's gaits (one check per publish tick): the rows at t in Python floats, the
+        # values gait.at(t) gives; the general check below says what is wrong otherwise
+        pc = gait if type(gait) is Cubic else gait.pieces[gait._index(t)]
+        d = t - pc.t0
+        if math.isfinite(sum(map(sum, (cubic_values(*row, d) for row in pc._rows)))):
+            return
     if not isinstance(gait, Gait):
         raise ValueError(f'gait must be a crawler_sim.core.gaits.Gait, got {type(gait).__name__}')
     try:

@@ -23,7 +23,8 @@ Parameters: ``gait`` (scallop | sinusoid), ``n_links``, ``mean`` [m], ``amplitud
 ``phase_lag`` [rad] between neighbouring linkages, ``rate`` [Hz], ``mode``, ``horizon`` [s],
 ``duration`` [s] of ROS time after which it stops publishing (0: forever), ``preload``
 (trajectory mode: one trajectory of the whole duration, stamped 0, sent once a subscriber is
-matched: the demo's deterministic command stream).
+matched: the demo's deterministic command stream; the node then has no use for ROS time left
+and stops taking /clock, which would otherwise wake it at every publish tick of a flat-out sim).
 """
 from __future__ import annotations
 
@@ -168,6 +169,17 @@ class GaitNode(Node):
         self.sent += 1
         self._preload_timer.cancel()
         self.get_logger().info(f'preloaded one trajectory of {len(msg.points)} points')
+        self._stop_taking_clock()
+
+    def _stop_taking_clock(self) -> None:
+        """Destroy the /clock subscription of use_sim_time (preload: nothing reads ROS time
+        after the one trajectory, stamped 0 and sent on a steady timer). Each /clock message
+        is otherwise a Python callback: a quarter of a core next to a flat-out sim_node."""
+        source = getattr(self, '_time_source', None)
+        sub = getattr(source, '_clock_sub', None)
+        if sub is not None:
+            self.destroy_subscription(sub)
+            source._clock_sub = None
 
     def trajectory(self, now_ns: int, horizon: float | None = None) -> JointTrajectory:
         """The next ``horizon`` seconds of the gait from ROS time ``now_ns``, stamped

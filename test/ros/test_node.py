@@ -623,6 +623,24 @@ def test_gait_node_plays_its_gait_on_sim_time(ros, mode, tolerance):
     assert max(errors) < tolerance, max(errors)
 
 
+def test_gait_node_stops_taking_clock_once_its_preload_is_sent(ros):
+    sim = ros.sim(seed=True)
+    gait = GaitNode(context=ros.ctx, parameter_overrides=[
+        Parameter('use_sim_time', value=True), Parameter('mode', value='trajectory'),
+        Parameter('preload', value=True), Parameter('duration', value=2.0)])
+    ros.ex.add_node(gait)
+    ros.others.append(gait)
+
+    def clock_subs():
+        return [s for s in gait.subscriptions if s.topic_name == '/clock']
+    assert clock_subs()                          # use_sim_time: rclpy follows /clock
+    ros.until(lambda: gait.sent == 1, 'the preload to go out')
+    assert not clock_subs() and gait.sent == 1   # nothing on ROS time is left to do
+    ros.until(lambda: sim.take_inputs() or sim.counters['trajectories_accepted'],
+              'the sim to take the preload')
+    assert sim.counters['trajectories_accepted'] == 1
+
+
 # --------------------------------------------------------------------------- output bytes
 
 def random_state(rng: np.random.Generator, p: int) -> SimpleNamespace:

@@ -108,16 +108,33 @@ class PiecewiseCubic(Gait):
         self.n_links = pieces[0].n_links
         if any(pc.n_links != self.n_links for pc in pieces):
             raise ValueError('every piece must have the same number of linkages')
+        self._join(starts, sl, list(pieces))
+
+    @classmethod
+    def trusted(cls, starts: list[float], pieces: list[Cubic]) -> PiecewiseCubic:
+        """Build from a list of finite, strictly increasing floats and as many pieces of equal
+        n_links without the checks (the node's engine, once per publish tick)."""
+        self = cls.__new__(cls)
+        self.n_links = pieces[0].n_links
+        self._join(np.array(starts), starts, pieces)
+        return self
+
+    def _join(self, starts: NDArray[np.float64], sl: list[float], pieces: list[Cubic]) -> None:
         self.starts = starts
         self._starts = sl
-        self.pieces = list(pieces)
+        self.pieces = pieces
         self._arrays = None       # stacked coefficients for array evaluation, made on demand
         # l'' at the end of piece k (the Cubic's own expression a0 + d j) against a0 of k+1
         jumps = []
-        for k in range(len(pieces) - 1):
-            d = sl[k + 1] - pieces[k].t0
-            if any(r[2] + d * r[3] != n[2] for r, n in zip(pieces[k]._rows, pieces[k + 1]._rows)):
-                jumps.append(sl[k + 1])
+        prev = pieces[0]
+        for k in range(1, len(pieces)):
+            nxt = pieces[k]
+            d = sl[k] - prev.t0
+            for r, n in zip(prev._rows, nxt._rows):
+                if r[2] + d * r[3] != n[2]:
+                    jumps.append(sl[k])
+                    break
+            prev = nxt
         self._jumps = np.array(jumps)
         self._constant = [pc._constant for pc in pieces]
 

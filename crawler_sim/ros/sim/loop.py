@@ -6,7 +6,10 @@ first tick of each publish period, then runs that period's ticks back to back (n
 published in between, so the outputs keep their sim-time grid; they go out up to one publish
 period early in wall time). A tick that starts more than one tick period after its wall
 deadline is counted as late, and the loop catches up by running the due ticks back to back
-(beyond :data:`MAX_LAG` of lag it gives up on the lost time and re-anchors).
+(beyond :data:`MAX_LAG` of lag it gives up on the lost time and re-anchors). Flat out, each
+iteration runs one whole publish period (``SimNode._tick(to_grid=True)``): the inputs that
+arrived are taken at its first tick, as in the paced modes, where a period's ticks run back to
+back too.
 Diagnostics go out every ``diagnostics_period`` wall seconds from this loop, so they do not
 wait for a message; the bag flushes itself on a wall timer in its own thread (crawler_sim.bag).
 """
@@ -77,6 +80,15 @@ def _loop(node) -> None:
             anchor_wall, anchor_tick = t, counters['ticks']
         cfg = node._cfg
         rtf = cfg.real_time_factor
+        if rtf <= 0.0:
+            # Flat out: one publish period per iteration (its ticks back to back, inputs taken
+            # at its first tick, as the paced branch does between a period's first tick and
+            # the next): the per-tick calls of the loop and of SimNode.tick cost about a third
+            # of the engine's own time.
+            with node._lock:
+                if not node.paused:
+                    node._tick(to_grid=True)
+            continue
         if rtf > 0.0:
             period = cfg.dt_ns * 1e-9 / rtf
             deadline = anchor_wall + (counters['ticks'] - anchor_tick) * period

@@ -20,7 +20,9 @@ Timing. Sim time is an integer number of nanoseconds that advances by ``dt`` per
 is deterministic: the same commands taking effect at the same ticks give bit-identical states.
 A tick: take the inputs that arrived, apply pending parameter changes, then the pending command
 or trajectory, then one actuator piece; every ``publish_every`` ticks the engine integrates the
-queued pieces exactly and the outputs go out. A state that is not finite is never published
+queued pieces exactly and the outputs go out (flat out, the loop runs a publish period's ticks in
+one call and takes the inputs at its first tick, see :mod:`.loop`). A state that is not finite
+is never published
 (it is counted in ``nonfinite_outputs`` and the simulation resets).
 
 Module size: about 430 lines, just over the ~400 guide: ``SimNode`` is where the pieces of
@@ -312,8 +314,10 @@ class SimNode(Node):
         with self._lock:
             self._tick()
 
-    def _tick(self) -> None:
-        """:meth:`tick` for a caller that holds the lock (the loop)."""
+    def _tick(self, to_grid: bool = False) -> None:
+        """:meth:`tick` for a caller that holds the lock (the loop). ``to_grid``: go on ticking
+        up to the next publish tick (inputs are taken at the first tick only; the flat-out
+        loop: the same states as single ticks with no input arriving in between)."""
         self._take_inputs()
         if self._pending_cfg is not None:
             cfg, self._pending_cfg = self._pending_cfg, None
@@ -324,9 +328,13 @@ class SimNode(Node):
         elif self._pending_traj is not None:
             self._apply_trajectory(t0_ns)
         engine = self._engine
-        synced = engine.tick()
+        if to_grid:
+            self.counters['ticks'] += engine.tick_to_grid()
+            synced = True
+        else:
+            synced = engine.tick()
+            self.counters['ticks'] += 1
         self._t_ns = engine.t_ns
-        self.counters['ticks'] += 1
         if not synced:
             return
         if engine.failures:
