@@ -291,3 +291,27 @@ def test_the_stress_fuzz_check_says_what_it_needs_without_the_source_tree(monkey
     res = stress.check_fuzz(1)
     assert not res.ok
     assert 'needs the source tree' in res.problems[0]
+
+
+def test_the_penalty_audit_allows_its_force_rounding_and_no_more():
+    # stress seed 13, random scene 2741: masses ~1e-3 kg, frictions ~1e-2 N, n = 1e8. The
+    # penalty method computes a force as n v; v's rounding (~eps v_max) times n accumulates to
+    # a momentum residual of 2.6e-8 of verify's scale (1.2e-9 N s), above the creep-only
+    # tolerance of 1.05e-8; the derived bound 4 p n eps v_max / sum f is ~2e-7.
+    rng = np.random.default_rng(13)
+    for _ in range(2742):
+        spec = stress.random_spec(rng)
+    crawler, gait, t_end, v0 = stress.build(spec)
+    grid = np.linspace(0.0, t_end, int(math.ceil(32 * t_end / gait.period)) + 1)
+    pe = simulate(crawler, gait, t_end, 'penalty', dt=gait.period / 100, penalty=1e8,
+                  t_eval=grid, v0=v0)
+    rep = verify(pe)
+    f_max = float(max(crawler.friction.max(), crawler.friction_backward.max()))
+    v_max = float(np.abs(pe.v).max())
+    creep_only = 2.0 * f_max / (1e8 * v_max) + stress.IMPLICIT_TOL
+    assert creep_only < rep.momentum_rel <= stress.tolerances(crawler, 'penalty', pe, 1e8)
+    assert stress.check_random_scene(spec).ok
+    # the same run at n = 1e4: the rounding term is 1e4 times smaller, the creep term larger
+    pe4 = simulate(crawler, gait, t_end, 'penalty', dt=gait.period / 100, penalty=1e4,
+                   t_eval=grid, v0=v0)
+    assert verify(pe4).momentum_rel <= stress.tolerances(crawler, 'penalty', pe4, 1e4)
