@@ -47,10 +47,10 @@ from numpy.typing import NDArray
 from ..gaits import Cubic, Fourier, Gait, PiecewiseCubic, Scallop, Sinusoid
 from ..model import Crawler
 from ..trajectory import Event, EventLog
-from .contact import solve_inclusion, split_friction
+from .contact import solve_inclusion
 from .events import Rows, Search, check_finite_gait
 from .segments import (PeriodicBlock, Records, Segment, SegmentChunk, SegmentList,
-                       _split_impulse, evaluate_records, evaluate_rows, offset_matrices)
+                       evaluate_records, evaluate_rows, offset_matrices)
 
 __all__ = ['ExactSolver', 'PeriodicBlock', 'Segment', 'evaluate_rows', 'offset_matrices',
            'check_finite_gait']

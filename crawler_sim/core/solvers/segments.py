@@ -328,7 +328,6 @@ def _gait_values(rec: Records, owner: NDArray[np.int64], tau: NDArray[np.float64
     return out
 
 
-
 def _values(gait: Gait, tau: NDArray[np.float64]):
     """The gait's (l, l', l''), shape (N, n_links) each, at the times ``tau``: compiled for the
     trigonometric gaits of the exact method's kernel, else the gait's own call (the kernel
