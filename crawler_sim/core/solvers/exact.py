@@ -44,7 +44,7 @@ from functools import partial
 import numpy as np
 from numpy.typing import NDArray
 
-from ..gaits import Cubic, Fourier, Gait, PiecewiseCubic, Scallop, Sinusoid
+from ..gaits import Cubic, Custom, Fourier, Gait, PiecewiseCubic, Scallop, Sinusoid
 from ..model import Crawler
 from ..trajectory import Event, EventLog
 from .contact import solve_inclusion
@@ -63,6 +63,7 @@ _COMPILED = (Fourier, Sinusoid, Scallop, Cubic, PiecewiseCubic)   # gaits the ke
 _new_event = partial(tuple.__new__, Event)
 _AMBIGUOUS = 1e-10   # relative slack below which a mode choice is decided by look-ahead
 _EPS = np.finfo(float).eps
+_RETRIES = 16     # runs of the compiled loop with a Custom gait's bounds grown, then Python
 
 
 def _dot(row: list, vec: list) -> float:
@@ -152,10 +153,33 @@ class ExactSolver:
         self._g_list, self._W_rows, self._C_rows, self._free_idx = (k.g_list, k.W_rows,
                                                                     k.C_rows, k.free_idx)
         self.reset(t0=t0, x0=x0, v0=v0)
-        if self.use_kernel and type(gait) in _COMPILED:
+        if self._compiled(gait):
             from . import kernel    # numba: loaded here, not in the first (real-time) advance
-            if not kernel.warm(kernel.coefficients(gait)[0]):
+            if not kernel.warm(self._kernel_gait(gait)[0]):
                 self._drive(self.t, None)    # a call that integrates nothing: loads drive
+
+    def _compiled(self, gait: Gait) -> bool:
+        """True if the compiled loop runs this gait (``kernel``; a Custom gait through
+        ``callback``)."""
+        if not self.use_kernel:
+            return False
+        if type(gait) in _COMPILED:
+            return True
+        if type(gait) is not Custom:
+            return False
+        from .callback import bridge
+        return bridge(gait) is not None
+
+    @staticmethod
+    def _kernel_gait(gait: Gait) -> tuple:
+        """(kind, freq, P1, P2) of the kernel for a gait ``_compiled`` accepts."""
+        from . import kernel
+        coef = kernel.coefficients(gait)
+        if coef is None:
+            from .callback import bridge
+            z = np.zeros((1, 1))
+            coef = (bridge(gait).kind, 1.0, z, z)
+        return coef
 
     # ------------------------------------------------------------------ state
     def reset(self, *, t0: float = 0.0, x0: float = 0.0, v0: float = 0.0) -> None:
@@ -324,7 +348,7 @@ class ExactSolver:
         t1 = float(t1)
         guard = 0
         T = self.gait.period if self.periodic_skip else None
-        fast = self.use_kernel and type(self.gait) in _COMPILED
+        fast = self._compiled(self.gait)
         while self.t < t1:
             if fast and self._drive(t1, T):
                 # the compiled loop made progress (and checks its own stalls)
@@ -360,12 +384,20 @@ class ExactSolver:
             return False
         breaks = gait.breakpoints(self.t, t1)
         t_stop = float(breaks[0]) if breaks.size else t1
-        kind, freq, p1, p2 = kernel.coefficients(gait)
+        kind, freq, p1, p2 = self._kernel_gait(gait)
         mean = getattr(gait, 'mean', self._zeros_links)
-        jerk = np.asarray(gait.jerk_bound(self.t, t_stop), dtype=float)
-        snap = gait.snap_bound(self.t, t_stop)
-        has_snap = snap is not None
-        snap = np.asarray(snap, dtype=float) if has_snap else jerk
+        custom = len(kind) == 4
+        if custom:
+            bridge = gait._kernel_bridge
+            if bridge.retries > _RETRIES:
+                return False     # bounds that keep growing: the Python search takes over
+            jerk, snap = bridge.prepare(self.t, t_stop)
+            has_snap = True
+        else:
+            jerk = np.asarray(gait.jerk_bound(self.t, t_stop), dtype=float)
+            snap = gait.snap_bound(self.t, t_stop)
+            has_snap = snap is not None
+            snap = np.asarray(snap, dtype=float) if has_snap else jerk
         seg_f, seg_ref, seg_contact, seg_R, seg_K0, ev_t, ev_i, state = self._buffers
         ck_f, ck_K, ck_contact, ck_zero = self._ck
         ck = self._checkpoint
@@ -390,6 +422,12 @@ class ExactSolver:
             seg_f, seg_ref, seg_contact, seg_R, seg_K0, ev_t, ev_i, state)
         n, n_ev = int(state[6]), int(state[10])
         self.n_evals += int(state[9])
+        if custom:
+            bridge.raise_error()
+            if bridge.exceeded:
+                bridge.grow()    # run the call again with the grown bounds, keeping nothing
+                return True
+            bridge.retries = 0
         n_kept, n_events = len(self.segments), len(self.events)
         self.K, self.contact, self.zero = K, contact, zero
         if n:

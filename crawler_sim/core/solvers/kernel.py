@@ -34,10 +34,12 @@ running an old search after this file changes.
 """
 from __future__ import annotations
 
+import ctypes
 import math
 
 import numpy as np
 from numba import njit
+from numba.extending import overload
 
 _MAX_STEPS = 10_000_000   # grid and narrowing steps of one search (about 1 s): a safety net
 
@@ -54,11 +56,52 @@ _AMBIGUOUS = 1e-10
 # code of the other two kinds in the same functions made the Fourier path twice as slow
 # (``drive`` on the bench's scene 1: 195 us -> 87 us for the same 548 evaluations).
 FOURIER, SCALLOP, CUBIC = (0,), (0, 0), (0, 0, 0)
+# A Custom gait's kind is (callback, buffer, 0, 0) (``callback.CustomBridge``). The callback
+# fills the buffer with l, l', l'' and l''' per linkage at time t; its second argument is 1
+# when l is wanted too (the search needs no l: a user call saved is a quarter of the
+# callback's cost). The kernel keeps the times of the values in the buffer's last two entries
+# (the loop asks for one time several times).
+CALLBACK = ctypes.CFUNCTYPE(None, ctypes.c_double, ctypes.c_int64)
+
+
+def _custom_values(kind, t, with_length):
+    """The buffer of a Custom kind's callback holding its values at t (compiled only)."""
+
+
+@overload(_custom_values, inline='always')
+def _custom_values_impl(kind, t, with_length):
+    # the other kinds' tuples have no callback to type: an empty stand-in, never used
+    # (numba types both branches of ``if len(kind) == 4`` before it drops the dead one)
+    if len(kind) != 4:
+        return lambda kind, t, with_length: np.empty(0)
+
+    def impl(kind, t, with_length):
+        buf = kind[1]
+        n = buf.size
+        if with_length:
+            if buf[n - 2] != t:
+                kind[0](t, 1)
+                buf[n - 2] = t
+                buf[n - 1] = t
+        elif buf[n - 1] != t:
+            kind[0](t, 0)
+            buf[n - 1] = t
+        return buf
+    return impl
+
 
 if True:  # (one block, indented)
     @njit(cache=True, inline='always')
     def rates(t, kind, freq, cosc, sinc, ld, ldd, ld3):
         """l', l'' and l''' of the kernel's gaits at t (into ld, ldd, ld3)."""
+        if len(kind) == 4:
+            buf = _custom_values(kind, t, False)
+            nl = ld.size
+            for j in range(nl):
+                ld[j] = buf[nl + j]
+                ldd[j] = buf[2 * nl + j]
+                ld3[j] = buf[3 * nl + j]
+            return
         if len(kind) == 3:
             # constant-jerk pieces (gaits.cubic): sinc rows (start, t0), cosc rows
             # (l0, v0, a0, jerk) per linkage; the expressions of cubic_values
@@ -377,6 +420,11 @@ if True:  # the segment loop (one block, indented)
     @njit(cache=True)
     def lengths(t, kind, freq, mean, cosc, sinc, l):
         """l(t) of the kernel's gaits (the expressions of the gaits' ``_eval``)."""
+        if len(kind) == 4:
+            buf = _custom_values(kind, t, True)
+            for j in range(l.size):
+                l[j] = buf[j]
+            return
         if len(kind) == 3:
             k = 0
             while k + 1 < sinc.shape[0] and sinc[k + 1, 0] <= t:
@@ -829,23 +877,32 @@ def warm(kind: tuple) -> bool:
     real search of a real-time loop does not pay for it (about 0.1-1 s per process and kind
     with a warm disk cache). True if it was already loaded; the caller then loads ``drive``
     with a call that integrates nothing (``ExactSolver``: the argument types come from there)."""
-    if kind in _WARM:
+    key = len(kind)        # a Custom kind holds a buffer: not hashable, and one type for all
+    if key in _WARM:
         return True
+    if key == 4:
+        # a callback of zeros: the same compiled types, without calling the user's functions
+        kind = (_ZEROS, np.zeros(6), 0, 0)
     one = np.ones(1)
     z = np.zeros((1, 1))
     _search(0.0, 1.0, one, one * 0.0, np.ones((1, 1)), z, kind, 1.0, z, z, one, one, 1e-13,
             1.0)
-    _WARM.add(kind)
+    _WARM.add(key)
     return False
+
+
+_ZEROS = CALLBACK(lambda t, want: None)
 
 
 def precompile() -> None:
     """Compile every kernel of the exact method, for each gait kind, into numba's disk cache
     (``make build`` runs it: the first compilation takes 10-20 s per kind, later processes load
     it in about a second)."""
-    from ..gaits import Cubic, Fourier, Scallop
+    from ..gaits import Cubic, Custom, Fourier, Scallop
     from ..model import Crawler
     from ..stepper import simulate
     for gait in (Fourier(1.0, ([0.0], [0.3]), 1.0), Scallop(1.0, 0.3, 1.0, 0.3),
-                 Cubic(0.0, [1.0], 0.3, 0.0, -0.1)):
+                 Cubic(0.0, [1.0], 0.3, 0.0, -0.1),
+                 Custom(lambda t: 1.0 + 0.3 * math.sin(t), lambda t: 0.3 * math.cos(t),
+                        lambda t: -0.3 * math.sin(t))):
         simulate(Crawler([1.0, 1.0], [0.5, 1.0]), gait, 2.0, t_eval=[0.0, 1.0, 2.0])

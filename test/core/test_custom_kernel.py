@@ -1,0 +1,137 @@
+"""A ``Custom`` gait on the compiled loop (``core.solvers.callback``): the user's lambdas behind
+a C callback, bounds estimated from a scan of l'' and grown when a value contradicts them.
+
+Reference: the independent event-driven oracle (test/core/oracle.py, written apart from the
+solvers, accurate to ~1e-12 m here); the tolerance is the issue's 1e-10 m. The Python search with
+estimated bounds takes ~200 evaluations per segment on these scenes (9,332 for 44 segments on the
+bench's scene 1); the compiled loop ~17, so the evaluation count tells which path ran.
+"""
+from __future__ import annotations
+
+import math
+import os
+import sys
+
+import numpy as np
+import pytest
+
+import crawler_sim as cs
+from crawler_sim import gaits
+from crawler_sim.core.solvers import callback
+from crawler_sim.core.solvers.exact import ExactSolver
+
+sys.path.insert(0, os.path.dirname(__file__))
+from oracle import Oracle  # noqa: E402
+
+W = 2 * math.pi
+
+
+def _sine(amp=0.3, w=W, calls=None):
+    """The issue's Custom gait l = 1 + amp sin(w t), recording every time it is called at."""
+    def rec(t):
+        if calls is not None:
+            calls.append(t)
+        return t
+    return gaits.Custom(lambda t: 1 + amp * math.sin(w * rec(t)),
+                        lambda t: amp * w * math.cos(w * rec(t)),
+                        lambda t: -amp * w * w * math.sin(w * rec(t)))
+
+
+def _sine_kin(mean, amp, w):
+    mean, amp = np.atleast_1d(mean), np.atleast_1d(amp)
+
+    def kin(t):
+        t = np.asarray(t, float)[:, None]
+        return mean + amp * np.sin(w * t), amp * w * np.cos(w * t), -amp * w * w * np.sin(w * t)
+    return kin
+
+
+def _run(crawler, gait, T):
+    s = ExactSolver(crawler, gait)
+    s.advance(T)
+    return s, s.current()['x']
+
+
+def test_the_issue_gait_runs_compiled_and_matches_the_oracle():
+    c = cs.Crawler([1, 1], [1, 1])
+    g = _sine()
+    s, x = _run(c, g, 4.25)          # the issue's stall at 4.25 s
+    ref, _ = Oracle.for_crawler(c, _sine_kin(1.0, 0.3, W)).solve(4.25, [0.0, 4.25], h=1e-4)
+    np.testing.assert_allclose(x, ref[1], rtol=0, atol=1e-10)
+    assert callback.bridge(g) is not None
+    assert s.n_evals < 40 * s.n_segments, (s.n_evals, s.n_segments)
+
+
+def test_three_bodies_with_array_valued_functions_match_the_oracle():
+    # the general callback (functions returning one value per linkage)
+    mean, amp, w = np.array([1.0, 0.8]), np.array([0.2, 0.15]), 1.7 * W
+    g = gaits.Custom(lambda t: mean + amp * np.sin(w * t), lambda t: amp * w * np.cos(w * t),
+                     lambda t: -amp * w * w * np.sin(w * t))
+    c = cs.Crawler([1.0, 2.0, 0.5], [1.0, 3.0, 0.4])
+    s, x = _run(c, g, 2.0)
+    ref, _ = Oracle.for_crawler(c, _sine_kin(mean, amp, w)).solve(2.0, [0.0, 2.0], h=1e-4)
+    np.testing.assert_allclose(x, ref[1], rtol=0, atol=1e-10)
+    assert s.n_evals < 40 * s.n_segments, (s.n_evals, s.n_segments)
+
+
+def test_the_users_functions_are_called_only_inside_the_run():
+    # a gait defined on [0, T] only (an interpolated recording, say) must not be asked for
+    # l'' at T + d by the differences of the callback
+    calls: list[float] = []
+    cs.simulate(cs.Crawler([1, 1], [0.5, 1]), _sine(calls=calls), 3.0, t_eval=[0.0, 3.0])
+    assert calls and min(calls) >= 0.0 and max(calls) <= 3.0
+
+
+def test_a_users_exception_inside_the_loop_reaches_the_caller_unchanged():
+    def accel(t):
+        if t > 0.7:
+            raise ZeroDivisionError('the user gait broke at t > 0.7')
+        return -0.3 * W * W * math.sin(W * t)
+    g = gaits.Custom(lambda t: 1 + 0.3 * math.sin(W * t), lambda t: 0.3 * W * math.cos(W * t),
+                     accel)
+    with pytest.raises(ZeroDivisionError, match='broke at t > 0.7'):
+        cs.simulate(cs.Crawler([1, 1], [1, 1]), g, 2.0)
+    # and the next run with a sound gait is unaffected
+    _, x = _run(cs.Crawler([1, 1], [1, 1]), _sine(), 1.0)
+    assert np.all(np.isfinite(x))
+
+
+def test_a_non_finite_acceleration_is_an_error_naming_it():
+    g = gaits.Custom(lambda t: 1.0, lambda t: 0.0, lambda t: math.nan if t > 0.5 else 0.0)
+    with pytest.raises(ValueError, match='acceleration must be finite'):
+        cs.simulate(cs.Crawler([1, 1], [1, 1]), g, 1.0)
+
+
+def test_bounds_that_prove_too_small_are_grown_and_the_run_redone(monkeypatch):
+    # the first estimate made 50 times too small: the search's values contradict it, the
+    # bounds grow to cover |l'''| = 0.3 w^3 and the answer is the oracle's
+    shrink = {'first': True}
+    set_bounds, grow = callback.CustomBridge._set_bounds, callback.CustomBridge.grow
+    grown = []
+
+    def small(self, t0, t1):
+        set_bounds(self, t0, t1)
+        if shrink.pop('first', False):
+            self.jerk, self.snap = self.jerk / 50, self.snap / 50
+
+    def counted(self):
+        grown.append(1)
+        grow(self)
+    monkeypatch.setattr(callback.CustomBridge, '_set_bounds', small)
+    monkeypatch.setattr(callback.CustomBridge, 'grow', counted)
+    c = cs.Crawler([1, 1], [0.5, 1])
+    g = _sine()
+    _, x = _run(c, g, 3.0)
+    ref, _ = Oracle.for_crawler(c, _sine_kin(1.0, 0.3, W)).solve(3.0, [0.0, 3.0], h=1e-4)
+    np.testing.assert_allclose(x, ref[1], rtol=0, atol=1e-10)
+    assert grown
+    assert g._kernel_bridge.jerk[0] >= 0.3 * W ** 3
+
+
+@pytest.mark.parametrize('kw', [{'jerk_bound': 0.3 * W ** 3}, {'breakpoints': [0.5]}])
+def test_a_custom_gait_with_a_bound_or_breakpoints_keeps_the_python_search(kw):
+    g = _sine()
+    g2 = gaits.Custom(*g._fns, **kw)
+    assert callback.bridge(g2) is None
+    s, _ = _run(cs.Crawler([1, 1], [1, 1]), g2, 1.0)
+    assert not hasattr(g2, '_kernel_bridge')
