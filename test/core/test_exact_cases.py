@@ -224,3 +224,27 @@ def test_the_compiled_loop_matches_the_python_loop_on_actuator_pieces(seed, monk
     _same_events(a, b, 3, 1e-12)
     np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-12)
     np.testing.assert_allclose(a.friction, b.friction, rtol=0, atol=1e-9)
+
+
+def test_a_very_sharp_scallop_is_run_a_stretch_of_similar_bounds_per_call():
+    # asymmetry 0.006: the extension lasts 0.6 % of the period and |l'''| there is ~1e9 times
+    # the slow phase's. With the sharp phase's bound over the whole call the search ran out of
+    # its 10 million steps in the slow phase ("ran out of steps after t = 0.0 s");
+    # Scallop.block_end now cuts the run where the bounds change. Reference: the independent
+    # event-driven oracle (test/core/oracle.py) at h = 1e-5 s.
+    from oracle import Oracle
+    from crawler_sim.core.solvers.exact import ExactSolver
+    g = gaits.Scallop(1.0, 0.2, 0.8, 0.006)
+    c = cs.Crawler([1.0, 1.0], [1.0, 2.0])
+    s = ExactSolver(c, g)
+    s.advance(2.5)
+    ref, _ = Oracle.for_crawler(c, lambda t: g(np.asarray(t, float))).solve(2.5, [0.0, 2.5],
+                                                                              h=1e-5)
+    np.testing.assert_allclose(s.current()['x'], ref[1], rtol=0, atol=1e-10)
+    assert s.n_evals < 50_000, s.n_evals
+    # a few stretches per period (slow phase, the edges of the sharp one), strictly in order
+    t, ends = 0.0, []
+    while t < 2.5:
+        t = g.block_end(t, 2.5)
+        ends.append(t)
+    assert 2 < len(ends) < 200 and ends == sorted(set(ends))

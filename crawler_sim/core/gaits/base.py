@@ -33,6 +33,16 @@ _EMPTY = np.empty(0)
 CLOSURE_RTOL = 1e-12
 
 
+SIMILAR_BOUNDS = 64.0   # largest ratio of local derivative bounds within one compiled call
+
+
+def similar_run(v: NDArray[np.float64]) -> int:
+    """How many leading entries of ``v`` (> 0: local bounds, one per cell) stay within a
+    factor ``SIMILAR_BOUNDS`` of each other (at least 1)."""
+    split = np.maximum.accumulate(v) > SIMILAR_BOUNDS * np.minimum.accumulate(v)
+    return max(int(np.argmax(split)), 1) if split.any() else v.size
+
+
 def _per_link(name: str, value: ArrayLike, n: int | None) -> NDArray[np.float64]:
     """Broadcast a scalar or a per-linkage list to shape (n,), checking it is finite."""
     arr = np.atleast_1d(np.asarray(value, dtype=float))
@@ -160,6 +170,13 @@ class Gait:
     def breakpoints(self, t0: float, t1: float) -> NDArray[np.float64]:
         """Sorted times in the open interval (t0, t1) where l'' may jump; none by default."""
         return _EMPTY
+
+    def block_end(self, t0: float, t1: float) -> float:
+        """The end of the stretch from t0 towards t1 over which the bounds ``jerk_bound`` and
+        ``snap_bound`` give stay within a factor ``SIMILAR_BOUNDS`` (default t1: one stretch).
+        The exact solver's compiled loop takes one bound per call, the largest of its span, so
+        a gait whose bounds vary a lot (a sharp ``Scallop``) is run a stretch per call."""
+        return t1
 
     def is_constant(self, t0: float, t1: float) -> bool:
         """True only when l' and l'' are exactly zero on all of [t0, t1]."""

@@ -6,7 +6,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .base import (Gait, Triple, _finite, _n_links, _per_link, _positive)
+from .base import Gait, Triple, _finite, _n_links, _per_link, _positive, similar_run
 
 
 class Sinusoid(Gait):
@@ -248,6 +248,31 @@ class Scallop(Gait):
 
     def snap_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
         return self._binned(4, t0, t1)
+
+    def block_end(self, t0: float, t1: float) -> float:
+        # whole bins from t0's bin on, at most one period ahead, whose bounds (each bin with
+        # its neighbours, relative to the largest bin's, jerk and snap alike) are similar
+        nb, T = self._BINS, self.period
+        v = self.__dict__.get('_similarity')
+        if v is None:
+            v = np.maximum(self._relative(3), self._relative(4))
+            v = np.maximum(v, np.maximum(np.roll(v, 1), np.roll(v, -1)))
+            v = self._similarity = np.maximum(v, 1e-9)
+        k = math.floor(t0 / T * nb)
+        n = min(math.floor((t1 - t0) / T * nb) + 2, nb)
+        e = similar_run(v[(k + np.arange(n)) % nb])
+        if e >= n:
+            return t1
+        t_b = (k + e) * T / nb
+        if t_b <= t0:           # t0 on a bin edge rounded into the previous bin
+            t_b = (k + e + 1) * T / nb
+        return t_b if t_b < t1 else t1
+
+    def _relative(self, n: int) -> NDArray[np.float64]:
+        """Each bin's bound of |l^(n)| over the largest bin's, the largest over linkages."""
+        self._binned(n, 0.0, 0.0)      # builds the table
+        tab = self._bound_tables[n]
+        return (tab / np.maximum(tab.max(axis=0), 1e-300)).max(axis=1)
 
     _BINS = 1024
 

@@ -391,13 +391,17 @@ class ExactSolver:
             bridge = gait._kernel_bridge
             if bridge.retries > _RETRIES:
                 return False     # bounds that keep growing: the Python search takes over
-            jerk, snap = bridge.prepare(self.t, t_stop)
+            # a stretch of similar bounds per call (``CustomBridge.prepare``)
+            t_b, jerk, snap = bridge.prepare(self.t, t_stop)
             has_snap = True
         else:
-            jerk = np.asarray(gait.jerk_bound(self.t, t_stop), dtype=float)
-            snap = gait.snap_bound(self.t, t_stop)
+            t_b = gait.block_end(self.t, t_stop)     # a stretch of similar bounds per call
+            jerk = np.asarray(gait.jerk_bound(self.t, t_b), dtype=float)
+            snap = gait.snap_bound(self.t, t_b)
             has_snap = snap is not None
             snap = np.asarray(snap, dtype=float) if has_snap else jerk
+        left_limit = bool(breaks.size) and t_b == t_stop
+        t_stop = t_b
         seg_f, seg_ref, seg_contact, seg_R, seg_K0, ev_t, ev_i, state = self._buffers
         ck_f, ck_K, ck_contact, ck_zero = self._ck
         ck = self._checkpoint
@@ -412,7 +416,7 @@ class ExactSolver:
         # copies: the solver's arrays may be shared with kept segments
         K, contact, zero = self.K.copy(), self.contact.copy(), self.zero.copy()
         status = kernel.drive(
-            self.t, t_stop, bool(breaks.size), t1, T or 0.0, self._timescale(), self.tol,
+            self.t, t_stop, left_limit, t1, T or 0.0, self._timescale(), self.tol,
             self._cap(gait, self.t, t_stop),
             self.X, self.V, K, contact, zero, self.ref, self.x_ref, cache is not None,
             float(cache[1]) if cache is not None else 0.0,
