@@ -4,7 +4,8 @@ Each case is drawn from a numpy generator seeded by hypothesis (``draw_case(fami
 the quick profile here and the long profile of ``crawler-sim stress`` (``run_fuzz``) share one
 generator. Scenes: p = 2..8, masses and frictions over four decades, zero and
 direction-dependent friction, slopes, v0 != 0. Gait families: Custom lambdas of ``math``
-functions without a period, every built-in gait (Sinusoid, Fourier, Scallop down to asymmetry
+functions without a period and Custom lambda copies of Scallops down to asymmetry 0.01 and of
+Fourier gaits of 3-6 harmonics, every built-in gait (Sinusoid, Fourier, Scallop down to asymmetry
 0.02, PiecewiseParabolic strokes and random non-periodic bang-bang strokes, Spline), and gait
 switches mid-run through ``Stepper.advance(t1, gait)`` as the node does (C2 Cubic pieces, and a
 Sinusoid continued by Cubic pieces).
@@ -32,8 +33,8 @@ import crawler_sim as cs
 from oracle import Oracle
 
 G = cs.gaits
-FAMILIES = ('custom', 'sinusoid', 'fourier', 'scallop', 'stroke', 'bang_bang', 'spline',
-            'piecewise_cubic', 'switch_cubic', 'switch_sinusoid')
+FAMILIES = ('custom', 'custom_sharp', 'sinusoid', 'fourier', 'scallop', 'stroke', 'bang_bang',
+            'spline', 'piecewise_cubic', 'switch_cubic', 'switch_sinusoid')
 TOL = 1e-10
 N_EXAMPLES = int(os.environ.get('CRAWLER_SIM_FUZZ_EXAMPLES', '10'))
 
@@ -128,6 +129,27 @@ def draw_case(family: str, seed: int) -> Case:
         b = rng.normal(0, 1, (n, K)) * amp[:, None] / np.arange(1, K + 1)
         g = G.Fourier(mean, (a, b), freq)
         return Case(kin=_vec(g), gait=g, breakpoints=np.empty(0), timescale=1 / (freq * K), desc=f'{freq=} {K=}', **kw)
+    if family == 'custom_sharp':
+        # the user's copy of a sharp Scallop or a many-harmonic Fourier gait as plain lambdas
+        # (no period, no bound): the compiled loop's estimated bounds, scan cells and
+        # stretches (``solvers.callback``) against the oracle fed the built-in gait
+        if rng.random() < 0.6:
+            r = float(10 ** rng.uniform(math.log10(0.01), math.log10(0.1)))
+            src = G.Scallop(mean, amp, freq, r if rng.random() < 0.5 else 1 - r, phase)
+            scale, what = r / freq, f'Scallop {freq=} asymmetry={r}'
+        else:
+            K = int(rng.integers(3, 7))
+            a = rng.normal(0, 1, (n, K)) * amp[:, None] / np.arange(1, K + 1)
+            b = rng.normal(0, 1, (n, K)) * amp[:, None] / np.arange(1, K + 1)
+            src = G.Fourier(mean, (a, b), freq)
+            scale, what = 1 / (freq * K), f'Fourier {freq=} {K=}'
+        if n == 1:
+            g = G.Custom(lambda t: src.at1(t)[0], lambda t: src.at1(t)[1],
+                         lambda t: src.at1(t)[2])
+        else:
+            g = G.Custom(lambda t: src.at(t)[0], lambda t: src.at(t)[1], lambda t: src.at(t)[2])
+        return Case(kin=_vec(src), gait=g, breakpoints=np.empty(0), timescale=scale,
+                    desc=f'Custom copy of {what}', **kw)
     if family == 'scallop':
         r = float(10 ** rng.uniform(math.log10(0.02), math.log10(0.5)))
         r = r if rng.random() < 0.5 else 1 - r

@@ -21,9 +21,11 @@ class Custom(Gait):
     - ``breakpoints``: times where l'' jumps, so events there are placed without searching;
     - ``period`` [s]: the gait repeats with this period (enables the periodic skip);
     - ``jerk_bound`` [m/s^3]: an upper bound of |l'''| (float, one per linkage, or a callable
-      ``(t0, t1) -> bounds`` on [t0, t1]). With it the event search is rigorous; without it
-      the solver estimates the bound from the gait's own values and redoes a segment with a
-      larger estimate whenever a later observation contradicts it;
+      ``(t0, t1) -> bounds`` on [t0, t1]). With it the event search is rigorous (in Python);
+      without it the solver estimates the bound from the gait's own values and redoes the work
+      with a larger estimate whenever a later value contradicts it. Without a bound and without
+      breakpoints the gait runs in the compiled loop (``solvers.callback``: about 1 us per
+      evaluation), its functions called only at times inside the span being integrated;
     - ``max_step`` [s]: the largest step between two event checks.
     """
 

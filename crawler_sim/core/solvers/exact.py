@@ -19,8 +19,10 @@ The event search (``events``) proves each piece of a segment free of events from
 event functions' derivatives, which follow from the gait's ``jerk_bound`` / ``snap_bound``, or
 splits it, and narrows the first bracketed event to ``tol`` seconds.
 
-For the gaits the kernel evaluates, the segment loop itself runs compiled (``kernel.drive``,
-called from ``_drive``) with the same rules; this module's ``_segment`` remains the reference
+For the gaits the kernel evaluates, and a ``Custom`` gait without ``jerk_bound`` or breakpoints
+(its functions behind a C callback, its bounds estimated: ``callback``), the segment loop itself
+runs compiled (``kernel.drive``, called from ``_drive``) with the same rules, one call per
+stretch of similar bounds (``Gait.block_end``); this module's ``_segment`` remains the reference
 and the path for everything the compiled loop hands back (groups of bodies stuck together, a
 contact sign contradicted by the velocity, other gaits).
 
@@ -32,8 +34,9 @@ write the solver state; the closed forms (``segments``, ``sampling``), the searc
 Guarantee: for a gait whose ``jerk_bound`` (and ``snap_bound``, where it gives one) are true
 bounds (every built-in gait, and a ``Custom`` gait given ``jerk_bound=``), no contact event is
 missed and every event time is within ``tol`` seconds (or one float spacing of t) of the exact
-one; for a ``Custom`` gait without a bound, the bound is estimated from the gait's values and a
-segment is redone whenever a later value contradicts the estimate (reliable, not a proof).
+one; for a ``Custom`` gait without a bound, the bound is estimated from the gait's values (a
+scan of l'' refined to its time scale, ``callback``; per segment in the Python search) and the
+work is redone whenever a later value contradicts the estimate (reliable, not a proof).
 """
 from __future__ import annotations
 

@@ -10,7 +10,10 @@ each row's slope is known at every point too, and an interval is also proven fre
 the Taylor lower bound from either end, g(a) + g'(a) tau - B2 tau^2 / 2 (rigorous where
 |g''| <= B2); steps go just inside its first zero, which near a simple root is a Newton step from
 the left: about ten evaluations per segment instead of fifty. The bounds are those of the
-whole span of one call (a Scallop's local ones from its bins).
+whole span of one call; the solver makes a call per stretch of similar bounds
+(``Gait.block_end``: a Scallop's from its bins). A ``Custom`` gait reaches the kernel as a C
+callback (``CALLBACK``, built by ``callback``), its l''' a difference of its l'' and its bounds
+estimated from a scan.
 
 numba with ``cache=True`` (compiled once per machine into __pycache__, then loaded in about a
 tenth of a second): it needs no build step in colcon or setup.py, numba is already a dependency
