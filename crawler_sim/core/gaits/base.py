@@ -33,7 +33,7 @@ _EMPTY = np.empty(0)
 CLOSURE_RTOL = 1e-12
 
 
-SIMILAR_BOUNDS = 64.0   # largest ratio of local derivative bounds within one compiled call
+SIMILAR_BOUNDS = 1024.0   # largest ratio of local derivative bounds within one compiled call
 
 
 def similar_run(v: NDArray[np.float64]) -> int:
