@@ -149,3 +149,16 @@ def test_a_custom_gait_with_a_bound_or_breakpoints_keeps_the_python_search(kw):
     assert callback.bridge(g2) is None
     s, _ = _run(cs.Crawler([1, 1], [1, 1]), g2, 1.0)
     assert not hasattr(g2, '_kernel_bridge')
+
+
+def test_one_custom_gait_shared_by_solvers_in_threads_gives_each_the_sequential_answer():
+    # the callback's state lives on the gait; solvers in other threads take turns with it
+    from concurrent.futures import ThreadPoolExecutor
+    g = _sine()
+    crawlers = [cs.Crawler([1, 1 + 0.25 * k], [0.5 + 0.1 * k, 1]) for k in range(8)]
+    alone = [cs.simulate(c, _sine(), 3.0, t_eval=[0.0, 3.0]).x[-1] for c in crawlers]
+    with ThreadPoolExecutor(4) as pool:
+        shared = list(pool.map(lambda c: cs.simulate(c, g, 3.0, t_eval=[0.0, 3.0]).x[-1],
+                               crawlers * 4))
+    for k, x in enumerate(shared):
+        np.testing.assert_allclose(x, alone[k % 8], rtol=0, atol=1e-12)

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import ctypes
 import math
+import threading
 
 import numpy as np
 from numpy.typing import NDArray
@@ -80,6 +81,7 @@ class CustomBridge:
         self.jerk = np.zeros(nl)
         self.snap = np.zeros(nl)
         self.retries = 0          # consecutive runs stopped by a value above the bounds
+        self.lock = threading.Lock()    # held by a solver for one call of the loop
         try:
             scalar = nl == 1 and all(isinstance(f(0.0), (float, int)) for f in gait._fns)
         except Exception:         # not defined at 0: the general callback

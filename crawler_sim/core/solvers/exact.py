@@ -380,6 +380,15 @@ class ExactSolver:
     def _drive(self, t1: float, T: float | None) -> bool:
         """Run the compiled segment loop (``kernel.drive``) from t towards t1 (or the gait's next
         breakpoint); False when it made no progress: the next segment needs the Python path."""
+        if type(self.gait) is Custom:
+            from .callback import bridge
+            # the callback's state (bounds, stop flag) belongs to the gait, which solvers in
+            # other threads may share: one call, with its checks, at a time
+            with bridge(self.gait).lock:
+                return self._run_drive(t1, T)
+        return self._run_drive(t1, T)
+
+    def _run_drive(self, t1: float, T: float | None) -> bool:
         from . import kernel
         gait = self.gait
         cache = self._mode_cache
