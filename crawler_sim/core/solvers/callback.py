@@ -32,6 +32,7 @@ from __future__ import annotations
 import ctypes
 import math
 import threading
+import weakref
 
 import numpy as np
 from numpy.typing import NDArray
@@ -55,10 +56,15 @@ def bridge(gait: Gait) -> 'CustomBridge | None':
     path: not a ``Custom`` gait, or one with ``jerk_bound`` or breakpoints (module doc)."""
     if type(gait) is not Custom or gait._jerk is not None or gait._breaks.size:
         return None
-    b = getattr(gait, '_kernel_bridge', None)
+    b = _BRIDGES.get(gait)
     if b is None:
-        b = gait._kernel_bridge = CustomBridge(gait)
+        b = _BRIDGES[gait] = CustomBridge(gait)
     return b
+
+
+# bridges beside their gaits, not on them: a gait stays picklable (a sweep sends it to its
+# workers) and the bridge, which holds no reference to the gait, goes with it
+_BRIDGES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 class CustomBridge:

@@ -400,7 +400,8 @@ class ExactSolver:
         mean = getattr(gait, 'mean', self._zeros_links)
         custom = len(kind) == 4
         if custom:
-            bridge = gait._kernel_bridge
+            from .callback import bridge as bridge_of
+            bridge = bridge_of(gait)
             if bridge.retries > _RETRIES:
                 return False     # bounds that keep growing: the Python search takes over
             # a stretch of similar bounds per call (``CustomBridge.prepare``)
