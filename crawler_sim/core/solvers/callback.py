@@ -95,6 +95,8 @@ class CustomBridge:
         make = _scalar_callback if scalar else _array_callback
         self._callback = kernel.CALLBACK(make(gait._fns, self.buf, self._state, self._errors))
         self.kind = (self._callback, self.buf, 0, 0)
+        # what ``kernel.coefficients`` gives for the built-in gaits: (kind, freq, P1, P2)
+        self.coefficients = (self.kind, 1.0, np.zeros((1, 1)), np.zeros((1, 1)))
 
     @property
     def exceeded(self) -> bool:

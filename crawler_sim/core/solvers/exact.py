@@ -180,8 +180,7 @@ class ExactSolver:
         coef = kernel.coefficients(gait)
         if coef is None:
             from .callback import bridge
-            z = np.zeros((1, 1))
-            coef = (bridge(gait).kind, 1.0, z, z)
+            coef = bridge(gait).coefficients
         return coef
 
     # ------------------------------------------------------------------ state
@@ -382,13 +381,16 @@ class ExactSolver:
         breakpoint); False when it made no progress: the next segment needs the Python path."""
         if type(self.gait) is Custom:
             from .callback import bridge
+            b = bridge(self.gait)
             # the callback's state (bounds, stop flag) belongs to the gait, which solvers in
             # other threads may share: one call, with its checks, at a time
-            with bridge(self.gait).lock:
-                return self._run_drive(t1, T)
-        return self._run_drive(t1, T)
+            with b.lock:
+                return self._run_drive(t1, T, b)
+        return self._run_drive(t1, T, None)
 
-    def _run_drive(self, t1: float, T: float | None) -> bool:
+    def _run_drive(self, t1: float, T: float | None, bridge) -> bool:
+        """``_drive`` with the Custom gait's ``callback.CustomBridge`` (None for the gaits the
+        kernel evaluates itself)."""
         from . import kernel
         gait = self.gait
         cache = self._mode_cache
@@ -396,12 +398,10 @@ class ExactSolver:
             return False
         breaks = gait.breakpoints(self.t, t1)
         t_stop = float(breaks[0]) if breaks.size else t1
-        kind, freq, p1, p2 = self._kernel_gait(gait)
+        custom = bridge is not None
+        kind, freq, p1, p2 = bridge.coefficients if custom else kernel.coefficients(gait)
         mean = getattr(gait, 'mean', self._zeros_links)
-        custom = len(kind) == 4
         if custom:
-            from .callback import bridge as bridge_of
-            bridge = bridge_of(gait)
             if bridge.retries > _RETRIES:
                 return False     # bounds that keep growing: the Python search takes over
             # a stretch of similar bounds per call (``CustomBridge.prepare``)
