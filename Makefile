@@ -36,10 +36,8 @@ $(STAMP): requirements.txt
 
 build: $(INSTALL_STAMP)
 
-$(INSTALL_STAMP): $(STAMP) setup.py setup.cfg package.xml $(wildcard config/*/* launch/*.py scripts/*) $(wildcard crawler_sim/*.py crawler_sim/*/*.py crawler_sim/*/*/*.py)
+$(INSTALL_STAMP): $(STAMP) setup.py setup.cfg pyproject.toml package.xml $(wildcard config/*/* launch/*.py scripts/*) $(wildcard crawler_sim/*.py crawler_sim/*/*.py crawler_sim/*/*/*.py crawler_sim/*/*/*.pyx crawler_sim/*/*/*.pxd)
 	source $(VENV)/bin/activate && colcon --log-base log build --paths . --build-base build --install-base install --symlink-install
-	# numba's disk cache of the exact kernels, so no test or node pays the first compilation
-	$(PY) -c 'from crawler_sim.core.solvers.kernel import precompile; precompile()'
 	touch $@
 
 clean:

@@ -51,15 +51,6 @@ def colcon_install(tmp_path_factory) -> Path:
     proc = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True, timeout=600)
     if proc.returncode != 0:
         pytest.fail(f'colcon build failed ({proc.returncode}):\n{proc.stdout}\n{proc.stderr}')
-    # numba's disk cache lives beside the installed copy's sources: fill it as `make build`
-    # does for the source tree, or the first node of the session compiles the exact kernels
-    # for ~17 s before it answers, beside a 20 s connection deadline
-    site = next((tmp / 'install' / 'crawler_sim' / 'lib').glob('python3*/site-packages'))
-    proc = subprocess.run([sys.executable, '-c', 'from crawler_sim.core.solvers.kernel import '
-                           'precompile; precompile()'], cwd=tmp, capture_output=True, text=True,
-                          timeout=900, env={**os.environ, 'PYTHONPATH': str(site)})
-    if proc.returncode != 0:
-        pytest.fail(f'precompile in the install failed:\n{proc.stdout}\n{proc.stderr}')
     return tmp / 'install'
 
 

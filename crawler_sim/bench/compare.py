@@ -26,7 +26,7 @@ of its estimated bounds (``core.solvers.callback``), once per gait object, is ti
   log-log slope of |error of x_0(T)| over dt = 1e-3 ... 1e-5 s against the reference, and
   ``ImplicitBatch`` body-steps/s;
 * cold start: a fresh interpreter's ``import crawler_sim``, first exact and first implicit
-  ``simulate`` (numba loads its on-disk cache) and ``warm_up()``.
+  ``simulate`` (the compiled core is built at install: nothing compiles on first use).
 
 Timings are medians of ``repeats`` runs after one untimed warm-up run (each method alike:
 the first run of a process loads caches and allocator pools; the cold start is reported on its
@@ -216,19 +216,8 @@ cs.simulate(c, g, 10.0, 'implicit', dt=1e-4, t_eval=[0, 10])
 t3 = time.perf_counter()
 cs.simulate(c, g, 10.0, 'implicit', dt=1e-4, t_eval=[0, 10])
 t4 = time.perf_counter()
-from crawler_sim.core.solvers.implicit import warm_up
-warm_up()
-t5 = time.perf_counter()
 print(json.dumps({'import': t1 - t0, 'first_exact': t2 - t1, 'first_implicit': t3 - t2,
-                  'second_implicit': t4 - t3, 'warm_up_after': t5 - t4}))
-'''
-
-_COLD_WARM = r'''
-import json, time
-t0 = time.perf_counter()
-from crawler_sim.core.solvers.implicit import warm_up
-warm_up()
-print(json.dumps({'warm_up_fresh': time.perf_counter() - t0}))
+                  'second_implicit': t4 - t3}))
 '''
 
 
@@ -240,11 +229,7 @@ def cold_start(repeats: int = 3) -> dict:
     for _ in range(repeats):
         out = subprocess.run([sys.executable, '-c', _COLD], capture_output=True, text=True,
                              env=env, timeout=300, check=True).stdout
-        d = json.loads(out.strip().splitlines()[-1])
-        out = subprocess.run([sys.executable, '-c', _COLD_WARM], capture_output=True, text=True,
-                             env=env, timeout=300, check=True).stdout
-        d.update(json.loads(out.strip().splitlines()[-1]))
-        runs.append(d)
+        runs.append(json.loads(out.strip().splitlines()[-1]))
     return {k: statistics.median(r[k] for r in runs) for k in runs[0]} | {'repeats': repeats}
 
 
@@ -347,9 +332,7 @@ def compare_markdown(res: dict) -> list[str]:
     lines.append(f'- Cold start (fresh interpreter, median of {cs_["repeats"]}): import '
                  f'crawler_sim {cs_["import"]:.2f} s; first exact simulate '
                  f'{cs_["first_exact"]:.2f} s; first implicit simulate {cs_["first_implicit"]:.2f}'
-                 f' s (numba import and cache load; second {cs_["second_implicit"] * 1e3:.1f} ms); '
-                 f'`warm_up()` in a fresh process {cs_["warm_up_fresh"]:.2f} s, after that '
-                 f'{cs_["warm_up_after"] * 1e3:.1f} ms.')
+                 f' s (second {cs_["second_implicit"] * 1e3:.1f} ms).')
     lines.append('')
     return lines
 

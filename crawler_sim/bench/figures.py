@@ -21,7 +21,6 @@ import numpy as np
 
 from ..core import gaits
 from ..core.model import Crawler
-from ..core.solvers.contact import solve_inclusion_batch
 from ..core.solvers.implicit import ImplicitBatch
 from ..core.stepper import Stepper, simulate
 
@@ -93,7 +92,7 @@ def batch_throughput(n_crawlers: int = 10_000, p: int = 2, steps: int = 200, *,
         return b
 
     def run_numpy() -> ImplicitBatch:
-        # the previous, numpy-only step (contact.solve_inclusion_batch): the baseline the
+        # the numpy-only step (solve_inclusion_batch below): the baseline the
         # compiled step must not be slower than, run in the same process
         b = ImplicitBatch(masses, friction)
         for k in range(steps):
@@ -190,3 +189,35 @@ def output_cost(crawler: Crawler, gait: gaits.Gait, periods: int, *,
         rows.append({'method': 'implicit', 'periodic_skip': None, 'outputs': f't_eval {n}',
                      'n': n, 'time': t, 'periods': min(periods, 10)})
     return {'periods': periods, 'rows': rows}
+
+
+def solve_inclusion_batch(c, u_ref, force, kinks, f_plus, f_minus):
+    """The numpy baseline of ``ImplicitBatch``'s compiled step: the inclusion of
+    ``solvers._inclusion`` vectorised over B crawlers with the same p.
+
+    ``c``, ``u_ref``, ``force``: shape (B,); ``kinks``, ``f_plus``, ``f_minus``: shape (B, p).
+    Returns ``(u, at_kink)`` with shapes (B,) and (B, p) bool.
+    """
+    B, p = kinks.shape
+    order = np.argsort(kinks, axis=1)
+    rows = np.arange(B)[:, None]
+    k = kinks[rows, order]
+    a = f_plus[rows, order]
+    b = f_minus[rows, order]
+    ca = np.cumsum(a, axis=1)
+    cb = np.cumsum(b, axis=1)
+    below_a = ca - a
+    above_b = cb[:, -1:] - (cb - b)
+    g_low = (c * (-u_ref) - force)[:, None] + c[:, None] * k + below_a - above_b
+    g_high = g_low + a + b
+    ok = g_high >= 0.0
+    i = np.argmax(ok, axis=1)
+    any_ok = ok[np.arange(B), i]
+    i_safe = i
+    gl = g_low[np.arange(B), i_safe]
+    ki = k[np.arange(B), i_safe]
+    free = u_ref + (force - below_a[np.arange(B), i_safe] + above_b[np.arange(B), i_safe]) / c
+    right = u_ref + (force - ca[:, -1]) / c
+    u = np.where(any_ok, np.where(gl <= 0.0, ki, free), right)
+    at_kink = kinks == u[:, None]
+    return u, at_kink

@@ -14,15 +14,17 @@ from .gaits import Cubic, Gait, PiecewiseCubic, _positive as positive
 from .gaits.cubic import cubic_values
 from .model import Crawler
 from .solvers.exact import ExactSolver
-from .solvers.implicit import ImplicitSolver, check_steps
-from .solvers.penalty import PenaltySolver, check_penalty, penalty_bound
+from .solvers.implicit import ImplicitSolver
+from .solvers.penalty import PenaltySolver
 from .trajectory import Event, State, Trajectory
 
 __all__ = ['METHODS', 'Stepper', 'simulate']
 
-METHODS = ('exact', 'implicit', 'penalty')
+#: the methods and their solvers: each takes (crawler, gait, t0=, x0=, v0=, **options) with the
+#: options its ``options`` classmethod picks and checks from ``Stepper``'s, and runs a whole
+#: span with ``simulate(t_end, times, include_events, dt)`` -> (times, outputs, info)
+METHODS = {'exact': ExactSolver, 'implicit': ImplicitSolver, 'penalty': PenaltySolver}
 _PIECES = (Cubic, PiecewiseCubic)
-_KEYS = ('x', 'v', 'friction', 'impulse', 'linkage_force', 'lengths', 'rates', 'contact')
 
 
 def _check_method(method: str) -> str:
@@ -98,20 +100,10 @@ class Stepper:
         t0, x0, v0 = (_check_finite(k, v) for k, v in (('t0', t0), ('x0', x0), ('v0', v0)))
         check_gait(gait, crawler, t0)
         self.crawler = crawler
-        if method == 'exact':
-            tol = _check_positive('tol', tol)
-            if max_step is not None:
-                max_step = _check_positive('max_step', max_step)
-            self._solver = ExactSolver(crawler, gait, t0=t0, x0=x0, v0=v0, tol=tol,
-                                       max_step=max_step, keep_segments=keep_history,
-                                       periodic_skip=periodic_skip)
-        else:
-            dt = 1e-3 if dt is None else _check_positive('dt', dt)
-            if method == 'implicit':
-                self._solver = ImplicitSolver(crawler, gait, dt=dt, t0=t0, x0=x0, v0=v0)
-            else:
-                self._solver = PenaltySolver(crawler, gait, dt=dt, t0=t0, x0=x0, v0=v0,
-                                             penalty=check_penalty(penalty, crawler.p))
+        cls = METHODS[method]
+        self._options = cls.options(dt=dt, penalty=penalty, tol=tol, max_step=max_step,
+                                    keep_history=keep_history, periodic_skip=periodic_skip)
+        self._solver = cls(crawler, gait, t0=t0, x0=x0, v0=v0, **self._options)
         self._keep = keep_history
         self._n_events_read = 0
 
@@ -157,8 +149,8 @@ class Stepper:
         else:
             # streaming: drop what was read so a long run does not accumulate events
             ev.clear()
-            if hasattr(self._solver, '_checkpoint'):
-                self._solver._checkpoint = None
+            if hasattr(self._solver, 'forget_history'):
+                self._solver.forget_history()
         return list(out)
 
     def reset(self, *, t0: float = 0.0, x0: float = 0.0, v0: float = 0.0) -> None:
@@ -167,10 +159,7 @@ class Stepper:
         self._n_events_read = 0
 
 
-def _sample_times(t_end: float, t_eval: ArrayLike | None, dt: float | None) -> NDArray:
-    if t_eval is None:
-        n = int(round(t_end / dt)) + 1 if dt is not None and t_end / dt <= 1e6 else 1001
-        return np.linspace(0.0, t_end, max(n, 2))
+def _check_times(t_eval: ArrayLike, t_end: float) -> NDArray:
     t = np.asarray(t_eval, dtype=float).ravel()
     if t.size == 0 or not np.isfinite(t).all():
         raise ValueError('t_eval must be a non-empty list of finite times in [0, t_end] s')
@@ -204,44 +193,14 @@ def simulate(crawler: Crawler, gait: Gait, t_end: float, method: str = 'exact', 
     t_end = _check_positive('t_end', t_end)
     if dt is not None:
         dt = _check_positive('dt', dt)
-    if method == 'exact':
-        # Float time resolution: event times are floats, spaced ulp(t) ~ 2.2e-16 t apart; past
-        # 1e-6 of the gait's time scale per ulp the "exact" times would be rounding noise.
-        scale = gait.period if getattr(gait, 'period', None) else (max_step or 1.0)
-        limit = 1e-6 * scale / np.finfo(float).eps
-        if t_end > limit:
-            raise ValueError(f't_end must be <= {limit:.3g} s for method "exact" with this gait '
-                             f'(time resolution eps * t_end below 1e-6 of its time scale '
-                             f'{scale:g} s), got {t_end!r}')
-    else:
-        check_steps(t_end, 1e-3 if dt is None else dt)     # never run for ever (issue 11)
     st = Stepper(crawler, gait, method, x0=x0, v0=v0, dt=dt, penalty=penalty, tol=tol,
                  max_step=max_step, keep_history=True, periodic_skip=periodic_skip)
-    times = _sample_times(t_end, t_eval, dt)
-    info: dict = {}
-    if method == 'exact':
-        st.advance(t_end)
-        s = st.solver
-        if t_eval is None and include_events and s.events:
-            times = np.union1d(times, [e.time for e in s.events if 0 < e.time < t_end])
-        out = s.sample(times)
-        info['segments'] = s.n_segments
-        info['skipped_periods'] = s.n_skipped_periods
-    else:
-        s = st.solver
-        rows = []
-        for tk in times:
-            st.advance(tk)
-            rows.append(st._row())
-        out = {k: np.array([r[k] for r in rows]) for k in rows[0]}
-        info['steps'] = s.n_steps
-        info['dt'] = s.dt
-        if method == 'penalty':
-            info['penalty'] = s.n.tolist()
-            info['error_bound'] = penalty_bound(crawler, s.n, times)
+    solver = st.solver
+    solver.check_span(gait, t_end, st._options)
+    times = None if t_eval is None else _check_times(t_eval, t_end)
+    times, out, info = solver.simulate(t_end, times, include_events, dt)
     return Trajectory(t=times, x=out['x'], v=out['v'], friction=out['friction'],
                       state=out['contact'].astype(np.int8), linkage_force=out['linkage_force'],
                       impulse=out['impulse'], lengths=out['lengths'], rates=out['rates'],
-                      events=_events(st.solver.events), indeterminate=out['indeterminate'],
+                      events=_events(solver.events), indeterminate=out['indeterminate'],
                       crawler=crawler, method=method, info=info)
-

@@ -122,7 +122,7 @@ def test_quick_bench_includes_the_issue_14_comparison(quick):
             assert len(row[key]['runs']) == cmp['repeats'] >= 2
     assert cmp['implicit_speed']['steps'] > 0 and cmp['implicit_speed']['steps_per_s'] > 0
     cold = cmp['cold_start']
-    for key in ('import', 'first_exact', 'first_implicit', 'warm_up_fresh'):
+    for key in ('import', 'first_exact', 'first_implicit'):
         assert 0 < cold[key] < 300, key
     md = (out / 'bench.md').read_text(encoding='utf-8')
     assert '## Issue 14 comparison' in md and cmp['command'] in md
@@ -137,8 +137,7 @@ def test_compare_subcommand_prints_the_command_and_the_floors(capsys, monkeypatc
                                'steps_per_s_cpu': 10.0, 'custom_steps_per_s': 1.0,
                                'custom_steps_per_s_cpu': 1.0},
             'cold_start': {'import': 0.1, 'first_exact': 0.1, 'first_implicit': 0.1,
-                           'second_implicit': 0.01, 'warm_up_after': 0.01,
-                           'warm_up_fresh': 0.1, 'repeats': 1}}
+                           'second_implicit': 0.01, 'repeats': 1}}
     monkeypatch.setattr(compare, 'run_compare', lambda **kw: dict(fake))
     assert runner.main(['compare', '--quick']) == 0
     text = capsys.readouterr().out

@@ -1,10 +1,11 @@
-"""A ``Custom`` gait on the compiled loop (``core.solvers.callback``): the user's lambdas behind
-a C callback, bounds estimated from a scan of l'' and grown when a value contradicts them.
+"""A ``Custom`` gait on the compiled loop (the CALLBACK kind of ``core.solvers._gait``): the
+user's lambdas called from the segment loop, bounds estimated from a scan of l'' and grown when
+a value contradicts them (``core.solvers.estimate``), or the user's ``jerk_bound``.
 
 Reference: the independent event-driven oracle (test/core/oracle.py, written apart from the
-solvers, accurate to ~1e-12 m here); the tolerance is the issue's 1e-10 m. The Python search with
-estimated bounds takes ~200 evaluations per segment on these scenes (9,332 for 44 segments on the
-bench's scene 1); the compiled loop ~17, so the evaluation count tells which path ran.
+solvers, accurate to ~1e-12 m here); the tolerance is 1e-10 m. A search with bounds that fit
+the gait takes ~17 evaluations per segment (a global bound took ~200), which the evaluation
+count checks.
 """
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ import pytest
 
 import crawler_sim as cs
 from crawler_sim import gaits
-from crawler_sim.core.solvers import callback
+from crawler_sim.core.solvers.estimate import BoundEstimate
 from crawler_sim.core.solvers.exact import ExactSolver
 
 sys.path.insert(0, os.path.dirname(__file__))
@@ -58,7 +59,6 @@ def test_the_issue_gait_runs_compiled_and_matches_the_oracle():
     s, x = _run(c, g, 4.25)          # the issue's stall at 4.25 s
     ref, _ = Oracle.for_crawler(c, _sine_kin(1.0, 0.3, W)).solve(4.25, [0.0, 4.25], h=1e-4)
     np.testing.assert_allclose(x, ref[1], rtol=0, atol=1e-10)
-    assert callback.bridge(g) is not None
     assert s.n_evals < 40 * s.n_segments, (s.n_evals, s.n_segments)
 
 
@@ -102,30 +102,25 @@ def test_a_non_finite_acceleration_is_an_error_naming_it():
         cs.simulate(cs.Crawler([1, 1], [1, 1]), g, 1.0)
 
 
-def test_bounds_that_prove_too_small_are_grown_and_the_run_redone(monkeypatch):
-    # the first estimate made 50 times too small: the search's values contradict it, the
-    # scan cell where that happened takes the value seen, the call runs again, and the answer
-    # is the oracle's
+def test_bounds_that_prove_too_small_are_grown_and_the_search_redone(monkeypatch):
+    # the first scan's estimate made 50 times too small: the search's values contradict it,
+    # the scan cell where that happened takes the value seen, the search runs again, and the
+    # answer is the oracle's
+    scan = BoundEstimate._scan
     first = [True]
-    block, grow = callback.CustomBridge._block, callback.CustomBridge.grow
-    grown = []
 
-    def small(self, t0, t1):
-        t_b, jerk, snap = block(self, t0, t1)
+    def small(self, a, b):
+        scan(self, a, b)
         if first.pop() if first else False:
-            return t_b, jerk / 50, snap / 50
-        return t_b, jerk, snap
-
-    def counted(self):
-        grown.append(self._state[3])
-        grow(self)
-    monkeypatch.setattr(callback.CustomBridge, '_block', small)
-    monkeypatch.setattr(callback.CustomBridge, 'grow', counted)
+            self.d1 /= 50.0
+            self.d2 /= 50.0
+    monkeypatch.setattr(BoundEstimate, '_scan', small)
     c = cs.Crawler([1, 1], [0.5, 1])
-    _, x = _run(c, _sine(), 3.0)
+    g = _sine()
+    _, x = _run(c, g, 3.0)
     ref, _ = Oracle.for_crawler(c, _sine_kin(1.0, 0.3, W)).solve(3.0, [0.0, 3.0], h=1e-4)
     np.testing.assert_allclose(x, ref[1], rtol=0, atol=1e-10)
-    assert grown and 0.0 <= grown[0] <= 3.0
+    assert g.compiled().exceeded > 0
 
 
 def test_a_sharp_feature_sets_the_bounds_of_its_own_block_only():
@@ -142,23 +137,28 @@ def test_a_sharp_feature_sets_the_bounds_of_its_own_block_only():
     assert s.n_evals < 20_000, s.n_evals
 
 
-@pytest.mark.parametrize('kw', [{'jerk_bound': 0.3 * W ** 3}, {'breakpoints': [0.5]}])
-def test_a_custom_gait_with_a_bound_or_breakpoints_keeps_the_python_search(kw):
-    g = _sine()
-    g2 = gaits.Custom(*g._fns, **kw)
-    assert callback.bridge(g2) is None
-    s, _ = _run(cs.Crawler([1, 1], [1, 1]), g2, 1.0)
-    assert g2 not in callback._BRIDGES
+@pytest.mark.parametrize('kw', [{'jerk_bound': 0.3 * W ** 3},
+                                {'jerk_bound': lambda t0, t1: 0.3 * W ** 3},
+                                {'breakpoints': [0.5]}, {'period': 1.0}])
+def test_every_form_of_custom_gait_runs_compiled_and_matches_the_oracle(kw):
+    # a bound (float or callable), breakpoints, a period: the same loop, the same answer
+    g = gaits.Custom(*_sine()._fns, **kw)
+    c = cs.Crawler([1, 1], [1, 1])
+    s, x = _run(c, g, 2.5)
+    ref, _ = Oracle.for_crawler(c, _sine_kin(1.0, 0.3, W)).solve(2.5, [0.0, 2.5], h=1e-4)
+    np.testing.assert_allclose(x, ref[1], rtol=0, atol=1e-10)
+    assert s.n_evals < 60 * s.n_segments, (s.n_evals, s.n_segments)
 
 
 def test_a_custom_gait_that_ran_compiled_still_pickles():
-    # sweeps send gaits to their workers (cloudpickle handles the lambdas); the callback,
-    # its lock and buffer must not travel with the gait
+    # sweeps send gaits to their workers (cloudpickle handles the lambdas); the compiled form
+    # and its estimate must not travel with the gait
     cloudpickle = pytest.importorskip('cloudpickle')
     g = _sine()
     x = cs.simulate(cs.Crawler([1, 1], [1, 1]), g, 2.0, t_eval=[0.0, 2.0]).x[-1]
-    assert callback.bridge(g) is not None
+    assert '_compiled' in g.__dict__
     g2 = cloudpickle.loads(cloudpickle.dumps(g))
+    assert '_compiled' not in g2.__dict__
     x2 = cs.simulate(cs.Crawler([1, 1], [1, 1]), g2, 2.0, t_eval=[0.0, 2.0]).x[-1]
     np.testing.assert_array_equal(x, x2)
 

@@ -34,8 +34,6 @@ import numpy as np
 import pytest
 
 from crawler_sim.core import gaits
-from crawler_sim.core.solvers import kernel
-from crawler_sim.core.solvers.events import Rows, Search
 
 SESSIONS = Path(__file__).resolve().parents[2] / 'tools' / 'node_sessions.py'
 
@@ -48,49 +46,44 @@ def test_node_sessions_that_stalled_run_to_the_end_on_the_exact_method(seed):
     assert r['finite'] and not r['crash'], r
 
 
+def _core(p: int = 2):
+    from crawler_sim import Crawler
+    from crawler_sim.core.solvers.exact import ExactSolver
+    return ExactSolver(Crawler([1.0] * p, [1.0] * p), gaits.Sinusoid([1.0] * (p - 1), 0.1,
+                                                                     1.0))._core
+
+
 def test_the_taylor_step_of_nearly_linear_and_constant_rows_is_not_zero():
     # g = 1, g' = -2, |g''| <= 1e-30: the first zero of 1 - 2 h - 5e-31 h^2 is 0.5 (by hand);
     # g = 1, g' = 0, g'' = 0: never zero, the step is unbounded (the cap, a cost setting, holds
     # only while some row is watched); the step stays just inside
+    core = _core()
     one, off = np.ones(1), np.zeros(1, dtype=bool)
-    h = kernel.step(one, np.array([-2.0]), off, np.array([1e-30]), np.array([math.inf]),
-                    1e-13, 10.0)
+    h = core.taylor_step(one, np.array([-2.0]), off, np.array([1e-30]), np.array([math.inf]),
+                         1e-13, 10.0)
     assert 0.4999 <= h < 0.5
-    assert kernel.step(one, np.zeros(1), off, np.zeros(1), np.array([math.inf]), 1e-13,
-                       10.0) == math.inf
+    assert core.taylor_step(one, np.zeros(1), off, np.zeros(1), np.array([math.inf]), 1e-13,
+                            10.0) == math.inf
     two, watched = np.ones(2), np.array([False, True])
-    assert kernel.step(two, np.zeros(2), watched, np.zeros(2), np.full(2, math.inf), 1e-13,
-                       10.0) == 10.0
+    assert core.taylor_step(two, np.zeros(2), watched, np.zeros(2), np.full(2, math.inf),
+                            1e-13, 10.0) == 10.0
     # the step is proven by the Taylor bound from its left end alone
-    assert kernel.proven(h, one, one - 2 * h, np.array([-2.0]), np.array([-2.0]), off,
-                         np.array([1e-30]), np.array([math.inf]))
-
-
-def _grazing_rows(eps0: float) -> tuple:
-    """One row g(t) = l'(t) - l'(0) + eps0 with l = 1 + 0.3 sin(2 pi t): g(0) = eps0 and
-    g(t) = eps0 - 0.3 w (1 - cos w t) ~ eps0 - 0.15 w^3 t^2 < 0 just after 0 (by hand)."""
-    w = 2 * math.pi
-    gait = gaits.Fourier(1.0, ([0.0], [0.3]), 1.0)
-    rows = Rows(0.0, np.array([eps0 - 0.3 * w]), np.zeros(1), np.ones((1, 1)), np.zeros((1, 1)))
-    return gait, rows, w
+    assert core.proven_interval(h, one, one - 2 * h, np.array([-2.0]), np.array([-2.0]), off,
+                                np.array([1e-30]), np.array([math.inf]))
 
 
 @pytest.mark.parametrize('eps0', [0.0, 3e-16, 1e-15])
-def test_a_row_at_zero_to_rounding_that_goes_negative_is_an_event_compiled(eps0):
-    gait, rows, w = _grazing_rows(eps0)
-    b2, b1 = rows.bounds(gait, 0.0, 1.0)
-    t, hit, _ = kernel.search(0.0, 1.0, rows, kernel.coefficients(gait), b2, b1, 1e-13, 0.125)
+def test_a_row_at_zero_to_rounding_that_goes_negative_is_an_event(eps0):
+    # one row g(t) = l'(t) - l'(0) + eps0 with l = 1 + 0.3 sin(2 pi t): g(0) = eps0 and
+    # g(t) = eps0 - 0.3 w (1 - cos w t) ~ eps0 - 0.15 w^3 t^2 < 0 just after 0 (by hand)
+    w = 2 * math.pi
+    gait = gaits.Fourier(1.0, ([0.0], [0.3]), 1.0)
+    t, hit, _ = _core().search_rows(gait.compiled(), 0.0, 1.0, [eps0 - 0.3 * w], [0.0],
+                                    [[1.0]], [[0.0]], 1e-13, 0.125)
     # the row is below -noise (1e-13 of its scale 0.6 w) once 0.15 w^3 t^2 > 4e-13: t ~ 1e-6 s;
     # any answer past 1e-4 s (or "no event", inf) misses the event
     assert 0.0 < t < 1e-4 and hit.tolist() == [True]
     assert eps0 - 0.3 * w * (1 - math.cos(w * t)) < 0.0
-
-
-@pytest.mark.parametrize('eps0', [0.0, 3e-16, 1e-15])
-def test_a_row_at_zero_to_rounding_that_goes_negative_is_an_event_python(eps0):
-    gait, rows, w = _grazing_rows(eps0)
-    t, hit = Search(gait, rows, 1e-13, 0.125).run(1.0, False)
-    assert 0.0 < t < 1e-4 and hit is not None and hit.tolist() == [0]
 
 
 def test_a_link_whose_velocity_is_a_few_ulps_splits_its_stuck_pair_instead_of_stalling():
@@ -130,21 +123,23 @@ def test_a_link_whose_velocity_is_a_few_ulps_splits_its_stuck_pair_instead_of_st
     np.testing.assert_allclose(x, [-A, 1.0], rtol=0, atol=1e-6)   # symmetry, by hand
 
 
-def test_a_velocity_that_touches_zero_is_a_stick_on_the_compiled_path(monkeypatch):
+def test_a_velocity_that_touches_zero_is_a_stick():
     # stress seed 11, random scene 224 (p = 12, a Sinusoid): body 1 slides backward, its
-    # velocity touches zero at t = 0.13224 s and it sticks until 0.13404 s; the Python search
-    # (events.Search, no slopes, written apart) is the reference here
+    # velocity touches zero at t = 0.13224 s and it sticks until 0.13404 s (the independent
+    # oracle of test/core/oracle.py agrees on the positions)
+    import sys
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from oracle import Oracle
     from crawler_sim.bench import stress
-    from crawler_sim.core.solvers.exact import ExactSolver
     import crawler_sim as cs
     rng = np.random.default_rng(11)
     for _ in range(225):
         spec = stress.random_spec(rng)
     crawler, gait, _, _ = stress.build(spec)
-    runs = []
-    for compiled in (True, False):
-        monkeypatch.setattr(ExactSolver, 'use_kernel', compiled)
-        runs.append(cs.simulate(crawler, gait, 0.2, periodic_skip=False))
-    ev = [[(e.body, e.old, e.new) for e in r.events if 0.13 < e.time < 0.135] for r in runs]
-    assert ev[1] == [(1, -1, 0), (1, 0, -1)]
-    assert ev[0] == ev[1]
+    t = np.linspace(0.0, 0.2, 21)
+    run = cs.simulate(crawler, gait, 0.2, periodic_skip=False, t_eval=t)
+    ev = [(e.body, e.old, e.new) for e in run.events if 0.13 < e.time < 0.135]
+    assert ev == [(1, -1, 0), (1, 0, -1)]
+    ref, _ = Oracle.for_crawler(crawler, lambda s: gait(np.asarray(s, float))).solve(
+        0.2, t, h=2e-5)
+    np.testing.assert_allclose(run.x, ref, rtol=0, atol=1e-10)

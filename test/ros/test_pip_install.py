@@ -51,7 +51,6 @@ def test_a_pip_installed_sim_node_records_a_bag_rosbags_reads_without_the_ament_
                             '-p', 'record_name:=pip_bag'],
                            cwd=tmp_path, env=env, stdout=out, stderr=err)
     peer = Peer()
-    peer.deadline = 120.0          # a fresh install compiles its numba kernels on first use
     try:
         states: list[JointState] = []
         peer.node.create_subscription(JointState, 'body_states', states.append, 10)

@@ -33,16 +33,6 @@ _EMPTY = np.empty(0)
 CLOSURE_RTOL = 1e-12
 
 
-SIMILAR_BOUNDS = 1024.0   # largest ratio of local derivative bounds within one compiled call
-
-
-def similar_run(v: NDArray[np.float64]) -> int:
-    """How many leading entries of ``v`` (> 0: local bounds, one per cell) stay within a
-    factor ``SIMILAR_BOUNDS`` of each other (at least 1)."""
-    split = np.maximum.accumulate(v) > SIMILAR_BOUNDS * np.minimum.accumulate(v)
-    return max(int(np.argmax(split)), 1) if split.any() else v.size
-
-
 def _per_link(name: str, value: ArrayLike, n: int | None) -> NDArray[np.float64]:
     """Broadcast a scalar or a per-linkage list to shape (n,), checking it is finite."""
     arr = np.atleast_1d(np.asarray(value, dtype=float))
@@ -120,10 +110,40 @@ class Gait:
        on it.
     4. Optionally override ``is_constant`` (rest intervals the solver can skip). It must return
        True only when l' == 0 and l'' == 0 on all of [t0, t1].
+    5. Optionally override ``jerk_bound`` (and ``snap_bound``): with true bounds the exact
+       solver's event search is rigorous; without them it estimates them (``solvers.estimate``).
+
+    Every gait runs in the compiled solvers through ``compiled()``: the built-in gaits
+    (``BuiltinGait``) as their own compiled kind, which their Python methods call too (one
+    arithmetic); any other gait, such as a user's subclass, through its Python methods behind
+    the compiled kind CALLBACK (slower per evaluation, the same loop).
     """
 
     n_links: int
     period: float | None = None
+
+    def compiled(self):
+        """The gait's compiled form (``solvers._gait.CompiledGait``), built once per gait."""
+        cg = self.__dict__.get('_compiled')
+        if cg is None:
+            cg = self.__dict__['_compiled'] = self._compile()
+        return cg
+
+    def _compile(self):
+        """A gait that is not built in: its Python ``at`` (and ``jerk_bound``,
+        ``breakpoints``, ``is_constant``) called from the compiled loop."""
+        from ..solvers._gait import callback
+        from ..solvers.estimate import BoundEstimate
+        own = type(self).jerk_bound is not Gait.jerk_bound
+        estimate = BoundEstimate(lambda t: self.at(t)[2], self.n_links, self.period,
+                                 getattr(self, 'max_step', None), self.breakpoints)
+        return callback(self, self.n_links, estimate, jerk=self.jerk_bound if own else None)
+
+    def __getstate__(self) -> dict:
+        # the compiled form is rebuilt where the gait is used (a sweep sends gaits to workers)
+        state = self.__dict__.copy()
+        state.pop('_compiled', None)
+        return state
 
     def __call__(self, t: float | ArrayLike) -> Triple:
         """Evaluate (l [m], l' [m/s], l'' [m/s^2]) at a time or an array of times [s].
@@ -143,15 +163,11 @@ class Gait:
         raise NotImplementedError
 
     def at(self, t: float) -> Triple:
-        """(l, l', l'') at one float time, each of shape (n_links,): the solver's hot path.
-
-        Same values as ``self(t)`` to rounding; subclasses override it with scalar math.
-        """
+        """(l, l', l'') at one float time, each of shape (n_links,)."""
         return self(t)
 
     def at1(self, t: float) -> tuple[float, float, float]:
-        """(l, l', l'') of linkage 0 at one float time, as floats: the root finders' hot path
-        for one-linkage (two-body) crawlers. Subclasses may override it with scalar math."""
+        """(l, l', l'') of linkage 0 at one float time, as floats."""
         l, ld, ldd = self.at(t)
         return float(l[0]), float(ld[0]), float(ldd[0])
 
@@ -171,13 +187,6 @@ class Gait:
         """Sorted times in the open interval (t0, t1) where l'' may jump; none by default."""
         return _EMPTY
 
-    def block_end(self, t0: float, t1: float) -> float:
-        """The end of the stretch from t0 towards t1 over which the bounds ``jerk_bound`` and
-        ``snap_bound`` give stay within a factor ``SIMILAR_BOUNDS`` (default t1: one stretch).
-        The exact solver's compiled loop takes one bound per call, the largest of its span, so
-        a gait whose bounds vary a lot (a sharp ``Scallop``) is run a stretch per call."""
-        return t1
-
     def is_constant(self, t0: float, t1: float) -> bool:
         """True only when l' and l'' are exactly zero on all of [t0, t1]."""
         return False
@@ -195,3 +204,59 @@ class Gait:
         when unknown or when l''' jumps inside (the solver then bounds the stuck-force rows
         with `jerk_bound` alone)."""
         return None
+
+
+class BuiltinGait(Gait):
+    """A gait with a compiled kind of its own (``_kind``): every evaluation, from Python and
+    from the solvers, goes through it. A subclass that overrides an evaluation method (``at``,
+    ``_eval``, ``breakpoints``, ...) runs in the solvers through its Python methods instead
+    (the CALLBACK kind), so what it says is what the solvers see."""
+
+    _EVALUATION = ('__call__', '_eval', 'at', 'at1', 'breakpoints', 'is_constant',
+                   'jerk_bound', 'snap_bound')
+
+    def _kind(self):
+        raise NotImplementedError
+
+    def _native(self):
+        """The compiled kind of this gait's class (built once)."""
+        cg = self.__dict__.get('_native_kind')
+        if cg is None:
+            cg = self.__dict__['_native_kind'] = self._kind()
+        return cg
+
+    def _compile(self):
+        for cls in type(self).__mro__:
+            if '_kind' in cls.__dict__:
+                return self._native()       # nothing overridden below the built-in class
+            if any(name in cls.__dict__ for name in self._EVALUATION):
+                return Gait._compile(self)
+        return self._native()
+
+    def __getstate__(self) -> dict:
+        state = super().__getstate__()
+        state.pop('_native_kind', None)
+        return state
+
+    def _eval(self, t: NDArray[np.float64]) -> Triple:
+        return self._native().values(t)
+
+    def at(self, t: float) -> Triple:
+        return self._native().at(float(t))
+
+    def at1(self, t: float) -> tuple[float, float, float]:
+        return self._native().at1(float(t))
+
+    def breakpoints(self, t0: float, t1: float) -> NDArray[np.float64]:
+        t0, t1 = _interval(t0, t1)
+        return self._native().breakpoints(t0, t1)
+
+    def is_constant(self, t0: float, t1: float) -> bool:
+        t0, t1 = _interval(t0, t1)
+        return self._native().is_constant(t0, t1)
+
+    def jerk_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
+        return self._native().bounds(float(t0), float(t1))[0]
+
+    def snap_bound(self, t0: float, t1: float) -> NDArray[np.float64] | None:
+        return self._native().bounds(float(t0), float(t1))[1]

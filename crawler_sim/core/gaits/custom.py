@@ -21,12 +21,13 @@ class Custom(Gait):
     - ``breakpoints``: times where l'' jumps, so events there are placed without searching;
     - ``period`` [s]: the gait repeats with this period (enables the periodic skip);
     - ``jerk_bound`` [m/s^3]: an upper bound of |l'''| (float, one per linkage, or a callable
-      ``(t0, t1) -> bounds`` on [t0, t1]). With it the event search is rigorous (in Python);
-      without it the solver estimates the bound from the gait's own values and redoes the work
-      with a larger estimate whenever a later value contradicts it. Without a bound and without
-      breakpoints the gait runs in the compiled loop (``solvers.callback``: about 1 us per
-      evaluation), its functions called only at times inside the span being integrated;
+      ``(t0, t1) -> bounds`` on [t0, t1]). With it the event search is rigorous; without it
+      the solver estimates the bound from the gait's own values and redoes a search with a
+      larger estimate whenever a later value contradicts it (``solvers.estimate``);
     - ``max_step`` [s]: the largest step between two event checks.
+
+    Every form runs in the compiled segment loop (the callables called from it, about 1 us per
+    evaluation), at times inside the span being integrated only.
     """
 
     def __init__(self, length: Callable[[float], ArrayLike],
@@ -51,6 +52,14 @@ class Custom(Gait):
             if not np.all(np.isfinite(jb)) or np.any(jb < 0):
                 raise ValueError(f'jerk_bound must be finite and >= 0 m/s^3, got {jb.tolist()}')
             self._jerk = jb
+
+    def _compile(self):
+        from ..solvers._gait import callback
+        from ..solvers.estimate import BoundEstimate
+        estimate = BoundEstimate(self._fns[2], self.n_links, self.period, self.max_step,
+                                 self.breakpoints)
+        return callback(self, self.n_links, estimate,
+                        fns=self._fns, jerk=self._jerk, breakpoints=self._breaks)
 
     def __call__(self, t: float | ArrayLike) -> Triple:
         if np.ndim(t) == 0:

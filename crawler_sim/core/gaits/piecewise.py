@@ -6,11 +6,11 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .base import (CLOSURE_RTOL, Gait, Triple, _EMPTY, _finite, _increasing, _interval,
-                   _n_links, _per_link, _positive)
+from .base import (CLOSURE_RTOL, BuiltinGait, _EMPTY, _finite, _increasing, _n_links,
+                   _per_link, _positive)
 
 
-class PiecewiseParabolic(Gait):
+class PiecewiseParabolic(BuiltinGait):
     """Bang-bang strokes: l'' piecewise constant between breakpoints, l and l' continuous.
 
     On piece k, t in [t_k, t_{k+1}), l'' = a_k, so l is an exact quadratic in t - t_k.
@@ -75,13 +75,6 @@ class PiecewiseParabolic(Gait):
         self._l = np.vstack([lengths[:1], lengths])
         self._v = np.vstack([vel[:1], vel])
         self._a = np.vstack([zeros, self.accelerations, zeros])
-        self._rest = np.all((self._a == 0) & (self._v == 0), axis=1)
-        if self.periodic:
-            a = self.accelerations
-            jumps = np.any(a != np.roll(a, 1, axis=0), axis=1)
-            self._jumps = tk[:-1][jumps]
-        else:
-            self._jumps = tk[np.any(self._a[1:] != self._a[:-1], axis=1)]
 
     @staticmethod
     def _check_closed(dv: NDArray[np.float64], v_scale: NDArray[np.float64],
@@ -131,72 +124,25 @@ class PiecewiseParabolic(Gait):
         a_e, a_c = 8.0 * amp / t_ext ** 2, 8.0 * amp / t_con ** 2
         return cls(times, np.vstack([a_e, -a_e, -a_c, a_c]), mean_ - amp, 0.0, periodic=True)
 
-    def _eval(self, t: NDArray[np.float64]) -> Triple:
-        tk = self.times
-        if not self.periodic:
-            j = np.searchsorted(tk, t, side='right')
-            d = (t - self._anchor[j])[:, None]
-        else:
-            # Knot k of period m sits at tk[k] + m T (period m ends at tk[0] + (m + 1) T),
-            # computed exactly as in `breakpoints`, so at a reported breakpoint the gait takes
-            # the next piece, as it does at tk[k].
-            period, last = self.period, tk.size - 1
-            m = np.floor((t - tk[0]) / period)
-            knots = np.concatenate([tk[None, :-1] + (m * period)[:, None],
-                                    (tk[0] + (m + 1) * period)[:, None]], axis=1)
-            j = np.sum(knots <= t[:, None], axis=1)
-            m = np.where(j == 0, m - 1, np.where(j > last, m + 1, m))
-            j = np.where(j == 0, last, np.where(j > last, 1, j))
-            d = (t - (tk[j - 1] + m * period))[:, None]
-        a, v = self._a[j], self._v[j]
-        return self._l[j] + d * (v + 0.5 * a * d), v + a * d, a
-
-    def breakpoints(self, t0: float, t1: float) -> NDArray[np.float64]:
-        t0, t1 = _interval(t0, t1)
-        jumps = self._jumps
-        if jumps.size == 0 or t1 <= t0:
-            return _EMPTY
+    def _kind(self):
+        from ..solvers._gait import table
+        # one constant-acceleration piece per knot interval (jerk 0); l'' jumps where a does
+        n = self.n_links
         if self.periodic:
-            start, period = self.times[0], self.period
-            m = np.arange(math.floor((t0 - start) / period) - 1,
-                          math.floor((t1 - start) / period) + 2, dtype=float)
-            jumps = np.sort((jumps[None, :] + m[:, None] * period).ravel())
-        return jumps[(jumps > t0) & (jumps < t1)]
-
-    def is_constant(self, t0: float, t1: float) -> bool:
-        """True when l' and l'' are zero on [t0, t1].
-
-        Pieces are judged on their interiors: a rest piece [t_k, t_k+1) queried exactly is
-        constant even though l'' jumps at its ends.
-        """
-        t0, t1 = _interval(t0, t1)
-        rest = self._rest
-        if not self.periodic:
-            j0 = np.searchsorted(self.times, t0, side='right')
-            j1 = j0 if t1 == t0 else np.searchsorted(self.times, t1, side='left')
-            return bool(np.all(rest[j0:j1 + 1]))
-        pieces = rest[1:-1]
-        if np.all(pieces):
-            return True
-        if t1 - t0 >= self.period:
-            return False
-        tk = self.times
-        s0 = tk[0] + np.mod(t0 - tk[0], self.period)
-        s1 = s0 + (t1 - t0)
-        knots = np.concatenate([tk, tk[1:] + self.period])
-        twice = np.concatenate([pieces, pieces])
-        j0 = min(int(np.searchsorted(knots, s0, side='right')) - 1, twice.size - 1)
-        j1 = j0 if t1 == t0 else int(np.searchsorted(knots, s1, side='left')) - 1
-        return bool(np.all(twice[j0:max(j0, j1) + 1]))
-
-    def jerk_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
-        return np.zeros(self.n_links)      # l'' is constant between breakpoints
-
-    def snap_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
-        return np.zeros(self.n_links)
+            K = self.times.size - 1
+            coef = np.stack([self._l[1:K + 1], self._v[1:K + 1], self._a[1:K + 1],
+                             np.zeros((K, n))], axis=-1)
+            a = self.accelerations
+            jumps = np.any(a != np.roll(a, 1, axis=0), axis=1)
+            return table(coef, knots=self.times, period=self.period, jumps=jumps)
+        # extended pieces: (-inf, t_0), [t_k, t_k+1) for each k, [t_K, inf)
+        coef = np.stack([self._l, self._v, self._a, np.zeros_like(self._a)], axis=-1)
+        starts = np.concatenate([[-math.inf], self.times])
+        jumps = np.concatenate([[False], np.any(self._a[1:] != self._a[:-1], axis=1)])
+        return table(coef, starts=starts, anchors=self._anchor, jumps=jumps)
 
 
-class Spline(Gait):
+class Spline(BuiltinGait):
     """A C2 cubic spline through sampled lengths (scipy.interpolate.CubicSpline).
 
     Parameters
@@ -236,47 +182,33 @@ class Spline(Gait):
         from scipy.interpolate import CubicSpline   # lazy: keeps `import crawler_sim` light
         self._spline = CubicSpline(tk, y, bc_type='periodic' if self.periodic else 'clamped',
                                    extrapolate='periodic' if self.periodic else True)
-        self._flat = bool(np.all(y == y[0]))
         if self.periodic:
             self._jumps = _EMPTY
         else:
             end_acc = self._spline(tk[[0, -1]], 2)
             self._jumps = tk[[0, -1]][np.any(end_acc != 0, axis=1)]
 
-    def _eval(self, t: NDArray[np.float64]) -> Triple:
-        sp = self._spline
+    def _kind(self):
+        from ..solvers._gait import table
+        # scipy's pieces c[0] d^3 + c[1] d^2 + c[2] d + c[3] as (l0, v0, a0, jerk); l'' is
+        # continuous at the interior knots (C2), so only the clamped ends can be breakpoints
+        c = self._spline.c                                  # (4, N - 1, n_links)
+        coef = np.stack([c[3], c[2], 2.0 * c[1], 6.0 * c[0]], axis=-1)
+        tk = self.times
         if self.periodic:
-            return sp(t), sp(t, 1), sp(t, 2)
-        s = np.clip(t, self.times[0], self.times[-1])
-        outside = ((t < self.times[0]) | (t >= self.times[-1]))[:, None]
-        return sp(s), np.where(outside, 0.0, sp(s, 1)), np.where(outside, 0.0, sp(s, 2))
+            return table(coef, knots=tk, period=self.period,
+                         jumps=np.zeros(tk.size - 1, dtype=bool))
+        d = tk[-1] - tk[-2]
+        last = coef[-1]
+        end = last[:, 0] + d * (last[:, 1] + d * (0.5 * last[:, 2] + d * last[:, 3] / 6.0))
+        hold = np.zeros((2, self.n_links, 4))
+        hold[0, :, 0] = self.lengths[0]
+        hold[1, :, 0] = end
+        coef = np.concatenate([hold[:1], coef, hold[1:]])
+        starts = np.concatenate([[-math.inf], tk])
+        anchors = np.concatenate([[tk[0]], tk])
+        jumps = np.zeros(starts.size, dtype=bool)
+        jumps[1] = tk[0] in self._jumps
+        jumps[-1] = tk[-1] in self._jumps
+        return table(coef, starts=starts, anchors=anchors, jumps=jumps)
 
-    def breakpoints(self, t0: float, t1: float) -> NDArray[np.float64]:
-        t0, t1 = _interval(t0, t1)
-        b = self._jumps
-        return b[(b > t0) & (b < t1)]
-
-    def is_constant(self, t0: float, t1: float) -> bool:
-        t0, t1 = _interval(t0, t1)
-        if self._flat:
-            return True
-        if self.periodic:
-            return False
-        return t1 <= self.times[0] or t0 >= self.times[-1]
-
-    def jerk_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
-        # the jerk is 6 c3 on each knot interval (constant there, jumping at the knots), zero
-        # outside a clamped spline's range: the largest over all intervals bounds it everywhere
-        return 6.0 * np.max(np.abs(self._spline.c[0]), axis=0).reshape(self.n_links)
-
-    def snap_bound(self, t0: float, t1: float) -> NDArray[np.float64] | None:
-        # cubic between knots (l'''' = 0 there); l''' jumps at the knots, so an interval that
-        # holds one gets no snap bound
-        t0, t1 = _interval(t0, t1)
-        knots = self.times
-        if self.periodic:
-            k = math.floor((t0 - knots[0]) / self.period)
-            knots = np.concatenate((knots + k * self.period, knots + (k + 1) * self.period))
-        if np.any((knots > t0) & (knots < t1)) or (self.periodic and t1 - t0 >= self.period):
-            return None
-        return np.zeros(self.n_links)

@@ -1,4 +1,8 @@
-"""Smooth periodic gaits: `Sinusoid`, `Fourier` and the `Scallop` stroke."""
+"""Smooth periodic gaits: `Sinusoid`, `Fourier` and the `Scallop` stroke.
+
+Each is evaluated by its compiled kind (``solvers._gait``: FOURIER for the first two, SCALLOP
+for the stroke), from Python as from the solvers.
+"""
 from __future__ import annotations
 
 import math
@@ -6,10 +10,10 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .base import Gait, Triple, _finite, _n_links, _per_link, _positive, similar_run
+from .base import BuiltinGait, _finite, _n_links, _per_link, _positive
 
 
-class Sinusoid(Gait):
+class Sinusoid(BuiltinGait):
     """l_j(t) = mean_j + amplitude_j sin(2 pi frequency t + phase_j).
 
     ``mean``, ``amplitude`` [m] and ``phase`` [rad] are per linkage (or one float for all);
@@ -27,37 +31,16 @@ class Sinusoid(Gait):
         self.phase = _per_link('phase', phase, n)
         self.frequency = _positive('frequency', frequency, 'Hz')
         self.period = 1.0 / self.frequency
-        self._w = 2.0 * math.pi * self.frequency
 
-    def _eval(self, t: NDArray[np.float64]) -> Triple:
-        arg = self._w * t[:, None] + self.phase
-        s, c = np.sin(arg), np.cos(arg)
+    def _kind(self):
+        from ..solvers._gait import fourier
+        # A sin(w t + phi) = A sin(phi) cos(w t) + A cos(phi) sin(w t), w t reduced mod 2 pi
         a = self.amplitude
-        return self.mean + a * s, a * self._w * c, -a * self._w ** 2 * s
-
-    def jerk_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
-        return np.abs(self.amplitude) * self._w ** 3
-
-    def snap_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
-        return np.abs(self.amplitude) * self._w ** 4
-
-    def at(self, t: float) -> Triple:
-        if self.n_links == 1:
-            l, ld, ldd = self.at1(t)
-            return np.array([l]), np.array([ld]), np.array([ldd])
-        arg = self._w * t + self.phase
-        s, c = np.sin(arg), np.cos(arg)
-        a = self.amplitude
-        return self.mean + a * s, a * self._w * c, -a * self._w ** 2 * s
-
-    def at1(self, t: float) -> tuple[float, float, float]:
-        arg = self._w * t + float(self.phase[0])
-        s, c = math.sin(arg), math.cos(arg)
-        a = float(self.amplitude[0])
-        return float(self.mean[0]) + a * s, a * self._w * c, -a * self._w ** 2 * s
+        return fourier(self.frequency, self.mean, (a * np.sin(self.phase))[:, None],
+                       (a * np.cos(self.phase))[:, None])
 
 
-class Fourier(Gait):
+class Fourier(BuiltinGait):
     """A truncated Fourier series per linkage.
 
     l_j(t) = mean_j + sum_{k=1..K} (a_jk cos(2 pi k f t) + b_jk sin(2 pi k f t))
@@ -99,59 +82,14 @@ class Fourier(Gait):
         self.sin = np.broadcast_to(b, (n, b.shape[-1])).copy()
         self.frequency = _positive('frequency', frequency, 'Hz')
         self.period = 1.0 / self.frequency
-        w = 2.0 * math.pi * self.frequency
-        k = np.arange(1, a.shape[-1] + 1, dtype=float)
-        self._k = k
-        # [cos(k th) | sin(k th)] @ matrix gives l - mean, l', l'' (th = 2 pi f t).
-        a_t, b_t = self.cos.T, self.sin.T                       # (K, n)
-        wk = (w * k)[:, None]
-        self._m0 = np.vstack([a_t, b_t])
-        self._m1 = np.vstack([wk * b_t, -wk * a_t])
-        self._m2 = np.vstack([-wk ** 2 * a_t, -wk ** 2 * b_t])
-        self._rows = None          # plain-float coefficients of ``at``, built on first use
 
-    def _eval(self, t: NDArray[np.float64]) -> Triple:
-        # Reduce to the phase in cycles first so that large t keeps full accuracy.
-        th = 2.0 * math.pi * np.mod(self.frequency * t, 1.0)
-        arg = th[:, None] * self._k
-        cs = np.hstack([np.cos(arg), np.sin(arg)])
-        return self.mean + cs @ self._m0, cs @ self._m1, cs @ self._m2
-
-    def at(self, t: float) -> Triple:
-        # the series of _eval in scalar math (numpy's per-call cost dominates for a few terms)
-        ft = self.frequency * t
-        th = 2.0 * math.pi * (ft % 1.0)
-        w = 2.0 * math.pi * self.frequency
-        if self._rows is None:
-            self._rows = [list(zip(a, b)) for a, b in zip(self.cos.tolist(), self.sin.tolist())]
-            self._means = self.mean.tolist()
-        cs = [(math.cos(k * th), math.sin(k * th)) for k in range(1, self.cos.shape[1] + 1)]
-        l, ld, ldd = [], [], []
-        for mean, row in zip(self._means, self._rows):
-            s0 = s1 = s2 = 0.0
-            for k, ((a, b), (c, s)) in enumerate(zip(row, cs), start=1):
-                wk = w * k
-                s0 += a * c + b * s
-                s1 += wk * (b * c - a * s)
-                s2 -= wk * wk * (a * c + b * s)
-            l.append(mean + s0)
-            ld.append(s1)
-            ldd.append(s2)
-        return np.array(l), np.array(ld), np.array(ldd)
-
-    def is_constant(self, t0: float, t1: float) -> bool:
-        return not (np.any(self.cos) or np.any(self.sin))
-
-    def jerk_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
-        wk3 = (2.0 * math.pi * self.frequency * self._k) ** 3
-        return (np.abs(self.cos) + np.abs(self.sin)) @ wk3
-
-    def snap_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
-        wk4 = (2.0 * math.pi * self.frequency * self._k) ** 4
-        return (np.abs(self.cos) + np.abs(self.sin)) @ wk4
+    def _kind(self):
+        from ..solvers._gait import fourier
+        return fourier(self.frequency, self.mean, self.cos, self.sin)
 
 
-class Scallop(Gait):
+class Scallop(BuiltinGait):
+
     """A smooth periodic stroke with a fast and a slow phase.
 
     A cosine stroke between ``mean - amplitude`` and ``mean + amplitude`` is run through an
@@ -208,71 +146,16 @@ class Scallop(Gait):
         self._c, self._s = math.cos(math.pi * r), math.sin(math.pi * r)
         self._w = 2.0 * math.pi * self.frequency
 
-    def _eval(self, t: NDArray[np.float64]) -> Triple:
-        c, s, w, amp = self._c, self._s, self._w, self.amplitude
-        x = 2.0 * math.pi * np.mod(self.frequency * t, 1.0)[:, None] + (
-            self.phase - math.pi * self.asymmetry)
-        cx, sx = np.cos(x), np.sin(x)
-        inv_d = 1.0 / (1.0 - c * cx)
-        sin_phi, cos_phi = s * sx * inv_d, (cx - c) * inv_d
-        dphi = s * inv_d
-        ddphi = -s * c * sx * inv_d ** 2
-        return (self.mean + amp * sin_phi, amp * w * cos_phi * dphi,
-                amp * w ** 2 * (cos_phi * ddphi - sin_phi * dphi ** 2))
-
-    def at(self, t: float) -> Triple:
-        if self.n_links != 1:
-            return self(t)
-        l, ld, ldd = self.at1(t)
-        return np.array([l]), np.array([ld]), np.array([ldd])
-
-    def at1(self, t: float) -> tuple[float, float, float]:
-        # the formulas of _eval in scalar math: about 15 times faster than the array path
-        c, s, w = self._c, self._s, self._w
-        amp = float(self.amplitude[0])
-        x = 2.0 * math.pi * ((self.frequency * t) % 1.0) + (
-            float(self.phase[0]) - math.pi * self.asymmetry)
-        cx, sx = math.cos(x), math.sin(x)
-        inv_d = 1.0 / (1.0 - c * cx)
-        sin_phi, cos_phi = s * sx * inv_d, (cx - c) * inv_d
-        dphi = s * inv_d
-        ddphi = -s * c * sx * inv_d ** 2
-        return (float(self.mean[0]) + amp * sin_phi, amp * w * cos_phi * dphi,
-                amp * w ** 2 * (cos_phi * ddphi - sin_phi * dphi ** 2))
-
-    def is_constant(self, t0: float, t1: float) -> bool:
-        return not np.any(self.amplitude)
-
-    def jerk_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
-        return self._binned(3, t0, t1)
-
-    def snap_bound(self, t0: float, t1: float) -> NDArray[np.float64]:
-        return self._binned(4, t0, t1)
-
-    def block_end(self, t0: float, t1: float) -> float:
-        # whole bins from t0's bin on, at most one period ahead, whose bounds (each bin with
-        # its neighbours, relative to the largest bin's, jerk and snap alike) are similar
-        nb, T = self._bins, self.period
-        v = self.__dict__.get('_similarity')
-        if v is None:
-            v = np.maximum(self._relative(3), self._relative(4))
-            v = np.maximum(v, np.maximum(np.roll(v, 1), np.roll(v, -1)))
-            v = self._similarity = np.maximum(v, 1e-9)
-        k = math.floor(t0 / T * nb)
-        n = min(math.floor((t1 - t0) / T * nb) + 2, nb)
-        e = similar_run(v[(k + np.arange(n)) % nb])
-        if e >= n:
-            return t1
-        t_b = (k + e) * T / nb
-        if t_b <= t0:           # t0 on a bin edge rounded into the previous bin
-            t_b = (k + e + 1) * T / nb
-        return t_b if t_b < t1 else t1
-
-    def _relative(self, n: int) -> NDArray[np.float64]:
-        """Each bin's bound of |l^(n)| over the largest bin's, the largest over linkages."""
-        self._binned(n, 0.0, 0.0)      # builds the table
-        tab = self._bound_tables[n]
-        return (tab / np.maximum(tab.max(axis=0), 1e-300)).max(axis=1)
+    def _kind(self):
+        from ..solvers._gait import scallop
+        # bound tables of ``_bins`` bins per period (each bin bound holds on its closed bin)
+        T, nb = self.period, self._bins
+        k = np.arange(nb)
+        jerk = self._cauchy(3, k * T / nb, (k + 1) * T / nb)      # (nb, n_links)
+        snap = self._cauchy(4, k * T / nb, (k + 1) * T / nb)
+        rows = np.column_stack([self.amplitude, self.phase - math.pi * self.asymmetry,
+                                np.full(self.n_links, self._c), np.full(self.n_links, self._s)])
+        return scallop(self.frequency, self.mean, rows, jerk, snap)
 
     @property
     def _bins(self) -> int:
@@ -282,25 +165,6 @@ class Scallop(Gait):
         evaluations for 3 periods at asymmetry 0.001)."""
         r = min(self.asymmetry, 1.0 - self.asymmetry)
         return 1024 if r >= 0.03 else 1024 * 2 ** math.ceil(math.log2(0.03 / r))
-
-    def _binned(self, n: int, t0: float, t1: float) -> NDArray[np.float64]:
-        """``_cauchy`` bounds of ``_bins`` bins per period, computed once: the max over the bins
-        that [t0, t1] touches (each bin bound holds on its closed bin, so this is a bound)."""
-        tables = self.__dict__.setdefault('_bound_tables', {})
-        if n not in tables:
-            T, nb = self.period, self._bins
-            k = np.arange(nb)
-            tables[n] = self._cauchy(n, k * T / nb, (k + 1) * T / nb)     # (nb, n_links)
-        tab = tables[n]
-        nb = tab.shape[0]
-        u0 = self.frequency * t0
-        k0 = math.floor((u0 - math.floor(u0)) * nb)
-        k1 = k0 + math.floor(self.frequency * (t1 - t0) * nb) + 1   # bins k0 .. k1 (wrapping)
-        if k1 - k0 + 1 >= nb:
-            return tab.max(axis=0)
-        if k1 < nb:
-            return tab[k0:k1 + 1].max(axis=0)
-        return np.maximum(tab[k0:].max(axis=0), tab[:k1 - nb + 1].max(axis=0))
 
     def _cauchy(self, n: int, t0, t1) -> NDArray[np.float64]:
         """Rigorous bound of |d^n l / dt^n| on [t0, t1] by Cauchy's estimate, per linkage.

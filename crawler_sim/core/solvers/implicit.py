@@ -6,67 +6,34 @@ One step of size h solves exactly, in O(p log p),
 
 then X_{k+1} = X_k + h V_{k+1}. Unconditionally stable, and a stuck body has exactly zero
 velocity. A step in which the contact mode changes is split where the transition happens
-(located to about 1e-12 of the step from the instantaneous mode, see ``implicit_kernel``), so
-the method converges at order 1 with a steady constant: the error of X is about
-(h / 2) (V(t) - V(0)). ``Fourier`` and ``Sinusoid`` gaits run in a compiled kernel (numba,
-cached on disk; ``warm_up()`` loads or builds it outside a real-time loop); other gaits
-(``Custom``, piecewise) are evaluated by numpy (or their callables) for a chunk of step ends and
-stepped in the kernel. A step with a transition inside, and advances of a few steps (a node's
-tick), take the Python path: the kernel's own source run by the interpreter, which imports no
-numba and compiles nothing; the tests compare it with the compiled kernel.
+(located to about 1e-12 of the step from the instantaneous mode), so the method converges at
+order 1 with a steady constant: the error of X is about (h / 2) (V(t) - V(0)).
 
-A run is limited to ``MAX_STEPS`` steps per ``advance`` (and per ``simulate``): a smaller dt or a
-longer interval raises ValueError naming dt and the allowed range instead of running for ever.
-``ImplicitBatch`` advances B crawlers with the same p at once (plain Moreau-Jean steps).
-
-(About 500 lines: the shared fixed-step loop, the single-crawler solver with its three paths,
-and the batch stepper belong together; the compiled parts are in ``implicit_kernel``.)
+Every gait and every p run in the compiled loop (``_stepping``); ``TimeStepper`` is the Python
+side shared with method "penalty". A run is limited to ``MAX_STEPS`` steps per ``advance`` (and
+per ``simulate``): a smaller dt or a longer interval raises ValueError naming dt and the allowed
+range instead of running for ever. ``ImplicitBatch`` advances B crawlers with the same p at
+once (plain Moreau-Jean steps).
 """
 from __future__ import annotations
 
-import importlib.util
 import math
-from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..gaits import Fourier, Gait, Sinusoid
-from ..model import Crawler, kinematics
+from ..gaits import Gait
+from ..model import Crawler
 from ..trajectory import Event
+from . import _stepping
 
-__all__ = ['ImplicitSolver', 'ImplicitBatch', 'TimeStepper', 'MAX_STEPS', 'check_steps',
-           'warm_up']
+__all__ = ['ImplicitSolver', 'ImplicitBatch', 'TimeStepper', 'MAX_STEPS', 'MAX_ROWS',
+           'check_steps', 'step_times']
 
 #: the most steps one ``advance`` (or one ``simulate``) may take: 1e9 steps is about 2 minutes
-#: in the kernel and hours in Python
 MAX_STEPS = 10 ** 9
-
-
-def _interpreted_kernel():
-    """``implicit_kernel`` run by the interpreter (no numba import, nothing to compile): the
-    Python path's helpers, and the reference the compiled kernel is tested against."""
-    path = Path(__file__).with_name('implicit_kernel.py')
-    spec = importlib.util.spec_from_file_location(__package__ + '._implicit_interpreted', path)
-    mod = importlib.util.module_from_spec(spec)
-    mod.INTERPRETED = True
-    spec.loader.exec_module(mod)
-    return mod
-
-
-#: the interpreted helpers (the Python path: node ticks, Custom gaits step by step)
-_py = _interpreted_kernel()
-#: the compiled kernel, imported on first use: importing numba takes about a second and
-#: compiling (first run on a machine) tens of seconds, which only the kernel paths pay
-kern = None
-
-
-def _load_kernel():
-    global kern
-    if kern is None:
-        from . import implicit_kernel
-        kern = implicit_kernel
-    return kern
+#: the most output rows of a default (every step) output; longer runs keep this many rows
+MAX_ROWS = 2 * 10 ** 6
 
 
 def check_steps(span: float, dt: float, what: str = 't_end') -> None:
@@ -80,376 +47,166 @@ def check_steps(span: float, dt: float, what: str = 't_end') -> None:
                          f'(= {dt * MAX_STEPS:.3g} s)')
 
 
-def _finite_gait(vals, t: float) -> None:
-    # one test for the common case: a sum is finite only if every term is
-    if math.isfinite(float(np.sum(vals[0]) + np.sum(vals[1]) + np.sum(vals[2]))):
-        return
-    for name, arr in zip(('length', 'velocity', 'acceleration'), vals):
-        if not np.all(np.isfinite(arr)):
-            raise ValueError(f'gait {name} must be finite, got {np.asarray(arr).tolist()} at '
-                             f't = {t!r} s')
-
-
-def fourier_form(gait: Gait) -> tuple[float, NDArray, NDArray] | None:
-    """(frequency [Hz], cos (n, K), sin (n, K)) of a gait the kernel evaluates, else None."""
-    if type(gait) is Fourier:
-        return gait.frequency, np.ascontiguousarray(gait.cos), np.ascontiguousarray(gait.sin)
-    if type(gait) is Sinusoid:
-        # a sin(w t + phi) = (a sin phi) cos w t + (a cos phi) sin w t
-        a, ph = gait.amplitude, gait.phase
-        return (gait.frequency, np.ascontiguousarray((a * np.sin(ph))[:, None]),
-                np.ascontiguousarray((a * np.cos(ph))[:, None]))
-    return None
-
-
-def warm_up() -> None:
-    """Import numba and load (or compile, the first time on a machine: tens of seconds) the
-    compiled kernels: ``advance_fourier``, ``advance_table`` and ``batch_step``. A node's ticks
-    (a few steps each) take the interpreted path and never need them; call this at start where
-    long advances or ``simulate`` runs follow (about 1-2 s with a warm cache; then nothing
-    compiles in the loop). Safe to call more than once."""
-    from ..gaits import Cubic
-    c = Crawler([1.0, 1.0], [0.5, 1.0])
-    for g in (Fourier(1.0, ([0.0], [0.1]), 1.0), Cubic(0.0, [1.0], [0.5], [0.0], [-3.0])):
-        for use_kernel in (True, False):
-            ImplicitSolver(c, g, dt=0.05, use_kernel=use_kernel).advance(1.0)
-    b = ImplicitBatch([1.0, 1.0], [0.5, 1.0])
-    b.step(0.01, [0.1])
+def step_times(t_end: float, dt: float) -> NDArray[np.float64]:
+    """The step ends of a run of steps ``dt`` from 0 to t_end (the last one shortened to land
+    on t_end), with 0 first: the default output of the fixed-step methods. Beyond
+    ``MAX_ROWS`` steps, ``MAX_ROWS`` evenly spaced times (the steps land on them)."""
+    n = t_end / dt
+    if n > MAX_ROWS:
+        return np.linspace(0.0, t_end, MAX_ROWS + 1)
+    times = np.arange(math.floor(n) + 1) * dt
+    times = times[times < t_end]
+    if times.size > 1 and (t_end - times[-1]) / dt <= 1e-9:
+        times = times[:-1]            # a sliver of a step: the last step lands on t_end
+    return np.append(times, t_end)
 
 
 class TimeStepper:
-    """Shared loop of the fixed-step methods: steps of ``dt`` that land exactly on t1.
+    """Python side of the fixed-step methods: state, events, outputs; the steps are compiled
+    (``_stepping.StepCore``)."""
 
-    Subclasses implement ``_velocity(h, ep)`` returning (V_new, R, contact) for one step, or
-    override ``_step``.
-    """
+    _method = _stepping.IMPLICIT
 
     def __init__(self, crawler: Crawler, gait: Gait, *, dt: float, t0: float = 0.0,
-                 x0: float = 0.0, v0: float = 0.0) -> None:
+                 x0: float = 0.0, v0: float = 0.0, penalty: NDArray | None = None,
+                 max_depth: int = _stepping.MAX_DEPTH) -> None:
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise ValueError(f'dt must be a finite step > 0 s, got {dt!r}')
         self.crawler = crawler
         self.gait = gait
+        self._cg = gait.compiled()
         self.dt = float(dt)
-        self._m = crawler.masses
-        self._M = float(crawler.masses.sum())
-        self._w = np.ascontiguousarray(crawler.masses / self._M)
-        self._fp = np.ascontiguousarray(crawler.friction, dtype=float)
-        self._fm = np.ascontiguousarray(crawler.friction_backward, dtype=float)
-        self._fext = float(crawler.external_force)
-        p = crawler.p
-        self._scratch = (np.empty(p, np.bool_), np.empty(p), np.empty(p), np.empty(p),
-                         np.empty(p, np.int64), np.empty(p, np.int8))
+        self._core = _stepping.StepCore(crawler.masses, crawler.friction,
+                                        crawler.friction_backward,
+                                        float(crawler.external_force), crawler.gravity_forces,
+                                        self.dt, self._method, max_depth, penalty)
+        self.status, self.message = 'ok', ''
+        self._scan_scale()
         self.reset(t0=t0, x0=x0, v0=v0)
 
+    def _scan_scale(self) -> None:
+        # a step holding a transition is scanned at 1/64 of the gait's period at least (a step
+        # longer than the period must not step over a stick inside it)
+        self._core.scan_step = self.gait.period / 64.0 if self.gait.period else math.inf
+
+    t = property(lambda self: self._core.t)
+    X = property(lambda self: self._core.X)
+    V = property(lambda self: self._core.V)
+    A = property(lambda self: self._core.A)
+    contact = property(lambda self: self._core.contact_array)
+    R = property(lambda self: self._core.R_array)
+    K = property(lambda self: self._core.K_array)
+    n_steps = property(lambda self: self._core.n_steps)
+
     def reset(self, *, t0: float = 0.0, x0: float = 0.0, v0: float = 0.0) -> None:
-        l, ld, ldd = self.gait.at(float(t0))
-        _finite_gait((l, ld, ldd), t0)
-        e, ep, epp = kinematics(self._m, l, ld, ldd)
-        self.t = float(t0)
-        self.X = float(x0 - e[0])
-        self.V = float(v0 - ep[0])
-        # The state at t0 is the instantaneous mode: bodies at zero velocity stick or leave as
-        # the acceleration inclusion says (MODEL.md 2.3).
-        p = self._m.size
-        zmask, kbuf, fpb, fmb, idx, _ = self._scratch
-        contact = np.empty(p, np.int8)
-        force = self._fext
-        for i in range(p):
-            v = self.V + ep[i]
-            zmask[i] = v == 0.0
-            if not zmask[i]:
-                contact[i] = 1 if v > 0 else -1
-                force += -self._fp[i] if v > 0 else self._fm[i]
-        a, s = _py._accel_mode(self._M, force, zmask, np.ascontiguousarray(epp), self._fp,
-                                self._fm, kbuf, fpb, fmb, idx, contact)
-        R = np.where(contact > 0, -self._fp, np.where(contact < 0, self._fm, 0.0))
-        stuck = contact == 0
-        if stuck.any():
-            tot = self._M * a - force
-            wid = self._fp[stuck] + self._fm[stuck]
-            th = 0.0 if wid.sum() <= 0 else min(max((tot + self._fp[stuck].sum()) / wid.sum(),
-                                                    0.0), 1.0)
-            R[stuck] = -self._fp[stuck] + th * wid
-        self.contact = contact
-        self.R = R
-        self.A = float(a)
-        self.K = np.zeros(p)
-        self._cache = None
+        """Back to t0 with body 0 at x0 [m] moving at v0 [m/s] (events cleared)."""
+        if self._core.reset(self._cg, float(t0), float(x0), float(v0)) != _stepping.REACHED:
+            self._nonfinite()
         self.events: list[Event] = []
-        self.n_steps = 0
+
+    def _use(self, gait: Gait | None) -> None:
+        if gait is not None and gait is not self.gait:
+            self.gait = gait
+            self._cg = gait.compiled()
+            self._scan_scale()
+
+    def _drain(self) -> None:
+        c = self._core
+        n = c.n_ev
+        if n:
+            self.events.extend(Event(float(t), int(b), int(o), int(w)) for t, b, o, w in zip(
+                c.ev_t[:n].tolist(), c.ev_b[:n].tolist(), c.ev_o[:n].tolist(),
+                c.ev_n[:n].tolist()))
+        c.n_ev = 0
+
+    def _nonfinite(self) -> None:
+        t = self._core.bad_time
+        self.status = 'failed'
+        self.message = (f'method {self.method_name}: non-finite gait value or state at t = '
+                        f'{t!r} s (check the gait and the crawler)')
+        raise ValueError(self.message)
+
+    method_name = 'implicit'
 
     def advance(self, t1: float, gait: Gait | None = None) -> None:
-        """Step to t1 with ``gait`` valid on [t, t1]; the last step is shortened to land on t1."""
-        if gait is not None:
-            self.gait = gait
+        """Step to t1 [s] with ``gait`` valid on [t, t1]; the last step lands on t1."""
+        self._use(gait)
         t1 = float(t1)
-        if t1 > self.t:
-            check_steps(t1 - self.t, self.dt, '(t1 - t)')
-        while self.t < t1:
-            n_left = (t1 - self.t) / self.dt
-            t_new = t1 if n_left <= 1.0 + 1e-9 else self.t + self.dt
-            self._step(t_new)
-
-    def _rates(self, t: float) -> tuple[NDArray, NDArray]:
-        l, ld, ldd = self.gait.at(t)
-        _finite_gait((l, ld, ldd), t)
-        ep = np.empty(self._m.size)
-        epp = np.empty(self._m.size)
-        _py.rel_rates(self._w, np.ascontiguousarray(ld, dtype=float), ep)
-        _py.rel_rates(self._w, np.ascontiguousarray(ldd, dtype=float), epp)
-        return ep, epp
-
-    def _step(self, t_new: float) -> None:
-        h = t_new - self.t
-        ep, _ = self._rates(t_new)
-        V_new, R, contact = self._velocity(h, ep)
-        self.A = (V_new - self.V) / h
-        self.V = V_new
-        self.X += h * V_new
-        self.K = self.K + h * R
-        self.R = R
-        self._set_contact(contact, t_new)
-        self.t = t_new
-        self.n_steps += 1
-        self._cache = None
-
-    def _set_contact(self, contact: NDArray, t: float) -> None:
-        old = self.contact
-        for i in np.nonzero(contact != old)[0]:
-            self.events.append(Event(float(t), int(i), int(old[i]), int(contact[i])))
-        self.contact = np.array(contact, dtype=np.int8)
+        if not t1 > self.t:
+            return
+        check_steps(t1 - self.t, self.dt, '(t1 - t)')
+        self.status, self.message = 'ok', ''
+        while True:
+            with self._cg.lock:
+                status = self._core.advance(self._cg, t1)
+            self._drain()
+            if status == _stepping.NONFINITE:
+                self._nonfinite()
+            if status == _stepping.REACHED:
+                return
 
     def current(self) -> dict:
         """The state at self.t as one row of output arrays."""
-        return self._row()
+        return self._core.row(self._cg)
 
-    def _row(self) -> dict:
-        if self._cache is None or self._cache[0] != self.t:
-            l, ld, ldd = self.gait.at(self.t)
-            self._cache = (self.t,) + tuple(kinematics(self._m, l, ld, ldd)) + (l, ld)
-        _, e, ep, epp, l, ld = self._cache
-        x = self.X + e
-        v = self.V + ep
-        R = self.R
-        body_force = R + self.crawler.gravity_forces - self._m * (self.A + epp)
-        return {'t': self.t, 'x': x, 'v': v, 'friction': R.copy(), 'impulse': self.K.copy(),
-                'linkage_force': np.cumsum(body_force)[:-1], 'lengths': l, 'rates': ld,
-                'contact': self.contact.copy(), 'indeterminate': int(np.sum(self.contact == 0)) > 1}
+    def run(self, times: NDArray[np.float64]) -> dict:
+        """Step through the sorted ``times`` (>= t) and return the output rows there."""
+        p = self.crawler.p
+        n = times.size
+        out = {k: np.empty((n, p)) for k in ('x', 'v', 'friction', 'impulse')}
+        for k in ('linkage_force', 'lengths', 'rates'):
+            out[k] = np.empty((n, p - 1))
+        out['contact'] = np.empty((n, p), np.int8)
+        out['indeterminate'] = np.empty(n, bool)
+        times = np.ascontiguousarray(times, dtype=float)
+        k = 0
+        while True:
+            with self._cg.lock:
+                status, k = self._core.run(
+                    self._cg, times, k, out['x'], out['v'], out['friction'], out['impulse'],
+                    out['linkage_force'], out['lengths'], out['rates'], out['contact'],
+                    out['indeterminate'])
+            self._drain()
+            if status == _stepping.NONFINITE:
+                self._nonfinite()
+            if status == _stepping.REACHED:
+                return out
+
+    # ------------------------------------------------------------------ solver contract
+    @classmethod
+    def options(cls, *, dt=None, penalty=None, **_ignored) -> dict:
+        from ..gaits import _positive
+        return {'dt': 1e-3 if dt is None else _positive('dt', dt, 's')}
+
+    @staticmethod
+    def check_span(gait: Gait, t_end: float, options: dict) -> None:
+        check_steps(t_end, options['dt'])     # never run for ever
+
+    def default_times(self, t_end: float) -> NDArray[np.float64]:
+        return step_times(t_end, self.dt)
+
+    def simulate(self, t_end: float, times: NDArray | None, include_events: bool,
+                 dt: float | None = None):
+        """(times, outputs, info) of a whole run on [t, t_end] (``stepper.simulate``)."""
+        times = self.default_times(t_end) if times is None else times
+        return times, self.run(times), self.info(times)
+
+    def info(self, times) -> dict:
+        return {'steps': self.n_steps, 'dt': self.dt}
 
 
 class ImplicitSolver(TimeStepper):
     """Moreau-Jean stepping for one crawler, transitions placed inside their step.
 
-    ``use_kernel`` (default True) runs ``Fourier`` and ``Sinusoid`` gaits in the compiled
-    kernel; False forces the Python path (the same algorithm; the tests compare the two).
     ``locate_transitions=False`` gives the plain Moreau-Jean step (transitions at step ends,
     what ``ImplicitBatch`` does): first order too, but with an erratic constant.
     """
 
     def __init__(self, crawler: Crawler, gait: Gait, *, dt: float, t0: float = 0.0,
-                 x0: float = 0.0, v0: float = 0.0, use_kernel: bool = True,
-                 locate_transitions: bool = True) -> None:
-        self.use_kernel = bool(use_kernel)
-        self._max_depth = _py.MAX_DEPTH if locate_transitions else 0
-        self._form: tuple = (None, None)
-        super().__init__(crawler, gait, dt=dt, t0=t0, x0=x0, v0=v0)
+                 x0: float = 0.0, v0: float = 0.0, locate_transitions: bool = True) -> None:
+        super().__init__(crawler, gait, dt=dt, t0=t0, x0=x0, v0=v0,
+                         max_depth=_stepping.MAX_DEPTH if locate_transitions else 0)
 
-    def reset(self, *, t0: float = 0.0, x0: float = 0.0, v0: float = 0.0) -> None:
-        super().reset(t0=t0, x0=x0, v0=v0)
-        self._last = None            # (t, e', e'') at the last step end, as the step used them
-
-    # ------------------------------------------------------------------ kernel path
-    def _kernel_form(self) -> tuple | None:
-        if not self.use_kernel:
-            return None
-        if self._form[0] is not self.gait:
-            self._form = (self.gait, fourier_form(self.gait))
-        return self._form[1]
-
-    def advance(self, t1: float, gait: Gait | None = None) -> None:
-        """Step to t1 [s] with ``gait`` valid on [t, t1]; the last step lands on t1."""
-        if gait is not None:
-            self.gait = gait
-        t1 = float(t1)
-        if not t1 > self.t:
-            return
-        check_steps(t1 - self.t, self.dt, '(t1 - t)')
-        form = self._kernel_form()
-        if form is None:
-            # a table chunk costs a vectorised gait call and a kernel dispatch: for the few
-            # steps of a node's tick the Python path is as fast
-            if self.use_kernel and (t1 - self.t) / self.dt > 8.0:
-                self._advance_table(t1)
-            else:
-                super().advance(t1)
-            return
-        freq, ca, sb = form
-        p = self._m.size
-        st = np.array([self.t, self.X, self.V, self.A])
-        contact = self.contact.copy()
-        R = self.R.copy()
-        K = self.K.copy()
-        kern = _load_kernel()
-        cap = 64 * p * (kern.MAX_DEPTH + 1)
-        ev_t, ev_b = np.empty(cap), np.empty(cap, np.int64)
-        ev_o, ev_n = np.empty(cap, np.int8), np.empty(cap, np.int8)
-        ep_out, epp_out = np.empty(p), np.empty(p)
-        while st[0] < t1:
-            steps, n_ev = kern.advance_fourier(st, contact, R, K, self._w, self._M, self._fext,
-                                               self._fp, self._fm, freq, ca, sb, t1, self.dt,
-                                               1 << 62, self._max_depth, ev_t, ev_b, ev_o,
-                                               ev_n, ep_out, epp_out)
-            self.n_steps += int(steps)
-            self.events.extend(Event(float(ev_t[k]), int(ev_b[k]), int(ev_o[k]), int(ev_n[k]))
-                               for k in range(n_ev))
-        if not np.isfinite(st).all():
-            raise ValueError(f'method implicit: non-finite state at t = {st[0]!r} s (check the '
-                             'gait and the crawler)')
-        self.t, self.X, self.V, self.A = (float(v) for v in st)
-        self.contact, self.R, self.K = contact, R, K
-        self._last = (self.t, ep_out.copy(), epp_out.copy())
-        self._cache = None
-
-    def _step_times(self, t1: float, n: int) -> NDArray:
-        """The next (at most n) step end times, as ``TimeStepper.advance`` computes them."""
-        acc = np.full(n + 1, self.dt)
-        acc[0] = self.t
-        tt = np.add.accumulate(acc)             # sequential sums: t, t + dt, (t + dt) + dt, ...
-        last = (t1 - tt[:-1]) / self.dt <= 1.0 + 1e-9
-        if last.any():
-            k = int(np.argmax(last))
-            times = tt[1:k + 2].copy()
-            times[k] = t1
-            return times
-        return tt[1:]
-
-    def _advance_table(self, t1: float) -> None:
-        """Any other gait: l', l'' at a chunk of step ends from one vectorised gait call, the
-        steps in the kernel; a step with a transition inside goes through ``_step``."""
-        kern = _load_kernel()
-        p = self._m.size
-        cap = 64 * p
-        ev_t, ev_b = np.empty(cap), np.empty(cap, np.int64)
-        ev_o, ev_n = np.empty(cap, np.int8), np.empty(cap, np.int8)
-        ep_out, epp_out = np.empty(p), np.empty(p)
-        while self.t < t1:
-            times = self._step_times(t1, int(min(4096.0, (t1 - self.t) / self.dt + 2.0)))
-            _, LD, LDD = self.gait(times)
-            bad = ~(np.isfinite(LD).all(axis=-1) & np.isfinite(LDD).all(axis=-1))
-            if bad.any():
-                k = int(np.argmax(bad))
-                _finite_gait(self.gait.at(float(times[k])), float(times[k]))
-                raise ValueError(f'gait must be finite, got a non-finite rate at t = '
-                                 f'{float(times[k])!r} s')
-            LD, LDD = np.ascontiguousarray(LD, dtype=float), np.ascontiguousarray(LDD, dtype=float)
-            k = 0
-            while k < times.size:
-                st = np.array([self.t, self.X, self.V, self.A])
-                contact, R, K = self.contact.copy(), self.R.copy(), self.K.copy()
-                k_new, n_ev = kern.advance_table(st, contact, R, K, self._w, self._M,
-                                                 self._fext, self._fp, self._fm, times, LD, LDD,
-                                                 k, self._max_depth, ep_out, epp_out, ev_t, ev_b,
-                                                 ev_o, ev_n)
-                if k_new > k:
-                    self.t, self.X, self.V, self.A = (float(v) for v in st)
-                    self.contact, self.R, self.K = contact, R, K
-                    self.events.extend(Event(float(ev_t[i]), int(ev_b[i]), int(ev_o[i]),
-                                             int(ev_n[i])) for i in range(n_ev))
-                    self.n_steps += k_new - k
-                    self._last = (self.t, ep_out.copy(), epp_out.copy())
-                    self._cache = None
-                    k = k_new
-                if k < times.size and n_ev + p <= cap:      # not a full event buffer
-                    if not np.isfinite(self.X + self.V):
-                        raise ValueError(f'method implicit: non-finite state at t = {self.t!r} '
-                                         's (check the gait and the crawler)')
-                    self._step(float(times[k]))     # a transition inside: located in Python
-                    k += 1
-
-    # ------------------------------------------------------------------ Python path
-    def _step(self, tb: float) -> None:
-        M, fext, fp, fm = self._M, self._fext, self._fp, self._fm
-        p = self._m.size
-        zmask, kbuf, fpb, fmb, idx, tmp = self._scratch
-        epb, eppb = self._rates(tb)
-        kinks = -epb
-        contact = self.contact.copy()
-        R = np.empty(p)
-        V, X, K, lo = self.V, self.X, self.K.copy(), self.t
-        V0, t0 = V, self.t
-        newc = np.empty(p, np.int8)
-
-        def chg(c, v, ep, epp) -> bool:
-            return _py.changed(c, v, ep, epp, M, fext, fp, fm, zmask, kbuf, fpb, fmb, idx, tmp)
-
-        for depth in range(self._max_depth + 1):
-            h = tb - lo
-            if h <= 0.0:                    # a transition exactly at the step end
-                u = V
-                newc[:] = contact
-                break
-            u, _ = _py.prox(M / h, V, fext, kinks, fp, fm, p, idx)
-            newc[:] = np.where(u == kinks, 0, np.where(u + epb > 0.0, 1, -1))
-            if np.array_equal(newc, contact) and (_py.first_stuck(contact) < 0 or
-                                                  not chg(contact, u, epb, eppb)):
-                break
-            if depth == self._max_depth or h <= _py.BISECT_REL * self.dt:
-                break
-            j = _py.first_stuck(contact)
-            a_lo = (fext + _py.slide_sum(contact, fp, fm)) / M
-            uc = -epb[j] if j >= 0 else V + a_lo * h
-            if not chg(contact, uc, epb, eppb):
-                u = uc                      # the prox's change was its O(h) stick test
-                newc[:] = contact
-                break
-            a, b = lo, tb
-            for _ in range(_py._BISECT):
-                if b - a <= _py.BISECT_REL * self.dt:
-                    break
-                mid = a + 0.5 * (b - a)
-                ep, epp = self._rates(mid)
-                vm = -ep[j] if j >= 0 else V + a_lo * (mid - lo)
-                if chg(contact, vm, ep, epp):
-                    b = mid
-                else:
-                    a = mid
-            tau = b
-            ep, epp = self._rates(tau)
-            vt = -ep[j] if j >= 0 else V + a_lo * (tau - lo)
-            _py.new_mode(contact, vt, ep, epp, M, fext, fp, fm, zmask, kbuf, fpb, fmb, idx,
-                          newc)
-            hh = tau - lo
-            if hh > 0.0:
-                _py.interval_friction(contact, V, vt, hh, M, fext, fp, fm, R)
-                X += hh * vt
-                K += hh * R
-            self.contact = contact
-            self._set_contact(newc, tau)
-            contact = self.contact.copy()
-            V, lo = vt, tau
-        hh = tb - lo
-        if hh > 0.0:
-            _py.interval_friction(newc, V, u, hh, M, fext, fp, fm, R)
-        X += hh * u
-        K += hh * R
-        self.contact = contact
-        self._set_contact(newc, tb)
-        self.A = (u - V0) / (tb - t0)
-        self.V, self.X, self.K, self.R, self.t = u, X, K, R, tb
-        self.n_steps += 1
-        self._last = (tb, epb, eppb)
-        self._cache = None
-
-    def _row(self) -> dict:
-        row = super()._row()
-        if self._last is not None and self._last[0] == self.t:
-            # the step's own e', e'': a stuck body's velocity is then exactly zero
-            _, ep, epp = self._last
-            row['v'] = self.V + ep
-            body_force = self.R + self.crawler.gravity_forces - self._m * (self.A + epp)
-            row['linkage_force'] = np.cumsum(body_force)[:-1]
-        return row
 
 class ImplicitBatch:
     """Moreau-Jean stepping of B crawlers with the same number of bodies p, vectorised.
@@ -516,7 +273,7 @@ class ImplicitBatch:
         if r.shape not in ((self.p - 1,), (self.B, self.p - 1)):
             raise ValueError(f'rates must have shape ({self.p - 1},) or ({self.B}, '
                              f'{self.p - 1}), got {r.shape}')
-        _load_kernel().batch_step(float(h), np.ascontiguousarray(r.reshape(-1, self.p - 1)),
-                                  self._w, self.M, self.V, self.X, self.F_ext, self.f_plus,
-                                  self.f_minus)
+        _stepping.batch_step(float(h), np.ascontiguousarray(r.reshape(-1, self.p - 1)),
+                             self._w, self.M, self.V, self.X, self.F_ext, self.f_plus,
+                             self.f_minus)
         self.t += h

@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..gaits import Gait
 from ..model import Crawler
+from . import _stepping
 from .implicit import TimeStepper
 
 __all__ = ['PenaltySolver', 'penalty_bound', 'check_penalty']
@@ -45,49 +46,29 @@ def penalty_bound(crawler: Crawler, penalty: ArrayLike, t: float | NDArray) -> f
 
 
 class PenaltySolver(TimeStepper):
-    """Backward Euler on the penalised ODE, exact solve of each step's monotone equation."""
+    """Backward Euler on the penalised ODE, exact solve of each step's monotone equation
+    (compiled: ``_stepping.StepCore.penalty_step``)."""
+
+    _method = _stepping.PENALTY
+    method_name = 'penalty'
 
     def __init__(self, crawler: Crawler, gait: Gait, *, dt: float, penalty: ArrayLike,
                  t0: float = 0.0, x0: float = 0.0, v0: float = 0.0) -> None:
         self.n = check_penalty(penalty, crawler.p)
-        super().__init__(crawler, gait, dt=dt, t0=t0, x0=x0, v0=v0)
+        super().__init__(crawler, gait, dt=dt, t0=t0, x0=x0, v0=v0, penalty=self.n)
 
-    def _velocity(self, h: float, ep: NDArray):
-        n, fp, fm = self.n, self._fp, self._fm
-        c = self._M / h
-        rhs0 = c * self.V + self._fext
-        # G(V) = c V - rhs0 + sum clip(n (V + ep), -fm, fp): increasing, piecewise linear.
-        brk = np.sort(np.concatenate([-ep + fp / n, -ep - fm / n]))
+    @classmethod
+    def options(cls, *, dt=None, penalty=None, **_ignored) -> dict:
+        out = super().options(dt=dt)
+        out['penalty'] = penalty
+        return out
 
-        def G(V: NDArray) -> NDArray:
-            return c * V - rhs0 + np.clip(np.multiply.outer(V, n) + n * ep, -fm, fp).sum(axis=-1)
-
-        g = G(brk)
-        k = int(np.searchsorted(g, 0.0))   # first breakpoint with G >= 0
-        if k < brk.size and g[k] == 0.0:
-            V_new = float(brk[k])
-        else:
-            # locate the linear piece, then solve it in closed form (accurate for huge n)
-            if k == 0:
-                probe = brk[0] - 1.0
-            elif k == brk.size:
-                probe = brk[-1] + 1.0
-            else:
-                probe = 0.5 * (brk[k - 1] + brk[k])
-            w = n * (probe + ep)
-            lin = (w > -fm) & (w < fp)
-            sat = np.where(w >= fp, fp, np.where(w <= -fm, -fm, 0.0))
-            V_new = float((rhs0 - sat[~lin].sum() - np.sum(n[lin] * ep[lin])) /
-                          (c + n[lin].sum()))
-        v = V_new + ep
-        nv = n * v
-        F = np.clip(nv, -fm, fp)
-        # saturated = sliding; inside the linear zone the regularised body counts as stuck
-        contact = np.where((nv >= fp) & (v > 0), 1, np.where((nv <= -fm) & (v < 0), -1, 0))
-        contact = contact.astype(np.int8)
-        return V_new, -F, contact
+    def info(self, times) -> dict:
+        out = super().info(times)
+        out['penalty'] = self.n.tolist()
+        out['error_bound'] = penalty_bound(self.crawler, self.n, times)
+        return out
 
     def bound(self, t: float) -> float:
         """The seed's a priori error bound at time t (elapsed from the start) [m/s]."""
         return float(penalty_bound(self.crawler, self.n, t))
-

@@ -15,7 +15,6 @@ from numpy.typing import NDArray
 
 from ..gaits import Gait
 from ..model import Crawler
-from .contact import split_friction
 
 __all__ = ['PeriodicBlock', 'Records', 'Segment', 'SegmentChunk', 'SegmentList',
            'evaluate_records', 'evaluate_rows', 'offset_matrices']
@@ -69,57 +68,17 @@ class Segment:
                  mats: tuple[NDArray, NDArray] | None = None) -> dict:
         """Exact state at the times ``tau`` (shape (N,), inside [t0, t1]); ``mats`` are the
         crawler's ``offset_matrices`` (computed if not given)."""
-        m = crawler.masses
-        M = m.sum()
-        l, ld, ldd = self.gait(tau)
-        C, W = mats if mats is not None else offset_matrices(m)
-        e, ep, epp = l @ W.T, ld @ W.T, ldd @ W.T
-        d = tau - self.t0
-        n = tau.size
-        if self.ref < 0:
-            X = self.X0 + d * (self.V0 + 0.5 * self.a * d)
-            V = self.V0 + self.a * d
-            x = X[:, None] + e
-            v = V[:, None] + ep
-            A = np.full(n, self.a)
-            R = np.broadcast_to(self.R, (n, m.size)).copy()
-            K = self.K0 + np.multiply.outer(d, self.R)
-        else:
-            r = self.ref
-            s, sd = l @ C.T, ld @ C.T
-            x = self.x_ref + (s - s[:, r:r + 1])
-            v = sd - sd[:, r:r + 1]
-            A = -epp[:, r]
-            V = -ep[:, r]
-            slide = ~self.group
-            f_slide = crawler.external_force + self.R[slide].sum()
-            R = np.broadcast_to(np.where(slide, self.R, 0.0), (n, m.size)).copy()
-            K = self.K0 + np.multiply.outer(d, np.where(slide, self.R, 0.0))
-            g = self.group
-            fp, fm = crawler.friction[g], crawler.friction_backward[g]
-            total = M * A - f_slide                      # ground force on the group
-            R[:, g] = -split_friction(-total, fp, fm)
-            # Impulse of the group: integral of total = M (V - V(t0)) - f_slide d, split the same
-            # way (the split is affine in the total, so it commutes with the integral).
-            imp = M * (V - self.V0) - f_slide * d    # V0 = -e_r'(t0) for stick segments
-            K[:, g] = self.K0[g] + _split_impulse(imp, d, fp, fm)
-        grav = crawler.gravity_forces
-        body_force = R + grav - m * (A[:, None] + epp)
-        lam = np.cumsum(body_force, axis=1)[:, :-1]
-        contact = np.broadcast_to(self.contact, (n, m.size)).copy()
-        free = (crawler.friction + crawler.friction_backward) == 0.0
-        if free.any():
-            # no friction, no stick: these bodies' state is just the sign of their velocity
-            contact[:, free] = np.sign(v[:, free])
-        return {'x': x, 'v': v, 'friction': R, 'impulse': K, 'linkage_force': lam,
-                'lengths': l, 'rates': ld, 'contact': contact}
+        mats = mats if mats is not None else offset_matrices(crawler.masses)
+        return evaluate_records(crawler, Records.from_segments([self]),
+                                np.zeros(np.size(tau), dtype=np.int64),
+                                np.asarray(tau, dtype=float).reshape(-1), mats)
 
 
 @dataclass(slots=True)
 class SegmentChunk:
-    """Consecutive segments of the compiled loop (``kernel.drive``) as flat records, one row each:
-    ``f`` = (t0, t1, X0, V0, a, x_ref), ``ref``, ``contact``, ``R``, ``K0``; a stuck body is
-    stuck alone (its group is ``ref``)."""
+    """Consecutive segments of one call of the compiled loop (``_exact.ExactCore.drive``) as
+    flat records, one row each: ``f`` = (t0, t1, X0, V0, a, x_ref), ``ref``, ``contact``,
+    ``R``, ``K0`` and ``group`` (the bodies stuck with ``ref``)."""
 
     gait: Gait
     f: NDArray[np.float64]
@@ -127,15 +86,13 @@ class SegmentChunk:
     contact: NDArray[np.int8]
     R: NDArray[np.float64]
     K0: NDArray[np.float64]
+    group: NDArray[np.bool_]
 
     def segment(self, k: int) -> Segment:
         t0, t1, X0, V0, a, x_ref = self.f[k].tolist()
-        r = int(self.ref[k])
-        group = np.zeros(self.contact.shape[1], dtype=bool)
-        if r >= 0:
-            group[r] = True
         return Segment(t0, t1, self.gait, self.contact[k].copy(), self.R[k].copy(),
-                       self.K0[k].copy(), X0, V0, a, r, x_ref, group)
+                       self.K0[k].copy(), X0, V0, a, int(self.ref[k]), x_ref,
+                       self.group[k].copy())
 
 
 @dataclass(slots=True)
@@ -167,11 +124,8 @@ class Records:
 
     @classmethod
     def from_chunk(cls, chunk: SegmentChunk) -> Records:
-        n, p = chunk.contact.shape
-        group = np.zeros((n, p), dtype=bool)
-        stuck = chunk.ref >= 0
-        group[stuck.nonzero()[0], chunk.ref[stuck]] = True
-        return cls(chunk.f[:, [0, 2, 3, 4, 5]], chunk.ref, group, chunk.contact, chunk.R,
+        n = chunk.ref.size
+        return cls(chunk.f[:, [0, 2, 3, 4, 5]], chunk.ref, chunk.group, chunk.contact, chunk.R,
                    chunk.K0, np.zeros(n, dtype=np.int64), [chunk.gait])
 
     @classmethod
@@ -287,11 +241,11 @@ def evaluate_records(crawler: Crawler, rec: Records, owner: NDArray[np.int64],
 
     The same closed forms as ``Segment.evaluate`` (slide: X quadratic in t; stick: the reference
     body fixed, the group's friction the affine split of what holds it), with every per-segment
-    quantity gathered per row and the arithmetic compiled (``sampling.closed_form``), so sampling
-    a run costs one gait call per gait and one loop over the rows. ``mats``: the crawler's
+    quantity gathered per row in compiled code (``_exact.closed_form``), so sampling a run costs
+    one compiled gait evaluation per gait and one loop over the rows. ``mats``: the crawler's
     ``offset_matrices``.
     """
-    from .sampling import closed_form      # numba: loaded with the first sample
+    from ._exact import closed_form
     C, W = mats
     m = crawler.masses
     p, n = m.size, tau.size
@@ -300,12 +254,14 @@ def evaluate_records(crawler: Crawler, rec: Records, owner: NDArray[np.int64],
     lam = np.empty((n, p - 1))
     state = np.empty((n, p), dtype=np.int8)
     indeterminate = np.empty(n, dtype=bool)
-    closed_form(np.ascontiguousarray(l, dtype=float), np.ascontiguousarray(ld, dtype=float),
-                np.ascontiguousarray(ldd, dtype=float), W, C, m, crawler.friction,
-                crawler.friction_backward, float(crawler.external_force),
-                crawler.gravity_forces, rec.f, rec.ref, rec.group, rec.contact, rec.R, rec.K0,
-                owner, np.ascontiguousarray(tau, dtype=float), x, v, R, K, lam, state,
-                indeterminate)
+    c = np.ascontiguousarray
+    closed_form(c(l, dtype=float), c(ld, dtype=float), c(ldd, dtype=float), c(W), c(C), c(m),
+                c(crawler.friction), c(crawler.friction_backward),
+                float(crawler.external_force), c(crawler.gravity_forces), c(rec.f),
+                np.ascontiguousarray(rec.ref, dtype=np.int_), np.ascontiguousarray(rec.group),
+                np.ascontiguousarray(rec.contact), np.ascontiguousarray(rec.R),
+                np.ascontiguousarray(rec.K0), np.ascontiguousarray(owner, dtype=np.int_),
+                np.ascontiguousarray(tau, dtype=float), x, v, R, K, lam, state, indeterminate)
     return {'x': x, 'v': v, 'friction': R, 'impulse': K, 'linkage_force': lam,
             'lengths': l, 'rates': ld, 'contact': state, 'indeterminate': indeterminate}
 
@@ -313,44 +269,16 @@ def evaluate_records(crawler: Crawler, rec: Records, owner: NDArray[np.int64],
 def _gait_values(rec: Records, owner: NDArray[np.int64], tau: NDArray[np.float64]):
     """(l, l', l'') at ``tau[i]`` from the gait of row ``owner[i]`` (one call per gait)."""
     if len(rec.gaits) == 1:
-        return _values(rec.gaits[0], tau)
+        return rec.gaits[0].compiled().values(tau)
     which = rec.gait_id[owner]
     out = None
     for key, gait in enumerate(rec.gaits):
         sel = np.nonzero(which == key)[0]
         if not sel.size:
             continue
-        vals = _values(gait, tau[sel])
+        vals = gait.compiled().values(tau[sel])
         if out is None:
             out = tuple(np.empty((tau.size,) + v.shape[1:]) for v in vals)
         for o, v in zip(out, vals):
             o[sel] = v
     return out
-
-
-def _values(gait: Gait, tau: NDArray[np.float64]):
-    """The gait's (l, l', l''), shape (N, n_links) each, at the times ``tau``: compiled for the
-    trigonometric gaits of the exact method's kernel, else the gait's own call (the kernel
-    finds a time's constant-jerk piece by a linear scan: fine for a node's few pieces per
-    call, not for sampling a long recorded command)."""
-    from . import kernel
-    coef = kernel.coefficients(gait)
-    if coef is None or coef[0] == kernel.CUBIC:
-        return gait(tau)
-    kind, freq, p1, p2 = coef
-    n = gait.n_links
-    l, ld, ldd = (np.empty((tau.size, n)) for _ in range(3))
-    kernel.gait_values(np.ascontiguousarray(tau, dtype=float), kind, float(freq),
-                       np.asarray(getattr(gait, 'mean', np.zeros(n)), dtype=float), p1, p2,
-                       l, ld, ldd)
-    return l, ld, ldd
-
-
-def _split_impulse(imp: NDArray, d: NDArray, fp: NDArray, fm: NDArray) -> NDArray:
-    """Integral of the affine split of ``split_friction`` (ground-force sign), shape (N, n)."""
-    width = fp + fm
-    w = width.sum()
-    if w <= 0:
-        return np.zeros((imp.size, fp.size))
-    # R_j = fm_j - theta width_j with theta = (sum fm - total) / w, affine in the total force.
-    return fm * d[:, None] - np.multiply.outer((-imp + fm.sum() * d) / w, width)

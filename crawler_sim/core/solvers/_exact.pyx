@@ -1,0 +1,1303 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True
+# cython: initializedcheck=False
+"""The exact method's segment loop, compiled: the one implementation of its rules.
+
+``ExactCore.drive`` integrates from the current time towards ``t_end`` segment by segment
+(MODEL.md section 2; ``exact.py`` documents the method and its guarantee):
+
+* mode: the bodies at zero velocity stick or leave as the acceleration-level inclusion says
+  (``_inclusion``), ties and groups of bodies at rest together decided by the same inclusion a
+  short look-ahead later (``mode``);
+* event rows: g = c0 + c1 (t - t0) + A1 . l' + A2 . l'', positive while the mode holds: a
+  sliding body's velocity (``vel``), a stuck group's force slack to each bound (``force``), the
+  relative velocity of two bodies stuck together (``rigid``);
+* search: the first zero of the rows, each interval proven free of events from bounds of
+  |g''| and |g'| on that interval (the gait's jerk and snap bounds there, ``gait_bounds``) and
+  the rows' values and slopes at its ends, the first bracketed zero narrowed to ``tol``
+  (``search``);
+* close: the closed-form state at the event; a periodic gait's state is compared at every
+  multiple of its period with the one a period earlier (the caller then skips the repeats).
+
+Segments are written as records (``seg_*`` buffers) and contact changes as events (``ev_*``);
+the caller drains them after each call. Units: s, m, m/s, N, N s.
+"""
+import numpy as np
+
+from libc.math cimport fabs, floor, isfinite, nextafter, sqrt, INFINITY, NAN
+from libc.string cimport memcpy
+
+from crawler_sim.core.solvers._gait cimport (CompiledGait, GaitData, FOURIER, CALLBACK,
+                                             gait_rates, gait_lengths, gait_bounds,
+                                             gait_next_break, gait_is_constant)
+from crawler_sim.core.solvers._inclusion cimport inclusion
+
+__all__ = ['ExactCore', 'closed_form', 'REACHED', 'FULL', 'STALLED', 'NONFINITE', 'NO_STEPS',
+           'PERIODIC', 'BOUNDS']
+
+# statuses of ``drive``
+cdef enum:
+    S_REACHED = 0      # t_end reached
+    S_FULL = 2         # the record buffers are full: drain them and call again
+    S_STALLED = 3      # segments that advance by a few floats, for ever
+    S_NONFINITE = 4    # a gait value is not finite (``bad_time`` says where)
+    S_NO_STEPS = 5     # the search ran out of steps
+    S_PERIODIC = 6     # a period repeats the previous one (``k_at``): the caller skips
+    S_BOUNDS = 7       # estimated gait bounds kept growing
+REACHED, FULL, STALLED, NONFINITE, NO_STEPS, PERIODIC, BOUNDS = 0, 2, 3, 4, 5, 6, 7
+
+# search outcomes
+cdef enum:
+    F_OK = 0
+    F_NONFINITE = 1
+    F_NO_STEPS = 2
+    F_EXCEEDED = 3
+
+cdef double EPS = 2.220446049250313e-16
+cdef int STALL_ULPS = 64          # a segment this short (in floats of t) makes no progress
+cdef int STALL_SEGMENTS = 256     # consecutive such segments before the solver reports a stall
+cdef double AMBIGUOUS = 1e-10     # relative slack below which a mode choice is decided later
+cdef long MAX_STEPS = 10000000    # grid and narrowing steps of one search: a safety net
+cdef int RETRIES = 16             # searches redone with grown estimated bounds, per segment
+cdef int N_BUF = 512              # segment records per call
+
+
+cdef inline double dot(const double[:, ::1] W, int i, const double* x, int n) noexcept nogil:
+    cdef double acc = 0.0
+    cdef int j
+    for j in range(n):
+        acc += W[i, j] * x[j]
+    return acc
+
+
+cdef class ExactCore:
+    """State and loop of one exact solve (``exact.ExactSolver`` wraps it)."""
+
+    # crawler
+    cdef readonly int p, nl
+    cdef double M, fext, f_total, v_acc
+    cdef double[:, ::1] W, C
+    cdef double[::1] fp, fm, m_, grav
+    cdef unsigned char[::1] free
+    # settings
+    cdef public double tol, tscale, cap
+    # state: body 0 follows from X, V and the gait (X, V: centre of mass [m, m/s])
+    cdef public double t, X, V, x_ref
+    cdef public int ref
+    cdef double[::1] K
+    cdef signed char[::1] contact
+    cdef unsigned char[::1] zero
+    # mode kept across a smooth segment boundary
+    cdef public bint cache_ok
+    cdef double cache_a
+    cdef unsigned char[::1] cache_group
+    # periodic checkpoint: the state at the last multiple of the period
+    cdef public bint ck_valid
+    cdef public long ck_k, ck_nseg, ck_nev
+    cdef public double ck_X, ck_V, ck_x_ref
+    cdef public int ck_ref
+    cdef double[::1] ck_K
+    cdef signed char[::1] ck_contact
+    cdef unsigned char[::1] ck_zero
+    # the last segment (the state between calls is its end)
+    cdef public bint last_valid
+    cdef double[::1] last_f
+    cdef public int last_ref
+    cdef signed char[::1] last_contact
+    cdef unsigned char[::1] last_group
+    cdef double[::1] last_R, last_K0
+    cdef public object last_gait
+    # outputs of one call
+    cdef public long n_seg, n_ev, n_evals, seg_base, ev_base, k_at
+    cdef public double bad_time
+    cdef public object seg_f, seg_ref, seg_contact, seg_group, seg_R, seg_K0, ev_t, ev_i
+    cdef double[:, ::1] sf, sR, sK0
+    cdef long[::1] sref
+    cdef signed char[:, ::1] scontact
+    cdef unsigned char[:, ::1] sgroup
+    cdef double[::1] et
+    cdef long[:, ::1] ei
+    # work
+    cdef double[::1] l, ld, ldd, ld3, ld2, ldd2, e, ep, epp, ep2, epp2, R, sd
+    cdef double[::1] c0, c1, B2, B1, noise, jerk, snap, kinks, fpz, fmz
+    cdef double[:, ::1] A1, A2, wk
+    cdef long[::1] lab_kind, lab_body
+    cdef unsigned char[::1] watch, hit, hits, group, group2, taylor
+    cdef signed char[::1] new_contact, new2
+    cdef int[::1] idx, zidx
+    # snapshot (``save`` / ``restore``)
+    cdef object _saved
+
+    def __init__(self, masses, fp, fm, double fext, grav, W, C, double tol):
+        p = len(masses)
+        self.p = p
+        self.nl = p - 1
+        self.m_ = np.array(masses, dtype=np.float64)
+        self.fp = np.array(fp, dtype=np.float64)
+        self.fm = np.array(fm, dtype=np.float64)
+        self.grav = np.array(grav, dtype=np.float64)
+        self.W = np.array(W, dtype=np.float64)
+        self.C = np.array(C, dtype=np.float64)
+        self.M = float(np.sum(masses))
+        self.fext = fext
+        self.free = ((np.asarray(fp) + np.asarray(fm)) == 0.0).astype(np.uint8)
+        self.f_total = float(np.sum(fp) + np.sum(fm))
+        self.v_acc = (self.f_total + abs(fext)) / self.M
+        self.tol = tol
+        self.tscale = 1.0
+        self.cap = 0.0
+        self.K = np.zeros(p)
+        self.contact = np.zeros(p, np.int8)
+        self.zero = np.zeros(p, np.uint8)
+        self.cache_group = np.zeros(p, np.uint8)
+        self.ck_K = np.zeros(p)
+        self.ck_contact = np.zeros(p, np.int8)
+        self.ck_zero = np.zeros(p, np.uint8)
+        self.last_f = np.zeros(6)
+        self.last_contact = np.zeros(p, np.int8)
+        self.last_group = np.zeros(p, np.uint8)
+        self.last_R = np.zeros(p)
+        self.last_K0 = np.zeros(p)
+        nl = max(p - 1, 1)
+        self.l = np.zeros(nl)
+        self.ld = np.zeros(nl)
+        self.ldd = np.zeros(nl)
+        self.ld3 = np.zeros(nl)
+        self.ld2 = np.zeros(nl)
+        self.ldd2 = np.zeros(nl)
+        self.jerk = np.zeros(nl)
+        self.snap = np.zeros(nl)
+        self.e = np.zeros(p)
+        self.ep = np.zeros(p)
+        self.epp = np.zeros(p)
+        self.ep2 = np.zeros(p)
+        self.epp2 = np.zeros(p)
+        self.R = np.zeros(p)
+        self.sd = np.zeros(p)
+        self.kinks = np.zeros(p)
+        self.fpz = np.zeros(p)
+        self.fmz = np.zeros(p)
+        self.idx = np.zeros(p, np.intc)
+        self.zidx = np.zeros(p, np.intc)
+        self.hits = np.zeros(p, np.uint8)
+        self.group = np.zeros(p, np.uint8)
+        self.group2 = np.zeros(p, np.uint8)
+        self.new_contact = np.zeros(p, np.int8)
+        self.new2 = np.zeros(p, np.int8)
+        nr = 3 * p + 2           # p velocity rows, 2 force rows, 2 per other group member
+        self.c0 = np.zeros(nr)
+        self.c1 = np.zeros(nr)
+        self.B2 = np.zeros(nr)
+        self.B1 = np.zeros(nr)
+        self.noise = np.zeros(nr)
+        self.A1 = np.zeros((nr, nl))
+        self.A2 = np.zeros((nr, nl))
+        self.wk = np.zeros((10, nr))
+        self.lab_kind = np.zeros(nr, np.int_)
+        self.lab_body = np.zeros(nr, np.int_)
+        self.watch = np.zeros(nr, np.uint8)
+        self.taylor = np.zeros(nr, np.uint8)
+        self.hit = np.zeros(nr, np.uint8)
+        self.seg_f = np.zeros((N_BUF, 6))
+        self.seg_ref = np.zeros(N_BUF, np.int_)
+        self.seg_contact = np.zeros((N_BUF, p), np.int8)
+        self.seg_group = np.zeros((N_BUF, p), bool)
+        self.seg_R = np.zeros((N_BUF, p))
+        self.seg_K0 = np.zeros((N_BUF, p))
+        self.ev_t = np.zeros(N_BUF * 2)
+        self.ev_i = np.zeros((N_BUF * 2, 3), np.int_)
+        self.sf = self.seg_f
+        self.sref = self.seg_ref
+        self.scontact = self.seg_contact
+        self.sgroup = self.seg_group.view(np.uint8)
+        self.sR = self.seg_R
+        self.sK0 = self.seg_K0
+        self.et = self.ev_t
+        self.ei = self.ev_i
+        self.ref = -1
+        self.last_valid = False
+
+    # ------------------------------------------------------------------ Python access
+    @property
+    def K_array(self):
+        return np.asarray(self.K).copy()
+
+    @K_array.setter
+    def K_array(self, value):
+        np.asarray(self.K)[:] = value
+
+    @property
+    def contact_array(self):
+        return np.asarray(self.contact).copy()
+
+    @contact_array.setter
+    def contact_array(self, value):
+        np.asarray(self.contact)[:] = value
+
+    @property
+    def zero_array(self):
+        return np.asarray(self.zero).astype(bool)
+
+    @zero_array.setter
+    def zero_array(self, value):
+        np.asarray(self.zero)[:] = value
+
+    @property
+    def ck_K_array(self):
+        return np.asarray(self.ck_K).copy()
+
+    def signature(self):
+        """(contact, zero set, ref): what must repeat at a period boundary."""
+        return (bytes(np.asarray(self.contact)), bytes(np.asarray(self.zero)), self.ref)
+
+    def last_record(self):
+        """The last segment as (f, ref, contact, group, R, K0, gait) or None."""
+        if not self.last_valid:
+            return None
+        return (np.asarray(self.last_f).copy(), self.last_ref,
+                np.asarray(self.last_contact).copy(), np.asarray(self.last_group).astype(bool),
+                np.asarray(self.last_R).copy(), np.asarray(self.last_K0).copy(),
+                self.last_gait)
+
+    def save(self):
+        """Keep the state, so a call that raises can be undone (``restore``)."""
+        self._saved = (self.t, self.X, self.V, self.x_ref, self.ref, np.asarray(self.K).copy(),
+                       np.asarray(self.contact).copy(), np.asarray(self.zero).copy(),
+                       self.cache_ok, self.cache_a, np.asarray(self.cache_group).copy(),
+                       self.ck_valid, self.ck_k, self.ck_nseg, self.ck_nev, self.ck_X,
+                       self.ck_V, self.ck_x_ref, self.ck_ref, np.asarray(self.ck_K).copy(),
+                       np.asarray(self.ck_contact).copy(), np.asarray(self.ck_zero).copy(),
+                       self.last_valid, np.asarray(self.last_f).copy(), self.last_ref,
+                       np.asarray(self.last_contact).copy(), np.asarray(self.last_group).copy(),
+                       np.asarray(self.last_R).copy(), np.asarray(self.last_K0).copy(),
+                       self.last_gait)
+
+    def restore(self):
+        s = self._saved
+        (self.t, self.X, self.V, self.x_ref, self.ref) = s[:5]
+        np.asarray(self.K)[:] = s[5]
+        np.asarray(self.contact)[:] = s[6]
+        np.asarray(self.zero)[:] = s[7]
+        self.cache_ok, self.cache_a = s[8], s[9]
+        np.asarray(self.cache_group)[:] = s[10]
+        (self.ck_valid, self.ck_k, self.ck_nseg, self.ck_nev, self.ck_X, self.ck_V,
+         self.ck_x_ref, self.ck_ref) = s[11:19]
+        np.asarray(self.ck_K)[:] = s[19]
+        np.asarray(self.ck_contact)[:] = s[20]
+        np.asarray(self.ck_zero)[:] = s[21]
+        self.last_valid = s[22]
+        np.asarray(self.last_f)[:] = s[23]
+        self.last_ref = s[24]
+        np.asarray(self.last_contact)[:] = s[25]
+        np.asarray(self.last_group)[:] = s[26]
+        np.asarray(self.last_R)[:] = s[27]
+        np.asarray(self.last_K0)[:] = s[28]
+        self.last_gait = s[29]
+        self.n_seg = 0
+        self.n_ev = 0
+
+    def forget_mode(self):
+        """The next segment chooses its mode anew (a gait switch that is not C2)."""
+        self.cache_ok = False
+
+    def skip_periods(self, long n, double T, long k):
+        """Skip n repeats of the period just completed at k T: returns (D, dK), the
+        displacement [m] and impulse [N s] of one period."""
+        cdef int i
+        D = self.X - self.ck_X
+        dK = np.asarray(self.K) - np.asarray(self.ck_K)
+        self.X += n * D
+        self.x_ref += n * D
+        for i in range(self.p):
+            self.K[i] += n * dK[i]
+        self.t = (k + n) * T
+        self.last_valid = False
+        self.ck_k = k + n
+        self.ck_X = self.X
+        self.ck_V = self.V
+        self.ck_x_ref = self.x_ref
+        self.ck_ref = self.ref
+        self.ck_K[:] = self.K
+        self.ck_contact[:] = self.contact
+        self.ck_zero[:] = self.zero
+        self.ck_valid = True
+        return D, dK
+
+    # ------------------------------------------------------------------ mode
+    cdef int solve_mode(self, const double* epp, const signed char* contact, double slack,
+                        bint merge, signed char* out, unsigned char* group, double* A,
+                        int* ref) noexcept:
+        """The instantaneous mode of the bodies at rest (``zero``): writes their contact in
+        ``out`` (others copied), the group stuck together, the acceleration A [m/s^2] and
+        the reference body; returns 1 when the choice is degenerate (a tie within ``slack``)."""
+        cdef int p = self.p, i, k, nz = 0, r = -1, ambiguous = 0, order, v, j
+        cdef double force = self.fext, acc_scale, f_scale, s = 0.0, a, rel, lo = 0.0, hi = 0.0
+        cdef double x
+        cdef int* zi = &self.zidx[0]
+        for i in range(p):
+            out[i] = contact[i]
+            group[i] = 0
+            if self.zero[i]:
+                zi[nz] = i
+                nz += 1
+            elif contact[i] > 0:
+                force -= self.fp[i]
+            elif contact[i] < 0:
+                force += self.fm[i]
+            else:
+                force += self.fm[i]       # a frictionless body (fm = 0)
+        acc_scale = (self.f_total + fabs(force)) / self.M
+        for i in range(p):
+            if fabs(epp[i]) > acc_scale:
+                acc_scale = fabs(epp[i])
+        if acc_scale < 1e-300:
+            acc_scale = 1e-300
+        f_scale = self.M * acc_scale
+        for k in range(nz):
+            i = zi[k]
+            self.kinks[k] = -epp[i]
+            self.fpz[k] = self.fp[i]
+            self.fmz[k] = self.fm[i]
+        if merge and nz > 1:
+            # bodies rigidly linked have equal relative accelerations mathematically but not
+            # always bitwise: kinks closer than 1e-13 of the scale are one kink
+            for k in range(nz):
+                self.idx[k] = k
+            for k in range(1, nz):
+                v = self.idx[k]
+                j = k
+                while j > 0 and self.kinks[self.idx[j - 1]] > self.kinks[v]:
+                    self.idx[j] = self.idx[j - 1]
+                    j -= 1
+                self.idx[j] = v
+            x = self.kinks[self.idx[0]]
+            for k in range(1, nz):
+                order = self.idx[k]
+                if self.kinks[order] - x <= 1e-13 * acc_scale:
+                    self.kinks[order] = x
+                else:
+                    x = self.kinks[order]
+        a = inclusion(self.M, 0.0, force, &self.kinks[0], &self.fpz[0], &self.fmz[0], nz,
+                      &self.idx[0], &s)
+        for k in range(nz):
+            i = zi[k]
+            rel = a - self.kinks[k]
+            if rel == 0.0:
+                out[i] = 0
+                group[i] = 1
+                lo -= self.fm[i]
+                hi += self.fp[i]
+                if r < 0:
+                    r = i
+            else:
+                out[i] = 1 if rel > 0.0 else -1
+                if fabs(rel) <= slack * acc_scale:
+                    ambiguous = 1
+        if r >= 0:
+            if self.ref >= 0 and group[self.ref]:
+                r = self.ref
+            if hi - lo > 0.0 and min(s - lo, hi - s) <= slack * f_scale:
+                ambiguous = 1
+        A[0] = a
+        ref[0] = r
+        return ambiguous
+
+    cdef bint rigid(self, GaitData* g, const unsigned char* group, double t,
+                    double span) except -1:
+        """True if the group's relative velocities stay zero just after t (a rigid link)."""
+        cdef int p = self.p, i, first, rep
+        cdef double rel_dt, dt, mx, r0
+        if span <= 0.0:
+            return True
+        for rep in range(2):
+            # two look-aheads: the nearer one can round a slowly growing rate to exactly zero
+            rel_dt = 1e-9 if rep == 0 else 1e-6
+            dt = min(rel_dt * max(span, self.tscale), 0.5 * span)
+            gait_rates(g, t + dt, &self.ld2[0], &self.ldd2[0], &self.ld3[0])
+            mx = 0.0
+            for i in range(p):
+                self.sd[i] = dot(self.C, i, &self.ld2[0], self.nl)
+                if fabs(self.sd[i]) > mx:
+                    mx = fabs(self.sd[i])
+            first = -1
+            for i in range(p):
+                if group[i]:
+                    if first < 0:
+                        first = i
+                        r0 = self.sd[i]
+                    elif fabs(self.sd[i] - r0) > 1e-13 * (mx + 1e-300):
+                        return False
+        return True
+
+    cdef int mode(self, GaitData* g, double t, double ts, double* A, int* ref) except -1:
+        """Contact mode at t for the bodies in ``zero``: new contact in ``new_contact``, the
+        group in ``group``, acceleration A and reference body."""
+        cdef int p = self.p, i, amb, n_group, loose, rep
+        cdef double span, rel, dt, a2, tot
+        cdef int ref2
+        if not self._any_zero():
+            tot = self.fext
+            for i in range(p):
+                self.new_contact[i] = self.contact[i]
+                self.group[i] = 0
+                tot += -self.fp[i] if self.contact[i] > 0 else self.fm[i]
+            A[0] = tot / self.M
+            ref[0] = -1
+            return 0
+        amb = self.solve_mode(&self.epp[0], &self.contact[0], AMBIGUOUS, True,
+                              &self.new_contact[0], &self.group[0], A, ref)
+        span = max(ts - t, 0.0)
+        n_group = 0
+        for i in range(p):
+            n_group += self.group[i]
+        loose = n_group > 1 and not self.rigid(g, &self.group[0], t, span)
+        if amb or loose:
+            # Decide by the inclusion a little later (same zero set); near t the deciding
+            # quantities grow from zero, so only their sign matters: a tighter threshold
+            # there. A link that is not rigid must not be merged into one kink either.
+            for rep in range(3):
+                rel = 1e-9 if rep == 0 else (1e-7 if rep == 1 else 1e-5)
+                dt = min(rel * max(span, self.tscale), 0.5 * span) if span > 0.0 else 0.0
+                if dt <= 0.0:
+                    break
+                gait_rates(g, t + dt, &self.ld2[0], &self.ldd2[0], &self.ld3[0])
+                for i in range(p):
+                    self.epp2[i] = dot(self.W, i, &self.ldd2[0], self.nl)
+                amb = self.solve_mode(&self.epp2[0], &self.contact[0], 1e-14, not loose,
+                                      &self.new_contact[0], &self.group[0], A, ref)
+                if not amb:
+                    break
+        return 0
+
+    cdef bint _any_zero(self) noexcept:
+        cdef int i
+        for i in range(self.p):
+            if self.zero[i]:
+                return True
+        return False
+
+    # ------------------------------------------------------------------ search
+    cdef int row_bounds(self, GaitData* g, double a, double b, int nr) except -1:
+        """B2 (|g''|) and B1 (|g'|, force rows only) of each row on [a, b], and whether its
+        slope may enter a Taylor bound (``taylor``: a force row's slope needs l''', which a
+        CALLBACK gait with bounds of its own does not give)."""
+        cdef int r, j, nl = self.nl, has_snap
+        cdef bint has1, has2, exact_jerk
+        cdef double b2, b1, x1, x2
+        has_snap = gait_bounds(g, a, b, &self.jerk[0], &self.snap[0])
+        exact_jerk = g.kind != CALLBACK or (<CompiledGait>g.obj).estimated
+        for r in range(nr):
+            b2 = 0.0
+            b1 = 0.0
+            has1 = False
+            has2 = False
+            for j in range(nl):
+                x1 = fabs(self.A1[r, j])
+                x2 = fabs(self.A2[r, j])
+                if x1 != 0.0:
+                    has1 = True
+                if x2 != 0.0:
+                    has2 = True
+                b2 += x1 * self.jerk[j]
+                b1 += x2 * self.jerk[j]
+            if has2:
+                if has_snap:
+                    for j in range(nl):
+                        b2 += fabs(self.A2[r, j]) * self.snap[j]
+                else:
+                    b2 = INFINITY
+            self.B2[r] = b2
+            self.B1[r] = b1 if (has2 and self.c1[r] == 0.0 and not has1) else INFINITY
+            self.taylor[r] = exact_jerk or not has2
+        return 0
+
+    cdef int values(self, GaitData* g, double t, double t0, int nr, double* gv,
+                    double* dg) except -1:
+        """The rows and their slopes at t; 1 when a CALLBACK gait's bounds grew."""
+        cdef int r, j, nl = self.nl, code
+        cdef double v, dv
+        code = gait_rates(g, t, &self.ld[0], &self.ldd[0], &self.ld3[0])
+        for r in range(nr):
+            v = self.c0[r] + self.c1[r] * (t - t0)
+            dv = self.c1[r]
+            for j in range(nl):
+                v += self.A1[r, j] * self.ld[j] + self.A2[r, j] * self.ldd[j]
+                dv += self.A1[r, j] * self.ldd[j] + self.A2[r, j] * self.ld3[j]
+            gv[r] = v
+            dg[r] = dv
+        return code
+
+    cdef double step(self, int nr, const double* ga, const double* da, double tol,
+                     double cap) noexcept:
+        """A step from a that ``proven`` accepts from a's value and slope alone (just inside
+        the first zero of each row's Taylor lower bound g + g' h - B2 h^2 / 2, or of
+        g - B1 h): near a simple root a Newton step from the left."""
+        cdef double h = INFINITY, gg, d, b2, q, ht, h1
+        cdef bint watched = False
+        cdef int r
+        for r in range(nr):
+            if self.watch[r]:
+                watched = True
+                continue
+            gg = max(ga[r], 0.0)
+            d = da[r]
+            b2 = self.B2[r]
+            if b2 == INFINITY:
+                ht = 0.0
+            elif not self.taylor[r]:
+                ht = sqrt(2.0 * gg / b2) if b2 > 0.0 else INFINITY    # slope unknown
+            else:
+                # the positive root, in the form without cancellation
+                q = sqrt(d * d + 2.0 * b2 * gg)
+                if d <= 0.0:
+                    if q - d > 0.0:
+                        ht = 2.0 * gg / (q - d)
+                    else:          # d = 0 and b2 g = 0: a constant row is never crossed
+                        ht = INFINITY if gg > 0.0 else 0.0
+                else:
+                    ht = (d + q) / b2 if b2 > 0.0 else INFINITY
+            h1 = gg / self.B1[r] if self.B1[r] > 0.0 else INFINITY
+            h = min(h, 0.9999 * max(ht, h1))
+        # ``cap`` (a cost setting) only while a row is watched: it is checked at the search
+        # points alone, so they stay dense; the others are proven whatever the step
+        if watched:
+            return min(max(h, 64.0 * tol), cap)
+        return max(h, 64.0 * tol)
+
+    cdef bint proven(self, int nr, double h, const double* ga, const double* gb,
+                     const double* da, const double* db) noexcept:
+        """Every unwatched row > 0 on an interval of length h with these end values and
+        slopes: the best of four lower bounds, each rigorous where |g''| <= B2 (chord:
+        min - B2 h^2 / 8; Taylor from either end, concave) or |g'| <= B1 (mean - B1 h / 2)."""
+        cdef int r
+        cdef double q, lo
+        for r in range(nr):
+            if self.watch[r]:
+                continue
+            q = self.B2[r] * (h * h)
+            lo = max(min(ga[r], gb[r]) - q / 8.0, 0.5 * (ga[r] + gb[r]) - self.B1[r] * (h / 2.0))
+            if self.taylor[r]:
+                lo = max(lo, min(ga[r], ga[r] + da[r] * h - q / 2.0))
+                lo = max(lo, min(gb[r], gb[r] - db[r] * h - q / 2.0))
+            if lo <= 0.0:
+                return False
+        return True
+
+    cdef bint bad_any(self, int nr, const double* gv) noexcept:
+        cdef int r
+        for r in range(nr):
+            if (self.watch[r] and gv[r] < -self.noise[r]) or (not self.watch[r] and gv[r] <= 0.0):
+                return True
+        return False
+
+    cdef int search(self, GaitData* g, double t0, double end, int nr, double tol, double cap,
+                    double* t_out) except -1:
+        """First event of the rows in (t0, end]: its time in t_out (INFINITY when none) and
+        the rows hit in ``hit``; returns F_OK, F_NONFINITE, F_NO_STEPS or F_EXCEEDED."""
+        cdef double* ga = &self.wk[0, 0]
+        cdef double* da = &self.wk[1, 0]
+        cdef double* gm = &self.wk[2, 0]
+        cdef double* dm = &self.wk[3, 0]
+        cdef double* gb = &self.wk[4, 0]
+        cdef double* db = &self.wk[5, 0]
+        cdef double* gs = &self.wk[6, 0]
+        cdef double* ds = &self.wk[7, 0]
+        cdef double* fa = &self.wk[8, 0]
+        cdef double* fb = &self.wk[9, 0]
+        cdef int r, j, nl = self.nl, side = 0
+        cdef double sc, a, h, m, w, f, fr, den, ms, b = INFINITY, sb = INFINITY, lim, lvl
+        cdef double w0 = INFINITY, w1 = INFINITY, w2 = INFINITY
+        cdef bint have_b = False, saved = False, bad, settled, fixed
+        cdef long it, n_small = 0
+        for r in range(nr):
+            self.hit[r] = 0
+        if self.values(g, t0, t0, nr, ga, da) == 1:
+            return F_EXCEEDED
+        for r in range(nr):
+            sc = fabs(self.c0[r]) + fabs(self.c1[r]) * (end - t0)
+            for j in range(nl):
+                sc += fabs(self.A1[r, j] * self.ld[j]) + fabs(self.A2[r, j] * self.ldd[j])
+            self.noise[r] = 1e-13 * sc + 1e-300
+            # a row at zero to within its rounding noise (a rigid pair, a body at rest) is
+            # watched: a row of +1e-16 stuck there would otherwise need ~1e-9 s steps; the
+            # mode declared it zero at t0, so at least its value there is noise
+            self.watch[r] = ga[r] <= self.noise[r]
+            if self.watch[r]:
+                self.noise[r] = max(self.noise[r], 4.0 * fabs(ga[r]))
+        fixed = g.kind == FOURIER        # bounds independent of the interval
+        a = t0
+        self.row_bounds(g, t0, min(end, t0 + cap), nr)
+        h = self.step(nr, ga, da, tol, cap)
+        for r in range(nr):
+            if self.watch[r]:
+                h = min(h, max(1e3 * tol, 1e-9 * (end - a)))
+        lim = end
+        for it in range(MAX_STEPS):
+            if have_b:
+                m = 0.5 * (a + b)
+                if not (a < m < b):
+                    break
+                w = b - a
+                if w < 0.5 * w0:
+                    f = 1.0
+                    for r in range(nr):
+                        bad = (self.watch[r] and gb[r] < -self.noise[r]) or (
+                            not self.watch[r] and gb[r] <= 0.0)
+                        den = fa[r] - fb[r]
+                        if bad and den != 0.0:
+                            fr = fa[r] / den
+                            if fr < f:
+                                f = fr
+                    if 0.0 < f < 1.0:
+                        # a secant point within one float of an end: the adjacent float
+                        ms = a + f * w
+                        if ms <= a:
+                            ms = nextafter(a, INFINITY)
+                        elif ms >= b:
+                            ms = nextafter(b, -INFINITY)
+                        if a < ms < b:
+                            m = ms
+                w0 = w1
+                w1 = w2
+                w2 = w
+            else:
+                if a >= lim:
+                    if saved:        # the put-aside part is proven: back to its bracket
+                        have_b = True
+                        saved = False
+                        b = sb
+                        for r in range(nr):
+                            gb[r] = gs[r]
+                            db[r] = ds[r]
+                            lvl = -self.noise[r] if self.watch[r] else 0.0
+                            fa[r] = ga[r] - lvl
+                            fb[r] = gb[r] - lvl
+                        lim = end
+                        side = 0
+                        continue
+                    t_out[0] = INFINITY
+                    return F_OK
+                m = min(a + h, lim)
+            if self.values(g, m, t0, nr, gm, dm) == 1:
+                return F_EXCEEDED
+            self.n_evals += 1
+            for r in range(nr):
+                if not (isfinite(gm[r]) and isfinite(dm[r])):
+                    self.bad_time = m
+                    return F_NONFINITE
+            if self.bad_any(nr, gm):
+                saved = False
+                lim = end
+                have_b = True
+                b = m
+                for r in range(nr):
+                    gb[r] = gm[r]
+                    db[r] = dm[r]
+                    lvl = -self.noise[r] if self.watch[r] else 0.0
+                    fb[r] = gm[r] - lvl
+                    fa[r] = (ga[r] - lvl) * (0.5 if side == -1 else 1.0)
+                side = -1
+                continue
+            if m - a > tol:
+                if not fixed:
+                    self.row_bounds(g, a, m, nr)
+                if not self.proven(nr, m - a, ga, gm, da, dm):
+                    if have_b:           # scan [a, m] first, the bracket put aside
+                        saved = True
+                        sb = b
+                        for r in range(nr):
+                            gs[r] = gb[r]
+                            ds[r] = db[r]
+                        have_b = False
+                        lim = m
+                    h = max(0.25 * (m - a), 0.5 * tol)
+                    continue
+            for r in range(nr):
+                if self.watch[r] and gm[r] > self.noise[r]:
+                    self.watch[r] = 0
+            n_small = n_small + 1 if m - a <= 1e-6 * (end - t0) else 0
+            a = m
+            for r in range(nr):
+                ga[r] = gm[r]
+                da[r] = dm[r]
+            if have_b:
+                for r in range(nr):
+                    lvl = -self.noise[r] if self.watch[r] else 0.0
+                    fa[r] = ga[r] - lvl
+                    if side == 1:
+                        fb[r] *= 0.5
+                side = 1
+            else:
+                settled = False
+                for r in range(nr):
+                    # a row come down to its rounding noise with no slope to cross zero in
+                    # the shortest step, for a hundred small steps, is zero as far as floats
+                    # tell: an event here (a velocity settling onto zero with the command;
+                    # a velocity that only touches zero passes in a few dozen steps)
+                    if (n_small >= 100 and not self.watch[r] and ga[r] <= self.noise[r]
+                            and fabs(da[r]) * (64.0 * tol) <= self.noise[r]):
+                        self.hit[r] = 1
+                        settled = True
+                if settled:
+                    t_out[0] = a
+                    return F_OK
+                h = self.step(nr, ga, da, tol, cap)
+        if not have_b:
+            return F_NO_STEPS
+        for r in range(nr):
+            # a row crossed at b, or one falling through zero within 2 tol of it: events
+            # within the root tolerance of each other are simultaneous (two bodies whose
+            # velocities vanish together stay together, no sliver segment between them)
+            self.hit[r] = (self.watch[r] and gb[r] < -self.noise[r]) or (
+                not self.watch[r] and (gb[r] <= 0.0 or (db[r] < 0.0 and gb[r] <= -db[r] *
+                                                        (2.0 * tol))))
+        t_out[0] = b
+        return F_OK
+
+    # ------------------------------------------------------------------ rows
+    cdef int build_rows(self, const signed char* contact, const unsigned char* group, int r0,
+                        double V0, double a) noexcept:
+        """The segment's event rows (module doc); returns their number."""
+        cdef int p = self.p, nl = self.nl, i, j, nr = 0, s
+        cdef double sg, f_slide, lo, hi
+        for i in range(p):
+            if self.free[i] or (r0 >= 0 and group[i]):
+                continue
+            sg = <double>contact[i]
+            self.lab_kind[nr] = 0
+            self.lab_body[nr] = i
+            if r0 < 0:
+                self.c0[nr] = sg * V0
+                self.c1[nr] = sg * a
+                for j in range(nl):
+                    self.A1[nr, j] = sg * self.W[i, j]
+                    self.A2[nr, j] = 0.0
+            else:
+                self.c0[nr] = 0.0
+                self.c1[nr] = 0.0
+                for j in range(nl):
+                    self.A1[nr, j] = sg * (self.C[i, j] - self.C[r0, j])
+                    self.A2[nr, j] = 0.0
+            nr += 1
+        if r0 < 0:
+            return nr
+        f_slide = self.fext
+        lo = 0.0
+        hi = 0.0
+        for i in range(p):
+            if group[i]:
+                lo -= self.fp[i]
+                hi += self.fm[i]
+            else:
+                f_slide += self.R[i]
+        # the ground force the group needs: -M W_r l'' - f_slide, within [lo, hi]
+        for s in range(2):
+            self.lab_kind[nr] = 1
+            self.lab_body[nr] = r0
+            self.c0[nr] = (-f_slide - lo) if s == 0 else (hi + f_slide)
+            self.c1[nr] = 0.0
+            for j in range(nl):
+                self.A1[nr, j] = 0.0
+                self.A2[nr, j] = (-self.M if s == 0 else self.M) * self.W[r0, j]
+            nr += 1
+        for i in range(p):
+            if group[i] and i != r0:
+                for s in range(2):
+                    self.lab_kind[nr] = 2
+                    self.lab_body[nr] = i
+                    self.c0[nr] = 0.0
+                    self.c1[nr] = 0.0
+                    for j in range(nl):
+                        self.A1[nr, j] = (self.C[i, j] - self.C[r0, j]) * (1.0 if s == 0
+                                                                         else -1.0)
+                        self.A2[nr, j] = 0.0
+                    nr += 1
+        return nr
+
+    cdef void record_change(self, double t, const signed char* new) noexcept:
+        cdef int i
+        for i in range(self.p):
+            if new[i] != self.contact[i]:
+                self.et[self.n_ev] = t
+                self.ei[self.n_ev, 0] = i
+                self.ei[self.n_ev, 1] = self.contact[i]
+                self.ei[self.n_ev, 2] = new[i]
+                self.n_ev += 1
+                self.contact[i] = new[i]
+
+    # ------------------------------------------------------------------ the loop
+    def drive(self, CompiledGait gait, double t_end, double T):
+        """Integrate towards t_end (see the module doc); ``T`` > 0: the period whose
+        multiples end segments and are compared. Returns a status."""
+        cdef GaitData* g = &gait.d
+        cdef int p = self.p, nl = self.nl, i, j, r, nr, r0, code, retries, n_hit
+        cdef int guard = 0, status = S_REACHED, n_max = self.sf.shape[0]
+        cdef int ev_max = self.et.shape[0]
+        cdef double t, ts, end, b, kT, t0, a, V0, X_s, V_s, t_ev, tt, d, f_slide, imp, w, fmg
+        cdef double tol = self.tol, cap, Vi
+        cdef long k_next
+        cdef bint left, stale, moving, tiny, same, group_all
+        self.n_seg = 0
+        self.n_ev = 0
+        self.k_at = -1
+        self.bad_time = NAN
+        t = self.t
+        if g.kind == CALLBACK:
+            gait.span_lo = t
+            gait.span_hi = t_end
+        while t < t_end:
+            if self.n_seg == n_max or self.n_ev + 2 * p + 2 > ev_max:
+                status = S_FULL
+                break
+            # ---- this segment's span: to t_end, the next breakpoint or multiple of T
+            ts = t_end
+            left = False
+            b = gait_next_break(g, t)
+            if b <= ts:
+                ts = b
+                left = True
+            k_next = -1
+            if T > 0.0:
+                k_next = <long>floor(t / T * (1 + 4 * EPS) + 4 * EPS) + 1
+                kT = k_next * T
+                if kT < ts:
+                    ts = kT
+                    left = False
+            end = nextafter(ts, -INFINITY) if left else ts
+            cap = self.cap if self.cap > 0.0 else max((ts - t) / 8.0, 1e-300)
+            # ---- the state at t
+            gait_lengths(g, t, &self.l[0])
+            gait_rates(g, t, &self.ld[0], &self.ldd[0], &self.ld3[0])
+            for j in range(nl):
+                if not (isfinite(self.l[j]) and isfinite(self.ld[j]) and isfinite(self.ldd[j])):
+                    self.bad_time = t
+                    status = S_NONFINITE
+                    break
+            if status == S_NONFINITE:
+                break
+            for i in range(p):
+                self.e[i] = dot(self.W, i, &self.l[0], nl)
+                self.ep[i] = dot(self.W, i, &self.ld[0], nl)
+                self.epp[i] = dot(self.W, i, &self.ldd[0], nl)
+            if self.ref >= 0:
+                # stuck reference body: the centre of mass from the gait, exactly
+                self.V = -self.ep[self.ref]
+                self.X = self.x_ref - self.e[self.ref]
+            # A sliding body whose velocity is zero or points against its contact sign (l' = 0
+            # exactly at a breakpoint, a jump of l' where the actuator settles to rest): its
+            # sign comes from the actual velocity; only a body at zero velocity (to the
+            # rounding of V + e_i') joins the zero set, where the inclusion decides.
+            stale = False
+            for i in range(p):
+                self.new2[i] = self.contact[i]
+            for i in range(p):
+                if self.zero[i] or self.free[i]:
+                    continue
+                Vi = self.V + self.ep[i]
+                if self.contact[i] * Vi <= 0.0:
+                    stale = True
+                    if fabs(Vi) > 16.0 * EPS * (fabs(self.V) + fabs(self.ep[i])):
+                        self.new2[i] = 1 if Vi > 0.0 else -1
+                    else:
+                        self.zero[i] = 1
+            if stale:
+                self.record_change(t, &self.new2[0])
+                self.cache_ok = False
+            # ---- mode
+            if self.cache_ok:
+                a = self.cache_a
+                r0 = self.ref
+                for i in range(p):
+                    self.new_contact[i] = self.contact[i]
+                    self.group[i] = self.cache_group[i]
+            else:
+                self.mode(g, t, ts, &a, &r0)
+            self.cache_ok = False
+            if r0 >= 0:
+                if r0 != self.ref:
+                    self.x_ref = self.X + self.e[r0]
+            else:
+                self.x_ref = 0.0
+                for i in range(p):
+                    # bodies leaving zero velocity start exactly from zero
+                    if self.zero[i] and self.new_contact[i] != 0:
+                        self.V = -self.ep[i]
+                        break
+            self.ref = r0
+            group_all = r0 >= 0
+            for i in range(p):
+                self.R[i] = (-self.fp[i] if self.new_contact[i] > 0 else
+                             (self.fm[i] if self.new_contact[i] < 0 else 0.0))
+                if not self.group[i]:
+                    group_all = False
+            V0 = -self.ep[r0] if r0 >= 0 else self.V
+            t0 = t
+            self.record_change(t0, &self.new_contact[0])
+            self.sf[self.n_seg, 0] = t0
+            self.sf[self.n_seg, 2] = self.X
+            self.sf[self.n_seg, 3] = V0
+            self.sf[self.n_seg, 4] = a
+            self.sf[self.n_seg, 5] = self.x_ref
+            self.sref[self.n_seg] = r0
+            for i in range(p):
+                self.scontact[self.n_seg, i] = self.contact[i]
+                self.sgroup[self.n_seg, i] = self.group[i]
+                self.sR[self.n_seg, i] = self.R[i]
+                self.sK0[self.n_seg, i] = self.K[i]
+            # ---- search
+            t_ev = ts
+            n_hit = 0
+            for i in range(p):
+                self.hits[i] = 0
+            if group_all and gait_is_constant(g, t0, ts):
+                pass            # at rest under a constant command: nothing can happen
+            else:
+                nr = self.build_rows(&self.contact[0], &self.group[0], r0, V0, a)
+                if nr > 0 and end > t0:
+                    if g.kind == CALLBACK:
+                        gait.span_lo = t0
+                        gait.span_hi = end
+                    for retries in range(RETRIES + 1):
+                        code = self.search(g, t0, end, nr, tol, cap, &tt)
+                        if code != F_EXCEEDED:
+                            break
+                    if code == F_EXCEEDED:
+                        status = S_BOUNDS
+                        self.bad_time = t0
+                        break
+                    if code == F_NO_STEPS:
+                        status = S_NO_STEPS
+                        break
+                    if code == F_NONFINITE:
+                        status = S_NONFINITE
+                        break
+                    if isfinite(tt):
+                        t_ev = tt
+                        if t_ev >= end and end < ts:
+                            t_ev = ts     # the left limit at a breakpoint: the event is there
+                        for r in range(nr):
+                            if self.hit[r]:
+                                n_hit += 1
+                                if self.lab_kind[r] == 0:
+                                    self.hits[self.lab_body[r]] = 1
+                        if ts - t_ev <= 4.0 * tol:
+                            # an event within the root tolerance of a breakpoint happens there
+                            t_ev = ts
+            # ---- close: the state at t_ev
+            d = t_ev - t0
+            if r0 < 0:
+                self.X = self.X + d * (V0 + 0.5 * a * d)
+                self.V = V0 + a * d
+                for i in range(p):
+                    self.K[i] += self.R[i] * d
+                    self.zero[i] = 0
+            else:
+                gait_lengths(g, t_ev, &self.l[0])
+                gait_rates(g, t_ev, &self.ld[0], &self.ldd[0], &self.ld3[0])
+                self.V = -dot(self.W, r0, &self.ld[0], nl)
+                self.X = self.x_ref - dot(self.W, r0, &self.l[0], nl)
+                f_slide = self.fext
+                w = 0.0
+                fmg = 0.0
+                for i in range(p):
+                    if self.group[i]:
+                        w += self.fp[i] + self.fm[i]
+                        fmg += self.fm[i]
+                    else:
+                        self.K[i] += self.R[i] * d
+                        f_slide += self.R[i]
+                    self.zero[i] = self.group[i]
+                # the group's impulse: each member at the same fraction of its interval
+                imp = self.M * (self.V - V0) - f_slide * d
+                if w > 0.0:
+                    for i in range(p):
+                        if self.group[i]:
+                            self.K[i] += self.fm[i] * d - ((-imp + fmg * d) / w) * (
+                                self.fp[i] + self.fm[i])
+            if n_hit > 0:
+                if r0 < 0:
+                    gait_rates(g, t_ev, &self.ld[0], &self.ldd[0], &self.ld3[0])
+                for i in range(p):
+                    if self.hits[i]:
+                        self.zero[i] = 1
+                        if r0 < 0:
+                            # the body's velocity is exactly zero at the event
+                            self.V = -dot(self.W, i, &self.ld[0], nl)
+            self.sf[self.n_seg, 1] = t_ev
+            # the last segment, for ``current``
+            self.last_valid = True
+            self.last_f[:] = self.sf[self.n_seg]
+            self.last_ref = r0
+            for i in range(p):
+                self.last_contact[i] = self.contact[i]
+                self.last_group[i] = self.group[i]
+                self.last_R[i] = self.R[i]
+                self.last_K0[i] = self.sK0[self.n_seg, i]
+            self.n_seg += 1
+            tiny = t_ev - t0 <= STALL_ULPS * EPS * max(fabs(t_ev), 1.0)
+            guard = guard + 1 if tiny else 0
+            t = t_ev
+            self.t = t
+            if guard > STALL_SEGMENTS:
+                status = S_STALLED
+                break
+            if n_hit == 0 and not left and t >= ts:
+                # ended on a smooth boundary: the next segment keeps the mode
+                self.cache_ok = True
+                self.cache_a = a
+                for i in range(p):
+                    self.cache_group[i] = self.group[i]
+            if k_next > 0 and t == k_next * T:
+                # ---- period boundary: the state against the one a period earlier
+                same = self.ck_valid and self.ck_k == k_next - 1 and self.ck_ref == self.ref
+                if same:
+                    for i in range(p):
+                        if self.ck_contact[i] != self.contact[i] or self.ck_zero[i] != self.zero[i]:
+                            same = False
+                if same and self.ref < 0:
+                    # repeated to the solver's accuracy: event times are known to tol, so
+                    # velocities to about tol times the largest friction acceleration
+                    same = fabs(self.V - self.ck_V) <= 16.0 * (
+                        tol * self.v_acc + EPS * (fabs(self.V) + fabs(self.ck_V)))
+                if same and floor((t_end - t) / T * (1 + 4 * EPS)) >= 1:
+                    self.k_at = k_next
+                    status = S_PERIODIC
+                    break
+                self.ck_valid = True
+                self.ck_k = k_next
+                self.ck_X = self.X
+                self.ck_V = self.V
+                self.ck_x_ref = self.x_ref
+                self.ck_ref = self.ref
+                self.ck_nseg = self.seg_base + self.n_seg
+                self.ck_nev = self.ev_base + self.n_ev
+                for i in range(p):
+                    self.ck_K[i] = self.K[i]
+                    self.ck_contact[i] = self.contact[i]
+                    self.ck_zero[i] = self.zero[i]
+        self.t = t
+        if self.n_seg > 0:
+            self.last_gait = gait
+        return status
+
+    # ------------------------------------------------------------------ output
+    def current(self, CompiledGait gait):
+        """The state at the current time as one output row (left limit at an event): the last
+        segment's closed form when it ends now, else the mode the next segment would take."""
+        cdef int p = self.p, i, r0
+        cdef double a
+        if self.last_valid and self.last_f[1] == self.t and self.last_gait is not None:
+            f = np.asarray(self.last_f).copy()
+            return _row(self, self.last_gait, f, self.last_ref, np.asarray(self.last_contact),
+                        np.asarray(self.last_group).astype(bool), np.asarray(self.last_R),
+                        np.asarray(self.last_K0), self.t)
+        # provisional: a zero-length segment at t in the mode the next one would use
+        g = &gait.d
+        gait_lengths(g, self.t, &self.l[0])
+        gait_rates(g, self.t, &self.ld[0], &self.ldd[0], &self.ld3[0])
+        for i in range(p):
+            self.e[i] = dot(self.W, i, &self.l[0], self.nl)
+            self.ep[i] = dot(self.W, i, &self.ld[0], self.nl)
+            self.epp[i] = dot(self.W, i, &self.ldd[0], self.nl)
+        X = self.X
+        V = self.V
+        if self.ref >= 0:
+            V = -self.ep[self.ref]
+            X = self.x_ref - self.e[self.ref]
+        self.mode(g, self.t, self.t, &a, &r0)
+        if r0 >= 0:
+            x_ref = self.x_ref if r0 == self.ref else X + self.e[r0]
+            V = -self.ep[r0]
+        else:
+            x_ref = self.x_ref
+        R = np.where(np.asarray(self.new_contact) > 0, -np.asarray(self.fp),
+                     np.where(np.asarray(self.new_contact) < 0, np.asarray(self.fm), 0.0))
+        f = np.array([self.t, self.t, X, V, a, x_ref])
+        return _row(self, gait, f, r0, np.asarray(self.new_contact).copy(),
+                    np.asarray(self.group).astype(bool), R, np.asarray(self.K).copy(), self.t)
+
+    # ------------------------------------------------------------------ the rules from Python
+    def search_rows(self, CompiledGait gait, double t0, double end, c0, c1, A1, A2,
+                    double tol, double cap):
+        """The compiled search (``search``) on given rows g = c0 + c1 (t - t0) + A1 . l' +
+        A2 . l'' (K rows): (t or inf, hit rows (K,) bool, evaluations)."""
+        cdef int nr = len(c0), r, j
+        cdef double tt
+        if nr > self.c0.shape[0]:
+            raise ValueError(f'at most {self.c0.shape[0]} rows for p = {self.p}')
+        for r in range(nr):
+            self.c0[r] = c0[r]
+            self.c1[r] = c1[r]
+            for j in range(self.nl):
+                self.A1[r, j] = A1[r][j]
+                self.A2[r, j] = A2[r][j]
+        n0 = self.n_evals
+        code = self.search(&gait.d, t0, end, nr, tol, cap, &tt)
+        if code == F_NO_STEPS:
+            raise RuntimeError('the search ran out of steps')
+        if code == F_NONFINITE:
+            raise ValueError('gait values must be finite')
+        hits = np.asarray(self.hit[:nr]).astype(bool)
+        return (tt if isfinite(tt) else INFINITY), hits, self.n_evals - n0
+
+    def taylor_step(self, ga, da, watch, B2, B1, double tol, double cap) -> float:
+        """The compiled ``step`` for rows with values ga and slopes da at a."""
+        cdef int nr = len(ga), r
+        cdef double[::1] g = np.asarray(ga, dtype=float), d = np.asarray(da, dtype=float)
+        for r in range(nr):
+            self.watch[r] = bool(watch[r])
+            self.B2[r] = B2[r]
+            self.B1[r] = B1[r]
+            self.taylor[r] = 1
+        return self.step(nr, &g[0], &d[0], tol, cap)
+
+    def proven_interval(self, double h, ga, gb, da, db, watch, B2, B1) -> bool:
+        """The compiled ``proven`` for an interval of length h."""
+        cdef int nr = len(ga), r
+        cdef double[::1] a_ = np.asarray(ga, dtype=float), b_ = np.asarray(gb, dtype=float)
+        cdef double[::1] c_ = np.asarray(da, dtype=float), d_ = np.asarray(db, dtype=float)
+        for r in range(nr):
+            self.watch[r] = bool(watch[r])
+            self.B2[r] = B2[r]
+            self.B1[r] = B1[r]
+            self.taylor[r] = 1
+        return self.proven(nr, h, &a_[0], &b_[0], &c_[0], &d_[0])
+
+    def crawler_arrays(self):
+        return (np.asarray(self.W), np.asarray(self.C), np.asarray(self.m_), np.asarray(self.fp),
+                np.asarray(self.fm), self.fext, np.asarray(self.grav))
+
+
+def _row(ExactCore core, CompiledGait gait, f, int ref, contact, group, R, K0, double t):
+    """One output row of segment (f, ref, contact, group, R, K0) at t (``closed_form``)."""
+    p = core.p
+    l, ld, ldd = gait.values(np.array([t]))
+    W, C, m, fp, fm, fext, grav = core.crawler_arrays()
+    x, v, Rout, K = (np.empty((1, p)) for _ in range(4))
+    lam = np.empty((1, p - 1))
+    state = np.empty((1, p), np.int8)
+    ind = np.empty(1, bool)
+    closed_form(l, ld, ldd, W, C, m, fp, fm, fext, grav, f[[0, 2, 3, 4, 5]][None, :],
+                np.array([ref], np.int_), group[None, :], contact[None, :].astype(np.int8),
+                np.asarray(R, dtype=float)[None, :], np.asarray(K0, dtype=float)[None, :],
+                np.zeros(1, np.int_), np.array([t]), x, v, Rout, K, lam, state, ind)
+    return {'x': x[0], 'v': v[0], 'friction': Rout[0], 'impulse': K[0],
+            'linkage_force': lam[0], 'lengths': l[0], 'rates': ld[0], 'contact': state[0],
+            'indeterminate': bool(ind[0])}
+
+
+def closed_form(const double[:, ::1] l, const double[:, ::1] ld, const double[:, ::1] ldd,
+                const double[:, ::1] W, const double[:, ::1] C, const double[::1] m,
+                const double[::1] fp, const double[::1] fm, double fext,
+                const double[::1] grav, const double[:, ::1] f, const long[::1] ref_s,
+                group_s, const signed char[:, ::1] contact_s, const double[:, ::1] Rseg,
+                const double[:, ::1] K0_s, const long[::1] owner, const double[::1] tau,
+                double[:, ::1] x, double[:, ::1] v, double[:, ::1] R, double[:, ::1] K,
+                double[:, ::1] lam, signed char[:, ::1] state, indeterminate):
+    """Row k of the outputs (x, v, R = friction, K = impulse, lam = linkage force, state =
+    contact, indeterminate) from the gait values at ``tau[k]`` and the constants of segment
+    ``owner[k]`` (``f`` rows (t0, X0, V0, a, x_ref), ``ref_s``, ``group_s``, ``contact_s``,
+    ``Rseg``, ``K0_s``: ``segments.Records``). Slide: X quadratic in t; stick: the reference
+    body fixed, the group's friction the affine split of what holds it (each member at the
+    same fraction of its interval [-fp_i, fm_i]) and its impulse the integral of that split."""
+    cdef unsigned char[:, ::1] grp = np.ascontiguousarray(group_s).view(np.uint8)
+    cdef unsigned char[::1] ind = np.ascontiguousarray(indeterminate).view(np.uint8)
+    cdef Py_ssize_t n = x.shape[0], k
+    cdef int p = x.shape[1], nl = l.shape[1], i, j, r, sg, n_group, c
+    cdef double M = 0.0, a0, a1, a2, d, X, V, A, sr, sdr, s, sd, f_slide, wg, fm_g, total
+    cdef double theta, imp, q, w, acc
+    cdef double[::1] e = np.empty(p), ep = np.empty(p), epp = np.empty(p)
+    for i in range(p):
+        M += m[i]
+    for k in range(n):
+        sg = owner[k]
+        for i in range(p):
+            a0 = 0.0
+            a1 = 0.0
+            a2 = 0.0
+            for j in range(nl):
+                a0 += l[k, j] * W[i, j]
+                a1 += ld[k, j] * W[i, j]
+                a2 += ldd[k, j] * W[i, j]
+            e[i] = a0
+            ep[i] = a1
+            epp[i] = a2
+        d = tau[k] - f[sg, 0]
+        r = ref_s[sg]
+        if r < 0:
+            X = f[sg, 1] + d * (f[sg, 2] + 0.5 * f[sg, 3] * d)
+            V = f[sg, 2] + f[sg, 3] * d
+            for i in range(p):
+                x[k, i] = X + e[i]
+                v[k, i] = V + ep[i]
+            A = f[sg, 3]
+        else:
+            sr = 0.0
+            sdr = 0.0
+            for j in range(nl):
+                sr += l[k, j] * C[r, j]
+                sdr += ld[k, j] * C[r, j]
+            for i in range(p):
+                s = 0.0
+                sd = 0.0
+                for j in range(nl):
+                    s += l[k, j] * C[i, j]
+                    sd += ld[k, j] * C[i, j]
+                x[k, i] = f[sg, 4] + (s - sr)
+                v[k, i] = sd - sdr
+            A = -epp[r]
+            V = -ep[r]
+        f_slide = 0.0
+        n_group = 0
+        for i in range(p):
+            R[k, i] = 0.0 if grp[sg, i] else Rseg[sg, i]
+            f_slide += R[k, i]
+            K[k, i] = K0_s[sg, i] + d * R[k, i]
+            if grp[sg, i]:
+                n_group += 1
+        f_slide += fext
+        if r >= 0:
+            wg = 0.0
+            fm_g = 0.0
+            for i in range(p):
+                if grp[sg, i]:
+                    wg += fp[i] + fm[i]
+                    fm_g += fm[i]
+            if wg > 0.0:
+                total = M * A - f_slide
+                theta = min(max((-total + fm_g) / wg, 0.0), 1.0)
+                imp = M * (V - f[sg, 2]) - f_slide * d
+                q = (-imp + fm_g * d) / wg
+                for i in range(p):
+                    if grp[sg, i]:
+                        w = fp[i] + fm[i]
+                        R[k, i] = fm[i] - theta * w
+                        K[k, i] = K0_s[sg, i] + (fm[i] * d - q * w)
+            else:
+                for i in range(p):
+                    if grp[sg, i]:
+                        K[k, i] = K0_s[sg, i]
+        acc = 0.0
+        for i in range(p - 1):
+            acc += R[k, i] + grav[i] - m[i] * (A + epp[i])
+            lam[k, i] = acc
+        for i in range(p):
+            c = contact_s[sg, i]
+            if fp[i] + fm[i] == 0.0:
+                c = 1 if v[k, i] > 0 else (-1 if v[k, i] < 0 else 0)
+            state[k, i] = c
+        ind[k] = n_group > 1
+
+
+def solve_inclusion(double c, double u_ref, double force, kinks, f_plus, f_minus):
+    """The inclusion of ``_inclusion`` from Python: (u, s) for one crawler (module doc of
+    ``_inclusion``)."""
+    cdef double[::1] k = np.ascontiguousarray(kinks, dtype=float)
+    cdef double[::1] a = np.ascontiguousarray(f_plus, dtype=float)
+    cdef double[::1] b = np.ascontiguousarray(f_minus, dtype=float)
+    cdef int n = k.shape[0]
+    cdef int[::1] idx = np.zeros(max(n, 1), np.intc)
+    cdef double s = 0.0, u
+    if n == 0:
+        return u_ref + force / c, 0.0
+    u = inclusion(c, u_ref, force, &k[0], &a[0], &b[0], n, &idx[0], &s)
+    return u, s

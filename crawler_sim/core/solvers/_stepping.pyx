@@ -1,0 +1,660 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True
+# cython: initializedcheck=False
+"""The fixed-step methods, compiled for every gait kind: "implicit" and "penalty".
+
+Implicit (MODEL.md section 3): the Moreau-Jean (catching-up) step, one proximal problem in the
+centre-of-mass velocity V solved exactly by the inclusion (``_inclusion``). A step whose
+contact mode changes is split at the transition, located by bisection on the *instantaneous*
+mode of the old mode's continuation (MODEL.md 2.3) to ``BISECT_REL`` of the step. Without the
+split every transition lands on a step end and its O(h) velocity error integrates into a
+position error whose size jumps from one dt to the next; with it the first-order error is the
+quadrature X_{k+1} = X_k + h V_{k+1}, about (h / 2) (V(t) - V(0)): order 1, a steady constant.
+
+Penalty (MODEL.md section 4): backward Euler on the seed's Moreau-Yosida ODE,
+
+    M (V_{k+1} - V_k) / h = F_ext - sum_i clip(n_i (V_{k+1} + e_i'(t_{k+1})), -f_minus_i, f_plus_i),
+
+a strictly monotone piecewise-linear equation in V_{k+1} solved exactly (sorted breakpoints):
+stable for any h and any n.
+
+``StepCore.advance`` steps to a time; ``StepCore.run`` steps through a list of output times and
+fills the output rows there (every step, by default), all in compiled code. Sign conventions:
+``R[i]`` is the ground's force on body i [N]; ``contact`` is +1 / 0 / -1.
+"""
+import numpy as np
+
+from libc.math cimport ceil, fabs, isfinite, INFINITY, NAN
+
+from crawler_sim.core.solvers._gait cimport CompiledGait, GaitData, gait_rates, gait_lengths
+from crawler_sim.core.solvers._inclusion cimport inclusion
+
+__all__ = ['StepCore', 'batch_step', 'IMPLICIT', 'PENALTY', 'MAX_DEPTH', 'BISECT_REL']
+
+IMPLICIT, PENALTY = 0, 1
+#: most transitions placed inside one step (more fall back to the plain Moreau-Jean step)
+MAX_DEPTH = 8
+#: bisection stops when the bracket is below this fraction of the step (about 1e-12 h)
+BISECT_REL = 2.0 ** -40
+cdef int C_MAX_DEPTH = 8
+cdef double C_BISECT_REL = 9.094947017729282e-13
+cdef int BISECT = 60
+cdef int SCAN = 16         # points of the scan for the first transition of a step
+
+# statuses
+REACHED, FULL, NONFINITE = 0, 1, 2
+
+
+cdef inline void rel_rates(const double* w, const double* ld, double* out, int p) noexcept nogil:
+    """Body rates relative to the centre of mass from linkage rates: out_i = s_i - sum w_k s_k,
+    s_0 = 0, s_i = ld_0 + ... + ld_{i-1}; w = masses / M. Used for e' and e''."""
+    cdef double mean = 0.0, s = 0.0
+    cdef int i
+    for i in range(p):
+        if i > 0:
+            s += ld[i - 1]
+        mean += w[i] * s
+    s = 0.0
+    for i in range(p):
+        if i > 0:
+            s += ld[i - 1]
+        out[i] = s - mean
+
+
+cdef inline int first_stuck(const signed char* contact, int p) noexcept nogil:
+    cdef int i
+    for i in range(p):
+        if contact[i] == 0:
+            return i
+    return -1
+
+
+cdef inline double slide_sum(const signed char* contact, const double* fp, const double* fm,
+                             int p) noexcept nogil:
+    """Total friction of the sliding bodies [N]."""
+    cdef double s = 0.0
+    cdef int i
+    for i in range(p):
+        if contact[i] > 0:
+            s -= fp[i]
+        elif contact[i] < 0:
+            s += fm[i]
+    return s
+
+
+cdef class StepCore:
+    """State and loop of a fixed-step solve (``implicit.ImplicitSolver``,
+    ``penalty.PenaltySolver``)."""
+
+    cdef readonly int p, method, max_depth
+    cdef double M, fext
+    cdef double[::1] w, fp, fm, m_, grav, n_pen
+    cdef public double t, X, V, A, dt
+    cdef public double scan_step      # largest spacing of the transition scan [s]
+    cdef signed char[::1] contact
+    cdef double[::1] R, K
+    cdef public long n_steps, n_ev
+    cdef public double bad_time
+    cdef public object ev_t, ev_b, ev_o, ev_n
+    cdef double[::1] et
+    cdef long[::1] eb
+    cdef signed char[::1] eo, en
+    # the rates of the last step end, as the step used them
+    cdef public double last_t
+    cdef double[::1] last_ep, last_epp
+    # work
+    cdef double[::1] ld, ldd, ld3, epb, eppb, ep, epp, kinks, kbuf, fpb, fmb, brk, l, e
+    cdef int[::1] idx
+    cdef unsigned char[::1] zmask
+    cdef signed char[::1] newc, tmp
+
+    def __init__(self, masses, fp, fm, double fext, grav, double dt, int method,
+                 int max_depth, penalty=None):
+        p = len(masses)
+        self.p = p
+        self.method = method
+        self.max_depth = max_depth
+        m = np.array(masses, dtype=np.float64)
+        self.M = float(m.sum())
+        self.m_ = m
+        self.w = m / self.M
+        self.fp = np.array(fp, dtype=np.float64)
+        self.fm = np.array(fm, dtype=np.float64)
+        self.grav = np.array(grav, dtype=np.float64)
+        self.n_pen = np.array(penalty if penalty is not None else np.ones(p), dtype=np.float64)
+        self.fext = fext
+        self.dt = dt
+        self.scan_step = INFINITY
+        self.contact = np.zeros(p, np.int8)
+        self.R = np.zeros(p)
+        self.K = np.zeros(p)
+        cap = 64 * p * (C_MAX_DEPTH + 1)
+        self.ev_t = np.zeros(cap)
+        self.ev_b = np.zeros(cap, np.int_)
+        self.ev_o = np.zeros(cap, np.int8)
+        self.ev_n = np.zeros(cap, np.int8)
+        self.et = self.ev_t
+        self.eb = self.ev_b
+        self.eo = self.ev_o
+        self.en = self.ev_n
+        nl = max(p - 1, 1)
+        self.ld = np.zeros(nl)
+        self.ldd = np.zeros(nl)
+        self.ld3 = np.zeros(nl)
+        self.l = np.zeros(nl)
+        self.epb = np.zeros(p)
+        self.eppb = np.zeros(p)
+        self.ep = np.zeros(p)
+        self.epp = np.zeros(p)
+        self.e = np.zeros(p)
+        self.kinks = np.zeros(p)
+        self.kbuf = np.zeros(p)
+        self.fpb = np.zeros(p)
+        self.fmb = np.zeros(p)
+        self.brk = np.zeros(2 * p)
+        self.last_ep = np.zeros(p)
+        self.last_epp = np.zeros(p)
+        self.idx = np.zeros(2 * p, np.intc)
+        self.zmask = np.zeros(p, np.uint8)
+        self.newc = np.zeros(p, np.int8)
+        self.tmp = np.zeros(p, np.int8)
+        self.last_t = NAN
+
+    # ------------------------------------------------------------------ Python access
+    @property
+    def contact_array(self):
+        return np.asarray(self.contact).copy()
+
+    @property
+    def R_array(self):
+        return np.asarray(self.R).copy()
+
+    @property
+    def K_array(self):
+        return np.asarray(self.K).copy()
+
+    # ------------------------------------------------------------------ rates and modes
+    cdef int rates(self, GaitData* g, double t, double* ep, double* epp) except -1:
+        """e'(t), e''(t); 1 (and ``bad_time``) when a gait value is not finite."""
+        cdef int j, nl = self.p - 1
+        gait_rates(g, t, &self.ld[0], &self.ldd[0], &self.ld3[0])
+        for j in range(nl):
+            if not (isfinite(self.ld[j]) and isfinite(self.ldd[j])):
+                self.bad_time = t
+                return 1
+        rel_rates(&self.w[0], &self.ld[0], ep, self.p)
+        rel_rates(&self.w[0], &self.ldd[0], epp, self.p)
+        return 0
+
+    cdef double accel_mode(self, double force, const double* epp, signed char* out,
+                           double* s) noexcept:
+        """Instantaneous mode of the bodies in zmask (at zero velocity): the acceleration
+        inclusion M a in force - sum dphi_i(a + e_i''); writes out[i] for them, returns a."""
+        cdef int i, n = 0, p = self.p
+        cdef double a
+        for i in range(p):
+            if self.zmask[i]:
+                self.kbuf[n] = -epp[i]
+                self.fpb[n] = self.fp[i]
+                self.fmb[n] = self.fm[i]
+                n += 1
+        a = inclusion(self.M, 0.0, force, &self.kbuf[0], &self.fpb[0], &self.fmb[0], n,
+                      &self.idx[0], s)
+        for i in range(p):
+            if self.zmask[i]:
+                out[i] = 0 if a == -epp[i] else (1 if a + epp[i] > 0.0 else -1)
+        return a
+
+    cdef bint changed(self, const signed char* contact, double V, const double* ep,
+                      const double* epp) noexcept:
+        """Whether the mode ``contact`` no longer holds at an instant where the centre of mass
+        moves at V (its continuation) and the bodies' relative rates are ep, epp."""
+        cdef int p = self.p, i, j
+        cdef double s
+        for i in range(p):
+            if contact[i] > 0 and V + ep[i] <= 0.0:
+                return True
+            if contact[i] < 0 and V + ep[i] >= 0.0:
+                return True
+        j = first_stuck(contact, p)
+        if j < 0:
+            return False
+        for i in range(p):
+            self.zmask[i] = contact[i] == 0
+            if self.zmask[i] and ep[i] != ep[j]:
+                return True
+        self.accel_mode(self.fext + slide_sum(contact, &self.fp[0], &self.fm[0], p), epp,
+                        &self.tmp[0], &s)
+        for i in range(p):
+            if self.zmask[i] and self.tmp[i] != 0:
+                return True
+        return False
+
+    cdef void new_mode(self, const signed char* contact, double V, const double* ep,
+                       const double* epp, signed char* out) noexcept:
+        """The mode right after a transition of ``contact``'s continuation (V, ep, epp there):
+        bodies that crossed zero join the stuck ones and the acceleration inclusion decides."""
+        cdef int p = self.p, i, j = first_stuck(contact, p), sgn
+        cdef double force = self.fext, v, s
+        cdef bint z
+        for i in range(p):
+            v = V + ep[i]
+            if contact[i] == 0:
+                z = ep[i] == ep[j]
+                sgn = 1 if v > 0.0 else -1
+            else:
+                z = (contact[i] > 0 and v <= 0.0) or (contact[i] < 0 and v >= 0.0)
+                sgn = contact[i]
+            self.zmask[i] = z
+            if not z:
+                out[i] = sgn
+                force += -self.fp[i] if sgn > 0 else self.fm[i]
+        self.accel_mode(force, epp, out, &s)
+
+    cdef void interval_friction(self, const signed char* contact, double V0, double V1,
+                                double h, double* R) noexcept:
+        """Mean friction [N] on an interval of length h > 0 from V0 to V1 in mode ``contact``:
+        sliding bodies their Coulomb force, stuck ones share what momentum balance requires
+        (each at the same fraction of its interval [-fp_i, fm_i]: only the total is unique)."""
+        cdef int p = self.p, i
+        cdef double total = self.M * (V1 - V0) / h - self.fext, lo = 0.0, width = 0.0, theta
+        for i in range(p):
+            if contact[i] > 0:
+                R[i] = -self.fp[i]
+                total += self.fp[i]
+            elif contact[i] < 0:
+                R[i] = self.fm[i]
+                total -= self.fm[i]
+            else:
+                lo -= self.fp[i]
+                width += self.fp[i] + self.fm[i]
+        theta = 0.0 if width <= 0.0 else min(max((total - lo) / width, 0.0), 1.0)
+        for i in range(p):
+            if contact[i] == 0:
+                R[i] = -self.fp[i] + theta * (self.fp[i] + self.fm[i])
+
+    cdef void log_changes(self, double t, signed char* contact, const signed char* newc) noexcept:
+        cdef int i
+        for i in range(self.p):
+            if newc[i] != contact[i]:
+                self.et[self.n_ev] = t
+                self.eb[self.n_ev] = i
+                self.eo[self.n_ev] = contact[i]
+                self.en[self.n_ev] = newc[i]
+                self.n_ev += 1
+                contact[i] = newc[i]
+
+    # ------------------------------------------------------------------ one step
+    cdef int implicit_step(self, GaitData* g, double tb) except -1:
+        """One Moreau-Jean step [t, tb] with e', e'' at tb in epb, eppb, split at each
+        transition inside it (at most max_depth)."""
+        cdef int p = self.p, i, j, depth, it, n_scan
+        cdef double lo = self.t, h, u = self.V, s, a_lo, uc, a, b, mid, vm, tau, vt, hh
+        cdef double V = self.V, X = self.X, V0 = self.V
+        cdef bint same, found
+        cdef signed char* contact = &self.contact[0]
+        cdef signed char* newc = &self.newc[0]
+        cdef double* epb = &self.epb[0]
+        cdef double* eppb = &self.eppb[0]
+        for depth in range(self.max_depth + 1):
+            h = tb - lo
+            if h <= 0.0:                    # a transition exactly at the step end
+                u = V
+                for i in range(p):
+                    newc[i] = contact[i]
+                break
+            for i in range(p):
+                self.kinks[i] = -epb[i]
+            u = inclusion(self.M / h, V, self.fext, &self.kinks[0], &self.fp[0], &self.fm[0],
+                          p, &self.idx[0], &s)
+            same = True
+            for i in range(p):
+                newc[i] = 0 if u == self.kinks[i] else (1 if u + epb[i] > 0.0 else -1)
+                same = same and newc[i] == contact[i]
+            if same and (first_stuck(contact, p) < 0 or not self.changed(contact, u, epb, eppb)):
+                break
+            if depth == self.max_depth or h <= C_BISECT_REL * self.dt:
+                break
+            j = first_stuck(contact, p)
+            a_lo = (self.fext + slide_sum(contact, &self.fp[0], &self.fm[0], p)) / self.M
+            uc = -epb[j] if j >= 0 else V + a_lo * h
+            # the first time in (lo, tb] where the mode no longer holds: a scan of the step
+            # first (a long step can hold several transitions, and the instant tb alone or a
+            # bisection may miss the first: the piece before it would then hold a mode that
+            # did not hold), then bisection in the first interval where it shows
+            a = lo
+            b = tb
+            found = False
+            n_scan = SCAN
+            if (tb - lo) / SCAN > self.scan_step:      # a step longer than the gait's scale
+                n_scan = <int>min(4096.0, ceil((tb - lo) / self.scan_step))
+            for it in range(n_scan):
+                # the first probe just after lo: the mode the step started in (the implicit
+                # step's O(h) stick test at the previous step end) may not hold at all
+                mid = lo + (tb - lo) * (C_BISECT_REL if it == 0 else <double>it / n_scan)
+                if not (a < mid < b):
+                    continue
+                if self.rates(g, mid, &self.ep[0], &self.epp[0]):
+                    return 1
+                vm = -self.ep[j] if j >= 0 else V + a_lo * (mid - lo)
+                if self.changed(contact, vm, &self.ep[0], &self.epp[0]):
+                    b = mid
+                    found = True
+                    break
+                a = mid
+            if not found and not self.changed(contact, uc, epb, eppb):
+                u = uc                      # the prox's change was its O(h) stick test
+                for i in range(p):
+                    newc[i] = contact[i]
+                break
+            for it in range(BISECT):
+                if b - a <= C_BISECT_REL * self.dt:
+                    break
+                mid = a + 0.5 * (b - a)
+                if self.rates(g, mid, &self.ep[0], &self.epp[0]):
+                    return 1
+                vm = -self.ep[j] if j >= 0 else V + a_lo * (mid - lo)
+                if self.changed(contact, vm, &self.ep[0], &self.epp[0]):
+                    b = mid
+                else:
+                    a = mid
+            tau = b
+            if self.rates(g, tau, &self.ep[0], &self.epp[0]):
+                return 1
+            vt = -self.ep[j] if j >= 0 else V + a_lo * (tau - lo)
+            self.new_mode(contact, vt, &self.ep[0], &self.epp[0], newc)
+            hh = tau - lo
+            if hh > 0.0:
+                self.interval_friction(contact, V, vt, hh, &self.R[0])
+                X += hh * vt
+                for i in range(p):
+                    self.K[i] += hh * self.R[i]
+            self.log_changes(tau, contact, newc)
+            V = vt
+            lo = tau
+        hh = tb - lo
+        if hh > 0.0:
+            self.interval_friction(newc, V, u, hh, &self.R[0])
+        X += hh * u
+        for i in range(p):
+            self.K[i] += hh * self.R[i]
+        self.log_changes(tb, contact, newc)
+        self.A = (u - V0) / (tb - self.t)
+        self.V = u
+        self.X = X
+        return 0
+
+    cdef bint two_body_step(self, double tb) noexcept:
+        """The implicit step of two bodies while the mode holds (no transition, at most one
+        body stuck within its friction bounds): the same inclusion and tests as
+        ``implicit_step``, inline. False when the general step is needed."""
+        cdef double h = tb - self.t, u, s, ri, rj
+        cdef double ep0 = self.epb[0], ep1 = self.epb[1]
+        cdef signed char c0, c1
+        cdef int i, j
+        self.kinks[0] = -ep0
+        self.kinks[1] = -ep1
+        u = inclusion(self.M / h, self.V, self.fext, &self.kinks[0], &self.fp[0], &self.fm[0],
+                      2, &self.idx[0], &s)
+        c0 = 0 if u == self.kinks[0] else (1 if u + ep0 > 0.0 else -1)
+        c1 = 0 if u == self.kinks[1] else (1 if u + ep1 > 0.0 else -1)
+        if c0 != self.contact[0] or c1 != self.contact[1]:
+            return False
+        if c0 != 0 and c1 != 0:
+            pass                # both slide: R is the two Coulomb forces already
+        elif c0 != c1:
+            j = 0 if c0 == 0 else 1
+            i = 1 - j
+            # the stuck body's required force at tb (the acceleration test of ``changed``)
+            ri = -self.fp[i] if self.contact[i] > 0 else self.fm[i]
+            rj = -self.M * self.eppb[j] - self.fext - ri
+            if not (-self.fp[j] <= rj <= self.fm[j]):
+                return False
+            self.interval_friction(&self.contact[0], self.V, u, h, &self.R[0])
+        else:
+            return False
+        self.X += h * u
+        self.K[0] += h * self.R[0]
+        self.K[1] += h * self.R[1]
+        self.A = (u - self.V) / h
+        self.V = u
+        return True
+
+    cdef void penalty_step(self, double tb) noexcept:
+        """Backward Euler on the penalised ODE (module doc): the monotone piecewise-linear
+        equation G(V) = c V - rhs0 + sum clip(n (V + e'), -fm, fp) = 0 solved exactly."""
+        cdef int p = self.p, i, k, nb = 2 * p, lo, hi, mid
+        cdef double h = tb - self.t, c = self.M / h, rhs0, gk, probe, wv, num, den, v, nv, F
+        cdef double V_new, x
+        cdef double* ep = &self.epb[0]
+        rhs0 = c * self.V + self.fext
+        for i in range(p):
+            self.brk[2 * i] = -ep[i] + self.fp[i] / self.n_pen[i]
+            self.brk[2 * i + 1] = -ep[i] - self.fm[i] / self.n_pen[i]
+        for i in range(1, nb):                  # insertion sort: 2 p breakpoints
+            x = self.brk[i]
+            k = i
+            while k > 0 and self.brk[k - 1] > x:
+                self.brk[k] = self.brk[k - 1]
+                k -= 1
+            self.brk[k] = x
+        # the first breakpoint with G >= 0 (G increases)
+        lo = 0
+        hi = nb
+        while lo < hi:
+            mid = (lo + hi) >> 1
+            if self.penalty_G(self.brk[mid], c, rhs0) < 0.0:
+                lo = mid + 1
+            else:
+                hi = mid
+        k = lo
+        if k < nb and self.penalty_G(self.brk[k], c, rhs0) == 0.0:
+            V_new = self.brk[k]
+        else:
+            # the linear piece, then its closed form (accurate for huge n)
+            if k == 0:
+                probe = self.brk[0] - 1.0
+            elif k == nb:
+                probe = self.brk[nb - 1] + 1.0
+            else:
+                probe = 0.5 * (self.brk[k - 1] + self.brk[k])
+            num = rhs0
+            den = c
+            for i in range(p):
+                wv = self.n_pen[i] * (probe + ep[i])
+                if wv >= self.fp[i]:
+                    num -= self.fp[i]
+                elif wv <= -self.fm[i]:
+                    num += self.fm[i]
+                else:
+                    num -= self.n_pen[i] * ep[i]
+                    den += self.n_pen[i]
+            V_new = num / den
+        for i in range(p):
+            v = V_new + ep[i]
+            nv = self.n_pen[i] * v
+            F = min(max(nv, -self.fm[i]), self.fp[i])
+            self.R[i] = -F
+            # saturated = sliding; inside the linear zone the regularised body counts as stuck
+            self.newc[i] = 1 if (nv >= self.fp[i] and v > 0) else (
+                -1 if (nv <= -self.fm[i] and v < 0) else 0)
+        self.X += h * V_new
+        for i in range(p):
+            self.K[i] += h * self.R[i]
+        self.log_changes(tb, &self.contact[0], &self.newc[0])
+        self.A = (V_new - self.V) / h
+        self.V = V_new
+
+    cdef double penalty_G(self, double V, double c, double rhs0) noexcept:
+        cdef double gsum = c * V - rhs0, x
+        cdef int i
+        for i in range(self.p):
+            x = self.n_pen[i] * (V + self.epb[i])
+            gsum += min(max(x, -self.fm[i]), self.fp[i])
+        return gsum
+
+    cdef int one_step(self, GaitData* g, double tb) except -1:
+        """A step to tb of the solver's method; 1 when a value is not finite."""
+        if self.rates(g, tb, &self.epb[0], &self.eppb[0]):
+            return 1
+        if self.method == PENALTY:
+            self.penalty_step(tb)
+        elif not (self.p == 2 and self.two_body_step(tb)):
+            if self.implicit_step(g, tb):
+                return 1
+        self.t = tb
+        self.n_steps += 1
+        self.last_t = tb
+        self.last_ep[:] = self.epb
+        self.last_epp[:] = self.eppb
+        if not (isfinite(self.X) and isfinite(self.V)):
+            self.bad_time = tb
+            return 1
+        return 0
+
+    # ------------------------------------------------------------------ loops
+    def advance(self, CompiledGait gait, double t1):
+        """Steps of ``dt`` to t1 (the last one shortened to land on t1). Returns REACHED,
+        FULL (the event buffers may overflow: drain them and call again) or NONFINITE."""
+        cdef GaitData* g = &gait.d
+        cdef double tb, dt = self.dt
+        cdef int cap = self.et.shape[0], p = self.p
+        self.n_ev = 0
+        while self.t < t1:
+            if self.n_ev + p * (C_MAX_DEPTH + 1) > cap:
+                return FULL
+            tb = t1 if (t1 - self.t) / dt <= 1.0 + 1e-9 else self.t + dt
+            if self.one_step(g, tb):
+                return NONFINITE
+        return REACHED
+
+    def run(self, CompiledGait gait, const double[::1] times, long k0, double[:, ::1] x,
+            double[:, ::1] v, double[:, ::1] fr, double[:, ::1] imp, double[:, ::1] lam,
+            double[:, ::1] lengths, double[:, ::1] rates, signed char[:, ::1] contact, indet):
+        """Step through ``times[k0:]`` (sorted, >= t), filling row k of the outputs at
+        times[k] (x, v [m, m/s], friction, impulse [N, N s], linkage force [N], lengths,
+        rates, contact, indeterminate). Returns (status, next row to fill)."""
+        cdef GaitData* g = &gait.d
+        cdef unsigned char[::1] ind = indet.view(np.uint8)
+        cdef double tk, tb, dt = self.dt, acc, V
+        cdef Py_ssize_t k, n = times.shape[0]
+        cdef int cap = self.et.shape[0], p = self.p, nl = self.p - 1, i, j, n_stuck
+        self.n_ev = 0
+        for k in range(k0, n):
+            tk = times[k]
+            while self.t < tk:
+                if self.n_ev + p * (C_MAX_DEPTH + 1) > cap:
+                    return FULL, k
+                tb = tk if (tk - self.t) / dt <= 1.0 + 1e-9 else self.t + dt
+                if self.one_step(g, tb):
+                    return NONFINITE, k
+            # the row at tk: the step's own e', e'' there (a stuck body's velocity is then
+            # exactly zero), else the gait's
+            gait_lengths(g, tk, &self.l[0])
+            gait_rates(g, tk, &self.ld[0], &self.ldd[0], &self.ld3[0])
+            rel_rates(&self.w[0], &self.l[0], &self.e[0], p)
+            if self.last_t == tk:
+                for i in range(p):
+                    self.ep[i] = self.last_ep[i]
+                    self.epp[i] = self.last_epp[i]
+            else:
+                rel_rates(&self.w[0], &self.ld[0], &self.ep[0], p)
+                rel_rates(&self.w[0], &self.ldd[0], &self.epp[0], p)
+            acc = 0.0
+            n_stuck = 0
+            for i in range(p):
+                x[k, i] = self.X + self.e[i]
+                v[k, i] = self.V + self.ep[i]
+                fr[k, i] = self.R[i]
+                imp[k, i] = self.K[i]
+                contact[k, i] = self.contact[i]
+                if self.contact[i] == 0:
+                    n_stuck += 1
+                if i < nl:
+                    acc += self.R[i] + self.grav[i] - self.m_[i] * (self.A + self.epp[i])
+                    lam[k, i] = acc
+            for j in range(nl):
+                lengths[k, j] = self.l[j]
+                rates[k, j] = self.ld[j]
+            ind[k] = n_stuck > 1
+        return REACHED, n
+
+    def reset(self, CompiledGait gait, double t0, double x0, double v0):
+        """Back to t0 with body 0 at x0 [m] moving at v0 [m/s]; the contact state at t0 is the
+        instantaneous mode (bodies at zero velocity stick or leave as the inclusion says)."""
+        cdef GaitData* g = &gait.d
+        cdef int p = self.p, i
+        cdef double force = self.fext, a, s, vi, tot, wsum = 0.0, fps = 0.0, th
+        gait_lengths(g, t0, &self.l[0])
+        if self.rates(g, t0, &self.ep[0], &self.epp[0]):
+            return NONFINITE
+        for i in range(p - 1):
+            if not isfinite(self.l[i]):
+                self.bad_time = t0
+                return NONFINITE
+        rel_rates(&self.w[0], &self.l[0], &self.e[0], p)
+        self.t = t0
+        self.X = x0 - self.e[0]
+        self.V = v0 - self.ep[0]
+        for i in range(p):
+            vi = self.V + self.ep[i]
+            self.zmask[i] = vi == 0.0
+            if not self.zmask[i]:
+                self.contact[i] = 1 if vi > 0 else -1
+                force += -self.fp[i] if vi > 0 else self.fm[i]
+        a = self.accel_mode(force, &self.epp[0], &self.contact[0], &s)
+        for i in range(p):
+            self.R[i] = (-self.fp[i] if self.contact[i] > 0 else
+                         (self.fm[i] if self.contact[i] < 0 else 0.0))
+            if self.contact[i] == 0:
+                wsum += self.fp[i] + self.fm[i]
+                fps += self.fp[i]
+        if wsum > 0.0:
+            tot = self.M * a - force
+            th = min(max((tot + fps) / wsum, 0.0), 1.0)
+            for i in range(p):
+                if self.contact[i] == 0:
+                    self.R[i] = -self.fp[i] + th * (self.fp[i] + self.fm[i])
+        self.A = a
+        for i in range(p):
+            self.K[i] = 0.0
+        self.n_steps = 0
+        self.n_ev = 0
+        self.last_t = NAN
+        return REACHED
+
+    def row(self, CompiledGait gait):
+        """The state at the current time as one output row (dict of arrays)."""
+        p = self.p
+        out = [np.empty((1, p)) for _ in range(4)]
+        lam = np.empty((1, p - 1))
+        l = np.empty((1, p - 1))
+        ld = np.empty((1, p - 1))
+        contact = np.empty((1, p), np.int8)
+        ind = np.empty(1, bool)
+        k0 = self.n_ev
+        status, _ = self.run(gait, np.array([self.t]), 0, out[0], out[1], out[2], out[3], lam,
+                             l, ld, contact, ind)
+        self.n_ev = k0
+        return {'t': self.t, 'x': out[0][0], 'v': out[1][0], 'friction': out[2][0],
+                'impulse': out[3][0], 'linkage_force': lam[0], 'lengths': l[0], 'rates': ld[0],
+                'contact': contact[0], 'indeterminate': bool(ind[0])}
+
+
+def batch_step(double h, const double[:, ::1] rates, const double[:, ::1] w,
+               const double[::1] M, double[::1] V, double[::1] X, const double[::1] fext,
+               const double[:, ::1] fp, const double[:, ::1] fm):
+    """One plain Moreau-Jean step of B crawlers (``ImplicitBatch``): rates (1 or B, p - 1) are
+    l'(t + h), shared when there is one row; V, X (B,) are updated in place."""
+    cdef Py_ssize_t B = fp.shape[0], b
+    cdef int p = fp.shape[1], i
+    cdef bint shared = rates.shape[0] == 1
+    cdef double[::1] ep = np.empty(p)
+    cdef int[::1] idx = np.empty(p, np.intc)
+    cdef double u, s
+    for b in range(B):
+        rel_rates(&w[b, 0], &rates[0 if shared else b, 0], &ep[0], p)
+        for i in range(p):
+            ep[i] = -ep[i]
+        u = inclusion(M[b] / h, V[b], fext[b], &ep[0], &fp[b, 0], &fm[b, 0], p, &idx[0], &s)
+        V[b] = u
+        X[b] += h * u
