@@ -15,7 +15,8 @@ Public API
 ``load(path, *, namespace=None) -> Run``
     Bag directory or .mcap -> numpy arrays.
 ``recover(src, dst=None) -> RecoverResult``
-    Truncated .mcap (e.g. after SIGKILL) -> valid bag directory.
+    Truncated or damaged .mcap (SIGKILL, flipped bits) -> valid bag directory holding every
+    message of every intact chunk.
 ``info(path) -> str`` and ``plot(path, out_png) -> Path``
     Summaries for the command line.
 

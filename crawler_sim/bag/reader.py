@@ -346,26 +346,47 @@ def _namespace(path: Path, topics: dict[str, TopicSummary], namespace: str | Non
 Rows = 'slice | NDArray[np.int64]'
 
 
-def _align(series: list[_Series | None], stacklevel: int) -> list[Rows | None]:
+def _align(series: list[_Series | None], stacklevel: int, by_time: bool = False
+           ) -> list[Rows | None]:
     """Rows of each present topic that put them on common time steps.
 
     Topics with equal message counts are taken row by row (also when recorded live, where log
-    times differ between topics); otherwise only the log times present in all are kept.
+    times differ between topics) unless ``by_time`` (messages were lost in the middle of the
+    file: equal counts no longer mean equal steps); otherwise only the log times present in
+    all are kept (the k-th message at a log time pairs with the k-th of the others).
     """
     present = [s for s in series if s is not None]
-    if len({len(s) for s in present}) <= 1:
+    if len({len(s) for s in present}) <= 1 and not by_time:
         return [slice(None) if s is not None else None for s in series]
-    common = present[0].log_times
-    for s in present[1:]:
-        common = np.intersect1d(common, s.log_times)
-    out = []
-    for s in series:
-        out.append(None if s is None else np.flatnonzero(np.isin(s.log_times, common)))
+    keys = _occurrence_keys([s.log_times for s in present])
+    common = keys[0]
+    for k in keys[1:]:
+        common = np.intersect1d(common, k)
+    rows = iter([np.flatnonzero(np.isin(k, common)) for k in keys])
+    out = [None if s is None else next(rows) for s in series]
     dropped = max(len(s) for s in present) - len(common)
     if dropped:
         warnings.warn(f'{dropped} time steps without all of body, joint and contact states '
                       'were dropped', BagWarning, stacklevel=stacklevel)
     return out
+
+
+def _occurrence_keys(times: list[NDArray[np.int64]]) -> list[NDArray[np.int64]]:
+    """One integer per message, equal across the lists for the k-th message at the same log
+    time (a reset publishes twice at one sim time), unique within each list."""
+    if not times or not sum(len(t) for t in times):
+        return [np.zeros(0, np.int64) for _ in times]
+    _, inverse = np.unique(np.concatenate(times), return_inverse=True)
+    ids = np.split(inverse.reshape(-1).astype(np.int64), np.cumsum([len(t) for t in times])[:-1])
+    ranks = []
+    for t_ids in ids:
+        order = np.argsort(t_ids, kind='stable')
+        ordered = t_ids[order]
+        rank = np.empty_like(t_ids)
+        rank[order] = np.arange(len(t_ids)) - np.searchsorted(ordered, ordered, side='left')
+        ranks.append(rank)
+    width = 1 + max((int(r.max()) for r in ranks if len(r)), default=0)
+    return [i * width + r for i, r in zip(ids, ranks)]
 
 
 def _stamps_ns(series: _Series) -> NDArray[np.int64]:
@@ -443,14 +464,18 @@ def load(path: os.PathLike | str, *, namespace: str | None = None) -> Run:
         Robot namespace to read when the bag holds several (``'crawler1'``).
 
     Raises :class:`BagError` (one-line message) for a missing, empty or non-MCAP file and for a
-    bag without crawler_sim topics. A truncated file loads up to the damage with a
-    :class:`BagWarning`.
+    bag without crawler_sim topics. A truncated file loads up to where it was cut, a damaged
+    one every intact chunk, with a :class:`BagWarning` that says what was lost.
     """
     files = bag_files(path)
     scans: list[Scan] = []
     stores: list[dict[str, _TopicData]] = []
     for file in files:
         result, store = _scan_file(file)
+        if result.damage:
+            warnings.warn(f'{file}: damaged: {"; ".join(str(d) for d in result.damage)}; '
+                          'loaded the messages of every intact part (crawler_sim.bag.recover '
+                          'copies them into a new bag)', BagWarning, stacklevel=2)
         if result.truncated:
             warnings.warn(f'{file}: {result.stop_reason}; loaded the {result.message_count} '
                           'messages before that point (crawler_sim.bag.recover repairs the file)',
@@ -486,7 +511,9 @@ def _build_run(path: Path, ns: str, scans: list[Scan], stores: list[dict[str, _T
         body = _Series(BODY_STATES.type, np.zeros(0, np.int64), {}, None)
     scene = _scene(stores, scans, ns)
     p = body.columns['position'].shape[1] if len(body) else _bodies_of(scene, _names(body))
-    ib, ij, ic = _align([body, joint, contact], stacklevel=4)
+    # a damaged middle loses a run of messages: steps are matched by time, not by count
+    ib, ij, ic = _align([body, joint, contact], stacklevel=4,
+                        by_time=any(sc.damage for sc in scans))
     missing = [t.suffix for t, s in ((JOINT_STATES, joint), (CONTACT_STATES, contact))
                if s is None]
     if missing and not stateless:
@@ -519,6 +546,6 @@ def _build_run(path: Path, ns: str, scans: list[Scan], stores: list[dict[str, _T
         namespace=ns,
         bodies=_names(body),
         linkages=_names(joint),
-        truncated=any(sc.truncated for sc in scans),
+        truncated=any(sc.incomplete for sc in scans),
         t_ns=t_ns,
     )
