@@ -35,6 +35,9 @@ _JOINT_FIELDS = ('header.stamp.sec', 'header.stamp.nanosec', 'position', 'veloci
 _APPLIED = 'applied_command'
 _FILE_NUMBER = re.compile(r'_(\d+)\.mcap$')
 _MAX_METADATA = 16 << 20       # bytes; rosbag2 writes a few KiB
+#: ``Run.contact`` of a body that did not exist at that state (a bag whose number of bodies
+#: changed during the run): distinct from +1, 0 (stuck) and -1, and far from them
+NO_BODY = -128
 
 
 class BagWarning(UserWarning):
@@ -75,9 +78,11 @@ class Run:
     x, v, friction : ndarray, shape (N, p)
         Body positions [m], velocities [m/s], friction force of the ground on each body [N].
     contact : ndarray, shape (N, p), int8
-        +1 sliding forward, 0 stuck, -1 sliding backward.
+        +1 sliding forward, 0 stuck, -1 sliding backward; :data:`NO_BODY` (-128) where the
+        body did not exist (see ``present``).
     lengths, rates, linkage_force : ndarray, shape (N, p-1)
-        Linkage lengths [m], rates [m/s] and forces [N] (``joint_states``).
+        Linkage lengths [m], rates [m/s] and forces [N] (``joint_states``); NaN for a linkage
+        that did not exist.
     commands : Commands
         Applied commands (``linkage_cmd``, else ``applied_command``): (K,) and (K, p-1).
     events : Events
@@ -96,6 +101,11 @@ class Run:
         The same stamps as recorded, in integer nanoseconds: compare times in this base (``t``
         is ``t_ns / 1e9`` and may differ from the simulated float time by up to 0.5 ns, see
         :func:`crawler_sim.bag.clock.rows_at_ns`).
+    present : ndarray, shape (N, p), bool
+        True where body j existed at state i. All True unless the number of bodies changed
+        during the run (sim_node resets on a new ``p`` and records on): then ``p`` is the
+        largest number of bodies, and a body that did not exist at a state has NaN ``x``,
+        ``v`` and ``friction``, contact :data:`NO_BODY`, and NaN for the linkages beyond it.
     """
 
     path: Path
@@ -116,6 +126,7 @@ class Run:
     linkages: tuple[str, ...] = ()
     truncated: bool = False
     t_ns: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
+    present: NDArray[np.bool_] = field(default_factory=lambda: np.zeros((0, 0), bool))
 
     @property
     def p(self) -> int:
@@ -273,17 +284,22 @@ class _Series:
     log_times: NDArray[np.int64]
     columns: dict[str, NDArray]
     first: bytes | None
+    widths: dict[str, NDArray[np.int64]] = field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.log_times)
 
-    def column(self, path: str, width: int, dtype: Any = np.float64) -> NDArray:
-        """Column ``path`` as shape (N, width); missing entries NaN (or 0 for integers)."""
+    def column(self, path: str, width: int, dtype: Any = np.float64, fill: Any = 0) -> NDArray:
+        """Column ``path`` as shape (N, width); entries a message did not hold are NaN for
+        floats and ``fill`` for integers (never a NaN cast to an integer)."""
         values = self.columns.get(path, np.zeros((len(self), 0)))
+        integer = np.dtype(dtype).kind in 'iu'
+        if integer and values.dtype.kind == 'f':
+            # ragged integer columns were NaN-padded as floats: the NaN are absent entries
+            values = np.where(np.isnan(values), fill, values)
         if values.shape[1] == width:
             return values.astype(dtype, copy=False)
-        fill = np.nan if np.dtype(dtype).kind == 'f' else 0
-        out = np.full((len(self), width), fill, dtype=dtype)
+        out = np.full((len(self), width), fill if integer else np.nan, dtype=dtype)
         w = min(width, values.shape[1])
         out[:, :w] = values[:, :w]
         return out
@@ -304,8 +320,10 @@ def _merged(stores: list[dict[str, _TopicData]], topic: str) -> _Series | None:
         columns[key] = np.concatenate(arrays) if len(arrays) > 1 else arrays[0]
     first = next((p.first for p in parts if p.first is not None), None)
     times = [p.times() for p in parts]
+    per_file = [p.decoder.widths() for p in parts if p.decoder is not None]
+    widths = {key: np.concatenate([w[key] for w in per_file]) for key in columns}
     return _Series(parts[0].type, np.concatenate(times) if len(times) > 1 else times[0],
-                   columns, first)
+                   columns, first, widths)
 
 
 def _topic_summary(scans: list[Scan]) -> dict[str, TopicSummary]:
@@ -523,13 +541,16 @@ def _build_run(path: Path, ns: str, scans: list[Scan], stores: list[dict[str, _T
 
     t_ns = _stamps_ns(body)[ib]
     n = len(t_ns)
+    # bodies each state held (p changes when sim_node is reconfigured during a recording)
+    held = body.widths.get('position', np.full(len(body), p, np.int64))[ib]
+    present = np.arange(p) < held[:, None]
 
     def rows(series: _Series | None, idx: Rows | None, field_path: str, width: int,
              dtype: Any = np.float64) -> NDArray:
         if series is None:        # missing topic: NaN floats, no contact columns
             return (np.full((n, width), np.nan) if np.dtype(dtype).kind == 'f'
                     else np.zeros((n, 0), dtype))
-        return series.column(field_path, width, dtype)[idx]
+        return series.column(field_path, width, dtype, fill=NO_BODY)[idx]
 
     return Run(
         path=path,
@@ -548,4 +569,5 @@ def _build_run(path: Path, ns: str, scans: list[Scan], stores: list[dict[str, _T
         linkages=_names(joint),
         truncated=any(sc.incomplete for sc in scans),
         t_ns=t_ns,
+        present=present,
     )
