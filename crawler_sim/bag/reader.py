@@ -305,6 +305,9 @@ class _Series:
         return out
 
 
+_WIDTHS = ('position',)         # columns whose per-message length load needs (Run.present)
+
+
 def _merged(stores: list[dict[str, _TopicData]], topic: str) -> _Series | None:
     parts = [store[topic] for store in stores if topic in store]
     if not parts:
@@ -320,8 +323,9 @@ def _merged(stores: list[dict[str, _TopicData]], topic: str) -> _Series | None:
         columns[key] = np.concatenate(arrays) if len(arrays) > 1 else arrays[0]
     first = next((p.first for p in parts if p.first is not None), None)
     times = [p.times() for p in parts]
-    per_file = [p.decoder.widths() for p in parts if p.decoder is not None]
-    widths = {key: np.concatenate([w[key] for w in per_file]) for key in columns}
+    # entries each message held, where a ragged width means something: bodies per state
+    widths = {key: np.concatenate([p.decoder.widths(key) for p in parts if p.decoder])
+              for key in _WIDTHS if key in columns}
     return _Series(parts[0].type, np.concatenate(times) if len(times) > 1 else times[0],
                    columns, first, widths)
 
