@@ -199,7 +199,7 @@ def _copy_file(file: Path, writer: BagWriter, result: RecoverResult) -> None:
 
 
 def _note_damage(file: Path, sc: Scan, result: RecoverResult) -> None:
-    cut = sc.truncated and not sc.data_end and not sc.indexed
+    cut = sc.truncated and not sc.data_end       # a cut summary alone loses nothing
     if not sc.damage and not cut:
         return
     result.complete = False

@@ -201,3 +201,16 @@ def test_two_damaged_chunks_are_both_reported_and_skipped(original, tmp_path):
     assert f'2 damaged parts skipped, {lost} messages lost' in text
     result = recover(bad, tmp_path / 'fixed')
     assert result.messages == sum(map(len, layout.messages)) - lost
+
+
+def test_a_file_whose_reading_is_refused_half_way_is_not_called_complete(original, tmp_path,
+                                                                         monkeypatch):
+    # the bound on decompressed bytes (a chunk bomb's defence), lowered to hit this real file
+    from crawler_sim.bag import mcapfile
+    path, layout = original
+    monkeypatch.setattr(mcapfile, 'TOTAL_FLOOR', 100_000)
+    monkeypatch.setattr(mcapfile, 'TOTAL_FACTOR', 0)
+    result = recover(path, tmp_path / 'fixed')
+    assert not result.complete and 'refusing the rest' in result.problems[0]
+    assert 0 < result.messages < sum(map(len, layout.messages))
+    assert 'INCOMPLETE' in info(path)
