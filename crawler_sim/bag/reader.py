@@ -324,7 +324,8 @@ def _merged(stores: list[dict[str, _TopicData]], topic: str) -> _Series | None:
     first = next((p.first for p in parts if p.first is not None), None)
     times = [p.times() for p in parts]
     # entries each message held, where a ragged width means something: bodies per state
-    widths = {key: np.concatenate([p.decoder.widths(key) for p in parts if p.decoder])
+    widths = {key: np.concatenate([p.decoder.widths(key) for p in parts
+                                   if p.decoder is not None])
               for key in _WIDTHS if key in columns}
     return _Series(parts[0].type, np.concatenate(times) if len(times) > 1 else times[0],
                    columns, first, widths)
