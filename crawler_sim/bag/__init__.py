@@ -13,9 +13,11 @@ Public API
 ``record_arrays(path, *, t, x, v, friction, contact, lengths, rates, linkage_force, ...)``
     Offline run -> bag with the same topics and types as the node.
 ``load(path, *, namespace=None) -> Run``
-    Bag directory or .mcap -> numpy arrays.
+    Bag directory or .mcap -> numpy arrays (every intact chunk of a damaged file; bodies that
+    did not exist at a state, when p changed mid-run: ``Run.present`` False, ``NO_BODY``).
 ``recover(src, dst=None) -> RecoverResult``
-    Truncated .mcap (e.g. after SIGKILL) -> valid bag directory.
+    Truncated or damaged .mcap (SIGKILL, flipped bits) -> valid bag directory holding every
+    message of every intact chunk.
 ``info(path) -> str`` and ``plot(path, out_png) -> Path``
     Summaries for the command line.
 
@@ -29,12 +31,13 @@ from .errors import BagError
 from .info import info
 from .naming import check_record_name
 from .plot import plot
-from .reader import BagWarning, Commands, Events, Run, TopicSummary, bag_files, load
+from .reader import NO_BODY, BagWarning, Commands, Events, Run, TopicSummary, bag_files, load
 from .recorder import Recorder, record_arrays, record_trajectory
 from .recover import RecoverResult, recover
 from .writer import BagWriter
 
-__all__ = ['BagError', 'BagWarning', 'BagWriter', 'Commands', 'Events', 'RecoverResult',
+__all__ = ['NO_BODY', 'BagError', 'BagWarning', 'BagWriter', 'Commands', 'Events',
+           'RecoverResult',
            'Recorder', 'Run', 'TopicSummary', 'bag_files', 'check_record_name', 'info', 'load',
            'plot',
            'record_arrays', 'record_trajectory', 'recover', 'to_ns', 'to_seconds']

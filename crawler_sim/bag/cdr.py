@@ -321,6 +321,14 @@ class Decoder:
         """``{path: array of shape (N, width)}``; NaN-padded where widths differ."""
         return {p: _assemble(self._parts[p], self._n) for p in self.paths}
 
+    def widths(self, path: str) -> NDArray[np.int64]:
+        """Shape (N,): the number of values each message holds in ``path`` (a sequence's
+        length), so that the NaN padding of :meth:`columns` is never mistaken for data."""
+        widths = np.zeros(self._n, np.int64)
+        for positions, values in self._parts[path]:
+            widths[positions] = values.shape[1]
+        return widths
+
     def _template(self, row: NDArray[np.uint8]) -> _Template | None:
         data = row.tobytes()
         try:

@@ -72,15 +72,52 @@ def _scene_line(scans: list[Scan]) -> list[str]:
     return []
 
 
+def _lost(sc: Scan) -> tuple[int, bool]:
+    """Messages of ``sc``'s file lost to damage: exact when the file's statistics survived."""
+    if sc.expected is not None and not sc.truncated:
+        return max(sc.expected - sc.message_count, 0), False
+    return sc.lost
+
+
+def _status_lines(scans: list[Scan]) -> list[str]:
+    """``status:`` (complete, DAMAGED or INCOMPLETE) and one ``damage:`` line per damaged
+    part of a file (what was skipped, why, and the messages it cost)."""
+    damaged = [sc for sc in scans if sc.damage]
+    cut = [sc for sc in scans if sc.truncated]
+    if not damaged and not cut:
+        return ['status:    complete']
+    lines = []
+    if cut:
+        lines.append('status:    INCOMPLETE - ' + '; '.join(
+            f'{sc.path.name}: {sc.stop_reason}' for sc in cut)
+            + ' (crawler_sim.bag.recover repairs it)')
+    if damaged:
+        lost = [_lost(sc) for sc in damaged]
+        total, maybe = sum(n for n, _ in lost), any(m for _, m in lost)
+        parts = sum(len(sc.damage) for sc in damaged)
+        cost = (f'at least {total} messages lost' if maybe and total else
+                'an unknown number of messages lost' if maybe else
+                f'{total} messages lost' if total else 'no message lost')
+        label = 'damage:' if cut else 'status:'
+        lines.append(f'{label:<11}DAMAGED - {parts} damaged part{"s" if parts > 1 else ""} '
+                     f'skipped, {cost} (crawler_sim.bag.recover writes a new bag of the '
+                     'readable messages)')
+        lines += [f'  {sc.path.name}: {d}' for sc in damaged for d in sc.damage]
+    return lines
+
+
 def info(path: os.PathLike | str) -> str:
     """Summary of a bag directory or .mcap file: files, status, times, topics and scene.
 
-    Works for any MCAP file. Raises :class:`crawler_sim.bag.BagError` for a missing, empty or
-    non-MCAP input.
+    Works for any MCAP file. Every chunk is read and checked, so the status is ``complete``
+    only when every message is readable; otherwise it names each damaged part (which chunk,
+    why, how many messages it cost) or where the file was cut. The message and topic counts
+    are of the readable messages. Raises :class:`crawler_sim.bag.BagError` for a missing,
+    empty or non-MCAP input.
     """
     path = Path(path)
     files = bag_files(path)
-    scans = [scan(f) for f in files]
+    scans = [scan(f, verify=True) for f in files]
     starts = [sc.start_ns for sc in scans if sc.start_ns is not None]
     ends = [sc.end_ns for sc in scans if sc.end_ns is not None]
     start = min(starts) if starts else None
@@ -92,11 +129,13 @@ def info(path: os.PathLike | str) -> str:
     lines.append('files:     ' + ', '.join(f'{f.name} ({_size(f)})' for f in files))
     lines.append('writer:    ' + '; '.join(sorted({f'{sc.library} (profile {sc.profile or "-"})'
                                                   for sc in scans})))
-    damaged = [f'{sc.path.name}: {sc.stop_reason}' for sc in scans if sc.truncated]
-    lines.append('status:    ' + ('INCOMPLETE - ' + '; '.join(damaged)
-                                  + ' (crawler_sim.bag.recover repairs it)' if damaged
-                                  else 'complete'))
-    lines.append(f'messages:  {sum(sc.message_count for sc in scans)}')
+    lines.extend(_status_lines(scans))
+    readable = sum(sc.message_count for sc in scans)
+    claimed = [sc.expected for sc in scans]
+    note = ''
+    if any(sc.damage for sc in scans) and None not in claimed and sum(claimed) != readable:
+        note = f' readable (the files\' statistics list {sum(claimed)})'
+    lines.append(f'messages:  {readable}{note}')
     lines.append(f'start:     {format_time(start)}')
     lines.append(f'end:       {format_time(end)}')
     duration = None if start is None or end is None else end - start

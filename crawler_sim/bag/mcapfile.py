@@ -3,31 +3,44 @@
 Two strategies, chosen per file:
 
 * **indexed**: the file ends with a valid footer and its summary holds chunk indexes with message
-  index offsets (what :class:`mcap.writer.Writer` and rosbag2 write). Schemas, channels, counts
-  and metadata come from the summary; for each chunk only the message indexes of the wanted
-  channels are read, and message positions are gathered with numpy (no per-message Python).
-* **linear**: no usable footer (e.g. a recording killed with SIGKILL) or no indexes. Top-level
+  index offsets (what :class:`mcap.writer.Writer` and rosbag2 write), and the message indexes
+  add up to the statistics. Schemas, channels and metadata come from the summary; for each chunk
+  only the message indexes of the wanted channels are read, and message positions are gathered
+  with numpy (no per-message Python).
+* **linear**: no usable footer (e.g. a recording killed with SIGKILL) or summary. Top-level
   records are walked in file order; each chunk's messages come from the message index records
   that follow it, and only the byte ranges of a chunk not covered by messages (schemas, channels)
-  are walked record by record. A chunk with no indexes is walked fully. The walk stops at the
-  first incomplete or corrupt record and marks the scan ``truncated``.
+  are walked record by record. A chunk with no (or damaged) indexes is walked fully.
+
+Damage is skipped, not fatal: a chunk that cannot be read (a corrupted header field, a bad CRC,
+data that does not decompress) is recorded as a :class:`Damage` with the messages its indexes
+list, and reading goes on with the next chunk. In the indexed strategy the summary says where
+that is; in the linear one a damaged record *length* is stepped over by searching for the next
+record that fits the spec exactly (:mod:`.resync`), never by trusting a length beyond the file's
+end. A message index that does not match its chunk is replaced by a walk of the chunk's records.
+The scan ends ``truncated`` only where nothing intact follows (a file cut short).
 
 Message bytes are handed, chunk by chunk, to a *sink* that the caller's ``want(channel)``
 returns for the channels it wants: a :class:`Batch` is a decompressed chunk buffer plus the start,
-length and log time of each message of one channel in it, in file order. Sinks are expected to
-decode what they need right away, so only one decompressed chunk is alive at a time.
+length and log time of each message of one channel in it, in file order. The batches of one
+chunk are handed over one after the other, before the next chunk is read. Sinks are expected to
+decode what they need right away, so only one decompressed chunk is alive at a time. A sink that
+raises ``ValueError`` (undecodable data) makes that batch damage too.
 
 Hostile files: memory is bounded by the file's size. A chunk may not claim (nor decompress to)
 more than :func:`chunk_limit` bytes (twice the file size, at least 1.125 MiB: what a writer
-with 1 MiB chunks produces), messages of one channel in a chunk may not
-overlap (an index pointing many times at one big message would be copied many times), and only
-regular files are opened (a FIFO named ``*.mcap`` would block forever).
+with 1 MiB chunks produces), all chunks together not more than :func:`total_limit` (the scan
+stops there), messages of one channel in a chunk may not overlap (an index pointing many times
+at one big message would be copied many times), and only regular files are opened (a FIFO
+named ``*.mcap`` would block forever).
 
-Length: over 400 lines because the two strategies share the record parsing and the bounds
-that keep hostile files harmless; splitting them would spread those checks over modules.
+Length: over 400 lines because the two strategies share the record parsing, the damage
+bookkeeping and the bounds that keep hostile files harmless; splitting them would spread those
+checks over modules (the search for the next record after damage is in :mod:`.resync`).
 """
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass, field
 from io import BytesIO
 import mmap
@@ -47,11 +60,14 @@ from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import NDArray
 
 from .errors import BagError
+from .resync import next_record
 
 MAGIC = b'\x89MCAP0\r\n'
 OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE = 0x01, 0x02, 0x03, 0x04, 0x05
 OP_CHUNK, OP_MESSAGE_INDEX, OP_CHUNK_INDEX, OP_STATISTICS = 0x06, 0x07, 0x08, 0x0B
 OP_METADATA, OP_METADATA_INDEX, OP_DATA_END = 0x0C, 0x0D, 0x0F
+# records a linear walk steps over: attachments and the summary's indexes and offsets
+_OTHER_OPS = (OP_CHUNK_INDEX, 0x09, 0x0A, OP_STATISTICS, OP_METADATA_INDEX, 0x0E)
 RECORD_PREFIX = 9            # opcode (1) + record length (8)
 MESSAGE_FIXED = 22           # channel_id 2 + sequence 4 + log_time 8 + publish_time 8
 FOOTER_RECORD = RECORD_PREFIX + 20
@@ -104,7 +120,11 @@ def open_regular(path: Path) -> tuple[int, int]:
 
 
 class _Corrupt(Exception):
-    """Internal: a record cannot be parsed; the scan stops there."""
+    """Internal: a record cannot be parsed."""
+
+
+class _Refused(Exception):
+    """Internal: the file asks for more work than any real recording (the scan stops)."""
 
 
 # Everything a damaged file can raise while being parsed.
@@ -117,7 +137,8 @@ class Batch:
     """Messages of one channel inside one buffer (a decompressed chunk), in file order.
 
     ``starts``/``lengths`` [bytes] locate each message's data (CDR with its 4-byte header) in
-    ``buffer``; ``log_times`` [ns] are the MCAP log times.
+    ``buffer``; ``log_times`` [ns] are the MCAP log times. The Message record's fields precede
+    each data start in ``buffer`` (see :meth:`publish_times`, :meth:`sequences`).
     """
 
     buffer: NDArray[np.uint8]
@@ -133,6 +154,53 @@ class Batch:
         a = int(self.starts[i])
         return self.buffer[a:a + int(self.lengths[i])].tobytes()
 
+    def publish_times(self) -> NDArray[np.int64]:
+        """Publish time [ns] of each message (the 8 bytes before its data)."""
+        return self._field(8, '<u8').astype(np.int64)
+
+    def sequences(self) -> NDArray[np.int64]:
+        """Sequence number of each message (the u32 20 bytes before its data)."""
+        return self._field(20, '<u4').astype(np.int64)
+
+    def _field(self, back: int, dtype: str) -> NDArray:
+        width = np.dtype(dtype).itemsize
+        rows = self.buffer[(self.starts - back)[:, None] + np.arange(width)]
+        return np.ascontiguousarray(rows).view(dtype)[:, 0]
+
+
+@dataclass
+class Damage:
+    """A damaged part of a file that reading stepped over.
+
+    Attributes
+    ----------
+    offset, end : int
+        Bytes ``[offset, end)`` skipped (``end``: where reading went on).
+    what : str
+        What was there (``'chunk 3 of 28'``, ``'message index of chunk 3 of 28'``, ...).
+    reason : str
+        Why it could not be read.
+    lost : int
+        Messages known to be lost there.
+    at_least : bool
+        True when more may be lost (skipped bytes whose messages could not be counted).
+    """
+
+    offset: int
+    end: int
+    what: str
+    reason: str
+    lost: int = 0
+    at_least: bool = False
+
+    def __str__(self) -> str:
+        if self.at_least:
+            cost = (f'at least {self.lost} messages lost' if self.lost
+                    else 'an unknown number of messages lost')
+        else:
+            cost = f'{self.lost} messages lost' if self.lost else 'no message lost'
+        return f'{self.what} at byte {self.offset} skipped ({self.reason}): {cost}'
+
 
 @dataclass
 class Scan:
@@ -143,19 +211,43 @@ class Scan:
     library: str = ''
     schemas: dict[int, Schema] = field(default_factory=dict)
     channels: dict[int, Channel] = field(default_factory=dict)
-    counts: dict[int, int] = field(default_factory=dict)      # messages per channel id
+    counts: dict[int, int] = field(default_factory=dict)      # messages read per channel id
     start_ns: int | None = None
     end_ns: int | None = None
     metadata: list[Metadata] = field(default_factory=list)
     indexed: bool = False          # read through the summary
     inflated: int = 0              # bytes of chunks decompressed so far
-    truncated: bool = False        # no valid end of file, or stopped at a corrupt record
+    truncated: bool = False        # no valid end of file, or nothing intact after some damage
     stop_reason: str = ''
+    damage: list[Damage] = field(default_factory=list)       # damaged parts stepped over
+    chunks: int = 0                # chunks in the file (seen so far, in a linear walk)
+    data_end: bool = False         # a linear walk reached the end of the data section
+    expected: int | None = None    # messages the file's Statistics record claims (if readable)
 
     @property
     def message_count(self) -> int:
-        """Total number of messages in the file."""
+        """Total number of messages read (or, for channels no sink asked for in an indexed
+        scan, listed by the summary) in the file."""
         return sum(self.counts.values())
+
+    @property
+    def lost(self) -> tuple[int, bool]:
+        """``(messages known lost to damage, whether more may be lost)``."""
+        return (sum(d.lost for d in self.damage),
+                self.truncated or any(d.at_least for d in self.damage))
+
+    @property
+    def incomplete(self) -> bool:
+        """True when messages may be missing: cut short, or damage that cost messages."""
+        lost, maybe = self.lost
+        return lost > 0 or maybe
+
+    def problems(self) -> str:
+        """The damage and truncation, one line ('' for an intact file)."""
+        parts = [str(d) for d in self.damage]
+        if self.truncated or (self.stop_reason and not self.damage):
+            parts.append(self.stop_reason)
+        return '; '.join(p for p in parts if p)
 
     def schema_of(self, channel: Channel) -> Schema | None:
         """Schema of ``channel`` (None for schemaless channels)."""
@@ -174,15 +266,19 @@ Sink = Callable[[Batch], None]
 Want = Callable[[Channel, 'Schema | None'], 'Sink | None']
 
 
-def scan(path: Path | str, want: Want | None = None) -> Scan:
+def scan(path: Path | str, want: Want | None = None, *, verify: bool = False) -> Scan:
     """Read the file structure of ``path``; pass messages to the sinks ``want`` returns.
 
     ``want(channel, schema)`` is called once per channel (again if the file has to be re-read
-    linearly after a damaged summary) and returns a callable that receives that channel's
-    :class:`Batch` objects in file order, or None to skip the channel.
+    linearly after a damaged summary, before any message was handed over) and returns a
+    callable that receives that channel's :class:`Batch` objects in file order, or None to skip
+    the channel. ``verify=True`` reads (decompresses and checks) every chunk and every message
+    index even when no sink asks for it, so that ``counts`` and ``damage`` describe the whole
+    file (what ``info`` reports).
 
-    Raises :class:`BagError` for a missing, empty or non-MCAP file. A truncated or partly corrupt
-    file gives a :class:`Scan` with ``truncated=True`` holding everything before the damage.
+    Raises :class:`BagError` for a missing, empty or non-MCAP file. A damaged file gives a
+    :class:`Scan` holding every intact part, with ``damage`` saying what was skipped; a file cut
+    short has ``truncated=True``.
     """
     path = Path(path)
     want = want or (lambda channel, schema: None)
@@ -191,7 +287,7 @@ def scan(path: Path | str, want: Want | None = None) -> Scan:
         if size == 0:
             raise BagError(f'{path}: empty file, not an MCAP bag')
         with mmap.mmap(fd, 0, access=mmap.ACCESS_READ) as mm:
-            return _scan_mapped(path, mm, size, want)
+            return _scan_mapped(path, mm, size, want, verify)
     except PermissionError:
         raise
     except (OSError, ValueError) as exc:
@@ -200,15 +296,19 @@ def scan(path: Path | str, want: Want | None = None) -> Scan:
         os.close(fd)
 
 
-def _scan_mapped(path: Path, mm: mmap.mmap, size: int, want: Want) -> Scan:
+def _scan_mapped(path: Path, mm: mmap.mmap, size: int, want: Want, verify: bool) -> Scan:
     if size < len(MAGIC) or mm[:len(MAGIC)] != MAGIC:
         raise BagError(f'{path}: not an MCAP file (bad magic bytes)')
     result = Scan(path=path)
     if _has_footer(mm, size):
         try:
-            if _scan_indexed(result, mm, size, want):
+            if _scan_indexed(result, mm, size, want, verify):
                 return result
             result = Scan(path=path)          # what the summary held is read again below
+        except _Refused as exc:
+            result.truncated = True
+            result.stop_reason = str(exc)
+            return result
         except _DAMAGE as exc:
             result = Scan(path=path, stop_reason=f'unreadable summary ({exc}); scanned linearly')
     else:
@@ -286,15 +386,23 @@ def _decompress(compression: str, data: bytes, size: int, limit: int) -> bytes:
 def _read_chunk(result: Scan, mm, content_start: int, content_end: int) -> NDArray[np.uint8]:
     """Decompressed records of the Chunk record whose content spans the given bytes.
 
-    The CRC is checked when the writer stored one. All chunks of a file together may not
-    decompress to more than :func:`total_limit` bytes (the CPU and time a scan may take).
+    The CRC is checked when the writer stored one. A chunk that claims more than
+    :func:`chunk_limit` is damage (_Corrupt) and is not counted; all chunks of a file together
+    may not decompress to more than :func:`total_limit` bytes (the CPU and time a scan may
+    take): beyond that the scan stops (_Refused).
     """
     _, _, usize, crc, clen = _CHUNK_HEAD.unpack_from(mm, content_start)
+    limit = chunk_limit(len(mm))
+    if usize > limit:
+        raise _Corrupt(f'chunk claims {usize} bytes uncompressed, more than the {limit} '
+                       'allowed for a file of this size')
     result.inflated += usize
     if result.inflated > total_limit(len(mm)):
-        raise _Corrupt(f'chunks decompress to more than {total_limit(len(mm))} bytes '
+        raise _Refused(f'chunks decompress to more than {total_limit(len(mm))} bytes '
                        f'({TOTAL_FACTOR}x the file size); refusing the rest (crafted file?)')
     pos = content_start + _CHUNK_HEAD.size
+    if pos + clen + 8 > content_end:
+        raise _Corrupt(f'chunk compression name of {clen} bytes runs past its record')
     compression = bytes(mm[pos:pos + clen]).decode()
     pos += clen
     dlen = _U64.unpack_from(mm, pos)[0]
@@ -302,13 +410,13 @@ def _read_chunk(result: Scan, mm, content_start: int, content_end: int) -> NDArr
     if pos + dlen > content_end:
         raise _Corrupt('chunk data runs past its record')
     try:
-        raw = _decompress(compression, mm[pos:pos + dlen], usize, chunk_limit(len(mm)))
+        raw = _decompress(compression, mm[pos:pos + dlen], usize, limit)
     except _Corrupt:
         raise
     except Exception as exc:          # zstd/lz4 raise their own error types
         raise _Corrupt(f'chunk does not decompress ({exc})') from None
     if len(raw) != usize:
-        raise _Corrupt('chunk decompressed to the wrong size')
+        raise _Corrupt(f'chunk decompressed to {len(raw)} bytes, its record claims {usize}')
     if crc and zlib.crc32(raw) != crc:
         raise _Corrupt('chunk CRC mismatch (damaged data)')
     return np.frombuffer(raw, dtype=np.uint8)
@@ -323,6 +431,17 @@ def _message_index(buf, content_start: int, content_end: int) -> tuple[int, NDAr
         raise _Corrupt('malformed message index')
     entries = np.frombuffer(buf, dtype='<u8', count=nbytes // 8, offset=first).copy()
     return channel_id, entries.reshape(-1, 2)
+
+
+def _index_length(buf, pos: int, limit: int) -> int:
+    """Number of entries of the MessageIndex record at ``pos`` (its header only)."""
+    opcode, a, b = _record_at(buf, pos, limit)
+    if opcode != OP_MESSAGE_INDEX or b - a < 6:
+        raise _Corrupt('no message index where the summary puts one')
+    nbytes = struct.unpack_from('<I', buf, a + 2)[0]
+    if a + 6 + nbytes > b or nbytes % 16:
+        raise _Corrupt('malformed message index')
+    return nbytes // 16
 
 
 # Opcode, record length and the fixed fields of a Message record, as laid out in the file.
@@ -366,10 +485,65 @@ def _batch(chunk: NDArray[np.uint8], channel_id: int, entries: NDArray[np.uint64
     return Batch(chunk, starts, lengths, log_times)
 
 
+def _records_in(chunk: NDArray[np.uint8], start: int, end: int, *, messages: bool
+                ) -> tuple[list[Schema | Channel], dict[int, Batch]]:
+    """Definitions (parsed) and, if ``messages``, the messages per channel of
+    ``chunk[start:end]``, walked record by record (slow path). _Corrupt at the first record that
+    does not fit; nothing is handed on before the whole range has been read."""
+    buf = chunk.data
+    definitions: list[Schema | Channel] = []
+    found: dict[int, tuple[list[int], list[int], list[int]]] = {}
+    pos = start
+    while pos < end:
+        opcode, a, b = _record_at(buf, pos, end)
+        if opcode == OP_SCHEMA:
+            definitions.append(Schema.read(_stream(bytes(buf[a:b]))))
+        elif opcode == OP_CHANNEL:
+            definitions.append(Channel.read(_stream(bytes(buf[a:b]))))
+        elif opcode == OP_MESSAGE and messages:
+            if b - a < MESSAGE_FIXED:
+                raise _Corrupt(f'message record of {b - a} bytes (fewer than its fields)')
+            cid = _U16.unpack_from(buf, a)[0]
+            starts, lengths, times = found.setdefault(cid, ([], [], []))
+            starts.append(a + MESSAGE_FIXED)
+            lengths.append(b - a - MESSAGE_FIXED)
+            times.append(_U64.unpack_from(buf, a + 6)[0])
+        pos = b
+    batches = {cid: Batch(chunk, np.array(s, np.int64), np.array(n, np.int64),
+                          np.array(t, dtype=np.uint64).astype(np.int64))
+               for cid, (s, n, t) in found.items()}
+    return definitions, batches
+
+
+def _feed(result: Scan, sinks: dict[int, Sink | None], batches: dict[int, Batch], where: str,
+          offset: int, end: int) -> None:
+    """Hand ``batches`` of one chunk to their sinks and count them; a sink that finds the data
+    undecodable (or a channel never declared) makes that batch damage."""
+    for cid, batch in batches.items():
+        if not len(batch):
+            continue
+        if cid not in result.channels:
+            result.damage.append(Damage(offset, end, where, f'{len(batch)} messages on '
+                                        f'channel {cid}, which the file never declares',
+                                        len(batch)))
+            continue
+        sink = sinks.get(cid)
+        if sink is not None:
+            try:
+                sink(batch)
+            except _DAMAGE as exc:
+                topic = result.channels[cid].topic
+                result.damage.append(Damage(offset, end, where,
+                                            f'{topic} messages undecodable ({exc})', len(batch)))
+                continue
+        result._saw(cid, batch.log_times)
+
+
 # ---------------------------------------------------------------- indexed strategy
 
-def _scan_indexed(result: Scan, mm, size: int, want: Want) -> bool:
-    """Fill ``result`` from the summary; False when the summary is missing or lacks indexes."""
+def _scan_indexed(result: Scan, mm, size: int, want: Want, verify: bool) -> bool:
+    """Fill ``result`` from the summary; False (nothing handed to a sink yet) when the summary
+    is missing, lacks indexes or disagrees with them. A damaged chunk is skipped."""
     footer = Footer.read(_stream(mm[size - len(MAGIC) - 20:size - len(MAGIC)]))
     footer_pos = size - len(MAGIC) - FOOTER_RECORD
     if footer.summary_start == 0 or not len(MAGIC) <= footer.summary_start <= footer_pos:
@@ -397,39 +571,105 @@ def _scan_indexed(result: Scan, mm, size: int, want: Want) -> bool:
             or any(not ci.message_index_offsets for ci in chunk_indexes)
             or any(cid not in result.channels for cid in stats.channel_message_counts)):
         return False
+    chunk_indexes.sort(key=lambda c: c.chunk_start_offset)
+    listed = _listed(mm, footer_pos, chunk_indexes)
+    claimed = Counter({cid: n for cid, n in stats.channel_message_counts.items() if n})
+    known = Counter()
+    for per_channel in listed:
+        known.update({cid: n for cid, n in per_channel.items() if n is not None})
+    unreadable = {cid for per_channel in listed for cid, n in per_channel.items() if n is None}
+    if any(known[cid] != claimed[cid] for cid in set(claimed) | set(known)
+           if cid not in unreadable):
+        return False              # indexes and statistics disagree: trust neither, walk the file
     _read_header(result, mm)
     result.indexed = True
-    result.counts = {cid: n for cid, n in stats.channel_message_counts.items() if n}
-    if stats.message_count:
-        result.start_ns, result.end_ns = stats.message_start_time, stats.message_end_time
+    result.expected = stats.message_count
     for index in metadata_indexes:
         opcode, a, b = _record_at(mm, index.offset, footer_pos)
         if opcode == OP_METADATA:
             result.metadata.append(Metadata.read(_stream(mm[a:b])))
     sinks = {cid: sink for cid, ch in result.channels.items()
              if (sink := want(ch, result.schemas.get(ch.schema_id))) is not None}
-    fed: dict[int, int] = {}
-    for ci in sorted(chunk_indexes, key=lambda c: c.chunk_start_offset):
-        present = sorted(set(sinks) & set(ci.message_index_offsets))
-        if not present:
+    lost_unread = Counter()        # messages of damaged chunks on channels no sink reads
+    for number, (ci, per_channel) in enumerate(zip(chunk_indexes, listed), 1):
+        cids = sorted(ci.message_index_offsets if verify
+                      else set(sinks) & set(ci.message_index_offsets))
+        if not cids:
             continue
-        opcode, a, b = _record_at(mm, ci.chunk_start_offset, footer_pos)
+        where = f'chunk {number} of {len(chunk_indexes)}'
+        end = ci.chunk_start_offset + ci.chunk_length
+        batches = _indexed_chunk(result, mm, footer_pos, ci, cids, per_channel, where)
+        if batches is None:
+            lost_unread.update({cid: n for cid, n in per_channel.items()
+                                if n and cid not in cids})
+            continue
+        _feed(result, sinks, batches, where, ci.chunk_start_offset, end)
+    read = set(sinks) | (set(claimed) if verify else set())
+    for cid, n in claimed.items():            # channels not read: as the summary lists them
+        if cid not in read and n - lost_unread[cid] > 0:
+            result.counts[cid] = n - lost_unread[cid]
+    if not verify and any(cid not in read for cid in claimed) and stats.message_count:
+        lo, hi = stats.message_start_time, stats.message_end_time
+        result.start_ns = lo if result.start_ns is None else min(lo, result.start_ns)
+        result.end_ns = hi if result.end_ns is None else max(hi, result.end_ns)
+    return True
+
+
+def _listed(mm, limit: int, chunk_indexes: list[ChunkIndex]) -> list[dict[int, int | None]]:
+    """Per chunk, the messages its index records list per channel (None: unreadable index)."""
+    out = []
+    for ci in chunk_indexes:
+        per_channel: dict[int, int | None] = {}
+        for cid, offset in ci.message_index_offsets.items():
+            try:
+                per_channel[cid] = _index_length(mm, offset, limit)
+            except _DAMAGE:
+                per_channel[cid] = None
+        out.append(per_channel)
+    return out
+
+
+def _indexed_chunk(result: Scan, mm, limit: int, ci: ChunkIndex, cids: list[int],
+                   per_channel: dict[int, int | None], where: str) -> dict[int, Batch] | None:
+    """Batches of channels ``cids`` of one chunk, or None (damage recorded) if it is unreadable.
+
+    A message index that does not match the chunk is replaced by a walk of its records."""
+    offset = ci.chunk_start_offset
+    try:
+        opcode, a, b = _record_at(mm, offset, limit)
         if opcode != OP_CHUNK:
-            raise _Corrupt('chunk index does not point at a chunk')
+            raise _Corrupt(f'opcode 0x{opcode:02x} where the summary puts a chunk')
         chunk = _read_chunk(result, mm, a, b)
-        for cid in present:
-            opcode, ia, ib = _record_at(mm, ci.message_index_offsets[cid], footer_pos)
+    except _DAMAGE as exc:
+        counted = [n for n in per_channel.values() if n is not None]
+        result.damage.append(Damage(offset, offset + ci.chunk_length, where, str(exc),
+                                    sum(counted), len(counted) < len(per_channel)))
+        return None
+    try:
+        batches = {}
+        for cid in cids:
+            opcode, ia, ib = _record_at(mm, ci.message_index_offsets[cid], limit)
             if opcode != OP_MESSAGE_INDEX:
-                raise _Corrupt('message index offset does not point at a message index')
+                raise _Corrupt(f'opcode 0x{opcode:02x} where the summary puts a message index')
             index_cid, entries = _message_index(mm, ia, ib)
             if index_cid != cid:
-                raise _Corrupt('message index of the wrong channel')
-            if len(entries):
-                sinks[cid](_batch(chunk, cid, entries))
-                fed[cid] = fed.get(cid, 0) + len(entries)
-    if any(fed.get(cid, 0) != result.counts.get(cid, 0) for cid in sinks):
-        raise _Corrupt('message indexes disagree with the statistics')
-    return True
+                raise _Corrupt(f'message index of channel {index_cid}, expected {cid}')
+            batches[cid] = _batch(chunk, cid, entries)
+        return batches
+    except _DAMAGE as exc:
+        index_damage = str(exc)
+    try:          # the chunk is intact, an index of it is not: read the chunk's own records
+        _, walked = _records_in(chunk, 0, len(chunk), messages=True)
+    except _DAMAGE as exc:
+        counted = [n for n in per_channel.values() if n is not None]
+        result.damage.append(Damage(offset, offset + ci.chunk_length, where,
+                                    f'{index_damage}; and its records: {exc}', sum(counted),
+                                    len(counted) < len(per_channel)))
+        return None
+    result.damage.append(Damage(offset, offset + ci.chunk_length, f'message index of {where}',
+                                f'{index_damage}; its messages were read from the chunk '
+                                'records instead'))
+    return {cid: walked[cid] for cid in cids if cid in walked}
 
 
 def _read_header(result: Scan, mm) -> None:
@@ -442,99 +682,191 @@ def _read_header(result: Scan, mm) -> None:
 # ---------------------------------------------------------------- linear strategy
 
 def _scan_linear(result: Scan, mm, size: int, want: Want) -> None:
-    """Walk top-level records from the start; stop (truncated) at the first damaged record."""
+    """Walk top-level records from the start, stepping over damage (see the module doc)."""
     wanted: dict[int, Sink | None] = {}
+    _summary_definitions(result, mm, size, want, wanted)
     pos = len(MAGIC)
-    try:
-        while pos < size:
-            opcode, a, b = _record_at(mm, pos, size)
-            if opcode == OP_HEADER:
-                header = Header.read(_stream(mm[a:b]))
-                result.profile, result.library = header.profile, header.library
-            elif opcode in (OP_SCHEMA, OP_CHANNEL):
-                _add_definition(result, opcode, mm[a:b], want, wanted)
-            elif opcode == OP_MESSAGE:
-                _add_loose_message(result, mm, a, b, wanted)
-            elif opcode == OP_METADATA:
-                result.metadata.append(Metadata.read(_stream(mm[a:b])))
-            elif opcode == OP_CHUNK:
-                b = _linear_chunk(result, mm, size, a, b, want, wanted)
-            elif opcode in (OP_DATA_END, OP_FOOTER):
-                return                      # the summary repeats what was seen already
-            pos = b
-    except _DAMAGE as exc:
-        result.truncated = True
-        reason = f'stopped at byte {pos} of {size}: {exc}'
-        result.stop_reason = f'{result.stop_reason}; {reason}' if result.stop_reason else reason
-
-
-def _add_definition(result: Scan, opcode: int, content: bytes, want: Want,
-                    wanted: dict[int, Sink | None]) -> None:
-    if opcode == OP_SCHEMA:
-        schema = Schema.read(_stream(content))
-        result.schemas.setdefault(schema.id, schema)
-    else:
-        channel = Channel.read(_stream(content))
-        if channel.id not in result.channels:
-            result.channels[channel.id] = channel
-            wanted[channel.id] = want(channel, result.schemas.get(channel.schema_id))
-
-
-def _add_loose_message(result: Scan, buf, a: int, b: int,
-                       wanted: dict[int, Sink | None]) -> None:
-    """A Message record outside any chunk (unchunked files)."""
-    cid = _U16.unpack_from(buf, a)[0]
-    log_time = np.array([_U64.unpack_from(buf, a + 6)[0]], dtype=np.int64)
-    if cid not in result.channels:
-        raise _Corrupt(f'message on unknown channel {cid}')
-    result._saw(cid, log_time)
-    sink = wanted.get(cid)
-    if sink is not None:
-        data = np.frombuffer(bytes(buf[a + MESSAGE_FIXED:b]), dtype=np.uint8)
-        sink(Batch(data, np.zeros(1, np.int64), np.array([len(data)], np.int64), log_time))
-
-
-def _linear_chunk(result: Scan, mm, size: int, a: int, b: int, want: Want,
-                  wanted: dict[int, Sink | None]) -> int:
-    """Process one chunk and the message indexes after it; return the position after them."""
-    chunk = _read_chunk(result, mm, a, b)
-    indexes: dict[int, NDArray[np.uint64]] = {}
-    pos = b
-    complete_indexes = False
+    skipped: Damage | None = None      # the last damage, if only message indexes followed it
     while pos < size:
         try:
-            opcode, ia, ib = _record_at(mm, pos, size)
-        except _Corrupt:
-            break                           # indexes cut off: walk the chunk instead
-        if opcode != OP_MESSAGE_INDEX:
-            complete_indexes = True
-            break
-        cid, entries = _message_index(mm, ia, ib)
+            opcode, a, b = _record_at(mm, pos, size)
+            if opcode == OP_MESSAGE_INDEX:
+                if skipped is not None:   # the index of a chunk skipped with the damage
+                    skipped.lost += len(_message_index(mm, a, b)[1])
+            elif opcode == OP_CHUNK:
+                skipped = None
+                b = _linear_chunk(result, mm, size, pos, a, b, want, wanted)
+            elif opcode in (OP_DATA_END, OP_FOOTER):
+                result.data_end = True    # the summary repeats what was seen already
+                return
+            elif opcode not in _OTHER_OPS:
+                skipped = None
+                _top_level(result, opcode, mm, pos, a, b, want, wanted)
+            pos = b
+        except _Refused as exc:
+            result.truncated = True
+            result.stop_reason = _joined(result.stop_reason, f'stopped at byte {pos}: {exc}')
+            return
+        except _DAMAGE as exc:
+            restart = next_record(mm, pos + 1, size, result.channels.keys())
+            if restart is None:           # nothing intact follows: the file was cut here
+                result.truncated = True
+                result.stop_reason = _joined(result.stop_reason,
+                                             f'stopped at byte {pos} of {size}: {exc}')
+                return
+            damaged = 'record'
+            if pos < size:
+                damaged = _RECORD_NAMES.get(mm[pos], f'record (opcode 0x{mm[pos]:02x})')
+            skipped = Damage(pos, restart, damaged, str(exc), 0, at_least=True)
+            result.damage.append(skipped)
+            # message indexes found right after a damaged chunk list what it held; after a
+            # damaged index they belong to a chunk that was read
+            if mm[pos] == OP_MESSAGE_INDEX:
+                skipped.at_least = False
+                skipped = None
+            pos = restart
+
+
+_RECORD_NAMES = {OP_CHUNK: 'chunk record', OP_MESSAGE_INDEX: 'message index record',
+                 OP_MESSAGE: 'message record', OP_SCHEMA: 'schema record',
+                 OP_CHANNEL: 'channel record', OP_METADATA: 'metadata record'}
+
+
+def _joined(first: str, second: str) -> str:
+    return f'{first}; {second}' if first else second
+
+
+def _top_level(result: Scan, opcode: int, mm, pos: int, a: int, b: int, want: Want,
+               wanted: dict[int, Sink | None]) -> None:
+    """A record outside chunks (header, definitions, metadata, unchunked messages)."""
+    if opcode == OP_HEADER:
+        header = Header.read(_stream(mm[a:b]))
+        result.profile, result.library = header.profile, header.library
+    elif opcode == OP_SCHEMA:
+        _add_definition(result, Schema.read(_stream(mm[a:b])), want, wanted)
+    elif opcode == OP_CHANNEL:
+        _add_definition(result, Channel.read(_stream(mm[a:b])), want, wanted)
+    elif opcode == OP_MESSAGE:
+        _add_loose_message(result, mm, pos, a, b, wanted)
+    elif opcode == OP_METADATA:
+        result.metadata.append(Metadata.read(_stream(mm[a:b])))
+    elif opcode < 0x80:
+        # not a record of MCAP version 0 (0x80-0xFF are private records, skipped by the spec)
+        raise _Corrupt(f'unknown opcode 0x{opcode:02x}')
+
+
+def _summary_definitions(result: Scan, mm, size: int, want: Want,
+                         wanted: dict[int, Sink | None]) -> None:
+    """Schemas and channels (and the statistics' count) of a readable summary, so that messages
+    whose definitions were in a damaged part can still be read. Nothing if there is none."""
+    if not _has_footer(mm, size):
+        return
+    footer_pos = size - len(MAGIC) - FOOTER_RECORD
+    try:
+        footer = Footer.read(_stream(mm[footer_pos + RECORD_PREFIX:size - len(MAGIC)]))
+        start = footer.summary_start
+        if not len(MAGIC) <= start <= footer_pos:
+            return
+        found: list[Schema | Channel] = []
+        pos = start
+        while pos < footer_pos:
+            opcode, a, b = _record_at(mm, pos, footer_pos)
+            if opcode == OP_SCHEMA:
+                found.append(Schema.read(_stream(mm[a:b])))
+            elif opcode == OP_CHANNEL:
+                found.append(Channel.read(_stream(mm[a:b])))
+            elif opcode == OP_STATISTICS:
+                result.expected = Statistics.read(_stream(mm[a:b])).message_count
+            pos = b
+    except _DAMAGE:
+        return                                 # what the data section holds is all there is
+    for record in found:
+        _add_definition(result, record, want, wanted)
+
+
+def _add_definition(result: Scan, record: Schema | Channel, want: Want,
+                    wanted: dict[int, Sink | None]) -> None:
+    if isinstance(record, Schema):
+        result.schemas.setdefault(record.id, record)
+    elif record.id not in result.channels:
+        result.channels[record.id] = record
+        wanted[record.id] = want(record, result.schemas.get(record.schema_id))
+
+
+def _add_loose_message(result: Scan, buf, pos: int, a: int, b: int,
+                       wanted: dict[int, Sink | None]) -> None:
+    """A Message record outside any chunk (unchunked files)."""
+    if b - a < MESSAGE_FIXED:
+        raise _Corrupt(f'message record of {b - a} bytes (fewer than its fields)')
+    cid = _U16.unpack_from(buf, a)[0]
+    if cid not in result.channels:
+        raise _Corrupt(f'message on unknown channel {cid}')
+    # the whole record, so that the batch can give publish times and sequence numbers too
+    record = np.frombuffer(bytes(buf[pos:b]), dtype=np.uint8)
+    head = RECORD_PREFIX + MESSAGE_FIXED
+    batch = Batch(record, np.array([head], np.int64), np.array([b - pos - head], np.int64),
+                  np.array([_U64.unpack_from(buf, a + 6)[0]], dtype=np.uint64).astype(np.int64))
+    _feed(result, wanted, {cid: batch}, 'message record', pos, b)
+
+
+def _linear_chunk(result: Scan, mm, size: int, pos: int, a: int, b: int, want: Want,
+                  wanted: dict[int, Sink | None]) -> int:
+    """Read one chunk and the message indexes after it; return the position after them.
+
+    An unreadable chunk is damage (the messages its indexes list are lost); indexes that do
+    not match the chunk are replaced by a walk of its records."""
+    result.chunks += 1
+    where = f'chunk {result.chunks}'
+    indexes, end, complete = _following_indexes(mm, b, size)
+    try:
+        chunk = _read_chunk(result, mm, a, b)
+        definitions, batches = _chunk_content(chunk, indexes if complete else None)
+    except _DAMAGE as exc:
+        result.damage.append(Damage(pos, end, where, str(exc),
+                                    sum(len(e) for e in indexes.values()), not complete))
+        return end
+    for record in definitions:
+        _add_definition(result, record, want, wanted)
+    _feed(result, wanted, batches, where, pos, end)
+    return end
+
+
+def _following_indexes(mm, pos: int, size: int
+                       ) -> tuple[dict[int, NDArray[np.uint64]], int, bool]:
+    """The MessageIndex records from ``pos`` on: ``(entries per channel, position after them,
+    complete)``; not complete when one is damaged or cut off (the walk stops there)."""
+    indexes: dict[int, NDArray[np.uint64]] = {}
+    while pos < size:
+        try:
+            opcode, a, b = _record_at(mm, pos, size)
+            if opcode != OP_MESSAGE_INDEX:
+                return indexes, pos, True
+            cid, entries = _message_index(mm, a, b)
+        except _DAMAGE:
+            return indexes, pos, False
+        if cid in indexes:                 # two indexes of one channel: not what a writer does
+            return indexes, pos, False
         indexes[cid] = entries
-        pos = ib
-    else:
-        complete_indexes = True
-    if complete_indexes and indexes:
-        _chunk_from_indexes(result, chunk, indexes, want, wanted)
-    else:
-        _walk(result, chunk, 0, len(chunk), want, wanted, collect_messages=True)
-    return pos
+        pos = b
+    return indexes, pos, True
 
 
-def _chunk_from_indexes(result: Scan, chunk: NDArray[np.uint8],
-                        indexes: dict[int, NDArray[np.uint64]], want: Want,
-                        wanted: dict[int, Sink | None]) -> None:
-    batches = {cid: _batch(chunk, cid, entries) for cid, entries in indexes.items()
-               if len(entries)}
-    # Walk only the bytes not covered by messages: schema and channel records live there.
-    for start, end in _gaps(batches.values(), len(chunk)):
-        _walk(result, chunk, start, end, want, wanted, collect_messages=False)
-    for cid, batch in batches.items():
-        if cid not in result.channels:
-            raise _Corrupt(f'messages on unknown channel {cid}')
-        result._saw(cid, batch.log_times)
-        if (sink := wanted.get(cid)) is not None:
-            sink(batch)
+def _chunk_content(chunk: NDArray[np.uint8], indexes: dict[int, NDArray[np.uint64]] | None
+                   ) -> tuple[list[Schema | Channel], dict[int, Batch]]:
+    """Definitions and message batches of a chunk: from its ``indexes`` when they match it,
+    else by walking its records."""
+    if indexes:
+        try:
+            batches = {cid: _batch(chunk, cid, entries) for cid, entries in indexes.items()
+                       if len(entries)}
+            # only the bytes not covered by messages are walked: definitions live there
+            definitions: list[Schema | Channel] = []
+            for start, end in _gaps(batches.values(), len(chunk)):
+                definitions += _records_in(chunk, start, end, messages=False)[0]
+            return definitions, batches
+        except _DAMAGE:
+            pass                           # indexes that do not match: walk the records
+    return _records_in(chunk, 0, len(chunk), messages=True)
 
 
 def _gaps(batches, size: int) -> list[tuple[int, int]]:
@@ -552,30 +884,3 @@ def _gaps(batches, size: int) -> list[tuple[int, int]]:
     if reach[-1] < size:
         gaps.append((int(reach[-1]), size))
     return gaps
-
-
-def _walk(result: Scan, chunk: NDArray[np.uint8], start: int, end: int, want: Want,
-          wanted: dict[int, Sink | None], *, collect_messages: bool) -> None:
-    """Walk the records of ``chunk[start:end]`` one by one (slow path, few records)."""
-    buf = chunk.data
-    found: dict[int, tuple[list[int], list[int], list[int]]] = {}
-    pos = start
-    while pos < end:
-        opcode, a, b = _record_at(buf, pos, end)
-        if opcode in (OP_SCHEMA, OP_CHANNEL):
-            _add_definition(result, opcode, bytes(buf[a:b]), want, wanted)
-        elif opcode == OP_MESSAGE and collect_messages:
-            cid = _U16.unpack_from(buf, a)[0]
-            starts, lengths, times = found.setdefault(cid, ([], [], []))
-            starts.append(a + MESSAGE_FIXED)
-            lengths.append(b - a - MESSAGE_FIXED)
-            times.append(_U64.unpack_from(buf, a + 6)[0])
-        pos = b
-    for cid, (starts, lengths, times) in found.items():
-        if cid not in result.channels:
-            raise _Corrupt(f'messages on unknown channel {cid}')
-        batch = Batch(chunk, np.array(starts, np.int64), np.array(lengths, np.int64),
-                      np.array(times, dtype=np.uint64).astype(np.int64))
-        result._saw(cid, batch.log_times)
-        if (sink := wanted.get(cid)) is not None:
-            sink(batch)

@@ -35,6 +35,9 @@ _JOINT_FIELDS = ('header.stamp.sec', 'header.stamp.nanosec', 'position', 'veloci
 _APPLIED = 'applied_command'
 _FILE_NUMBER = re.compile(r'_(\d+)\.mcap$')
 _MAX_METADATA = 16 << 20       # bytes; rosbag2 writes a few KiB
+#: ``Run.contact`` of a body that did not exist at that state (a bag whose number of bodies
+#: changed during the run): distinct from +1, 0 (stuck) and -1, and far from them
+NO_BODY = -128
 
 
 class BagWarning(UserWarning):
@@ -75,9 +78,11 @@ class Run:
     x, v, friction : ndarray, shape (N, p)
         Body positions [m], velocities [m/s], friction force of the ground on each body [N].
     contact : ndarray, shape (N, p), int8
-        +1 sliding forward, 0 stuck, -1 sliding backward.
+        +1 sliding forward, 0 stuck, -1 sliding backward; :data:`NO_BODY` (-128) where the
+        body did not exist (see ``present``).
     lengths, rates, linkage_force : ndarray, shape (N, p-1)
-        Linkage lengths [m], rates [m/s] and forces [N] (``joint_states``).
+        Linkage lengths [m], rates [m/s] and forces [N] (``joint_states``); NaN for a linkage
+        that did not exist.
     commands : Commands
         Applied commands (``linkage_cmd``, else ``applied_command``): (K,) and (K, p-1).
     events : Events
@@ -96,6 +101,11 @@ class Run:
         The same stamps as recorded, in integer nanoseconds: compare times in this base (``t``
         is ``t_ns / 1e9`` and may differ from the simulated float time by up to 0.5 ns, see
         :func:`crawler_sim.bag.clock.rows_at_ns`).
+    present : ndarray, shape (N, p), bool
+        True where body j existed at state i. All True unless the number of bodies changed
+        during the run (sim_node resets on a new ``p`` and records on): then ``p`` is the
+        largest number of bodies, and a body that did not exist at a state has NaN ``x``,
+        ``v`` and ``friction``, contact :data:`NO_BODY`, and NaN for the linkages beyond it.
     """
 
     path: Path
@@ -116,6 +126,7 @@ class Run:
     linkages: tuple[str, ...] = ()
     truncated: bool = False
     t_ns: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
+    present: NDArray[np.bool_] = field(default_factory=lambda: np.zeros((0, 0), bool))
 
     @property
     def p(self) -> int:
@@ -273,20 +284,28 @@ class _Series:
     log_times: NDArray[np.int64]
     columns: dict[str, NDArray]
     first: bytes | None
+    widths: dict[str, NDArray[np.int64]] = field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.log_times)
 
-    def column(self, path: str, width: int, dtype: Any = np.float64) -> NDArray:
-        """Column ``path`` as shape (N, width); missing entries NaN (or 0 for integers)."""
+    def column(self, path: str, width: int, dtype: Any = np.float64, fill: Any = 0) -> NDArray:
+        """Column ``path`` as shape (N, width); entries a message did not hold are NaN for
+        floats and ``fill`` for integers (never a NaN cast to an integer)."""
         values = self.columns.get(path, np.zeros((len(self), 0)))
+        integer = np.dtype(dtype).kind in 'iu'
+        if integer and values.dtype.kind == 'f':
+            # ragged integer columns were NaN-padded as floats: the NaN are absent entries
+            values = np.where(np.isnan(values), fill, values)
         if values.shape[1] == width:
             return values.astype(dtype, copy=False)
-        fill = np.nan if np.dtype(dtype).kind == 'f' else 0
-        out = np.full((len(self), width), fill, dtype=dtype)
+        out = np.full((len(self), width), fill if integer else np.nan, dtype=dtype)
         w = min(width, values.shape[1])
         out[:, :w] = values[:, :w]
         return out
+
+
+_WIDTHS = ('position',)         # columns whose per-message length load needs (Run.present)
 
 
 def _merged(stores: list[dict[str, _TopicData]], topic: str) -> _Series | None:
@@ -304,8 +323,12 @@ def _merged(stores: list[dict[str, _TopicData]], topic: str) -> _Series | None:
         columns[key] = np.concatenate(arrays) if len(arrays) > 1 else arrays[0]
     first = next((p.first for p in parts if p.first is not None), None)
     times = [p.times() for p in parts]
+    # entries each message held, where a ragged width means something: bodies per state
+    widths = {key: np.concatenate([p.decoder.widths(key) for p in parts
+                                   if p.decoder is not None])
+              for key in _WIDTHS if key in columns}
     return _Series(parts[0].type, np.concatenate(times) if len(times) > 1 else times[0],
-                   columns, first)
+                   columns, first, widths)
 
 
 def _topic_summary(scans: list[Scan]) -> dict[str, TopicSummary]:
@@ -346,26 +369,47 @@ def _namespace(path: Path, topics: dict[str, TopicSummary], namespace: str | Non
 Rows = 'slice | NDArray[np.int64]'
 
 
-def _align(series: list[_Series | None], stacklevel: int) -> list[Rows | None]:
+def _align(series: list[_Series | None], stacklevel: int, by_time: bool = False
+           ) -> list[Rows | None]:
     """Rows of each present topic that put them on common time steps.
 
     Topics with equal message counts are taken row by row (also when recorded live, where log
-    times differ between topics); otherwise only the log times present in all are kept.
+    times differ between topics) unless ``by_time`` (messages were lost in the middle of the
+    file: equal counts no longer mean equal steps); otherwise only the log times present in
+    all are kept (the k-th message at a log time pairs with the k-th of the others).
     """
     present = [s for s in series if s is not None]
-    if len({len(s) for s in present}) <= 1:
+    if len({len(s) for s in present}) <= 1 and not by_time:
         return [slice(None) if s is not None else None for s in series]
-    common = present[0].log_times
-    for s in present[1:]:
-        common = np.intersect1d(common, s.log_times)
-    out = []
-    for s in series:
-        out.append(None if s is None else np.flatnonzero(np.isin(s.log_times, common)))
+    keys = _occurrence_keys([s.log_times for s in present])
+    common = keys[0]
+    for k in keys[1:]:
+        common = np.intersect1d(common, k)
+    rows = iter([np.flatnonzero(np.isin(k, common)) for k in keys])
+    out = [None if s is None else next(rows) for s in series]
     dropped = max(len(s) for s in present) - len(common)
     if dropped:
         warnings.warn(f'{dropped} time steps without all of body, joint and contact states '
                       'were dropped', BagWarning, stacklevel=stacklevel)
     return out
+
+
+def _occurrence_keys(times: list[NDArray[np.int64]]) -> list[NDArray[np.int64]]:
+    """One integer per message, equal across the lists for the k-th message at the same log
+    time (a reset publishes twice at one sim time), unique within each list."""
+    if not times or not sum(len(t) for t in times):
+        return [np.zeros(0, np.int64) for _ in times]
+    _, inverse = np.unique(np.concatenate(times), return_inverse=True)
+    ids = np.split(inverse.reshape(-1).astype(np.int64), np.cumsum([len(t) for t in times])[:-1])
+    ranks = []
+    for t_ids in ids:
+        order = np.argsort(t_ids, kind='stable')
+        ordered = t_ids[order]
+        rank = np.empty_like(t_ids)
+        rank[order] = np.arange(len(t_ids)) - np.searchsorted(ordered, ordered, side='left')
+        ranks.append(rank)
+    width = 1 + max((int(r.max()) for r in ranks if len(r)), default=0)
+    return [i * width + r for i, r in zip(ids, ranks)]
 
 
 def _stamps_ns(series: _Series) -> NDArray[np.int64]:
@@ -443,14 +487,18 @@ def load(path: os.PathLike | str, *, namespace: str | None = None) -> Run:
         Robot namespace to read when the bag holds several (``'crawler1'``).
 
     Raises :class:`BagError` (one-line message) for a missing, empty or non-MCAP file and for a
-    bag without crawler_sim topics. A truncated file loads up to the damage with a
-    :class:`BagWarning`.
+    bag without crawler_sim topics. A truncated file loads up to where it was cut, a damaged
+    one every intact chunk, with a :class:`BagWarning` that says what was lost.
     """
     files = bag_files(path)
     scans: list[Scan] = []
     stores: list[dict[str, _TopicData]] = []
     for file in files:
         result, store = _scan_file(file)
+        if result.damage:
+            warnings.warn(f'{file}: damaged: {"; ".join(str(d) for d in result.damage)}; '
+                          'loaded the messages of every intact part (crawler_sim.bag.recover '
+                          'copies them into a new bag)', BagWarning, stacklevel=2)
         if result.truncated:
             warnings.warn(f'{file}: {result.stop_reason}; loaded the {result.message_count} '
                           'messages before that point (crawler_sim.bag.recover repairs the file)',
@@ -486,7 +534,9 @@ def _build_run(path: Path, ns: str, scans: list[Scan], stores: list[dict[str, _T
         body = _Series(BODY_STATES.type, np.zeros(0, np.int64), {}, None)
     scene = _scene(stores, scans, ns)
     p = body.columns['position'].shape[1] if len(body) else _bodies_of(scene, _names(body))
-    ib, ij, ic = _align([body, joint, contact], stacklevel=4)
+    # a damaged middle loses a run of messages: steps are matched by time, not by count
+    ib, ij, ic = _align([body, joint, contact], stacklevel=4,
+                        by_time=any(sc.damage for sc in scans))
     missing = [t.suffix for t, s in ((JOINT_STATES, joint), (CONTACT_STATES, contact))
                if s is None]
     if missing and not stateless:
@@ -496,13 +546,16 @@ def _build_run(path: Path, ns: str, scans: list[Scan], stores: list[dict[str, _T
 
     t_ns = _stamps_ns(body)[ib]
     n = len(t_ns)
+    # bodies each state held (p changes when sim_node is reconfigured during a recording)
+    held = body.widths.get('position', np.full(len(body), p, np.int64))[ib]
+    present = np.arange(p) < held[:, None]
 
     def rows(series: _Series | None, idx: Rows | None, field_path: str, width: int,
              dtype: Any = np.float64) -> NDArray:
         if series is None:        # missing topic: NaN floats, no contact columns
             return (np.full((n, width), np.nan) if np.dtype(dtype).kind == 'f'
                     else np.zeros((n, 0), dtype))
-        return series.column(field_path, width, dtype)[idx]
+        return series.column(field_path, width, dtype, fill=NO_BODY)[idx]
 
     return Run(
         path=path,
@@ -519,6 +572,7 @@ def _build_run(path: Path, ns: str, scans: list[Scan], stores: list[dict[str, _T
         namespace=ns,
         bodies=_names(body),
         linkages=_names(joint),
-        truncated=any(sc.truncated for sc in scans),
+        truncated=any(sc.incomplete for sc in scans),
         t_ns=t_ns,
+        present=present,
     )

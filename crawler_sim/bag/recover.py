@@ -1,28 +1,32 @@
-"""``recover``: rewrite an incomplete MCAP file (killed recorder, full disk) as a valid bag.
+"""``recover``: rewrite a damaged or incomplete MCAP file (killed recorder, full disk, flipped
+bits) as a valid bag.
 
-The source is streamed with :class:`mcap.stream_reader.StreamReader`; every complete Schema,
-Channel, Message and Metadata record before the damage is copied into a new bag directory written
-by :class:`crawler_sim.bag.BagWriter` (fresh ``rosbag2`` metadata records, summary, footer and
-``metadata.yaml``). Message bytes, log/publish times and sequence numbers are kept as they were.
+The source is read with :func:`crawler_sim.bag.mcapfile.scan` (``verify=True``), which steps over
+damage instead of stopping at it: a chunk whose header, data or CRC is damaged is skipped and
+the next one read, located through the summary when it survived and otherwise by searching for
+the next record that fits the MCAP spec (a length beyond the file's end is never followed).
+Every message of every intact chunk, and every Schema, Channel and Metadata record, is copied
+into a new bag directory written by :class:`crawler_sim.bag.BagWriter` (fresh ``rosbag2``
+metadata records, summary, footer and ``metadata.yaml``). Message bytes, log/publish times and
+sequence numbers are kept as they were, and so is the file order of messages. The summary's
+schemas and channels are used when the records that declared them were in a damaged part.
+
+mcap's own :class:`~mcap.stream_reader.StreamReader` is not used for this: it stops at the first
+damaged record (and skips a chunk whose opcode was damaged without a word).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from io import BytesIO
 import os
 from pathlib import Path
 import re
-from typing import Any, Iterator
-import zlib
+from typing import Any
 
-from mcap.data_stream import ReadDataStream
-from mcap.exceptions import McapError
-from mcap.opcode import Opcode
-from mcap.records import Channel, Chunk, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
+from mcap.records import Channel, Schema
+import numpy as np
 
 from .errors import BagError
-from .mcapfile import chunk_limit, decompress, open_regular, total_limit
+from .mcapfile import Batch, Scan, open_regular, scan
 from .reader import bag_files
 from .writer import ROSBAG2_METADATA, BagWriter
 
@@ -43,10 +47,17 @@ class RecoverResult:
     topics : dict
         ``{topic: messages copied}``.
     complete : bool
-        True when the data section of every source file was read to its end (its DataEnd
-        record) without damage, i.e. no message was lost; a cut summary does not matter.
+        True when the data section of every source file was read to its end without damage,
+        i.e. no message was lost; a cut summary does not matter.
     problems : list of str
-        Where and why reading stopped, per damaged source file.
+        Per damaged source file: each damaged part skipped (which chunk or record, why, the
+        messages it cost) and where reading stopped if the file was cut short.
+    lost : int
+        Messages of the sources known to be lost (exact when the sources' statistics survived
+        or every damaged chunk's message indexes did).
+    lost_exact : bool
+        False when more messages than ``lost`` may be lost (damage whose messages could not be
+        counted, or a file cut short).
     """
 
     bag: Path
@@ -58,6 +69,8 @@ class RecoverResult:
     topics: dict[str, int] = field(default_factory=dict)
     complete: bool = True
     problems: list[str] = field(default_factory=list)
+    lost: int = 0
+    lost_exact: bool = True
 
 
 def default_destination(src: Path) -> Path:
@@ -96,6 +109,8 @@ def recover(src: os.PathLike | str, dst: os.PathLike | str | None = None) -> Rec
     try:
         for file in files:
             _copy_file(file, writer, result)
+            if writer.error is not None:
+                break
     finally:
         writer.close()
     if writer.error is not None:
@@ -115,115 +130,83 @@ def _check_magic(file: Path) -> None:
         raise BagError(f'{file}: not an MCAP file (bad magic bytes)')
 
 
+class _WriterStopped(Exception):
+    """Internal: the destination cannot be written (its error is in ``writer.error``)."""
+
+
 class _Copier:
-    """State of copying one source file: its schema and channel ids -> writer topics."""
+    """Copying one source file: its channels -> writer topics, and the messages of the chunk
+    being read, written in file order once the scan moves on to the next chunk."""
 
     def __init__(self, writer: BagWriter, result: RecoverResult) -> None:
         self.writer = writer
         self.result = result
-        self.schemas: dict[int, Schema] = {}
-        self.channels: dict[int, Any] = {}
+        self.pending: list[tuple[Any, Batch]] = []
 
-    def schema(self, record: Schema) -> None:
-        if record.id not in self.schemas:
-            self.schemas[record.id] = record
-            self.result.schemas += 1
-
-    def channel(self, record: Channel) -> None:
-        if record.id in self.channels:
-            return
-        topic_entry = self.writer.registered(record.topic)     # same topic in an earlier file
-        if topic_entry is None:
-            schema = self.schemas.get(record.schema_id)
-            topic_entry = self.writer.add_channel(
-                record.topic,
+    def want(self, channel: Channel, schema: Schema | None) -> Any:
+        entry = self.writer.registered(channel.topic)     # same topic in an earlier file
+        if entry is None:
+            entry = self.writer.add_channel(
+                channel.topic,
                 schema_name=schema.name if schema else '',
                 schema_encoding=schema.encoding if schema else '',
                 schema_data=bytes(schema.data) if schema else b'',
-                message_encoding=record.message_encoding,
-                metadata=record.metadata)
+                message_encoding=channel.message_encoding,
+                metadata=channel.metadata)
             self.result.channels += 1
-        self.channels[record.id] = topic_entry
-        self.result.topics.setdefault(record.topic, 0)
+        self.result.topics.setdefault(channel.topic, 0)
+        return lambda batch: self.add(entry, batch)
 
-    def message(self, record: Message) -> None:
-        entry = self.channels.get(record.channel_id)
-        if entry is None:
-            raise McapError(f'message on unknown channel {record.channel_id}')
-        if self.writer.write_raw(entry, bytes(record.data), record.log_time,
-                                 record.publish_time, record.sequence):
+    def add(self, entry: Any, batch: Batch) -> None:
+        if self.pending and self.pending[0][1].buffer is not batch.buffer:
+            self.write_pending()                  # a new chunk: the previous one is complete
+        self.pending.append((entry, batch))
+
+    def write_pending(self) -> None:
+        """The messages of one chunk, back in their file order across channels."""
+        pending, self.pending = self.pending, []
+        if not pending:
+            return
+        owner = np.concatenate([np.full(len(b), k) for k, (_, b) in enumerate(pending)])
+        row = np.concatenate([np.arange(len(b)) for _, b in pending])
+        order = np.argsort(np.concatenate([b.starts for _, b in pending]), kind='stable')
+        fields = [(b.log_times.tolist(), b.publish_times().tolist(), b.sequences().tolist())
+                  for _, b in pending]
+        for k, i in zip(owner[order].tolist(), row[order].tolist()):
+            entry, batch = pending[k]
+            log_times, publish_times, sequences = fields[k]
+            if not self.writer.write_raw(entry, batch.data(i), log_times[i], publish_times[i],
+                                         sequences[i]):
+                raise _WriterStopped
             self.result.messages += 1
             self.result.topics[entry.name] += 1
 
-    def metadata(self, record: Metadata) -> None:
-        if record.name != ROSBAG2_METADATA:        # the writer makes fresh ones
-            self.writer.add_metadata(record.name, record.metadata)
-            self.result.metadata += 1
-
-
-def _records(f: Any, size: int) -> Iterator[Any]:
-    """Top-level records of an open MCAP file, chunks opened with bounded decompression (a chunk
-    may not claim more than :func:`crawler_sim.bag.mcapfile.chunk_limit` bytes)."""
-    inflated = 0
-    for record in StreamReader(f, skip_magic=False, emit_chunks=True,
-                               record_size_limit=size).records:
-        if isinstance(record, Chunk):
-            inflated += record.uncompressed_size
-            if inflated > total_limit(size):
-                raise McapError(f'chunks decompress to more than {total_limit(size)} bytes '
-                                '(64x the file size); the rest is not copied (crafted file?)')
-            raw = decompress(record.compression, record.data, record.uncompressed_size,
-                             chunk_limit(size))
-            if record.uncompressed_crc and zlib.crc32(raw) != record.uncompressed_crc:
-                raise McapError('chunk CRC mismatch (damaged data)')
-            yield from _chunk_records(raw)
-        else:
-            yield record
-
-
-def _chunk_records(raw: bytes) -> Iterator[Any]:
-    """Schema, Channel and Message records of a decompressed chunk (others skipped)."""
-    stream = ReadDataStream(BytesIO(raw))
-    while stream.count < len(raw):
-        opcode = stream.read1()
-        length = stream.read8()
-        if stream.count + length > len(raw):
-            raise McapError('record runs past the end of its chunk')
-        if opcode == Opcode.SCHEMA:
-            yield Schema.read(stream)
-        elif opcode == Opcode.CHANNEL:
-            yield Channel.read(stream)
-        elif opcode == Opcode.MESSAGE:
-            yield Message.read(stream, length)
-        else:
-            stream.read(length)
-
 
 def _copy_file(file: Path, writer: BagWriter, result: RecoverResult) -> None:
-    """Copy the readable records of ``file``; note where and why reading stopped."""
+    """Copy the readable records of ``file``; note what was damaged or cut."""
     copier = _Copier(writer, result)
-    handlers = {Schema: copier.schema, Channel: copier.channel, Message: copier.message,
-                Metadata: copier.metadata}
-    fd, size = open_regular(file)
-    with os.fdopen(fd, 'rb') as f:
-        records = _records(f, size)
-        while writer.error is None:
-            try:
-                record = next(records)
-                handler = handlers.get(type(record))
-                if handler is not None:
-                    handler(record)
-                elif _is_end(record):
-                    return
-            except StopIteration:
-                return
-            except Exception as exc:  # noqa: BLE001 - damaged input raises zstd, struct, ...
-                result.complete = False
-                result.problems.append(f'{file}: reading stopped near byte {f.tell()}: '
-                                       f'{type(exc).__name__}: {exc}')
-                return
+    try:
+        sc = scan(file, copier.want, verify=True)
+        copier.write_pending()
+    except _WriterStopped:
+        return
+    result.schemas += len(sc.schemas)
+    for record in sc.metadata:
+        if record.name != ROSBAG2_METADATA:        # the writer makes fresh ones
+            writer.add_metadata(record.name, record.metadata)
+            result.metadata += 1
+    _note_damage(file, sc, result)
 
 
-def _is_end(record: Any) -> bool:
-    """True for the records after the data section (the summary repeats what was copied)."""
-    return type(record).__name__ in ('DataEnd', 'Footer')
+def _note_damage(file: Path, sc: Scan, result: RecoverResult) -> None:
+    cut = sc.truncated and not sc.data_end       # a cut summary alone loses nothing
+    if not sc.damage and not cut:
+        return
+    result.complete = False
+    result.problems.append(f'{file}: {sc.problems()}')
+    if sc.expected is not None and not cut:
+        result.lost += max(sc.expected - sc.message_count, 0)    # the statistics survived
+        return
+    lost, maybe = sc.lost
+    result.lost += lost
+    result.lost_exact = result.lost_exact and not (maybe or cut)

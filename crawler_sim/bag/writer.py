@@ -28,12 +28,34 @@ writer sets :attr:`BagWriter.error` (saying how many messages actually reached t
 closes the file and turns later calls into no-ops, so a simulation that records keeps running.
 The partial ``.mcap`` can be repaired with :func:`crawler_sim.bag.recover`.
 
+The bag's place is watched too (at every flush-thread pass, every ``flush_interval``, and at
+close), because writing into a file that was removed fails nowhere: the writes succeed and
+the data vanishes with the descriptor. So:
+
+* the file was removed (``rm -rf record_dir``; its link count is 0): its bytes are still there
+  behind the open descriptor, so the bag directory is created again (``record_dir`` too), the
+  file is copied back from the descriptor and the writer carries on in the copy (``dup2`` onto
+  the same descriptor number, at the same offset). Nothing is lost; the event is reported. If
+  the directory cannot be made again, recording stops with an error that says the messages
+  are lost (never that a removed file holds them);
+* the file was moved (``mv record_dir ...``; the path no longer leads to it, but it still
+  exists): recording goes on into it, and :attr:`BagWriter.path` follows it (``metadata.yaml``
+  is written next to it);
+* the bag directory is not writable any more: reported (``metadata.yaml`` cannot be written at
+  close; the ``.mcap`` itself is unaffected and reads on its own).
+
+Each such event is a line in :attr:`BagWriter.problems` and a call of
+:attr:`BagWriter.on_error` (outside the writer's lock, possibly from the flush thread), which a
+node uses to log it at ERROR level, or a ``RuntimeWarning`` when there is no callback; so is
+the error that stops a recording.
+
 Length: over 400 lines because one class owns the file's whole life (open, crash-safe
 flushing, failure policy, summary and metadata.yaml); the message fast path is in lean.py.
 """
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, is_dataclass
+import errno
 import io
 import json
 import os
@@ -152,7 +174,10 @@ class _Stats:
 
 
 def _default_open(path: Path) -> BinaryIO:
-    return open(path, 'xb')   # 'x': never overwrite
+    """A new file (never overwriting one), opened read-write: if it is removed while recording,
+    its bytes can still be read back from this descriptor (see :meth:`BagWriter._restore`)."""
+    fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_EXCL | getattr(os, 'O_CLOEXEC', 0), 0o666)
+    return open(fd, 'wb')
 
 
 @dataclass
@@ -190,11 +215,21 @@ class BagWriter:
     topics : mapping, optional
         ``{absolute topic: type name}`` registered (schema and channel) and flushed to disk at
         creation, before any message.
+    on_error : callable, optional
+        ``on_error(message)`` for every problem (see :attr:`problems`) and for the error that
+        stops the recording; called outside the writer's lock, possibly from its flush thread,
+        so it must not block. Also settable as an attribute after creation (messages from before
+        are delivered then, at the next flush).
 
     Attributes
     ----------
     error : str or None
         Why recording stopped (disk full...), or None while all is well.
+    problems : list of str
+        Events the writer handled while recording went on (the bag directory removed and
+        restored, moved, or no longer writable), one line each, naming the paths.
+    path, mcap_path : Path
+        Where the bag is now (they change when it had to be restored or was moved).
     """
 
     def __init__(self, path: os.PathLike | str, *, scene: Mapping[str, Any] | None = None,
@@ -203,6 +238,7 @@ class BagWriter:
                  scene_topic: str = SCENE.name(),
                  chunk_size: int = CHUNK_SIZE, flush_interval: float | None = FLUSH_INTERVAL,
                  topics: Mapping[str, str] | None = None,
+                 on_error: Callable[[str], None] | None = None,
                  _opener: Opener | None = None,
                  _clock: Callable[[], float] = time.monotonic,
                  _claimed: bool = False) -> None:
@@ -211,6 +247,11 @@ class BagWriter:
         self.file_name = f'{self.name}_0.mcap'
         self.mcap_path = self.path / self.file_name
         self.error: str | None = None
+        self.problems: list[str] = []
+        self.on_error = on_error
+        self._notices: list[str] = []        # problems and errors not yet handed to on_error
+        self._place_lost = False             # the file is somewhere this writer cannot name
+        self._unwritable_reported = False
         self._qos = dict(qos or {})
         self._custom = {str(k): str(v) for k, v in (custom_data or {}).items()} or None
         self._flush_interval = None if flush_interval is None else float(flush_interval)
@@ -239,7 +280,7 @@ class BagWriter:
         self._fileno = _fileno(self._stream)
         self._writer = LeanWriter(self._stream, chunk_size=chunk_size,
                                    compression=CompressionType.ZSTD)
-        self._last_flush = self._clock()
+        self._last_flush = self._last_check = self._clock()
         self._guard(self._start)
         if scene is not None:
             self._scene = plain(dict(scene))
@@ -307,7 +348,10 @@ class BagWriter:
         with self._lock:
             if self._closed or self.error is not None:      # closed by another thread meanwhile
                 return False
-            return self._write(topic, type_name, msg, t_ns)
+            written = self._write(topic, type_name, msg, t_ns)
+        if self._notices:
+            self._notify()
+        return written
 
     def _write(self, topic: str, type_name: str, msg: Any, t_ns: int) -> bool:
         t_ns = int(t_ns)
@@ -324,12 +368,15 @@ class BagWriter:
         return self._add(entry, data, t_ns)
 
     def flush(self) -> None:
-        """Write the open chunk and everything buffered to disk (``fsync``)."""
+        """Write the open chunk and everything buffered to disk (``fsync``); check that the
+        file is still where it was (see the module doc)."""
         with self._lock:
             if self._closed or self.error is not None:
                 return
             self._guard(self._flush)
+            self._check_place()
             fileno = self._fileno if self.error is None else None
+        self._notify()
         _fsync(fileno)
 
     def atomic(self) -> threading.RLock:
@@ -339,15 +386,21 @@ class BagWriter:
 
     def flush_if_due(self, *, sync: bool = True) -> bool:
         """Flush if records are pending and ``flush_interval`` has passed since the last flush
-        (what the background thread does); True if it flushed. ``sync=False`` leaves the
-        ``fsync`` to the caller (the data is with the OS already: a SIGKILL keeps it)."""
+        (what the background thread does); True if it flushed. Every ``flush_interval``, with
+        or without records, also check that the file is still where it was (see the module
+        doc). ``sync=False`` leaves the ``fsync`` to the caller (the data is with the OS
+        already: a SIGKILL keeps it)."""
         with self._lock:
-            if (self._closed or self.error is not None or not self._dirty
-                    or self._flush_interval is None
-                    or self._clock() - self._last_flush < self._flush_interval):
+            if self._closed or self.error is not None or self._flush_interval is None:
                 return False
-            self._guard(self._flush)
-            fileno = self._fileno if self.error is None else None
+            now = self._clock()
+            flushed = self._dirty and now - self._last_flush >= self._flush_interval
+            if flushed:
+                self._guard(self._flush)
+            if now - self._last_check >= self._flush_interval:
+                self._check_place()
+            fileno = self._fileno if flushed and self.error is None else None
+        self._notify()
         if sync:
             _fsync(fileno)
         return fileno is not None
@@ -390,14 +443,17 @@ class BagWriter:
         with self._lock:
             if self._closed:
                 return
+            if self.error is None:
+                self._check_place()          # removed or moved since the last check
             if self.error is None and self._scene_pending:
                 self._write_scene(0)
             if self.error is None:
                 self._guard(self._finish)
             if self.error is None:
-                self._guard(self._write_metadata_yaml)
+                self._close_metadata()
             self._closed = True
             self._close_stream()
+        self._notify()
 
     def __enter__(self) -> BagWriter:
         return self
@@ -535,6 +591,8 @@ class BagWriter:
             self._guard(self._flush)
             if self.error is not None:
                 return False           # this message went down with the chunk being written
+            if self._clock() - self._last_check >= max(self._flush_interval, FLUSH_INTERVAL):
+                self._check_place()    # no flush thread: the writes watch the file
         entry.count += 1
         self._stats.add(log_time)
         return True
@@ -567,16 +625,155 @@ class BagWriter:
     def _fail(self, exc: OSError) -> None:
         reason = exc.strerror or str(exc) or type(exc).__name__
         on_disk = self._flushed_count
-        if on_disk:
+        if self._removed():
+            kept = (f'the file had been removed, so the {self._stats.count} messages '
+                    'recorded are lost')
+        elif on_disk:
             kept = (f'the file holds the first {on_disk} of {self._stats.count} messages '
                     '(crawler_sim.bag.recover makes a complete bag of them)')
         else:
             kept = f'none of the {self._stats.count} messages reached the disk'
-        self.error = f'recording to {self.mcap_path} stopped: {reason}; {kept}'
+        self._stopped(f'recording to {self.mcap_path} stopped: {reason}; {kept}')
+
+    def _stopped(self, error: str) -> None:
+        """Stop recording for good: set :attr:`error`, report it and close the file."""
+        self.error = error
         self._stop.set()
         self._sync_wanted.set()
-        warnings.warn(self.error, RuntimeWarning, stacklevel=3)
+        self._notices.append(error)
+        if self.on_error is None:           # else the callback is the channel (a node's log)
+            warnings.warn(error, RuntimeWarning, stacklevel=4)
         self._close_stream()
+
+    # ------------------------------------------------------------ the bag's place on disk
+
+    def _report(self, message: str) -> None:
+        """A problem handled while recording goes on (see :attr:`problems`)."""
+        self.problems.append(message)
+        self._notices.append(message)
+        if self.on_error is None:           # else the callback is the channel (a node's log)
+            warnings.warn(message, RuntimeWarning, stacklevel=4)
+
+    def _notify(self) -> None:
+        """Hand pending problems and errors to :attr:`on_error` (outside the lock)."""
+        callback = self.on_error
+        if not self._notices or callback is None:
+            return
+        with self._lock:
+            notices, self._notices = self._notices, []
+        for message in notices:
+            try:
+                callback(message)
+            except Exception:  # noqa: BLE001 - a failing logger must not stop the recording
+                pass
+
+    def _removed(self) -> bool:
+        """True when the open file has no name left on disk (link count 0)."""
+        try:
+            return self._fileno is not None and os.fstat(self._fileno).st_nlink == 0
+        except OSError:
+            return False
+
+    def _check_place(self) -> None:
+        """Under the lock: is the open file still at :attr:`mcap_path`? Restore it if it was
+        removed, follow it if it was moved, report a directory that is no longer writable.
+
+        Two ``stat`` calls (about 2 us), every ``flush_interval`` and at close.
+        """
+        self._last_check = self._clock()
+        fileno = self._fileno
+        if fileno is None or self._stream is None or self._place_lost:
+            return
+        try:
+            opened = os.fstat(fileno)
+        except OSError:
+            return
+        try:
+            here = os.stat(self.mcap_path)
+            same = (here.st_dev, here.st_ino) == (opened.st_dev, opened.st_ino)
+        except OSError:
+            same = False
+        if same:
+            self._check_writable()
+        elif opened.st_nlink == 0:
+            self._restore()
+        else:
+            self._follow(fileno)
+
+    def _check_writable(self) -> None:
+        if self._unwritable_reported or os.access(self.path, os.W_OK):
+            return
+        self._unwritable_reported = True
+        self._report(f'bag directory {self.path} is no longer writable: recording goes on into '
+                     f'{self.mcap_path}, but metadata.yaml cannot be written there at close '
+                     '(the .mcap file reads on its own)')
+
+    def _restore(self) -> None:
+        """The file was removed (``rm -rf record_dir``): copy it back from the open descriptor
+        into a new bag directory and carry on there; stop (reporting the loss) if impossible."""
+        old = self.mcap_path
+        fileno = self._fileno
+        count = self._stats.count
+        record_dir = self.path.parent
+        what = (f'record_dir {record_dir} was removed' if not record_dir.exists() else
+                f'bag directory {self.path} was removed' if not self.path.exists() else
+                'the file was removed')
+        try:
+            self._stream.flush()              # the buffered tail into the (removed) file first
+            size = os.fstat(fileno).st_size
+            directory, target = _reclaim(self.path, self.file_name)
+            fd = os.open(target, os.O_RDWR | os.O_CREAT | os.O_EXCL
+                         | getattr(os, 'O_CLOEXEC', 0), 0o666)
+        except OSError as exc:
+            self._stopped(f'recording stopped: {old} is gone ({what} during the recording) '
+                          f'and cannot be written again ({exc.strerror or exc}); the {count} '
+                          'messages recorded are lost')
+            return
+        try:
+            _copy_back(fileno, fd, size)
+            os.fsync(fd)
+            # the writer's stream now writes into the copy, at the same offset as before
+            os.dup2(fd, fileno, inheritable=False)
+        except OSError as exc:
+            self._stopped(f'recording stopped: {old} is gone ({what}); copying '
+                          f'it back to {target} failed ({exc.strerror or exc}), so the {count} '
+                          'messages recorded are lost (what reached the copy may be salvaged '
+                          'with crawler_sim.bag.recover)')
+            return
+        finally:
+            os.close(fd)
+        self.path, self.file_name, self.mcap_path = directory, target.name, target
+        self._report(f'{old} is gone ({what} during the recording); the {count} messages '
+                     f'recorded so far were copied back from the still-open file into {target}, '
+                     'and recording goes on there')
+
+    def _follow(self, fileno: int) -> None:
+        """The file still exists but not at :attr:`mcap_path` (its directory was moved)."""
+        old = self.mcap_path
+        where = _path_of(fileno)
+        if where is None:
+            self._place_lost = True
+            self._report(f'{old} was moved or renamed during the recording and its new place '
+                         'is unknown: recording goes on into the open file; no metadata.yaml '
+                         'will be written')
+            return
+        self.path, self.file_name, self.mcap_path = where.parent, where.name, where
+        self._report(f'{old} was moved during the recording: it is now {where}, and recording '
+                     'goes on there')
+
+    def _close_metadata(self) -> None:
+        """metadata.yaml next to the finished file; a failure is reported, not an error: the
+        .mcap is complete and reads on its own."""
+        if self._place_lost:
+            return
+        try:
+            self._write_metadata_yaml()
+        except OSError as exc:
+            where = (f'{self.mcap_path} is complete and reads on its own (crawler_sim.bag.load, '
+                     'rosbags, ros2 bag play FILE.mcap)' if self.mcap_path.exists()
+                     else f'{self.mcap_path} no longer exists either')
+            self._report(f'metadata.yaml could not be written in {self.path} '
+                         f'({exc.strerror or exc}); {where}')
 
     def _close_stream(self) -> None:
         stream, self._stream = getattr(self, '_stream', None), None
@@ -648,6 +845,65 @@ def _fsync(fileno: int | None) -> None:
         os.fsync(fileno)
     except OSError:
         pass
+
+
+def _reclaim(directory: Path, file_name: str) -> tuple[Path, Path]:
+    """``(bag directory, file path)`` where a removed bag can be written again: ``directory``
+    itself (made again, with its parents) unless someone else's file is there now, else a new
+    ``<name>_2``, ``<name>_3``... beside it. Never overwrites anything."""
+    directory.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        directory.mkdir()
+    except FileExistsError:
+        pass
+    if directory.is_dir() and not os.path.lexists(directory / file_name):
+        return directory, directory / file_name
+    for k in range(2, 1000):
+        candidate = directory.parent / f'{directory.name}_{k}'
+        try:
+            candidate.mkdir()
+        except FileExistsError:
+            continue
+        return candidate, candidate / f'{candidate.name}_0.mcap'
+    raise FileExistsError(errno.EEXIST, f'no free name beside {directory}')
+
+
+def _copy_back(src: int, dst: int, size: int) -> None:
+    """Copy the first ``size`` bytes of descriptor ``src`` to ``dst`` (1 MiB at a time)."""
+    try:
+        os.pread(src, 0, 0)
+        read = lambda n, offset: os.pread(src, n, offset)       # noqa: E731
+        handle = None
+    except OSError:
+        # a write-only descriptor (a custom opener): read the file through /proc (Linux)
+        handle = open(f'/proc/self/fd/{src}', 'rb')
+
+        def read(n: int, offset: int) -> bytes:
+            handle.seek(offset)
+            return handle.read(n)
+    try:
+        offset = 0
+        while offset < size:
+            block = read(min(1 << 20, size - offset), offset)
+            if not block:
+                raise OSError(errno.EIO, f'the removed file ended after {offset} of {size} bytes')
+            view = memoryview(block)
+            while view:
+                view = view[os.write(dst, view):]
+            offset += len(block)
+    finally:
+        if handle is not None:
+            handle.close()
+
+
+def _path_of(fileno: int) -> Path | None:
+    """The current path of an open file (Linux: /proc/self/fd), if it still has one."""
+    try:
+        where = Path(os.readlink(f'/proc/self/fd/{fileno}'))
+        opened, here = os.fstat(fileno), os.stat(where)
+    except OSError:
+        return None
+    return where if (opened.st_dev, opened.st_ino) == (here.st_dev, here.st_ino) else None
 
 
 def _remove_empty(folder: Path) -> None:

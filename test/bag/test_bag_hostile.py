@@ -57,7 +57,10 @@ def test_a_crafted_1mb_file_loads_within_4x_its_size_or_is_refused(hostile_dir, 
     size = path.stat().st_size
     peak, result = peak_bytes(load, path)
     assert peak < 4 * size, f'{name}: {peak / size:.1f}x the file size'
-    if not isinstance(result, BagError):
+    if name == 'overlapping_index':
+        # its index is damage, its chunk is not: the one message it holds loads, once
+        assert len(result) == 1
+    elif not isinstance(result, BagError):
         assert len(result) == 0 and result.truncated          # nothing in them is a real state
     peak, _ = peak_bytes(info, path)
     assert peak < 4 * size
