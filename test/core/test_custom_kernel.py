@@ -174,3 +174,57 @@ def test_one_custom_gait_shared_by_solvers_in_threads_gives_each_the_sequential_
                                crawlers * 4))
     for k, x in enumerate(shared):
         np.testing.assert_allclose(x, alone[k % 8], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize('p', [2, 8])
+def test_an_advance_of_one_float_then_to_the_event_time_is_fine(p):
+    # Stepper.advance(nextafter(te, 0)) then advance(te) with a Custom gait given its period:
+    # the span of one float made the difference step of l''' zero (ZeroDivisionError), and at
+    # p = 8 the estimate's stop value was read as a non-finite gait value
+    n = p - 1
+    ph = np.arange(n) * 0.3
+    if n == 1:
+        g = gaits.Custom(lambda t: 1 + 0.2 * math.sin(W * t), lambda t: 0.2 * W * math.cos(W * t),
+                         lambda t: -0.2 * W * W * math.sin(W * t), period=1.0)
+    else:
+        g = gaits.Custom(lambda t: 1 + 0.2 * np.sin(W * t + ph),
+                         lambda t: 0.2 * W * np.cos(W * t + ph),
+                         lambda t: -0.2 * W * W * np.sin(W * t + ph), period=1.0)
+    c = cs.Crawler(np.ones(p), np.ones(p))
+    st = cs.Stepper(c, g)
+    st.advance(float(np.nextafter(0.37, 0.0)))
+    st.advance(0.37)
+    one = cs.Stepper(c, gaits.Custom(*g._fns, period=1.0))
+    one.advance(0.37)
+    np.testing.assert_allclose(st.state.x, one.state.x, rtol=0, atol=1e-12)
+
+
+def test_a_periodic_custom_copy_of_a_sharp_scallop_keeps_its_short_reversal():
+    # asymmetry 0.0053 (a 5 ms extension per period), p = 3, period= given: the estimate scans
+    # one period finely (1/1024 of it, refined where the gait is sharp) and repeats it; a 3 ms
+    # reversal was missed, 1.8 mm off. Reference: the oracle fed the built-in Scallop.
+    sc = gaits.Scallop([1.0, 1.0], 0.2, 1.0, 0.0053, [0.0, -1.0])
+    c = cs.Crawler([1.0, 1.5, 0.8], [1.0, 2.0, 1.0])
+    g = gaits.Custom(lambda t: sc.at(t)[0], lambda t: sc.at(t)[1], lambda t: sc.at(t)[2],
+                     period=1.0)
+    t = np.linspace(0.0, 3.0, 7)
+    x = cs.simulate(c, g, 3.0, t_eval=t).x
+    ref, _ = Oracle.for_crawler(c, lambda s: sc(np.asarray(s, float))).solve(3.0, t, h=2e-5)
+    np.testing.assert_allclose(x, ref, rtol=0, atol=1e-10)
+
+
+def test_a_jump_of_l_acceleration_without_breakpoints_is_refused_naming_them():
+    # l'' = 0.2 before t = 0.5 and 0 after, no breakpoints=: a contract breach. The search used
+    # to run out of steps after minutes; the scan now finds the jump and names it.
+    g = gaits.Custom(lambda t: 1 + 0.1 * t * t if t < 0.5 else 1.025 + 0.1 * (t - 0.5),
+                     lambda t: 0.2 * t if t < 0.5 else 0.1,
+                     lambda t: 0.2 if t < 0.5 else 0.0)
+    with pytest.raises(ValueError, match=r"jumps by .* at t = 0\.5.* breakpoints="):
+        cs.simulate(cs.Crawler([1, 1], [1, 1]), g, 1.0)
+    # with the breakpoint given it runs, and the same gait from the oracle agrees
+    gb = gaits.Custom(*g._fns, breakpoints=[0.5])
+    x = cs.simulate(cs.Crawler([1, 1], [1, 1]), gb, 1.0, t_eval=[0.0, 1.0]).x
+    pp = gaits.PiecewiseParabolic([0.0, 0.5, 1.0], [0.2, 0.0], 1.0, 0.0, periodic=False)
+    ref, _ = Oracle.for_crawler(cs.Crawler([1, 1], [1, 1]), lambda s: pp(np.asarray(s, float)),
+                                [0.5]).solve(1.0, [0.0, 1.0], h=1e-4)
+    np.testing.assert_allclose(x, ref, rtol=0, atol=1e-10)

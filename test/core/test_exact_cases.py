@@ -260,3 +260,39 @@ def test_a_very_sharp_scallop_is_exact_and_cheap():
                                                                               h=1e-5)
     np.testing.assert_allclose(s.current()['x'], ref[1], rtol=0, atol=1e-10)
     assert s.n_evals < 50_000, s.n_evals
+
+
+def test_a_body_leaving_rest_slowly_is_watched_densely_whatever_the_span():
+    # 400 C2 constant-jerk pieces, p = 4 (seed 12 of an independent generator): body 0 leaves
+    # rest at t = 0.0189 s with a velocity that grows from zero slowly (its row stays within
+    # rounding noise for a while), slides for 93 us, sticks for 0.4 ms and slides on. While a
+    # row was at its noise level the search points were spaced by the span / 8 (0.06 s over a
+    # 0.5 s run): the stick was stepped over and positions ended 3.7 mm off; the points now
+    # grow at most twofold while a row is watched. Reference: the independent oracle.
+    from oracle import Oracle
+    from crawler_sim.core.gaits.cubic import cubic_values
+    rng = np.random.default_rng(12)
+    p, nl, T = 4, 3, 0.5
+    m = rng.uniform(0.3, 2.0, p)
+    f = rng.uniform(0.2, 3.0, p) * m
+    c = cs.Crawler(m, f, f * rng.uniform(0.5, 2, p))
+    starts = np.concatenate([[0.0], np.sort(rng.uniform(0, T, 399))])
+    l, v, a = np.full(nl, 0.1), rng.uniform(-0.5, 0.5, nl), rng.uniform(-20, 20, nl)
+    pieces = []
+    for k, t0 in enumerate(starts):
+        jerk = rng.uniform(-3000, 3000, nl)
+        pieces.append(gaits.Cubic(t0, l, v, a, jerk))
+        t1 = starts[k + 1] if k + 1 < len(starts) else T
+        l, v, a = cubic_values(l, v, a, jerk, t1 - t0)
+    g = gaits.PiecewiseCubic(starts, pieces)
+    t = np.linspace(0.0, T, 11)
+    tr = cs.simulate(c, g, T, t_eval=t)
+    assert [(e.body, e.old, e.new) for e in tr.events if 0.01891 < e.time < 0.0194] == \
+        [(0, -1, 0), (0, 0, 1)]
+    ref, _ = Oracle.for_crawler(c, lambda s: g(np.asarray(s, float))).solve(T, t, h=T / 2e4)
+    np.testing.assert_allclose(tr.x, ref, rtol=0, atol=1e-10)
+    # the same pieces streamed one by one, as the node hands them out
+    st = cs.Stepper(c, pieces[0])
+    for pc, end in zip(pieces, list(starts[1:]) + [T]):
+        st.advance(end, pc)
+    np.testing.assert_allclose(st.state.x, ref[-1], rtol=0, atol=1e-10)

@@ -4,11 +4,13 @@ Each case is drawn from a numpy generator seeded by hypothesis (``draw_case(fami
 the quick profile here and the long profile of ``crawler-sim stress`` (``run_fuzz``) share one
 generator. Scenes: p = 2..8, masses and frictions over four decades, zero and
 direction-dependent friction, slopes, v0 != 0. Gait families: Custom lambdas of ``math``
-functions without a period and Custom lambda copies of Scallops down to asymmetry 0.01 and of
-Fourier gaits of 3-6 harmonics, every built-in gait (Sinusoid, Fourier, Scallop down to asymmetry
-0.02, PiecewiseParabolic strokes and random non-periodic bang-bang strokes, Spline), and gait
-switches mid-run through ``Stepper.advance(t1, gait)`` as the node does (C2 Cubic pieces, and a
-Sinusoid continued by Cubic pieces).
+functions without a period, with a jerk bound, with breakpoints (a bang-bang stroke), Custom
+lambda copies of Scallops down to asymmetry 0.01 (with and without period=) and of Fourier gaits
+of 3-6 harmonics, every built-in gait (Sinusoid, Fourier, Scallop down to asymmetry 0.02,
+PiecewiseParabolic strokes and random non-periodic bang-bang strokes, Spline clamped and
+periodic, PiecewiseCubic of a few and of hundreds of pieces), and gait switches mid-run through
+``Stepper.advance(t1, gait)`` as the node does (C2 Cubic pieces streamed one by one, the same
+pieces as one PiecewiseCubic, and a Sinusoid continued by Cubic pieces).
 
 Pass: at every sample, positions within 1e-10 m (1e-10 relative beyond 1 m) and velocities within
 1e-10 (relative to 1 + the largest velocity) of the oracle, no exception and no stall, and, for
@@ -33,8 +35,9 @@ import crawler_sim as cs
 from oracle import Oracle
 
 G = cs.gaits
-FAMILIES = ('custom', 'custom_sharp', 'sinusoid', 'fourier', 'scallop', 'stroke', 'bang_bang',
-            'spline', 'piecewise_cubic', 'switch_cubic', 'switch_sinusoid')
+FAMILIES = ('custom', 'custom_sharp', 'custom_bound', 'custom_period', 'custom_breaks',
+            'sinusoid', 'fourier', 'scallop', 'stroke', 'bang_bang', 'spline', 'spline_periodic',
+            'piecewise_cubic', 'long_piecewise_cubic', 'switch_cubic', 'switch_sinusoid')
 TOL = 1e-10
 N_EXAMPLES = int(os.environ.get('CRAWLER_SIM_FUZZ_EXAMPLES', '10'))
 
@@ -120,6 +123,67 @@ def draw_case(family: str, seed: int) -> Case:
         g = G.Custom(length, velocity, accel)
         return Case(kin=kin, gait=g, breakpoints=np.empty(0), timescale=float(2 * math.pi / max(w1.max(), w2.max())),
                     desc=f'custom w1={w1.tolist()} w2={w2.tolist()}', **kw)
+    if family in ('custom_bound', 'custom_period'):
+        # the 'custom' lambdas with a true jerk bound (the sum of a w^3), or a periodic copy of
+        # a sharp Scallop given period= (the estimate repeats one scanned period)
+        if family == 'custom_period':
+            r = float(10 ** rng.uniform(math.log10(0.005), math.log10(0.1)))
+            src = G.Scallop(mean, amp, freq, r, phase)
+            fns = ((lambda t: src.at1(t)[0], lambda t: src.at1(t)[1], lambda t: src.at1(t)[2])
+                   if n == 1 else (lambda t: src.at(t)[0], lambda t: src.at(t)[1],
+                                   lambda t: src.at(t)[2]))
+            return Case(kin=_vec(src), gait=G.Custom(*fns, period=src.period),
+                        breakpoints=np.empty(0), timescale=r / freq,
+                        desc=f'periodic Custom copy of Scallop {freq=} asymmetry={r}', **kw)
+        w = 2 * math.pi * rng.uniform(0.3, 2.5, n)
+        ms, as_, ws, phs = (x.tolist() for x in (mean, amp, w, phase))
+        fns = (lambda t: [ms[j] + as_[j] * math.sin(ws[j] * t + phs[j]) for j in range(n)],
+               lambda t: [as_[j] * ws[j] * math.cos(ws[j] * t + phs[j]) for j in range(n)],
+               lambda t: [-as_[j] * ws[j] ** 2 * math.sin(ws[j] * t + phs[j])
+                          for j in range(n)])
+
+        def kin(t):
+            t = np.asarray(t, float)[:, None]
+            return (mean + amp * np.sin(w * t + phase), amp * w * np.cos(w * t + phase),
+                    -amp * w ** 2 * np.sin(w * t + phase))
+        return Case(kin=kin, gait=G.Custom(*fns, jerk_bound=amp * w ** 3),
+                    breakpoints=np.empty(0), timescale=float(2 * math.pi / w.max()),
+                    desc=f'custom with jerk_bound w={w.tolist()}', **kw)
+    if family == 'custom_breaks':
+        # a random non-periodic bang-bang stroke as Custom lambdas given its breakpoints
+        k = int(rng.integers(3, 10))
+        times = np.concatenate([[0.0], np.cumsum(rng.uniform(0.05, 0.4, k))])
+        acc = rng.choice([-1.0, 0.0, 1.0], (k, n)) * rng.uniform(0.5, 5.0, (k, n))
+        src = G.PiecewiseParabolic(times, acc, mean, rng.uniform(-0.3, 0.3, n), periodic=False)
+        br = src.breakpoints(-1.0, t_end + 1.0)
+        fns = (lambda t: src.at(t)[0], lambda t: src.at(t)[1], lambda t: src.at(t)[2])
+        return Case(kin=_vec(src), gait=G.Custom(*fns, breakpoints=br),
+                    breakpoints=src.breakpoints(0.0, t_end),
+                    timescale=float(np.diff(times).min()), desc=f'Custom bang-bang {times=}',
+                    **kw)
+    if family == 'spline_periodic':
+        k = int(rng.integers(4, 12))
+        times = np.linspace(0.0, 1.0 / freq, k)
+        y = mean + amp * rng.normal(0, 1, (k, n))
+        y[-1] = y[0]
+        g = G.Spline(times, y, periodic=True)
+        return Case(kin=_vec(g), gait=g, breakpoints=np.empty(0),
+                    timescale=float(times[1] - times[0]), desc=f'periodic {times=}', **kw)
+    if family == 'long_piecewise_cubic':
+        # the node's pieces at its tick (1-5 ms), hundreds of them, as one gait
+        from crawler_sim.core.gaits.cubic import cubic_values
+        l, ld, ldd = mean, rng.uniform(-0.3, 0.3, n), rng.uniform(-2, 2, n)
+        starts, cubics, t = [], [], 0.0
+        while t < t_end:
+            dt = float(rng.uniform(1e-3, 5e-3))
+            jerk = rng.uniform(-300, 300, n) - 400 * (l - mean) - 40 * ld
+            starts.append(t)
+            cubics.append(G.Cubic(t, l, ld, ldd, jerk))
+            l, ld, ldd = cubic_values(l, ld, ldd, jerk, dt)
+            t += dt
+        pw = G.PiecewiseCubic(starts, cubics)
+        return Case(kin=_vec(pw), gait=pw, breakpoints=pw.breakpoints(0.0, t_end),
+                    timescale=1e-3, desc=f'{len(cubics)} cubic pieces', **kw)
     if family == 'sinusoid':
         g = G.Sinusoid(mean, amp, freq, phase)
         return Case(kin=_vec(g), gait=g, breakpoints=np.empty(0), timescale=1 / freq, desc=f'{freq=}', **kw)

@@ -608,6 +608,7 @@ cdef class ExactCore:
         cdef double w0 = INFINITY, w1 = INFINITY, w2 = INFINITY
         cdef bint have_b = False, saved = False, bad, settled, fixed
         cdef long it, n_small = 0
+        cdef double h_last = INFINITY
         for r in range(nr):
             self.hit[r] = 0
         if self.values(g, t0, t0, nr, ga, da) == 1:
@@ -630,6 +631,7 @@ cdef class ExactCore:
         for r in range(nr):
             if self.watch[r]:
                 h = min(h, max(1e3 * tol, 1e-9 * (end - a)))
+                h_last = h
         lim = end
         for it in range(MAX_STEPS):
             if have_b:
@@ -715,6 +717,7 @@ cdef class ExactCore:
                 if self.watch[r] and gm[r] > self.noise[r]:
                     self.watch[r] = 0
             n_small = n_small + 1 if m - a <= 1e-6 * (end - t0) else 0
+            h_last = m - a
             a = m
             for r in range(nr):
                 ga[r] = gm[r]
@@ -741,6 +744,13 @@ cdef class ExactCore:
                     t_out[0] = a
                     return F_OK
                 h = self.step(nr, ga, da, tol, cap)
+                for r in range(nr):
+                    if self.watch[r]:
+                        # a watched row is seen at the search points alone: they grow at most
+                        # twofold from where it was last seen, so a row leaving zero slowly
+                        # (a body leaving rest at a tie) is seen leaving it, or dipping
+                        h = min(h, 2.0 * h_last)
+                        break
         if not have_b:
             return F_NO_STEPS
         for r in range(nr):
