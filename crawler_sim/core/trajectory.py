@@ -98,7 +98,11 @@ class EventLog(Sequence):
 
     def compact(self, limit: int = 1_000_000):
         """A plain list when it holds at most ``limit`` events, else this log itself."""
-        return list(self) if len(self) <= limit else self
+        if len(self) > limit:
+            return self
+        if len(self._parts) == 1 and isinstance(self._parts[0], list):
+            return list(self._parts[0])          # no repeated period: the list as it is
+        return list(self)
 
 
 class State(NamedTuple):

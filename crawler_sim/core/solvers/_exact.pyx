@@ -24,10 +24,11 @@ the caller drains them after each call. Units: s, m, m/s, N, N s.
 import numpy as np
 
 from libc.math cimport fabs, floor, isfinite, nextafter, sqrt, INFINITY, NAN
+from cpython.mem cimport PyMem_Calloc, PyMem_Free
 from libc.string cimport memcpy
 
 from crawler_sim.core.solvers._gait cimport (CompiledGait, GaitData, FOURIER, CALLBACK,
-                                             gait_rates, gait_lengths, gait_bounds,
+                                             gait_eval, gait_rates, gait_lengths, gait_bounds,
                                              gait_next_break, gait_is_constant)
 from crawler_sim.core.solvers._inclusion cimport inclusion
 
@@ -58,240 +59,372 @@ cdef int STALL_SEGMENTS = 256     # consecutive such segments before the solver 
 cdef double AMBIGUOUS = 1e-10     # relative slack below which a mode choice is decided later
 cdef long MAX_STEPS = 10000000    # grid and narrowing steps of one search: a safety net
 cdef int RETRIES = 16             # searches redone with grown estimated bounds, per segment
-cdef int N_BUF = 512              # segment records per call
+cdef int N_BUF = 256              # segment records per call
 
 
-cdef inline double dot(const double[:, ::1] W, int i, const double* x, int n) noexcept nogil:
+cdef inline double dot(const double* W, int i, const double* x, int n) noexcept nogil:
+    """Row i of the (., n) matrix W times x."""
     cdef double acc = 0.0
     cdef int j
     for j in range(n):
-        acc += W[i, j] * x[j]
+        acc += W[i * n + j] * x[j]
     return acc
 
 
 cdef class ExactCore:
-    """State and loop of one exact solve (``exact.ExactSolver`` wraps it)."""
+    """State and loop of one exact solve (``exact.ExactSolver`` wraps it). Its arrays live in
+    two C blocks allocated once (a solver per ``simulate``: numpy arrays cost ~100 us)."""
 
     # crawler
-    cdef readonly int p, nl
+    cdef readonly int p, nl, nr
     cdef double M, fext, f_total, v_acc
-    cdef double[:, ::1] W, C
-    cdef double[::1] fp, fm, m_, grav
-    cdef unsigned char[::1] free
+    cdef double* W                # (p, nl) offsets of the bodies from the centre of mass
+    cdef double* C                # (p, nl) offsets from body 0
+    cdef double* fp
+    cdef double* fm
+    cdef double* m_
+    cdef double* grav
+    cdef unsigned char* free
     # settings
     cdef public double tol, tscale, cap
     # state: body 0 follows from X, V and the gait (X, V: centre of mass [m, m/s])
     cdef public double t, X, V, x_ref
     cdef public int ref
-    cdef double[::1] K
-    cdef signed char[::1] contact
-    cdef unsigned char[::1] zero
+    cdef double* K
+    cdef signed char* contact
+    cdef unsigned char* zero
     # mode kept across a smooth segment boundary
     cdef public bint cache_ok
     cdef double cache_a
-    cdef unsigned char[::1] cache_group
+    cdef unsigned char* cache_group
     # periodic checkpoint: the state at the last multiple of the period
     cdef public bint ck_valid
     cdef public long ck_k, ck_nseg, ck_nev
     cdef public double ck_X, ck_V, ck_x_ref
     cdef public int ck_ref
-    cdef double[::1] ck_K
-    cdef signed char[::1] ck_contact
-    cdef unsigned char[::1] ck_zero
+    cdef double* ck_K
+    cdef signed char* ck_contact
+    cdef unsigned char* ck_zero
     # the last segment (the state between calls is its end)
     cdef public bint last_valid
-    cdef double[::1] last_f
+    cdef double* last_f
     cdef public int last_ref
-    cdef signed char[::1] last_contact
-    cdef unsigned char[::1] last_group
-    cdef double[::1] last_R, last_K0
+    cdef signed char* last_contact
+    cdef unsigned char* last_group
+    cdef double* last_R
+    cdef double* last_K0
     cdef public object last_gait
-    # outputs of one call
+    # outputs of one call: segment records and contact changes (``records``, ``events``)
     cdef public long n_seg, n_ev, n_evals, seg_base, ev_base, k_at
     cdef public double bad_time
-    cdef public object seg_f, seg_ref, seg_contact, seg_group, seg_R, seg_K0, ev_t, ev_i
-    cdef double[:, ::1] sf, sR, sK0
-    cdef long[::1] sref
-    cdef signed char[:, ::1] scontact
-    cdef unsigned char[:, ::1] sgroup
-    cdef double[::1] et
-    cdef long[:, ::1] ei
+    cdef int n_buf
+    cdef double* sf               # (n_buf, 6): t0, t1, X0, V0, a, x_ref
+    cdef long* sref
+    cdef signed char* scontact    # (n_buf, p)
+    cdef unsigned char* sgroup    # (n_buf, p)
+    cdef double* sR               # (n_buf, p)
+    cdef double* sK0              # (n_buf, p)
+    cdef double* et               # (2 n_buf,)
+    cdef long* ei                 # (2 n_buf, 3)
     # work
-    cdef double[::1] l, ld, ldd, ld3, ld2, ldd2, e, ep, epp, ep2, epp2, R, sd
-    cdef double[::1] c0, c1, B2, B1, noise, jerk, snap, kinks, fpz, fmz
-    cdef double[:, ::1] A1, A2, wk
-    cdef long[::1] lab_kind, lab_body
-    cdef unsigned char[::1] watch, hit, hits, group, group2, taylor
-    cdef signed char[::1] new_contact, new2
-    cdef int[::1] idx, zidx
-    # snapshot (``save`` / ``restore``)
-    cdef object _saved
+    cdef double* l
+    cdef double* ld
+    cdef double* ldd
+    cdef double* ld3
+    cdef double* ld2
+    cdef double* ldd2
+    cdef double* e
+    cdef double* ep
+    cdef double* epp
+    cdef double* ep2
+    cdef double* epp2
+    cdef double* R
+    cdef double* sd
+    cdef double* c0
+    cdef double* c1
+    cdef double* B2
+    cdef double* B1
+    cdef double* noise
+    cdef double* jerk
+    cdef double* snap
+    cdef double* kinks
+    cdef double* fpz
+    cdef double* fmz
+    cdef double* A1               # (nr, nl)
+    cdef double* A2               # (nr, nl)
+    cdef double* wk               # (10, nr)
+    cdef long* lab_kind
+    cdef long* lab_body
+    cdef unsigned char* watch
+    cdef unsigned char* hit
+    cdef unsigned char* hits
+    cdef unsigned char* group
+    cdef unsigned char* group2
+    cdef unsigned char* taylor
+    cdef signed char* new_contact
+    cdef signed char* new2
+    cdef int* idx
+    cdef int* zidx
+    # the C blocks, and a snapshot of the state (``save`` / ``restore``)
+    cdef char* _mem
+    cdef char* _snap
+    cdef Py_ssize_t _n_state
+    cdef double _snap_f[24]
+    cdef object _saved_gait
 
-    def __init__(self, masses, fp, fm, double fext, grav, W, C, double tol):
-        p = len(masses)
+    def __cinit__(self, masses, fp, fm, double fext, grav, W, C, double tol):
+        cdef int p = len(masses), nl = max(p - 1, 1), nr = 3 * p + 2, n_buf = N_BUF
+        cdef Py_ssize_t nd, nb, off
         self.p = p
         self.nl = p - 1
-        self.m_ = np.array(masses, dtype=np.float64)
-        self.fp = np.array(fp, dtype=np.float64)
-        self.fm = np.array(fm, dtype=np.float64)
-        self.grav = np.array(grav, dtype=np.float64)
-        self.W = np.array(W, dtype=np.float64)
-        self.C = np.array(C, dtype=np.float64)
-        self.M = float(np.sum(masses))
+        self.nr = nr
+        self.n_buf = n_buf
+        # doubles: state first (K, ck_K, last_f, last_R, last_K0 are what ``save`` copies)
+        nd = (p + p + 6 + p + p                       # K, ck_K, last_f, last_R, last_K0
+              + 4 * p + 2 * p * nl                    # fp, fm, m_, grav, W, C
+              + 8 * nl + 10 * p                       # l .. snap, e .. fmz
+              + 5 * nr + 2 * nr * nl + 10 * nr        # c0 .. noise, A1, A2, wk
+              + 6 * n_buf + 2 * p * n_buf + 2 * n_buf)    # sf, sR, sK0, et
+        nb = (p + p + p + p + p + p + p               # contact zero cache_group ck_contact ck_zero
+              + p + p + p + p + p                     # last_contact last_group free hits group
+              + p + p + p                             # group2 new_contact new2
+              + 3 * nr + 2 * p * n_buf)               # watch hit taylor, scontact sgroup
+        self._mem = <char*>PyMem_Calloc(1, nd * sizeof(double) + nb + 16
+                                        + (2 * nr + n_buf + 6 * n_buf) * sizeof(long)
+                                        + 2 * p * sizeof(int) + 64)
+        if self._mem == NULL:
+            raise MemoryError()
+        cdef double* d = <double*>self._mem
+        self.K = d; d += p
+        self.ck_K = d; d += p
+        self.last_f = d; d += 6
+        self.last_R = d; d += p
+        self.last_K0 = d; d += p
+        self._n_state = 3 * p + p + 6          # doubles of the state block above
+        self.fp = d; d += p
+        self.fm = d; d += p
+        self.m_ = d; d += p
+        self.grav = d; d += p
+        self.W = d; d += p * nl
+        self.C = d; d += p * nl
+        self.l = d; d += nl
+        self.ld = d; d += nl
+        self.ldd = d; d += nl
+        self.ld3 = d; d += nl
+        self.ld2 = d; d += nl
+        self.ldd2 = d; d += nl
+        self.jerk = d; d += nl
+        self.snap = d; d += nl
+        self.e = d; d += p
+        self.ep = d; d += p
+        self.epp = d; d += p
+        self.ep2 = d; d += p
+        self.epp2 = d; d += p
+        self.R = d; d += p
+        self.sd = d; d += p
+        self.kinks = d; d += p
+        self.fpz = d; d += p
+        self.fmz = d; d += p
+        self.c0 = d; d += nr
+        self.c1 = d; d += nr
+        self.B2 = d; d += nr
+        self.B1 = d; d += nr
+        self.noise = d; d += nr
+        self.A1 = d; d += nr * nl
+        self.A2 = d; d += nr * nl
+        self.wk = d; d += 10 * nr
+        self.sf = d; d += 6 * n_buf
+        self.sR = d; d += p * n_buf
+        self.sK0 = d; d += p * n_buf
+        self.et = d; d += 2 * n_buf
+        cdef long* q = <long*>d
+        self.lab_kind = q; q += nr
+        self.lab_body = q; q += nr
+        self.sref = q; q += n_buf
+        self.ei = q; q += 6 * n_buf
+        cdef int* ii = <int*>q
+        self.idx = ii; ii += p
+        self.zidx = ii; ii += p
+        cdef unsigned char* u = <unsigned char*>ii
+        self.contact = <signed char*>u; u += p
+        self.zero = u; u += p
+        self.cache_group = u; u += p
+        self.ck_contact = <signed char*>u; u += p
+        self.ck_zero = u; u += p
+        self.last_contact = <signed char*>u; u += p
+        self.last_group = u; u += p
+        self.free = u; u += p
+        self.hits = u; u += p
+        self.group = u; u += p
+        self.group2 = u; u += p
+        self.new_contact = <signed char*>u; u += p
+        self.new2 = <signed char*>u; u += p
+        self.watch = u; u += nr
+        self.hit = u; u += nr
+        self.taylor = u; u += nr
+        self.scontact = <signed char*>u; u += p * n_buf
+        self.sgroup = u; u += p * n_buf
+        self._snap = <char*>PyMem_Calloc(1, self._n_state * sizeof(double) + 8 * p + 16)
+        if self._snap == NULL:
+            raise MemoryError()
+
+    def __dealloc__(self):
+        PyMem_Free(self._mem)
+        PyMem_Free(self._snap)
+
+    def __init__(self, masses, fp, fm, double fext, grav, W, C, double tol):
+        cdef int p = self.p, nl = self.nl, i, j
+        cdef const double[::1] a
+        cdef const double[:, ::1] w
+        a = np.ascontiguousarray(masses, dtype=np.float64)
+        for i in range(p):
+            self.m_[i] = a[i]
+        a = np.ascontiguousarray(fp, dtype=np.float64)
+        for i in range(p):
+            self.fp[i] = a[i]
+        a = np.ascontiguousarray(fm, dtype=np.float64)
+        for i in range(p):
+            self.fm[i] = a[i]
+        a = np.ascontiguousarray(grav, dtype=np.float64)
+        for i in range(p):
+            self.grav[i] = a[i]
+        w = np.ascontiguousarray(W, dtype=np.float64)
+        for i in range(p):
+            for j in range(nl):
+                self.W[i * nl + j] = w[i, j]
+        w = np.ascontiguousarray(C, dtype=np.float64)
+        for i in range(p):
+            for j in range(nl):
+                self.C[i * nl + j] = w[i, j]
+        self.M = 0.0
+        self.f_total = 0.0
+        for i in range(p):
+            self.M += self.m_[i]
+            self.f_total += self.fp[i] + self.fm[i]
+            self.free[i] = (self.fp[i] + self.fm[i]) == 0.0
         self.fext = fext
-        self.free = ((np.asarray(fp) + np.asarray(fm)) == 0.0).astype(np.uint8)
-        self.f_total = float(np.sum(fp) + np.sum(fm))
         self.v_acc = (self.f_total + abs(fext)) / self.M
         self.tol = tol
         self.tscale = 1.0
         self.cap = 0.0
-        self.K = np.zeros(p)
-        self.contact = np.zeros(p, np.int8)
-        self.zero = np.zeros(p, np.uint8)
-        self.cache_group = np.zeros(p, np.uint8)
-        self.ck_K = np.zeros(p)
-        self.ck_contact = np.zeros(p, np.int8)
-        self.ck_zero = np.zeros(p, np.uint8)
-        self.last_f = np.zeros(6)
-        self.last_contact = np.zeros(p, np.int8)
-        self.last_group = np.zeros(p, np.uint8)
-        self.last_R = np.zeros(p)
-        self.last_K0 = np.zeros(p)
-        nl = max(p - 1, 1)
-        self.l = np.zeros(nl)
-        self.ld = np.zeros(nl)
-        self.ldd = np.zeros(nl)
-        self.ld3 = np.zeros(nl)
-        self.ld2 = np.zeros(nl)
-        self.ldd2 = np.zeros(nl)
-        self.jerk = np.zeros(nl)
-        self.snap = np.zeros(nl)
-        self.e = np.zeros(p)
-        self.ep = np.zeros(p)
-        self.epp = np.zeros(p)
-        self.ep2 = np.zeros(p)
-        self.epp2 = np.zeros(p)
-        self.R = np.zeros(p)
-        self.sd = np.zeros(p)
-        self.kinks = np.zeros(p)
-        self.fpz = np.zeros(p)
-        self.fmz = np.zeros(p)
-        self.idx = np.zeros(p, np.intc)
-        self.zidx = np.zeros(p, np.intc)
-        self.hits = np.zeros(p, np.uint8)
-        self.group = np.zeros(p, np.uint8)
-        self.group2 = np.zeros(p, np.uint8)
-        self.new_contact = np.zeros(p, np.int8)
-        self.new2 = np.zeros(p, np.int8)
-        nr = 3 * p + 2           # p velocity rows, 2 force rows, 2 per other group member
-        self.c0 = np.zeros(nr)
-        self.c1 = np.zeros(nr)
-        self.B2 = np.zeros(nr)
-        self.B1 = np.zeros(nr)
-        self.noise = np.zeros(nr)
-        self.A1 = np.zeros((nr, nl))
-        self.A2 = np.zeros((nr, nl))
-        self.wk = np.zeros((10, nr))
-        self.lab_kind = np.zeros(nr, np.int_)
-        self.lab_body = np.zeros(nr, np.int_)
-        self.watch = np.zeros(nr, np.uint8)
-        self.taylor = np.zeros(nr, np.uint8)
-        self.hit = np.zeros(nr, np.uint8)
-        self.seg_f = np.zeros((N_BUF, 6))
-        self.seg_ref = np.zeros(N_BUF, np.int_)
-        self.seg_contact = np.zeros((N_BUF, p), np.int8)
-        self.seg_group = np.zeros((N_BUF, p), bool)
-        self.seg_R = np.zeros((N_BUF, p))
-        self.seg_K0 = np.zeros((N_BUF, p))
-        self.ev_t = np.zeros(N_BUF * 2)
-        self.ev_i = np.zeros((N_BUF * 2, 3), np.int_)
-        self.sf = self.seg_f
-        self.sref = self.seg_ref
-        self.scontact = self.seg_contact
-        self.sgroup = self.seg_group.view(np.uint8)
-        self.sR = self.seg_R
-        self.sK0 = self.seg_K0
-        self.et = self.ev_t
-        self.ei = self.ev_i
         self.ref = -1
         self.last_valid = False
 
     # ------------------------------------------------------------------ Python access
     @property
     def K_array(self):
-        return np.asarray(self.K).copy()
+        return np.array(<double[:self.p]>self.K)
 
     @K_array.setter
     def K_array(self, value):
-        np.asarray(self.K)[:] = value
+        cdef int i
+        for i, x in enumerate(np.asarray(value, dtype=float).tolist()):
+            self.K[i] = x
 
     @property
     def contact_array(self):
-        return np.asarray(self.contact).copy()
+        return np.array(<signed char[:self.p]>self.contact)
 
     @contact_array.setter
     def contact_array(self, value):
-        np.asarray(self.contact)[:] = value
+        cdef int i
+        for i, x in enumerate(np.asarray(value).tolist()):
+            self.contact[i] = x
 
     @property
     def zero_array(self):
-        return np.asarray(self.zero).astype(bool)
+        return np.array(<unsigned char[:self.p]>self.zero).astype(bool)
 
     @zero_array.setter
     def zero_array(self, value):
-        np.asarray(self.zero)[:] = value
+        cdef int i
+        for i, x in enumerate(np.asarray(value).tolist()):
+            self.zero[i] = bool(x)
 
     @property
     def ck_K_array(self):
-        return np.asarray(self.ck_K).copy()
+        return np.array(<double[:self.p]>self.ck_K)
 
     def signature(self):
         """(contact, zero set, ref): what must repeat at a period boundary."""
-        return (bytes(np.asarray(self.contact)), bytes(np.asarray(self.zero)), self.ref)
+        return (bytes(<signed char[:self.p]>self.contact), bytes(<unsigned char[:self.p]>self.zero),
+                self.ref)
 
     def last_record(self):
         """The last segment as (f, ref, contact, group, R, K0, gait) or None."""
         if not self.last_valid:
             return None
-        return (np.asarray(self.last_f).copy(), self.last_ref,
-                np.asarray(self.last_contact).copy(), np.asarray(self.last_group).astype(bool),
-                np.asarray(self.last_R).copy(), np.asarray(self.last_K0).copy(),
+        return (np.array(<double[:6]>self.last_f), self.last_ref,
+                np.array(<signed char[:self.p]>self.last_contact),
+                np.array(<unsigned char[:self.p]>self.last_group).astype(bool),
+                np.array(<double[:self.p]>self.last_R), np.array(<double[:self.p]>self.last_K0),
                 self.last_gait)
+
+    def records(self, int n):
+        """Copies of the call's first n segment records: (f (n, 6), ref, contact (n, p),
+        group (n, p) bool, R, K0)."""
+        p = self.p
+        if n == 0:
+            return (np.empty((0, 6)), np.empty(0, np.int_), np.empty((0, p), np.int8),
+                    np.empty((0, p), bool), np.empty((0, p)), np.empty((0, p)))
+        return (np.array(<double[:n, :6]>self.sf), np.array(<long[:n]>self.sref),
+                np.array(<signed char[:n, :p]>self.scontact),
+                np.array(<unsigned char[:n, :p]>self.sgroup).astype(bool),
+                np.array(<double[:n, :p]>self.sR), np.array(<double[:n, :p]>self.sK0))
+
+    def events(self, int n):
+        """The call's first n contact changes: (times (n,), rows (n, 3) of body, old, new)."""
+        if n == 0:
+            return np.empty(0), np.empty((0, 3), np.int_)
+        return np.array(<double[:n]>self.et), np.array(<long[:n, :3]>self.ei)
 
     def save(self):
         """Keep the state, so a call that raises can be undone (``restore``)."""
-        self._saved = (self.t, self.X, self.V, self.x_ref, self.ref, np.asarray(self.K).copy(),
-                       np.asarray(self.contact).copy(), np.asarray(self.zero).copy(),
-                       self.cache_ok, self.cache_a, np.asarray(self.cache_group).copy(),
-                       self.ck_valid, self.ck_k, self.ck_nseg, self.ck_nev, self.ck_X,
-                       self.ck_V, self.ck_x_ref, self.ck_ref, np.asarray(self.ck_K).copy(),
-                       np.asarray(self.ck_contact).copy(), np.asarray(self.ck_zero).copy(),
-                       self.last_valid, np.asarray(self.last_f).copy(), self.last_ref,
-                       np.asarray(self.last_contact).copy(), np.asarray(self.last_group).copy(),
-                       np.asarray(self.last_R).copy(), np.asarray(self.last_K0).copy(),
-                       self.last_gait)
+        cdef int p = self.p
+        memcpy(self._snap, self.K, self._n_state * sizeof(double))
+        cdef char* b = self._snap + self._n_state * sizeof(double)
+        memcpy(b, self.contact, 7 * p)           # contact .. last_group, contiguous
+        self._snap_f[0] = self.t
+        self._snap_f[1] = self.X
+        self._snap_f[2] = self.V
+        self._snap_f[3] = self.x_ref
+        self._snap_f[4] = self.ref
+        self._snap_f[5] = self.cache_ok
+        self._snap_f[6] = self.cache_a
+        self._snap_f[7] = self.ck_valid
+        self._snap_f[8] = self.ck_k
+        self._snap_f[9] = self.ck_nseg
+        self._snap_f[10] = self.ck_nev
+        self._snap_f[11] = self.ck_X
+        self._snap_f[12] = self.ck_V
+        self._snap_f[13] = self.ck_x_ref
+        self._snap_f[14] = self.ck_ref
+        self._snap_f[15] = self.last_valid
+        self._snap_f[16] = self.last_ref
+        self._saved_gait = self.last_gait
 
     def restore(self):
-        s = self._saved
-        (self.t, self.X, self.V, self.x_ref, self.ref) = s[:5]
-        np.asarray(self.K)[:] = s[5]
-        np.asarray(self.contact)[:] = s[6]
-        np.asarray(self.zero)[:] = s[7]
-        self.cache_ok, self.cache_a = s[8], s[9]
-        np.asarray(self.cache_group)[:] = s[10]
-        (self.ck_valid, self.ck_k, self.ck_nseg, self.ck_nev, self.ck_X, self.ck_V,
-         self.ck_x_ref, self.ck_ref) = s[11:19]
-        np.asarray(self.ck_K)[:] = s[19]
-        np.asarray(self.ck_contact)[:] = s[20]
-        np.asarray(self.ck_zero)[:] = s[21]
-        self.last_valid = s[22]
-        np.asarray(self.last_f)[:] = s[23]
-        self.last_ref = s[24]
-        np.asarray(self.last_contact)[:] = s[25]
-        np.asarray(self.last_group)[:] = s[26]
-        np.asarray(self.last_R)[:] = s[27]
-        np.asarray(self.last_K0)[:] = s[28]
-        self.last_gait = s[29]
+        cdef int p = self.p
+        memcpy(self.K, self._snap, self._n_state * sizeof(double))
+        memcpy(self.contact, self._snap + self._n_state * sizeof(double), 7 * p)
+        self.t = self._snap_f[0]
+        self.X = self._snap_f[1]
+        self.V = self._snap_f[2]
+        self.x_ref = self._snap_f[3]
+        self.ref = <int>self._snap_f[4]
+        self.cache_ok = self._snap_f[5] != 0.0
+        self.cache_a = self._snap_f[6]
+        self.ck_valid = self._snap_f[7] != 0.0
+        self.ck_k = <long>self._snap_f[8]
+        self.ck_nseg = <long>self._snap_f[9]
+        self.ck_nev = <long>self._snap_f[10]
+        self.ck_X = self._snap_f[11]
+        self.ck_V = self._snap_f[12]
+        self.ck_x_ref = self._snap_f[13]
+        self.ck_ref = <int>self._snap_f[14]
+        self.last_valid = self._snap_f[15] != 0.0
+        self.last_ref = <int>self._snap_f[16]
+        self.last_gait = self._saved_gait
         self.n_seg = 0
         self.n_ev = 0
 
@@ -299,15 +432,48 @@ cdef class ExactCore:
         """The next segment chooses its mode anew (a gait switch that is not C2)."""
         self.cache_ok = False
 
+    def reset(self, CompiledGait gait, double t0, double x0, double v0):
+        """Start at t0 [s] with body 0 at x0 [m] moving at v0 [m/s]: the centre of mass
+        from the gait, each body's contact the sign of its velocity (a frictionless body 0),
+        the bodies at exactly zero velocity in the zero set. Returns False for a non-finite
+        gait value."""
+        cdef int p = self.p, nl = self.nl, i, j
+        cdef double v
+        gait_eval(&gait.d, t0, self.l, self.ld, self.ldd, self.ld3)
+        for j in range(nl):
+            if not (isfinite(self.l[j]) and isfinite(self.ld[j])):
+                self.bad_time = t0
+                return False
+        self.t = t0
+        self.X = x0 - dot(self.W, 0, self.l, nl)
+        self.V = v0 - dot(self.W, 0, self.ld, nl)
+        for i in range(p):
+            v = v0 + dot(self.C, i, self.ld, nl)    # exact zeros stay zero
+            if self.free[i]:
+                self.contact[i] = 0
+                self.zero[i] = 0
+            else:
+                self.contact[i] = 1 if v > 0.0 else (-1 if v < 0.0 else 0)
+                self.zero[i] = v == 0.0
+            self.K[i] = 0.0
+        self.ref = -1
+        self.x_ref = 0.0
+        self.cache_ok = False
+        self.ck_valid = False
+        self.last_valid = False
+        self.last_gait = None
+        self.n_evals = 0
+        return True
+
     def skip_periods(self, long n, double T, long k):
         """Skip n repeats of the period just completed at k T: returns (D, dK), the
         displacement [m] and impulse [N s] of one period."""
-        cdef int i
+        cdef int i, p = self.p
         D = self.X - self.ck_X
-        dK = np.asarray(self.K) - np.asarray(self.ck_K)
+        dK = np.array(<double[:p]>self.K) - np.array(<double[:p]>self.ck_K)
         self.X += n * D
         self.x_ref += n * D
-        for i in range(self.p):
+        for i in range(p):
             self.K[i] += n * dK[i]
         self.t = (k + n) * T
         self.last_valid = False
@@ -316,9 +482,10 @@ cdef class ExactCore:
         self.ck_V = self.V
         self.ck_x_ref = self.x_ref
         self.ck_ref = self.ref
-        self.ck_K[:] = self.K
-        self.ck_contact[:] = self.contact
-        self.ck_zero[:] = self.zero
+        for i in range(p):
+            self.ck_K[i] = self.K[i]
+            self.ck_contact[i] = self.contact[i]
+            self.ck_zero[i] = self.zero[i]
         self.ck_valid = True
         return D, dK
 
@@ -332,7 +499,7 @@ cdef class ExactCore:
         cdef int p = self.p, i, k, nz = 0, r = -1, ambiguous = 0, order, v, j
         cdef double force = self.fext, acc_scale, f_scale, s = 0.0, a, rel, lo = 0.0, hi = 0.0
         cdef double x
-        cdef int* zi = &self.zidx[0]
+        cdef int* zi = self.zidx
         for i in range(p):
             out[i] = contact[i]
             group[i] = 0
@@ -376,8 +543,8 @@ cdef class ExactCore:
                     self.kinks[order] = x
                 else:
                     x = self.kinks[order]
-        a = inclusion(self.M, 0.0, force, &self.kinks[0], &self.fpz[0], &self.fmz[0], nz,
-                      &self.idx[0], &s)
+        a = inclusion(self.M, 0.0, force, self.kinks, self.fpz, self.fmz, nz,
+                      self.idx, &s)
         for k in range(nz):
             i = zi[k]
             rel = a - self.kinks[k]
@@ -412,10 +579,10 @@ cdef class ExactCore:
             # two look-aheads: the nearer one can round a slowly growing rate to exactly zero
             rel_dt = 1e-9 if rep == 0 else 1e-6
             dt = min(rel_dt * max(span, self.tscale), 0.5 * span)
-            gait_rates(g, t + dt, &self.ld2[0], &self.ldd2[0], &self.ld3[0])
+            gait_rates(g, t + dt, self.ld2, self.ldd2, self.ld3)
             mx = 0.0
             for i in range(p):
-                self.sd[i] = dot(self.C, i, &self.ld2[0], self.nl)
+                self.sd[i] = dot(self.C, i, self.ld2, self.nl)
                 if fabs(self.sd[i]) > mx:
                     mx = fabs(self.sd[i])
             first = -1
@@ -443,13 +610,13 @@ cdef class ExactCore:
             A[0] = tot / self.M
             ref[0] = -1
             return 0
-        amb = self.solve_mode(&self.epp[0], &self.contact[0], AMBIGUOUS, True,
-                              &self.new_contact[0], &self.group[0], A, ref)
+        amb = self.solve_mode(self.epp, self.contact, AMBIGUOUS, True,
+                              self.new_contact, self.group, A, ref)
         span = max(ts - t, 0.0)
         n_group = 0
         for i in range(p):
             n_group += self.group[i]
-        loose = n_group > 1 and not self.rigid(g, &self.group[0], t, span)
+        loose = n_group > 1 and not self.rigid(g, self.group, t, span)
         if amb or loose:
             # Decide by the inclusion a little later (same zero set); near t the deciding
             # quantities grow from zero, so only their sign matters: a tighter threshold
@@ -459,11 +626,11 @@ cdef class ExactCore:
                 dt = min(rel * max(span, self.tscale), 0.5 * span) if span > 0.0 else 0.0
                 if dt <= 0.0:
                     break
-                gait_rates(g, t + dt, &self.ld2[0], &self.ldd2[0], &self.ld3[0])
+                gait_rates(g, t + dt, self.ld2, self.ldd2, self.ld3)
                 for i in range(p):
-                    self.epp2[i] = dot(self.W, i, &self.ldd2[0], self.nl)
-                amb = self.solve_mode(&self.epp2[0], &self.contact[0], 1e-14, not loose,
-                                      &self.new_contact[0], &self.group[0], A, ref)
+                    self.epp2[i] = dot(self.W, i, self.ldd2, self.nl)
+                amb = self.solve_mode(self.epp2, self.contact, 1e-14, not loose,
+                                      self.new_contact, self.group, A, ref)
                 if not amb:
                     break
         return 0
@@ -483,7 +650,7 @@ cdef class ExactCore:
         cdef int r, j, nl = self.nl, has_snap
         cdef bint has1, has2, exact_jerk
         cdef double b2, b1, x1, x2
-        has_snap = gait_bounds(g, a, b, &self.jerk[0], &self.snap[0])
+        has_snap = gait_bounds(g, a, b, self.jerk, self.snap)
         exact_jerk = g.kind != CALLBACK or (<CompiledGait>g.obj).estimated
         for r in range(nr):
             b2 = 0.0
@@ -491,8 +658,8 @@ cdef class ExactCore:
             has1 = False
             has2 = False
             for j in range(nl):
-                x1 = fabs(self.A1[r, j])
-                x2 = fabs(self.A2[r, j])
+                x1 = fabs(self.A1[(r) * self.nl + j])
+                x2 = fabs(self.A2[(r) * self.nl + j])
                 if x1 != 0.0:
                     has1 = True
                 if x2 != 0.0:
@@ -502,7 +669,7 @@ cdef class ExactCore:
             if has2:
                 if has_snap:
                     for j in range(nl):
-                        b2 += fabs(self.A2[r, j]) * self.snap[j]
+                        b2 += fabs(self.A2[(r) * self.nl + j]) * self.snap[j]
                 else:
                     b2 = INFINITY
             self.B2[r] = b2
@@ -515,13 +682,13 @@ cdef class ExactCore:
         """The rows and their slopes at t; 1 when a CALLBACK gait's bounds grew."""
         cdef int r, j, nl = self.nl, code
         cdef double v, dv
-        code = gait_rates(g, t, &self.ld[0], &self.ldd[0], &self.ld3[0])
+        code = gait_rates(g, t, self.ld, self.ldd, self.ld3)
         for r in range(nr):
             v = self.c0[r] + self.c1[r] * (t - t0)
             dv = self.c1[r]
             for j in range(nl):
-                v += self.A1[r, j] * self.ld[j] + self.A2[r, j] * self.ldd[j]
-                dv += self.A1[r, j] * self.ldd[j] + self.A2[r, j] * self.ld3[j]
+                v += self.A1[(r) * self.nl + j] * self.ld[j] + self.A2[(r) * self.nl + j] * self.ldd[j]
+                dv += self.A1[(r) * self.nl + j] * self.ldd[j] + self.A2[(r) * self.nl + j] * self.ld3[j]
             gv[r] = v
             dg[r] = dv
         return code
@@ -593,16 +760,16 @@ cdef class ExactCore:
                     double* t_out) except -1:
         """First event of the rows in (t0, end]: its time in t_out (INFINITY when none) and
         the rows hit in ``hit``; returns F_OK, F_NONFINITE, F_NO_STEPS or F_EXCEEDED."""
-        cdef double* ga = &self.wk[0, 0]
-        cdef double* da = &self.wk[1, 0]
-        cdef double* gm = &self.wk[2, 0]
-        cdef double* dm = &self.wk[3, 0]
-        cdef double* gb = &self.wk[4, 0]
-        cdef double* db = &self.wk[5, 0]
-        cdef double* gs = &self.wk[6, 0]
-        cdef double* ds = &self.wk[7, 0]
-        cdef double* fa = &self.wk[8, 0]
-        cdef double* fb = &self.wk[9, 0]
+        cdef double* ga = self.wk + 0 * self.nr
+        cdef double* da = self.wk + 1 * self.nr
+        cdef double* gm = self.wk + 2 * self.nr
+        cdef double* dm = self.wk + 3 * self.nr
+        cdef double* gb = self.wk + 4 * self.nr
+        cdef double* db = self.wk + 5 * self.nr
+        cdef double* gs = self.wk + 6 * self.nr
+        cdef double* ds = self.wk + 7 * self.nr
+        cdef double* fa = self.wk + 8 * self.nr
+        cdef double* fb = self.wk + 9 * self.nr
         cdef int r, j, nl = self.nl, side = 0
         cdef double sc, a, h, m, w, f, fr, den, ms, b = INFINITY, sb = INFINITY, lim, lvl
         cdef double w0 = INFINITY, w1 = INFINITY, w2 = INFINITY
@@ -616,7 +783,7 @@ cdef class ExactCore:
         for r in range(nr):
             sc = fabs(self.c0[r]) + fabs(self.c1[r]) * (end - t0)
             for j in range(nl):
-                sc += fabs(self.A1[r, j] * self.ld[j]) + fabs(self.A2[r, j] * self.ldd[j])
+                sc += fabs(self.A1[(r) * self.nl + j] * self.ld[j]) + fabs(self.A2[(r) * self.nl + j] * self.ldd[j])
             self.noise[r] = 1e-13 * sc + 1e-300
             # a row at zero to within its rounding noise (a rigid pair, a body at rest) is
             # watched: a row of +1e-16 stuck there would otherwise need ~1e-9 s steps; the
@@ -779,14 +946,14 @@ cdef class ExactCore:
                 self.c0[nr] = sg * V0
                 self.c1[nr] = sg * a
                 for j in range(nl):
-                    self.A1[nr, j] = sg * self.W[i, j]
-                    self.A2[nr, j] = 0.0
+                    self.A1[(nr) * self.nl + j] = sg * self.W[(i) * self.nl + j]
+                    self.A2[(nr) * self.nl + j] = 0.0
             else:
                 self.c0[nr] = 0.0
                 self.c1[nr] = 0.0
                 for j in range(nl):
-                    self.A1[nr, j] = sg * (self.C[i, j] - self.C[r0, j])
-                    self.A2[nr, j] = 0.0
+                    self.A1[(nr) * self.nl + j] = sg * (self.C[(i) * self.nl + j] - self.C[(r0) * self.nl + j])
+                    self.A2[(nr) * self.nl + j] = 0.0
             nr += 1
         if r0 < 0:
             return nr
@@ -806,8 +973,8 @@ cdef class ExactCore:
             self.c0[nr] = (-f_slide - lo) if s == 0 else (hi + f_slide)
             self.c1[nr] = 0.0
             for j in range(nl):
-                self.A1[nr, j] = 0.0
-                self.A2[nr, j] = (-self.M if s == 0 else self.M) * self.W[r0, j]
+                self.A1[(nr) * self.nl + j] = 0.0
+                self.A2[(nr) * self.nl + j] = (-self.M if s == 0 else self.M) * self.W[(r0) * self.nl + j]
             nr += 1
         for i in range(p):
             if group[i] and i != r0:
@@ -817,9 +984,9 @@ cdef class ExactCore:
                     self.c0[nr] = 0.0
                     self.c1[nr] = 0.0
                     for j in range(nl):
-                        self.A1[nr, j] = (self.C[i, j] - self.C[r0, j]) * (1.0 if s == 0
+                        self.A1[(nr) * self.nl + j] = (self.C[(i) * self.nl + j] - self.C[(r0) * self.nl + j]) * (1.0 if s == 0
                                                                          else -1.0)
-                        self.A2[nr, j] = 0.0
+                        self.A2[(nr) * self.nl + j] = 0.0
                     nr += 1
         return nr
 
@@ -828,9 +995,9 @@ cdef class ExactCore:
         for i in range(self.p):
             if new[i] != self.contact[i]:
                 self.et[self.n_ev] = t
-                self.ei[self.n_ev, 0] = i
-                self.ei[self.n_ev, 1] = self.contact[i]
-                self.ei[self.n_ev, 2] = new[i]
+                self.ei[self.n_ev * 3 + 0] = i
+                self.ei[self.n_ev * 3 + 1] = self.contact[i]
+                self.ei[self.n_ev * 3 + 2] = new[i]
                 self.n_ev += 1
                 self.contact[i] = new[i]
 
@@ -840,8 +1007,8 @@ cdef class ExactCore:
         multiples end segments and are compared. Returns a status."""
         cdef GaitData* g = &gait.d
         cdef int p = self.p, nl = self.nl, i, j, r, nr, r0, code, retries, n_hit
-        cdef int guard = 0, status = S_REACHED, n_max = self.sf.shape[0]
-        cdef int ev_max = self.et.shape[0]
+        cdef int guard = 0, status = S_REACHED, n_max = self.n_buf
+        cdef int ev_max = 2 * self.n_buf
         cdef double t, ts, end, b, kT, t0, a, V0, X_s, V_s, t_ev, tt, d, f_slide, imp, w, fmg
         cdef double tol = self.tol, cap, Vi
         cdef long k_next
@@ -875,8 +1042,8 @@ cdef class ExactCore:
             end = nextafter(ts, -INFINITY) if left else ts
             cap = self.cap if self.cap > 0.0 else max((ts - t) / 8.0, 1e-300)
             # ---- the state at t
-            gait_lengths(g, t, &self.l[0])
-            gait_rates(g, t, &self.ld[0], &self.ldd[0], &self.ld3[0])
+            gait_lengths(g, t, self.l)
+            gait_rates(g, t, self.ld, self.ldd, self.ld3)
             for j in range(nl):
                 if not (isfinite(self.l[j]) and isfinite(self.ld[j]) and isfinite(self.ldd[j])):
                     self.bad_time = t
@@ -885,9 +1052,9 @@ cdef class ExactCore:
             if status == S_NONFINITE:
                 break
             for i in range(p):
-                self.e[i] = dot(self.W, i, &self.l[0], nl)
-                self.ep[i] = dot(self.W, i, &self.ld[0], nl)
-                self.epp[i] = dot(self.W, i, &self.ldd[0], nl)
+                self.e[i] = dot(self.W, i, self.l, nl)
+                self.ep[i] = dot(self.W, i, self.ld, nl)
+                self.epp[i] = dot(self.W, i, self.ldd, nl)
             if self.ref >= 0:
                 # stuck reference body: the centre of mass from the gait, exactly
                 self.V = -self.ep[self.ref]
@@ -910,7 +1077,7 @@ cdef class ExactCore:
                     else:
                         self.zero[i] = 1
             if stale:
-                self.record_change(t, &self.new2[0])
+                self.record_change(t, self.new2)
                 self.cache_ok = False
             # ---- mode
             if self.cache_ok:
@@ -941,18 +1108,18 @@ cdef class ExactCore:
                     group_all = False
             V0 = -self.ep[r0] if r0 >= 0 else self.V
             t0 = t
-            self.record_change(t0, &self.new_contact[0])
-            self.sf[self.n_seg, 0] = t0
-            self.sf[self.n_seg, 2] = self.X
-            self.sf[self.n_seg, 3] = V0
-            self.sf[self.n_seg, 4] = a
-            self.sf[self.n_seg, 5] = self.x_ref
+            self.record_change(t0, self.new_contact)
+            self.sf[self.n_seg * 6 + 0] = t0
+            self.sf[self.n_seg * 6 + 2] = self.X
+            self.sf[self.n_seg * 6 + 3] = V0
+            self.sf[self.n_seg * 6 + 4] = a
+            self.sf[self.n_seg * 6 + 5] = self.x_ref
             self.sref[self.n_seg] = r0
             for i in range(p):
-                self.scontact[self.n_seg, i] = self.contact[i]
-                self.sgroup[self.n_seg, i] = self.group[i]
-                self.sR[self.n_seg, i] = self.R[i]
-                self.sK0[self.n_seg, i] = self.K[i]
+                self.scontact[self.n_seg * p + i] = self.contact[i]
+                self.sgroup[self.n_seg * p + i] = self.group[i]
+                self.sR[self.n_seg * p + i] = self.R[i]
+                self.sK0[self.n_seg * p + i] = self.K[i]
             # ---- search
             t_ev = ts
             n_hit = 0
@@ -961,7 +1128,7 @@ cdef class ExactCore:
             if group_all and gait_is_constant(g, t0, ts):
                 pass            # at rest under a constant command: nothing can happen
             else:
-                nr = self.build_rows(&self.contact[0], &self.group[0], r0, V0, a)
+                nr = self.build_rows(self.contact, self.group, r0, V0, a)
                 if nr > 0 and end > t0:
                     if g.kind == CALLBACK:
                         gait.span_lo = t0
@@ -1001,10 +1168,10 @@ cdef class ExactCore:
                     self.K[i] += self.R[i] * d
                     self.zero[i] = 0
             else:
-                gait_lengths(g, t_ev, &self.l[0])
-                gait_rates(g, t_ev, &self.ld[0], &self.ldd[0], &self.ld3[0])
-                self.V = -dot(self.W, r0, &self.ld[0], nl)
-                self.X = self.x_ref - dot(self.W, r0, &self.l[0], nl)
+                gait_lengths(g, t_ev, self.l)
+                gait_rates(g, t_ev, self.ld, self.ldd, self.ld3)
+                self.V = -dot(self.W, r0, self.ld, nl)
+                self.X = self.x_ref - dot(self.W, r0, self.l, nl)
                 f_slide = self.fext
                 w = 0.0
                 fmg = 0.0
@@ -1025,23 +1192,24 @@ cdef class ExactCore:
                                 self.fp[i] + self.fm[i])
             if n_hit > 0:
                 if r0 < 0:
-                    gait_rates(g, t_ev, &self.ld[0], &self.ldd[0], &self.ld3[0])
+                    gait_rates(g, t_ev, self.ld, self.ldd, self.ld3)
                 for i in range(p):
                     if self.hits[i]:
                         self.zero[i] = 1
                         if r0 < 0:
                             # the body's velocity is exactly zero at the event
-                            self.V = -dot(self.W, i, &self.ld[0], nl)
-            self.sf[self.n_seg, 1] = t_ev
+                            self.V = -dot(self.W, i, self.ld, nl)
+            self.sf[self.n_seg * 6 + 1] = t_ev
             # the last segment, for ``current``
             self.last_valid = True
-            self.last_f[:] = self.sf[self.n_seg]
+            for j in range(6):
+                self.last_f[j] = self.sf[self.n_seg * 6 + j]
             self.last_ref = r0
             for i in range(p):
                 self.last_contact[i] = self.contact[i]
                 self.last_group[i] = self.group[i]
                 self.last_R[i] = self.R[i]
-                self.last_K0[i] = self.sK0[self.n_seg, i]
+                self.last_K0[i] = self.sK0[self.n_seg * p + i]
             self.n_seg += 1
             tiny = t_ev - t0 <= STALL_ULPS * EPS * max(fabs(t_ev), 1.0)
             guard = guard + 1 if tiny else 0
@@ -1096,18 +1264,17 @@ cdef class ExactCore:
         cdef int p = self.p, i, r0
         cdef double a
         if self.last_valid and self.last_f[1] == self.t and self.last_gait is not None:
-            f = np.asarray(self.last_f).copy()
-            return _row(self, self.last_gait, f, self.last_ref, np.asarray(self.last_contact),
-                        np.asarray(self.last_group).astype(bool), np.asarray(self.last_R),
-                        np.asarray(self.last_K0), self.t)
+            rec = self.last_record()
+            return _row(self, self.last_gait, rec[0], rec[1], rec[2], rec[3], rec[4], rec[5],
+                        self.t)
         # provisional: a zero-length segment at t in the mode the next one would use
         g = &gait.d
-        gait_lengths(g, self.t, &self.l[0])
-        gait_rates(g, self.t, &self.ld[0], &self.ldd[0], &self.ld3[0])
+        gait_lengths(g, self.t, self.l)
+        gait_rates(g, self.t, self.ld, self.ldd, self.ld3)
         for i in range(p):
-            self.e[i] = dot(self.W, i, &self.l[0], self.nl)
-            self.ep[i] = dot(self.W, i, &self.ld[0], self.nl)
-            self.epp[i] = dot(self.W, i, &self.ldd[0], self.nl)
+            self.e[i] = dot(self.W, i, self.l, self.nl)
+            self.ep[i] = dot(self.W, i, self.ld, self.nl)
+            self.epp[i] = dot(self.W, i, self.ldd, self.nl)
         X = self.X
         V = self.V
         if self.ref >= 0:
@@ -1119,11 +1286,12 @@ cdef class ExactCore:
             V = -self.ep[r0]
         else:
             x_ref = self.x_ref
-        R = np.where(np.asarray(self.new_contact) > 0, -np.asarray(self.fp),
-                     np.where(np.asarray(self.new_contact) < 0, np.asarray(self.fm), 0.0))
+        nc = np.array(<signed char[:p]>self.new_contact)
+        R = np.where(nc > 0, -np.array(<double[:p]>self.fp),
+                     np.where(nc < 0, np.array(<double[:p]>self.fm), 0.0))
         f = np.array([self.t, self.t, X, V, a, x_ref])
-        return _row(self, gait, f, r0, np.asarray(self.new_contact).copy(),
-                    np.asarray(self.group).astype(bool), R, np.asarray(self.K).copy(), self.t)
+        return _row(self, gait, f, r0, nc, np.array(<unsigned char[:p]>self.group).astype(bool),
+                    R, np.array(<double[:p]>self.K), self.t)
 
     # ------------------------------------------------------------------ the rules from Python
     def search_rows(self, CompiledGait gait, double t0, double end, c0, c1, A1, A2,
@@ -1132,21 +1300,21 @@ cdef class ExactCore:
         A2 . l'' (K rows): (t or inf, hit rows (K,) bool, evaluations)."""
         cdef int nr = len(c0), r, j
         cdef double tt
-        if nr > self.c0.shape[0]:
-            raise ValueError(f'at most {self.c0.shape[0]} rows for p = {self.p}')
+        if nr > self.nr:
+            raise ValueError(f'at most {self.nr} rows for p = {self.p}')
         for r in range(nr):
             self.c0[r] = c0[r]
             self.c1[r] = c1[r]
             for j in range(self.nl):
-                self.A1[r, j] = A1[r][j]
-                self.A2[r, j] = A2[r][j]
+                self.A1[(r) * self.nl + j] = A1[r][j]
+                self.A2[(r) * self.nl + j] = A2[r][j]
         n0 = self.n_evals
         code = self.search(&gait.d, t0, end, nr, tol, cap, &tt)
         if code == F_NO_STEPS:
             raise RuntimeError('the search ran out of steps')
         if code == F_NONFINITE:
             raise ValueError('gait values must be finite')
-        hits = np.asarray(self.hit[:nr]).astype(bool)
+        hits = np.array(<unsigned char[:nr]>self.hit).astype(bool)
         return (tt if isfinite(tt) else INFINITY), hits, self.n_evals - n0
 
     def taylor_step(self, ga, da, watch, B2, B1, double tol, double cap) -> float:
@@ -1173,8 +1341,10 @@ cdef class ExactCore:
         return self.proven(nr, h, &a_[0], &b_[0], &c_[0], &d_[0])
 
     def crawler_arrays(self):
-        return (np.asarray(self.W), np.asarray(self.C), np.asarray(self.m_), np.asarray(self.fp),
-                np.asarray(self.fm), self.fext, np.asarray(self.grav))
+        p, nl = self.p, self.nl
+        return (np.array(<double[:p, :nl]>self.W), np.array(<double[:p, :nl]>self.C),
+                np.array(<double[:p]>self.m_), np.array(<double[:p]>self.fp),
+                np.array(<double[:p]>self.fm), self.fext, np.array(<double[:p]>self.grav))
 
 
 def _row(ExactCore core, CompiledGait gait, f, int ref, contact, group, R, K0, double t):

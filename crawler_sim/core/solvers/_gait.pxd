@@ -15,6 +15,7 @@ arithmetic exists once. Four kinds:
 
 Units: t [s], l [m], l' [m/s], l'' [m/s^2], l''' [m/s^3], l'''' [m/s^4].
 """
+from cpython.mem cimport PyMem_Malloc, PyMem_Free
 from libc.math cimport floor, fabs, sin, cos, M_PI, INFINITY, NAN
 
 cdef enum:
@@ -44,6 +45,7 @@ ctypedef struct GaitData:
     unsigned char* jump     # (n,) l'' may jump at the start of piece k (a breakpoint)
     unsigned char* jjump    # (n,) l''' jumps at the start of piece k (no snap bound across)
     unsigned char* rest     # (n,) l' = l'' = 0 on piece k
+    int hint                # the piece found last (lookups are mostly near it)
     int n_jumps
     double* jump_times      # (n_jumps,) sorted breakpoint times (of one period when periodic)
     # derivative bounds: FOURIER constant (nl,); SCALLOP nb bins per period (nb, nl)
@@ -121,17 +123,20 @@ cdef inline int table_locate(const GaitData* g, double t, double* d, double* m) 
         d[0] = t - (g.knots[j - 1] + mm * T)
         m[0] = mm
         return j - 1
-    lo = 0
-    hi = K
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        if g.starts[mid] <= t:
-            lo = mid + 1
-        else:
-            hi = mid
-    j = lo - 1
-    if j < 0:
-        j = 0
+    j = g.hint
+    if not (0 <= j < K and (j == 0 or g.starts[j] <= t) and (j == K - 1 or t < g.starts[j + 1])):
+        lo = 0
+        hi = K
+        while lo < hi:
+            mid = (lo + hi) >> 1
+            if g.starts[mid] <= t:
+                lo = mid + 1
+            else:
+                hi = mid
+        j = lo - 1
+        if j < 0:
+            j = 0
+        (<GaitData*>g).hint = j
     d[0] = t - g.anchors[j]
     m[0] = 0.0
     return j
@@ -179,12 +184,14 @@ cdef inline double next_jump(const GaitData* g, double t) noexcept nogil:
 
 
 # ----------------------------------------------------------------------------- evaluation
-cdef inline int gait_rates(GaitData* g, double t, double* ld, double* ldd,
-                           double* ld3) except -1:
-    """l', l'' and l''' at t. Returns 0, or 1 when a CALLBACK gait's value contradicts its
-    estimated bounds (they have been grown: the caller redoes what relied on them)."""
-    cdef int j, k, nl = g.nl, nk
-    cdef double d, m, a0, jk, ft, th, w, amp, off, c, s, x, cx, sx, inv_d, sin_phi, cos_phi
+cdef inline int gait_eval(GaitData* g, double t, double* l, double* ld, double* ldd,
+                          double* ld3) except -1:
+    """l (when ``l`` is not NULL), l', l'' and l''' at t: the one evaluation of every kind
+    (lengths share the trigonometric values of the rates). Returns 0, or 1 when a CALLBACK
+    gait's value contradicts its estimated bounds (they have been grown: the caller redoes
+    what relied on them)."""
+    cdef int j, k, nl = g.nl, nk, code
+    cdef double d, m, a0, jk, ft, th, w, amp, c, s, x, cx, sx, inv_d, sin_phi, cos_phi
     cdef double dphi, ddphi, dddphi, c1, s1, cc, ss, cn, wk, wk2, wk3, a_, b_
     cdef double* row
     if g.kind == TABLE:
@@ -193,25 +200,29 @@ cdef inline int gait_rates(GaitData* g, double t, double* ld, double* ldd,
         for j in range(nl):
             a0 = row[4 * j + 2]
             jk = row[4 * j + 3]
+            if l != NULL:
+                l[j] = row[4 * j] + d * (row[4 * j + 1] + d * (0.5 * a0 + d * jk / 6.0))
             ld[j] = row[4 * j + 1] + d * (a0 + 0.5 * d * jk)
             ldd[j] = a0 + d * jk
             ld3[j] = jk
         return 0
     if g.kind == CALLBACK:
+        if l != NULL:
+            (<CompiledGait>g.obj).cb_lengths(t, l)
         return (<CompiledGait>g.obj).cb_rates(t, ld, ldd, ld3)
     ft = g.freq * t
     th = 2.0 * M_PI * (ft - floor(ft))          # the phase in cycles first (large t)
     w = 2.0 * M_PI * g.freq
     if g.kind == SCALLOP:
+        # sin phi = s sin x / D, cos phi = (cos x - c) / D, D = 1 - c cos x;
         # phi''' = -s c (cos x / D^2 - 2 c sin^2 x / D^3),
         # l''' = amp w^3 (cos phi (phi''' - phi'^3) - 3 sin phi phi' phi'')
         for j in range(nl):
             row = g.p1 + 4 * j
             amp = row[0]
-            off = row[1]
             c = row[2]
             s = row[3]
-            x = th + off
+            x = th + row[1]
             cx = cos(x)
             sx = sin(x)
             inv_d = 1.0 / (1.0 - c * cx)
@@ -220,6 +231,8 @@ cdef inline int gait_rates(GaitData* g, double t, double* ld, double* ldd,
             dphi = s * inv_d
             ddphi = -s * c * sx * inv_d * inv_d
             dddphi = -s * c * (cx * inv_d * inv_d - 2.0 * c * sx * sx * inv_d * inv_d * inv_d)
+            if l != NULL:
+                l[j] = g.mean[j] + amp * sin_phi
             ld[j] = amp * w * cos_phi * dphi
             ldd[j] = amp * (w * w) * (cos_phi * ddphi - sin_phi * dphi * dphi)
             ld3[j] = amp * (w * w * w) * (cos_phi * (dddphi - dphi * dphi * dphi)
@@ -231,6 +244,8 @@ cdef inline int gait_rates(GaitData* g, double t, double* ld, double* ldd,
     c1 = cos(th)
     s1 = sin(th)
     for j in range(nl):
+        if l != NULL:
+            l[j] = 0.0
         ld[j] = 0.0
         ldd[j] = 0.0
         ld3[j] = 0.0
@@ -243,43 +258,43 @@ cdef inline int gait_rates(GaitData* g, double t, double* ld, double* ldd,
         for j in range(nl):
             a_ = g.p1[j * nk + k]
             b_ = g.p2[j * nk + k]
+            if l != NULL:
+                l[j] += a_ * cc + b_ * ss
             ld[j] += wk * (b_ * cc - a_ * ss)
             ldd[j] -= wk2 * (a_ * cc + b_ * ss)
             ld3[j] += wk3 * (a_ * ss - b_ * cc)
         cn = cc * c1 - ss * s1
         ss = ss * c1 + cc * s1
         cc = cn
+    if l != NULL:
+        for j in range(nl):
+            l[j] = g.mean[j] + l[j]
     return 0
 
 
+cdef inline int gait_rates(GaitData* g, double t, double* ld, double* ldd,
+                           double* ld3) except -1:
+    """l', l'' and l''' at t (``gait_eval`` without the lengths)."""
+    return gait_eval(g, t, NULL, ld, ldd, ld3)
+
+
 cdef inline int gait_lengths(GaitData* g, double t, double* l) except -1:
-    """l(t) [m]."""
-    cdef int j, k, nl = g.nl, nk
-    cdef double d, m, ft, th, v, x
-    cdef double* row
-    if g.kind == TABLE:
-        k = table_locate(g, t, &d, &m)
-        row = g.coef + k * nl * 4
-        for j in range(nl):
-            l[j] = row[4 * j] + d * (row[4 * j + 1] + d * (0.5 * row[4 * j + 2]
-                                                          + d * row[4 * j + 3] / 6.0))
-        return 0
+    """l(t) [m] (``gait_eval``'s lengths, the rates into scratch)."""
+    cdef double buf[96]
+    cdef double* w
+    cdef int nl = g.nl
     if g.kind == CALLBACK:
         return (<CompiledGait>g.obj).cb_lengths(t, l)
-    ft = g.freq * t
-    th = 2.0 * M_PI * (ft - floor(ft))
-    if g.kind == SCALLOP:
-        for j in range(nl):
-            row = g.p1 + 4 * j
-            x = th + row[1]
-            l[j] = g.mean[j] + row[0] * (row[3] * sin(x) / (1.0 - row[2] * cos(x)))
+    if nl <= 32:
+        gait_eval(g, t, l, buf, buf + 32, buf + 64)
         return 0
-    nk = g.nk
-    for j in range(nl):
-        v = 0.0
-        for k in range(nk):
-            v += g.p1[j * nk + k] * cos((k + 1) * th) + g.p2[j * nk + k] * sin((k + 1) * th)
-        l[j] = g.mean[j] + v
+    w = <double*>PyMem_Malloc(3 * nl * sizeof(double))
+    if w == NULL:
+        raise MemoryError()
+    try:
+        gait_eval(g, t, l, w, w + nl, w + 2 * nl)
+    finally:
+        PyMem_Free(w)
     return 0
 
 

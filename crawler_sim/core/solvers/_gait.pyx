@@ -78,8 +78,7 @@ cdef class CompiledGait:
                     LD[k, j] = self._buf[1, j]
                     LDD[k, j] = self._buf[2, j]
                 continue
-            gait_lengths(&self.d, tt[k], &L[k, 0])
-            gait_rates(&self.d, tt[k], &LD[k, 0], &LDD[k, 0], &ld3[0])
+            gait_eval(&self.d, tt[k], &L[k, 0], &LD[k, 0], &LDD[k, 0], &ld3[0])
         return l, ld, ldd
 
     def at(self, double t):
@@ -99,8 +98,7 @@ cdef class CompiledGait:
         if self.d.kind == CALLBACK:
             self._fetch(t, True)
             return self._buf[0, 0], self._buf[1, 0], self._buf[2, 0]
-        gait_lengths(&self.d, t, l)
-        gait_rates(&self.d, t, ld, ldd, ld3)
+        gait_eval(&self.d, t, l, ld, ldd, ld3)
         return l[0], ld[0], ldd[0]
 
     def jerk(self, double t):

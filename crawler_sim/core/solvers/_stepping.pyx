@@ -25,7 +25,8 @@ import numpy as np
 
 from libc.math cimport ceil, fabs, isfinite, INFINITY, NAN
 
-from crawler_sim.core.solvers._gait cimport CompiledGait, GaitData, gait_rates, gait_lengths
+from crawler_sim.core.solvers._gait cimport (CompiledGait, GaitData, gait_eval, gait_rates,
+                                             gait_lengths)
 from crawler_sim.core.solvers._inclusion cimport inclusion
 
 __all__ = ['StepCore', 'batch_step', 'IMPLICIT', 'PENALTY', 'MAX_DEPTH', 'BISECT_REL']
@@ -91,6 +92,7 @@ cdef class StepCore:
     cdef public double t, X, V, A, dt
     cdef public double scan_step      # largest spacing of the transition scan [s]
     cdef signed char[::1] contact
+    cdef signed char[::1] rmode     # the mode the friction R is of (a row's contact state)
     cdef double[::1] R, K
     cdef public long n_steps, n_ev
     cdef public double bad_time
@@ -98,9 +100,9 @@ cdef class StepCore:
     cdef double[::1] et
     cdef long[::1] eb
     cdef signed char[::1] eo, en
-    # the rates of the last step end, as the step used them
+    # the gait and the rates at the last step end, as the step used them
     cdef public double last_t
-    cdef double[::1] last_ep, last_epp
+    cdef double[::1] last_ep, last_epp, lb, ldb, lddb, ld3b
     # work
     cdef double[::1] ld, ldd, ld3, epb, eppb, ep, epp, kinks, kbuf, fpb, fmb, brk, l, e
     cdef int[::1] idx
@@ -125,6 +127,7 @@ cdef class StepCore:
         self.dt = dt
         self.scan_step = INFINITY
         self.contact = np.zeros(p, np.int8)
+        self.rmode = np.zeros(p, np.int8)
         self.R = np.zeros(p)
         self.K = np.zeros(p)
         cap = 64 * p * (C_MAX_DEPTH + 1)
@@ -153,6 +156,10 @@ cdef class StepCore:
         self.brk = np.zeros(2 * p)
         self.last_ep = np.zeros(p)
         self.last_epp = np.zeros(p)
+        self.lb = np.zeros(nl)
+        self.ldb = np.zeros(nl)
+        self.lddb = np.zeros(nl)
+        self.ld3b = np.zeros(nl)
         self.idx = np.zeros(2 * p, np.intc)
         self.zmask = np.zeros(p, np.uint8)
         self.newc = np.zeros(p, np.int8)
@@ -258,6 +265,7 @@ cdef class StepCore:
         cdef int p = self.p, i
         cdef double total = self.M * (V1 - V0) / h - self.fext, lo = 0.0, width = 0.0, theta
         for i in range(p):
+            self.rmode[i] = contact[i]
             if contact[i] > 0:
                 R[i] = -self.fp[i]
                 total += self.fp[i]
@@ -400,7 +408,9 @@ cdef class StepCore:
         if c0 != self.contact[0] or c1 != self.contact[1]:
             return False
         if c0 != 0 and c1 != 0:
-            pass                # both slide: R is the two Coulomb forces already
+            # both slide: R is the two Coulomb forces already
+            self.rmode[0] = c0
+            self.rmode[1] = c1
         elif c0 != c1:
             j = 0 if c0 == 0 else 1
             i = 1 - j
@@ -481,6 +491,8 @@ cdef class StepCore:
         for i in range(p):
             self.K[i] += h * self.R[i]
         self.log_changes(tb, &self.contact[0], &self.newc[0])
+        for i in range(p):
+            self.rmode[i] = self.contact[i]
         self.A = (V_new - self.V) / h
         self.V = V_new
 
@@ -494,8 +506,14 @@ cdef class StepCore:
 
     cdef int one_step(self, GaitData* g, double tb) except -1:
         """A step to tb of the solver's method; 1 when a value is not finite."""
-        if self.rates(g, tb, &self.epb[0], &self.eppb[0]):
-            return 1
+        cdef int j, nl = self.p - 1
+        gait_eval(g, tb, &self.lb[0], &self.ldb[0], &self.lddb[0], &self.ld3b[0])
+        for j in range(nl):
+            if not (isfinite(self.lb[j]) and isfinite(self.ldb[j]) and isfinite(self.lddb[j])):
+                self.bad_time = tb
+                return 1
+        rel_rates(&self.w[0], &self.ldb[0], &self.epb[0], self.p)
+        rel_rates(&self.w[0], &self.lddb[0], &self.eppb[0], self.p)
         if self.method == PENALTY:
             self.penalty_step(tb)
         elif not (self.p == 2 and self.two_body_step(tb)):
@@ -504,8 +522,9 @@ cdef class StepCore:
         self.t = tb
         self.n_steps += 1
         self.last_t = tb
-        self.last_ep[:] = self.epb
-        self.last_epp[:] = self.eppb
+        for j in range(self.p):
+            self.last_ep[j] = self.epb[j]
+            self.last_epp[j] = self.eppb[j]
         if not (isfinite(self.X) and isfinite(self.V)):
             self.bad_time = tb
             return 1
@@ -547,34 +566,32 @@ cdef class StepCore:
                 tb = tk if (tk - self.t) / dt <= 1.0 + 1e-9 else self.t + dt
                 if self.one_step(g, tb):
                     return NONFINITE, k
-            # the row at tk: the step's own e', e'' there (a stuck body's velocity is then
-            # exactly zero), else the gait's
-            gait_lengths(g, tk, &self.l[0])
-            gait_rates(g, tk, &self.ld[0], &self.ldd[0], &self.ld3[0])
-            rel_rates(&self.w[0], &self.l[0], &self.e[0], p)
-            if self.last_t == tk:
-                for i in range(p):
-                    self.ep[i] = self.last_ep[i]
-                    self.epp[i] = self.last_epp[i]
-            else:
-                rel_rates(&self.w[0], &self.ld[0], &self.ep[0], p)
-                rel_rates(&self.w[0], &self.ldd[0], &self.epp[0], p)
+            # the row at tk: the step's own gait values and e', e'' there (a stuck body's
+            # velocity is then exactly zero), else the gait's
+            if self.last_t != tk:
+                gait_eval(g, tk, &self.lb[0], &self.ldb[0], &self.lddb[0], &self.ld3b[0])
+                rel_rates(&self.w[0], &self.ldb[0], &self.last_ep[0], p)
+                rel_rates(&self.w[0], &self.lddb[0], &self.last_epp[0], p)
+                self.last_t = tk
+            rel_rates(&self.w[0], &self.lb[0], &self.e[0], p)
             acc = 0.0
             n_stuck = 0
             for i in range(p):
                 x[k, i] = self.X + self.e[i]
-                v[k, i] = self.V + self.ep[i]
+                v[k, i] = self.V + self.last_ep[i]
                 fr[k, i] = self.R[i]
                 imp[k, i] = self.K[i]
-                contact[k, i] = self.contact[i]
-                if self.contact[i] == 0:
+                # the state of the last piece, whose friction this is (the left limit of a
+                # transition at the step end, as the exact method reports it)
+                contact[k, i] = self.rmode[i]
+                if self.rmode[i] == 0:
                     n_stuck += 1
                 if i < nl:
-                    acc += self.R[i] + self.grav[i] - self.m_[i] * (self.A + self.epp[i])
+                    acc += self.R[i] + self.grav[i] - self.m_[i] * (self.A + self.last_epp[i])
                     lam[k, i] = acc
             for j in range(nl):
-                lengths[k, j] = self.l[j]
-                rates[k, j] = self.ld[j]
+                lengths[k, j] = self.lb[j]
+                rates[k, j] = self.ldb[j]
             ind[k] = n_stuck > 1
         return REACHED, n
 
@@ -617,6 +634,7 @@ cdef class StepCore:
         self.A = a
         for i in range(p):
             self.K[i] = 0.0
+            self.rmode[i] = self.contact[i]
         self.n_steps = 0
         self.n_ev = 0
         self.last_t = NAN

@@ -6,9 +6,10 @@ events. For a gait of user callables they are estimated from a scan of l'':
 
 * a grid of spacing ``T / 1024`` for a periodic gait, ``max_step / 8`` when one is given, else
   1/256 of the first span scanned, in windows of at most ``WINDOW`` cells;
-* refined locally, cell by cell, until each cell is at most the time scale |l'''| / |l''''| its
-  differences (with its neighbours') show, so a sharp feature the grid touches is resolved where
-  it is and nowhere else;
+* refined locally, cell by cell, until the bound of each cell holds inside it by its own
+  differences (its first difference plus its |l''''| times its width within ``SAFETY`` times the
+  largest first difference of it and its neighbours), so a sharp feature the grid touches is
+  resolved where it is and nowhere else;
 * per cell, ``SAFETY`` = 4 times the largest first and second differences of l'', each cell
   counted with its two neighbours (its end samples may miss a rise inside it);
 * every evaluation of the search checks its l''' against the bound of its cell
@@ -20,9 +21,10 @@ search step also steps over, is not seen. l''' is (l''(t + d) - l''(t)) / d with
 local cell width (t - d near the end of the span), so the user's functions are only called
 inside the span being integrated.
 
-l'' that jumps (a contract breach: jumps must be listed in ``breakpoints=``) shows as a cell that
-never resolves: it is zoomed into, and a jump that stays a jump down to a few floats is refused
-at once with its time, instead of a search that runs out of steps.
+l'' that jumps (a contract breach: jumps must be listed in ``breakpoints=``) shows as a cell whose
+difference stands out of its neighbours' like a step: it is zoomed into, and a jump that stays a
+jump down to a few floats is refused at once with its time, instead of a search that runs out of
+steps.
 """
 from __future__ import annotations
 
@@ -39,8 +41,6 @@ FIRST = 256            # grid cells of a first span without a period or max_step
 WINDOW = 4096          # most grid cells scanned at once (before local refinement)
 KEEP = 1 << 16         # most cells kept (the oldest go: a long run's memory stays bounded)
 ROUNDS = 40            # local refinement rounds (each halves the unresolved cells)
-_RESOLVE = 0.5         # largest cell width over the local time scale |l'''| / |l''''|
-_FLOOR = 1e-3          # |l'''| below this share of the scan's largest counts as this share
 _DIFF = 1e-4           # difference step over the local cell width
 _ZOOM = 200            # bisections of an unresolved cell
 _JUMP = 1e-3           # a difference of l'' over a few floats above this share of its range
@@ -146,12 +146,14 @@ class BoundEstimate:
     def _scan(self, a: float, b: float) -> None:
         """Cells over [a, b], piece by piece between the gait's breakpoints (where l'' may
         jump: the cell from a breakpoint's left limit to it carries no difference)."""
-        cuts = self._breaks(a, b) if self._breaks is not None and b > a else []
+        # the breakpoints inside (a, b], b included: the span may end at one (its end value
+        # is then read as the left limit)
+        cuts = (self._breaks(a, float(np.nextafter(b, math.inf)))
+                if self._breaks is not None and b > a else [])
         parts = []
         lo = a
-        for bp in list(cuts) + [b]:
-            bp = float(bp)
-            end = float(np.nextafter(bp, -math.inf)) if bp < b else bp
+        for bp in [float(x) for x in cuts] + ([b] if not len(cuts) or cuts[-1] < b else []):
+            end = float(np.nextafter(bp, -math.inf)) if bp in cuts else bp
             parts.append(self._scan_piece(lo, max(end, lo)))
             if bp < b:
                 parts.append((np.array([end]), np.zeros((1, self.nl)), np.zeros((1, self.nl))))
@@ -168,14 +170,15 @@ class BoundEstimate:
 
     def _scan_piece(self, a: float, b: float) -> tuple[NDArray, NDArray, NDArray]:
         """(cell starts, d1, d2) over [a, b] where l'' is continuous: the grid, refined
-        locally (module doc)."""
+        locally (module doc); a cell whose difference stands out of its neighbours' like a
+        step is checked for a jump."""
         n = max(1, math.ceil((b - a) / self.spacing)) if b > a else 1
         t = np.linspace(a, b, n + 1) if b > a else np.array([a, a])
         t[-1] = b
         acc = self._values(t)
         for _ in range(ROUNDS):
             d1, d2 = _differences(t, acc)
-            bad = _unresolved(t, d1, d2)
+            bad = _unresolved(t, d1, d2, self.SAFETY)
             if not bad.any():
                 break
             mid = 0.5 * (t[:-1][bad] + t[1:][bad])
@@ -188,16 +191,14 @@ class BoundEstimate:
             t = t_new[order]
             acc = np.concatenate([acc, self._values(mid)])[order]
         d1, d2 = _differences(t, acc)
-        bad = _unresolved(t, d1, d2)
-        if bad.any():
-            self._refuse_jump(t, acc, d1, bad)
+        for k in _spikes(acc, d1):
+            self._refuse_jump(t, acc, k)
         return t[:-1], np.nan_to_num(d1, posinf=1e300), np.nan_to_num(d2, posinf=1e300)
 
-    def _refuse_jump(self, t: NDArray, acc: NDArray, d1: NDArray, bad: NDArray) -> None:
-        """Cells that did not resolve: zoom into the steepest; a difference of l'' that stays a
-        sizeable share of its range down to a few floats is a jump (ValueError)."""
-        k = int(np.argmax(np.where(bad[:, None], d1, -1.0).max(axis=1)))
-        j = int(np.argmax(d1[k]))
+    def _refuse_jump(self, t: NDArray, acc: NDArray, k: int) -> None:
+        """Zoom into cell k; a difference of l'' that stays a sizeable share of its range
+        down to a few floats is a jump (ValueError)."""
+        j = int(np.argmax(np.abs(acc[k + 1] - acc[k])))
         lo, hi = float(t[k]), float(t[k + 1])
         f_lo, f_hi = acc[k, j], acc[k + 1, j]
         scale = float(np.max(np.abs(acc[:, j]))) + 1e-300
@@ -210,6 +211,8 @@ class BoundEstimate:
                 hi, f_hi = mid, f_mid
             else:
                 lo, f_lo = mid, f_mid
+            if abs(f_hi - f_lo) <= _JUMP * scale:
+                return                       # it shrinks with the interval: continuous
         if abs(f_hi - f_lo) > _JUMP * scale:
             raise ValueError(
                 f"gait acceleration (l'') of linkage {j} jumps by {f_hi - f_lo:.6g} m/s^2 at "
@@ -233,19 +236,33 @@ def _differences(t: NDArray, acc: NDArray) -> tuple[NDArray, NDArray]:
     return d1, np.maximum(nodes[:-1], nodes[1:])
 
 
-def _unresolved(t: NDArray, d1: NDArray, d2: NDArray) -> NDArray:
-    """Cells wider than half the time scale |l'''| / |l''''| of themselves and their
-    neighbours (|l'''| floored at ``_FLOOR`` of its largest value: where l''' is nearly still,
-    as where it crosses zero, its own scale is not the gait's). A jump of l''' never resolves:
-    its cell's scale is its width."""
-    def nb(d):
-        out = d.copy()
-        out[1:] = np.maximum(out[1:], d[:-1])
-        out[:-1] = np.maximum(out[:-1], d[1:])
-        return out
-    j, s = nb(d1), nb(d2)
-    j = np.maximum(j, _FLOOR * d1.max(axis=0, initial=0.0))
-    with np.errstate(divide='ignore', invalid='ignore'):
-        tau = np.where(s > 0.0, j / s, math.inf).min(axis=1)
-    w = np.diff(t)
-    return (w > _RESOLVE * tau) & (w > 4.0 * np.spacing(np.maximum(np.abs(t[1:]), 1e-300)))
+def _neighbours(d: NDArray) -> NDArray:
+    """Each row the largest of itself and its two neighbours."""
+    out = d.copy()
+    out[1:] = np.maximum(out[1:], d[:-1])
+    out[:-1] = np.maximum(out[:-1], d[1:])
+    return out
+
+
+def _unresolved(t: NDArray, d1: NDArray, d2: NDArray, safety: float) -> NDArray:
+    """Cells whose bound, ``safety`` times the largest difference of the cell and its
+    neighbours, may not hold inside it: |l'''| there can reach its own difference plus
+    |l''''| times its width."""
+    w = np.diff(t)[:, None]
+    need = d1 + _neighbours(d2) * w
+    bad = (need > safety * _neighbours(d1)).any(axis=1)
+    return bad & (w[:, 0] > 4.0 * np.spacing(np.maximum(np.abs(t[1:]), 1e-300)))
+
+
+def _spikes(acc: NDArray, d1: NDArray) -> list[int]:
+    """Cells whose difference of l'' is a step out of its neighbours' (more than 4 times
+    theirs, and a sizeable share of l'''s range): where l'' may jump."""
+    if d1.shape[0] < 3:
+        return []
+    nb = np.zeros_like(d1)
+    nb[1:] = np.maximum(nb[1:], d1[:-1])
+    nb[:-1] = np.maximum(nb[:-1], d1[1:])
+    step = np.abs(np.diff(acc, axis=0))
+    rng = np.ptp(acc, axis=0) + 1e-300
+    hit = ((d1 > 4.0 * nb) & (step > _JUMP * rng)).any(axis=1)
+    return np.nonzero(hit)[0].tolist()[:8]

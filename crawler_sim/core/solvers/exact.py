@@ -125,24 +125,8 @@ class ExactSolver:
 
     def reset(self, *, t0: float = 0.0, x0: float = 0.0, v0: float = 0.0) -> None:
         """Start at time t0 with body 0 at x0 [m] moving at v0 [m/s]."""
-        k, core = self._k, self._core
-        l, ld, _ = self._cg.at(float(t0))
-        check_finite_gait((l, ld, ld), t0)
-        e, ep = k.W @ l, k.W @ ld
-        core.t = float(t0)
-        core.X = float(x0 - e[0])          # centre of mass
-        core.V = float(v0 - ep[0])
-        v = v0 + k.C @ ld                  # body velocities, exact zeros stay zero
-        core.contact_array = np.where(k.free, 0, np.sign(v)).astype(np.int8)
-        core.zero_array = (v == 0.0) & ~k.free   # bodies known to be at zero velocity
-        core.K_array = np.zeros(self.crawler.p)
-        core.ref = -1
-        core.x_ref = 0.0
-        core.cache_ok = False
-        core.ck_valid = False
-        core.last_valid = False
-        core.last_gait = None
-        core.n_evals = 0
+        if not self._core.reset(self._cg, float(t0), float(x0), float(v0)):
+            check_finite_gait(self._cg.at(float(t0)), t0)
         self.segments = SegmentList()
         self.events = EventLog()
         self.n_segments = 0
@@ -231,17 +215,14 @@ class ExactSolver:
         objects only when read) and its n_ev contact changes as events."""
         core = self._core
         if n_ev:
-            self.events.extend(map(_new_event, zip(core.ev_t[:n_ev].tolist(),
-                                                   *core.ev_i[:n_ev].T.tolist())))
+            times, rows = core.events(n_ev)
+            self.events.extend(map(_new_event, zip(times.tolist(), *rows.T.tolist())))
         if not n:
             return
         self.n_segments += n
         self._last_gait = self.gait
         if self.keep_segments:
-            chunk = SegmentChunk(self.gait, core.seg_f[:n].copy(), core.seg_ref[:n].copy(),
-                                 core.seg_contact[:n].copy(), core.seg_R[:n].copy(),
-                                 core.seg_K0[:n].copy(), core.seg_group[:n].copy())
-            self.segments.extend_chunk(chunk)
+            self.segments.extend_chunk(SegmentChunk(self.gait, *core.records(n)))
 
     def _period_boundary(self, k: int, T: float, t1: float) -> None:
         """At t = k T the state repeats the one at (k - 1) T: skip the whole periods left."""

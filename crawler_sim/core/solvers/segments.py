@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from itertools import repeat
+from bisect import bisect_right
 
 import numpy as np
 from numpy.typing import NDArray
@@ -84,9 +84,9 @@ class SegmentChunk:
     f: NDArray[np.float64]
     ref: NDArray[np.int64]
     contact: NDArray[np.int8]
+    group: NDArray[np.bool_]
     R: NDArray[np.float64]
     K0: NDArray[np.float64]
-    group: NDArray[np.bool_]
 
     def segment(self, k: int) -> Segment:
         t0, t1, X0, V0, a, x_ref = self.f[k].tolist()
@@ -149,82 +149,82 @@ class Records:
 
 
 class SegmentList(Sequence):
-    """The exact solver's kept pieces in time order: ``Segment`` and ``PeriodicBlock`` objects,
-    and records of ``SegmentChunk`` turned into ``Segment`` objects when first read (most of a
-    long run is never read one segment at a time)."""
+    """The exact solver's kept pieces in time order: the compiled loop's records
+    (``SegmentChunk``, one per call, turned into ``Segment`` objects only when read: most of a
+    run is never read one segment at a time), ``PeriodicBlock`` objects and ``Segment``
+    objects."""
 
     def __init__(self) -> None:
-        self._items: list = []       # Segment | PeriodicBlock | (chunk, row)
-        self._t0: list[float] = []
-        self._row: list[int] = []    # row of each item in ``records()`` (-1: PeriodicBlock)
-        self._parts: list = []       # Records, or lists of Segments, joined by ``records()``
-        self._n_rows = 0
+        self._parts: list = []       # SegmentChunk | PeriodicBlock | Segment
+        self._ends: list[int] = []   # cumulative item counts
+        self._built: dict = {}       # item index -> Segment built from a chunk row
         self._table: Records | None = None
-        self._row_array: NDArray | None = None    # _row and _t0 as arrays, once read
-        self._t0_array: NDArray | None = None
+        self._rows: NDArray | None = None
+        self._starts: NDArray | None = None
 
     def __len__(self) -> int:
-        return len(self._items)
+        return self._ends[-1] if self._ends else 0
 
     def _get(self, k: int):
-        item = self._items[k]
-        if isinstance(item, tuple):
-            item = self._items[k] = item[0].segment(item[1])
-        return item
+        i = bisect_right(self._ends, k)
+        part = self._parts[i]
+        if not isinstance(part, SegmentChunk):
+            return part
+        seg = self._built.get(k)
+        if seg is None:
+            seg = self._built[k] = part.segment(k - (self._ends[i - 1] if i else 0))
+        return seg
 
     def __getitem__(self, k):
+        n = len(self)
         if isinstance(k, slice):
-            return [self._get(i) for i in range(*k.indices(len(self._items)))]
+            return [self._get(i) for i in range(*k.indices(n))]
         if k < 0:
-            k += len(self._items)
-        if not 0 <= k < len(self._items):
+            k += n
+        if not 0 <= k < n:
             raise IndexError('segment index out of range')
         return self._get(k)
 
+    def _add(self, part, n: int) -> None:
+        self._parts.append(part)
+        self._ends.append(len(self) + n)
+        self._table = self._rows = self._starts = None
+
     def append(self, item) -> None:
-        self._items.append(item)
-        self._t0.append(item.t0)
-        if isinstance(item, PeriodicBlock):
-            self._row.append(-1)
-            return
-        # a segment of the Python path: gathered with its neighbours when the table is read
-        self._row.append(self._n_rows)
-        self._n_rows += 1
-        if self._parts and isinstance(self._parts[-1], list):
-            self._parts[-1].append(item)
-        else:
-            self._parts.append([item])
-        self._table = None
+        """One ``Segment`` or ``PeriodicBlock``."""
+        self._add(item, 1)
 
     def extend_chunk(self, chunk: SegmentChunk) -> None:
-        n = chunk.f.shape[0]
-        self._items.extend(zip(repeat(chunk, n), range(n)))
-        self._t0.extend(chunk.f[:, 0].tolist())
-        self._add_rows(Records.from_chunk(chunk))
-
-    def _add_rows(self, part: Records) -> None:
-        n = part.ref.size
-        self._row.extend(range(self._n_rows, self._n_rows + n))
-        self._n_rows += n
-        self._parts.append(part)
-        self._table = None
+        self._add(chunk, chunk.f.shape[0])
 
     def records(self) -> tuple[Records, NDArray[np.int64]]:
         """Every segment's constants as one ``Records`` table, and each item's row in it (-1
         for a ``PeriodicBlock``), without building ``Segment`` objects."""
         if self._table is None:
-            self._table = Records.concat([Records.from_segments(q) if isinstance(q, list) else q
-                                          for q in self._parts])
-            self._parts = [self._table]
-        if self._row_array is None or self._row_array.size != len(self._row):
-            self._row_array = np.array(self._row, dtype=np.int64)
-        return self._table, self._row_array
+            tables, rows, n_rows = [], [], 0
+            for part in self._parts:
+                if isinstance(part, SegmentChunk):
+                    n = part.f.shape[0]
+                    tables.append(Records.from_chunk(part))
+                    rows.append(np.arange(n_rows, n_rows + n))
+                    n_rows += n
+                elif isinstance(part, PeriodicBlock):
+                    rows.append(np.array([-1]))
+                else:
+                    tables.append(Records.from_segments([part]))
+                    rows.append(np.array([n_rows]))
+                    n_rows += 1
+            self._table = Records.concat(tables) if tables else Records.from_segments([])
+            self._rows = (np.concatenate(rows) if rows else np.empty(0)).astype(np.int64)
+        return self._table, self._rows
 
     def starts(self) -> NDArray[np.float64]:
         """Start times of the pieces, without building them."""
-        if self._t0_array is None or self._t0_array.size != len(self._t0):
-            self._t0_array = np.array(self._t0)
-        return self._t0_array
+        if self._starts is None:
+            parts = [part.f[:, 0] if isinstance(part, SegmentChunk) else np.array([part.t0])
+                     for part in self._parts]
+            self._starts = np.concatenate(parts) if parts else np.empty(0)
+        return self._starts
 
 
 def evaluate_rows(crawler: Crawler, pieces: list, owner: NDArray[np.int64],
