@@ -41,15 +41,11 @@ def n_chunks(spec: SweepSpec) -> int:
 
 
 def chunk_params(spec: SweepSpec, index: int) -> list[dict]:
-    """The parameter sets of chunk ``index`` (scenes index * chunk_size onwards)."""
+    """The parameter sets of chunk ``index`` (scenes index * chunk_size onwards), each computed
+    from its scene index: O(chunk_size) wherever the chunk lies in the spec."""
     start = index * spec.chunk_size
-    out = []
-    for k, params in enumerate(spec.param_sets()):
-        if k >= start + spec.chunk_size:
-            break
-        if k >= start:
-            out.append(params)
-    return out
+    stop = min(start + spec.chunk_size, len(spec))
+    return [spec.param_set(k) for k in range(start, stop)]
 
 
 def _row(spec: SweepSpec, scene_index: int, params: dict) -> dict:

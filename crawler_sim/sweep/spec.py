@@ -26,8 +26,13 @@ special name ``bodies`` (number of bodies p: the masses, and per-body friction l
 base's first entry repeated p times). Grid values are a list or ``{linspace: [a, b, n]}`` /
 ``{logspace: [a, b, n]}`` (a, b the end values, not exponents). Random draws are
 ``{uniform: [a, b]}``, ``{loguniform: [a, b]}``, ``{integers: [a, b]}`` (both ends included) or
-``{choice: [...]}``; they use numpy's PCG64 generator seeded with ``seed``, so a spec gives the
-same scenes on every machine.
+``{choice: [...]}``. Scene k draws from its own generator: numpy's PCG64 seeded with the k-th
+child of ``SeedSequence(seed)`` (``SeedSequence(seed).spawn(k + 1)[k]``), so a spec gives the
+same scenes on every machine and whatever the chunk size.
+
+Scene k of a spec is computed from k alone (`SweepSpec.param_set`: the digits of k in the grid's
+mixed radix, or scene k's own generator), so a chunk is planned in time proportional to its size
+wherever it lies, and a spec of a billion scenes starts at once.
 
 Every invalid value raises :class:`SpecError` naming the field, e.g.
 ``sweep.grid.gait.asymmetry.linspace: must be [a, b, n] with n >= 1, got [0.1, 0.9]``.
@@ -41,7 +46,6 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass, field
-import itertools
 import math
 from pathlib import Path
 import re
@@ -271,6 +275,13 @@ def _check_draw(path: str, value: Any) -> tuple[str, Any]:
     return kind, (a, b)
 
 
+def _scene_rng(seed: int, k: int) -> np.random.Generator:
+    """The generator of random scene ``k``: PCG64 seeded with the k-th child of
+    ``SeedSequence(seed)``. Independent streams per scene (numpy's documented way to split a
+    seed), so scene k needs neither the draws of scenes 0..k-1 nor the chunk size."""
+    return np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed, spawn_key=(k,))))
+
+
 def _draw(rng: np.random.Generator, kind: str, args: Any) -> Any:
     if kind == 'uniform':
         return float(rng.uniform(args[0], args[1]))
@@ -341,19 +352,28 @@ class SweepSpec:
             return math.prod(len(v) for v in self.grid.values())
         return int(self.random.get('n', 1)) if self.random else 1
 
-    def param_sets(self) -> Iterator[dict]:
-        """Every scene's parameter values (dotted path -> value), in a fixed order."""
+    def param_set(self, k: int) -> dict:
+        """The parameter values (dotted path -> value) of scene ``k``, 0 <= k < len(self),
+        computed from k alone: O(number of parameters) whatever k."""
+        if not 0 <= k < len(self):
+            raise IndexError(f'scene {k} of a sweep of {len(self)} scenes')
         if self.grid:
-            keys = list(self.grid)
-            for combo in itertools.product(*(self.grid[k] for k in keys)):
-                yield {k: _plain(v) for k, v in zip(keys, combo)}
-        elif self.random:
-            rng = np.random.Generator(np.random.PCG64(self.random['seed']))
-            draws = self.random['params']
-            for _ in range(self.random['n']):
-                yield {k: _draw(rng, kind, args) for k, (kind, args) in draws.items()}
-        else:
-            yield {}
+            digits = {}
+            for key in reversed(self.grid):        # the last axis varies fastest
+                k, j = divmod(k, len(self.grid[key]))
+                digits[key] = _plain(self.grid[key][j])
+            return {key: digits[key] for key in self.grid}
+        if self.random:
+            rng = _scene_rng(self.random['seed'], k)
+            return {key: _draw(rng, kind, args)
+                    for key, (kind, args) in self.random['params'].items()}
+        return {}
+
+    def param_sets(self) -> Iterator[dict]:
+        """Every scene's parameter values (dotted path -> value), in a fixed order: a grid's
+        combinations with the last axis fastest, or the random scenes 0, 1, ..."""
+        for k in range(len(self)):
+            yield self.param_set(k)
 
     def scene(self, params: Mapping[str, Any]) -> Scene:
         """The validated scene of one parameter set (raises SceneError for a bad combination)."""
