@@ -9,18 +9,26 @@ DataFrame bit for bit.
 With a ``checkpoint`` directory every finished chunk is written there as Parquet as soon as it
 arrives, and a later run of the same spec reads finished chunks instead of recomputing them
 (resuming after an interruption). The directory holds the spec; another spec is refused.
+
+The driver streams: chunks are planned lazily (each from its own index, O(chunk_size)), only a
+few chunks per worker are in flight at once, and with a checkpoint a finished chunk lives on
+disk, not in the driver's memory, until the result is assembled at the end. So a spec of a
+billion scenes starts computing, reporting progress and checkpointing at once, with the
+driver's memory bounded by the chunks in flight.
 """
 from __future__ import annotations
 
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+import itertools
 import json
 import math
 import multiprocessing
 import os
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
+import re
 import sys
 import time
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, Iterable, Iterator
 
 import pandas as pd
 
@@ -29,8 +37,8 @@ from ..core.scene import SceneError
 from .metrics import FIGURES, scene_figures
 from .spec import SpecError, SweepSpec, spec_from_dict
 
-__all__ = ['sweep', 'run_chunk', 'chunk_params', 'n_chunks', 'assemble', 'metadata',
-           'Progress', 'Checkpoint']
+__all__ = ['sweep', 'run_chunk', 'chunk_params', 'chunk_len', 'n_chunks', 'assemble',
+           'metadata', 'Progress', 'Checkpoint']
 
 Progress = Callable[[int, int], None]
 
@@ -38,6 +46,11 @@ Progress = Callable[[int, int], None]
 def n_chunks(spec: SweepSpec) -> int:
     """Number of chunks of ``spec``."""
     return max(1, math.ceil(len(spec) / spec.chunk_size))
+
+
+def chunk_len(spec: SweepSpec, index: int) -> int:
+    """Number of scenes of chunk ``index`` (the last chunk may be short)."""
+    return max(0, min(spec.chunk_size, len(spec) - index * spec.chunk_size))
 
 
 def chunk_params(spec: SweepSpec, index: int) -> list[dict]:
@@ -107,6 +120,9 @@ def metadata(spec: SweepSpec) -> dict:
     return {'kind': 'sweep', 'version': __version__, 'spec': spec.to_dict()}
 
 
+_CHUNK_NAME = re.compile(r'^chunk_(\d+)\.parquet$')
+
+
 class Checkpoint:
     """Finished chunks of one spec as Parquet files in a directory (see the module doc)."""
 
@@ -127,6 +143,12 @@ class Checkpoint:
 
     def done(self, index: int) -> bool:
         return self._path(index).exists()
+
+    def finished(self) -> set[int]:
+        """Indices of the finished chunks, from one listing of the directory (not one stat per
+        chunk: a spec of a billion scenes has millions of chunks)."""
+        names = (e.name for e in os.scandir(self.dir))
+        return {int(m.group(1)) for m in map(_CHUNK_NAME.match, names) if m}
 
     def load(self, index: int) -> pd.DataFrame:
         return pd.read_parquet(self._path(index))
@@ -157,30 +179,50 @@ def bar(label: str) -> Progress:
     return show
 
 
-def _local(spec: SweepSpec, todo: list[int], workers: int, on_done: Callable) -> None:
+def _warm_up(spec: SweepSpec) -> None:
+    """Run a short first scene, so forked workers inherit scipy's root finders (about 1 s of
+    imports) instead of each paying for them."""
+    try:
+        scene_figures(spec.scene(spec.param_set(0)), 4, 4)
+    except (SceneError, ValueError, ArithmeticError, RuntimeError):
+        pass
+
+
+def _local(spec: SweepSpec, todo: Iterator[int], n_todo: int, workers: int,
+           on_done: Callable) -> None:
+    """Run chunks ``todo`` (``n_todo`` of them) in this process or in ``workers`` processes."""
     data = spec.to_dict()
-    if workers <= 1 or len(todo) <= 1:
+    if workers <= 1 or n_todo <= 1:
         for i in todo:
             on_done(i, run_chunk(data, i))
         return
-    try:
-        # the first simulation imports scipy's root finders (about 1 s): do it once here so the
-        # forked workers inherit it instead of each paying it
-        scene_figures(spec.scene(next(spec.param_sets())), 4, 4)
-    except (SceneError, ValueError, ArithmeticError, RuntimeError):
-        pass
+    _warm_up(spec)
     methods = multiprocessing.get_all_start_methods()
     # fork: the workers inherit the imported package instead of importing it again
     ctx = multiprocessing.get_context('fork' if 'fork' in methods else None)
-    with ProcessPoolExecutor(max_workers=min(workers, len(todo)), mp_context=ctx) as pool:
-        futures = {pool.submit(run_chunk, data, i): i for i in todo}
-        try:
-            for fut in as_completed(futures):
-                on_done(futures[fut], fut.result())
-        except BaseException:
-            for fut in futures:
-                fut.cancel()
-            raise
+    workers = min(workers, n_todo)
+    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+        _stream(pool, data, todo, 2 * workers, on_done)
+
+
+def _stream(pool: ProcessPoolExecutor, data: dict, todo: Iterator[int], window: int,
+            on_done: Callable) -> None:
+    """Keep ``window`` chunks in flight on ``pool``; hand each result to ``on_done`` as it
+    arrives. Submitting every chunk up front held millions of pending calls in the driver."""
+    pending: dict[Future, int] = {}
+    try:
+        for i in itertools.islice(todo, window):
+            pending[pool.submit(run_chunk, data, i)] = i
+        while pending:
+            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in finished:
+                on_done(pending.pop(fut), fut.result())
+                for i in itertools.islice(todo, 1):
+                    pending[pool.submit(run_chunk, data, i)] = i
+    except BaseException:
+        for fut in pending:
+            fut.cancel()
+        raise
 
 
 def sweep(spec: SweepSpec | dict | str | os.PathLike, *, client: Any = None,
@@ -210,30 +252,28 @@ def sweep(spec: SweepSpec | dict | str | os.PathLike, *, client: Any = None,
     total_chunks, total = n_chunks(spec), len(spec)
     report = bar(f'sweep {spec.name}') if progress is True else progress or None
     store = Checkpoint(checkpoint, spec) if checkpoint is not None else None
-    frames: dict[int, pd.DataFrame] = {}
-    todo = []
-    for i in range(total_chunks):
-        if store is not None and store.done(i):
-            frames[i] = store.load(i)
-        else:
-            todo.append(i)
-
-    def done_scenes() -> int:
-        return min(total, sum(len(f) for f in frames.values()))
+    finished = {i for i in store.finished() if i < total_chunks} if store is not None else set()
+    frames: dict[int, pd.DataFrame] = {}      # without a checkpoint the chunks stay in memory
+    done = [sum(chunk_len(spec, i) for i in finished)]     # scenes finished
 
     def on_done(i: int, df: pd.DataFrame) -> None:
-        frames[i] = df
         if store is not None:
-            store.save(i, df)
+            store.save(i, df)          # on disk until the end: the driver's memory stays flat
+        else:
+            frames[i] = df
+        done[0] += len(df)
         if report:
-            report(done_scenes(), total)
+            report(done[0], total)
 
     if report:
-        report(done_scenes(), total)
-    if todo:
+        report(done[0], total)
+    todo = (i for i in range(total_chunks) if i not in finished)
+    n_todo = total_chunks - len(finished)
+    if n_todo:
         if client is not None:
             from .cluster import run_on_client
             run_on_client(client, spec, todo, on_done)
         else:
-            _local(spec, todo, workers or os.cpu_count() or 1, on_done)
-    return assemble(spec, (frames[i] for i in range(total_chunks)))
+            _local(spec, todo, n_todo, workers or os.cpu_count() or 1, on_done)
+    return assemble(spec, (frames[i] if store is None else store.load(i)
+                           for i in range(total_chunks)))
