@@ -10,6 +10,10 @@ With a ``checkpoint`` directory every finished chunk is written there as Parquet
 arrives, and a later run of the same spec reads finished chunks instead of recomputing them
 (resuming after an interruption). The directory holds the spec; another spec is refused.
 
+Local worker processes die with the driver: each arms the Linux parent-death signal (SIGKILL)
+when it starts, so a driver killed by SIGTERM or SIGKILL takes them with it, and a driver that is
+interrupted (Ctrl-C) or fails kills them before the error propagates.
+
 The driver streams: chunks are planned lazily (each from its own index, O(chunk_size)), only a
 few chunks per worker are in flight at once, and with a checkpoint a finished chunk lives on
 disk, not in the driver's memory, until the result is assembled at the end. So a spec of a
@@ -19,6 +23,7 @@ driver's memory bounded by the chunks in flight.
 from __future__ import annotations
 
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+import ctypes
 import itertools
 import json
 import math
@@ -26,6 +31,7 @@ import multiprocessing
 import os
 from pathlib import Path
 import re
+import signal
 import sys
 import time
 from typing import Any, Callable, Iterable, Iterator
@@ -188,6 +194,42 @@ def _warm_up(spec: SweepSpec) -> None:
         pass
 
 
+_PR_SET_PDEATHSIG = 1         # <linux/prctl.h>
+
+
+def _die_with_parent(parent: int) -> None:
+    """Ask Linux to SIGKILL this process when its parent dies (prctl PR_SET_PDEATHSIG), then
+    exit if the parent ``parent`` already died before that was armed (we were re-parented).
+    Elsewhere (no prctl) only the driver's own clean-up on an exception applies."""
+    if sys.platform.startswith('linux'):
+        try:
+            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL),
+                                                    0, 0, 0)
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent:
+        os._exit(1)       # the driver is gone: nobody would read our results
+
+
+def _worker_init(parent: int) -> None:
+    """Pool worker set-up: die with the driver; leave Ctrl-C to the driver (a terminal sends it
+    to the whole process group), which then stops the workers itself."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _die_with_parent(parent)
+
+
+def _kill_workers(pool: ProcessPoolExecutor, before: set) -> None:
+    """Kill the pool's worker processes now: Python 3.14's ``kill_workers``, else the
+    multiprocessing children that appeared since ``before`` (the pool's, started by it)."""
+    kill = getattr(pool, 'kill_workers', None)
+    if kill is not None:
+        kill()
+        return
+    for proc in set(multiprocessing.active_children()) - before:
+        proc.kill()
+        proc.join(timeout=5)
+
+
 def _local(spec: SweepSpec, todo: Iterator[int], n_todo: int, workers: int,
            on_done: Callable) -> None:
     """Run chunks ``todo`` (``n_todo`` of them) in this process or in ``workers`` processes."""
@@ -201,8 +243,17 @@ def _local(spec: SweepSpec, todo: Iterator[int], n_todo: int, workers: int,
     # fork: the workers inherit the imported package instead of importing it again
     ctx = multiprocessing.get_context('fork' if 'fork' in methods else None)
     workers = min(workers, n_todo)
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-        _stream(pool, data, todo, 2 * workers, on_done)
+    before = set(multiprocessing.active_children())
+    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init,
+                             initargs=(os.getpid(),)) as pool:
+        try:
+            _stream(pool, data, todo, 2 * workers, on_done)
+        except BaseException:
+            # interrupted (Ctrl-C) or failed (a chunk, a full disk): the chunks in flight are
+            # abandoned, so stop their workers now rather than wait for them to finish
+            pool.shutdown(wait=False, cancel_futures=True)
+            _kill_workers(pool, before)
+            raise
 
 
 def _stream(pool: ProcessPoolExecutor, data: dict, todo: Iterator[int], window: int,
@@ -210,19 +261,14 @@ def _stream(pool: ProcessPoolExecutor, data: dict, todo: Iterator[int], window: 
     """Keep ``window`` chunks in flight on ``pool``; hand each result to ``on_done`` as it
     arrives. Submitting every chunk up front held millions of pending calls in the driver."""
     pending: dict[Future, int] = {}
-    try:
-        for i in itertools.islice(todo, window):
-            pending[pool.submit(run_chunk, data, i)] = i
-        while pending:
-            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in finished:
-                on_done(pending.pop(fut), fut.result())
-                for i in itertools.islice(todo, 1):
-                    pending[pool.submit(run_chunk, data, i)] = i
-    except BaseException:
-        for fut in pending:
-            fut.cancel()
-        raise
+    for i in itertools.islice(todo, window):
+        pending[pool.submit(run_chunk, data, i)] = i
+    while pending:
+        finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+        for fut in finished:
+            on_done(pending.pop(fut), fut.result())
+            for i in itertools.islice(todo, 1):
+                pending[pool.submit(run_chunk, data, i)] = i
 
 
 def sweep(spec: SweepSpec | dict | str | os.PathLike, *, client: Any = None,
