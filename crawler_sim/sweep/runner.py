@@ -42,6 +42,7 @@ from .. import __version__
 from ..core.scene import SceneError
 from .metrics import FIGURES, scene_figures
 from .spec import SpecError, SweepSpec, spec_from_dict
+from .tables import write_atomically
 
 __all__ = ['sweep', 'run_chunk', 'chunk_params', 'chunk_len', 'n_chunks', 'assemble',
            'metadata', 'Progress', 'Checkpoint']
@@ -142,7 +143,7 @@ class Checkpoint:
                 raise SpecError(f'{self.dir}: checkpoint of another sweep spec; use another '
                                 'directory or delete it')
         else:
-            stamp.write_text(data, encoding='utf-8')
+            write_atomically(stamp, lambda tmp: tmp.write_text(data, encoding='utf-8'))
 
     def _path(self, index: int) -> Path:
         return self.dir / f'chunk_{index:06d}.parquet'
@@ -160,9 +161,9 @@ class Checkpoint:
         return pd.read_parquet(self._path(index))
 
     def save(self, index: int, df: pd.DataFrame) -> None:
-        tmp = self._path(index).with_suffix('.tmp')
-        df.to_parquet(tmp, index=False)
-        tmp.replace(self._path(index))      # atomic: a killed run never leaves half a chunk
+        """Write chunk ``index`` atomically: a killed run never leaves half a chunk, a failed
+        write (full disk) no temporary file, and the OSError names the chunk's path."""
+        write_atomically(self._path(index), lambda tmp: df.to_parquet(tmp, index=False))
 
 
 def bar(label: str) -> Progress:
