@@ -272,6 +272,13 @@ def _stream(pool: ProcessPoolExecutor, data: dict, todo: Iterator[int], window: 
                 pending[pool.submit(run_chunk, data, i)] = i
 
 
+# Up to this many scenes a checkpointed sweep also keeps its finished chunks in memory: the
+# result holds them anyway, and reading back thousands of small Parquet files costs seconds.
+# Beyond it (a run that may last days) they live on disk only, so the driver's memory stays
+# flat while it runs; the result is read back at the end.
+_IN_MEMORY_SCENES = 1_000_000
+
+
 def sweep(spec: SweepSpec | dict | str | os.PathLike, *, client: Any = None,
           workers: int | None = None, checkpoint: str | os.PathLike | None = None,
           progress: bool | Progress = False) -> pd.DataFrame:
@@ -300,13 +307,15 @@ def sweep(spec: SweepSpec | dict | str | os.PathLike, *, client: Any = None,
     report = bar(f'sweep {spec.name}') if progress is True else progress or None
     store = Checkpoint(checkpoint, spec) if checkpoint is not None else None
     finished = {i for i in store.finished() if i < total_chunks} if store is not None else set()
-    frames: dict[int, pd.DataFrame] = {}      # without a checkpoint the chunks stay in memory
+    # a checkpointed spec of more than _IN_MEMORY_SCENES keeps its chunks on disk only
+    on_disk = store is not None and total > _IN_MEMORY_SCENES
+    frames: dict[int, pd.DataFrame] = {}
     done = [sum(chunk_len(spec, i) for i in finished)]     # scenes finished
 
     def on_done(i: int, df: pd.DataFrame) -> None:
         if store is not None:
-            store.save(i, df)          # on disk until the end: the driver's memory stays flat
-        else:
+            store.save(i, df)
+        if not on_disk:
             frames[i] = df
         done[0] += len(df)
         if report:
@@ -322,5 +331,5 @@ def sweep(spec: SweepSpec | dict | str | os.PathLike, *, client: Any = None,
             run_on_client(client, spec, todo, on_done)
         else:
             _local(spec, todo, n_todo, workers or os.cpu_count() or 1, on_done)
-    return assemble(spec, (frames[i] if store is None else store.load(i)
+    return assemble(spec, (frames[i] if i in frames else store.load(i)    # type: ignore
                            for i in range(total_chunks)))

@@ -183,3 +183,15 @@ def test_a_dask_sweep_keeps_a_few_tasks_in_flight_not_the_whole_sweep(dask_clien
     with pytest.raises(Stop):
         run_on_client(dask_client, spec, range(runner.n_chunks(spec)), on_done)
     assert sorted(done) == sorted(set(done)) and len(done) == 6
+
+
+def test_a_large_checkpointed_sweep_keeps_chunks_on_disk_and_reads_them_back(serial, tmp_path,
+                                                                            monkeypatch):
+    monkeypatch.setattr(runner, '_IN_MEMORY_SCENES', 10)     # SPEC's 30 scenes count as large
+    loaded: list[int] = []
+    real = runner.Checkpoint.load
+    monkeypatch.setattr(runner.Checkpoint, 'load',
+                        lambda self, i: loaded.append(i) or real(self, i))
+    df = sweep(SPEC, workers=2, checkpoint=tmp_path)
+    assert loaded == [0, 1, 2, 3, 4]              # every chunk came back from disk, in order
+    pd.testing.assert_frame_equal(df, serial, check_exact=True)
