@@ -507,8 +507,9 @@ def _check_path(where: str, path: Any) -> None:
 
 def _read_yaml(path: Path) -> Any:
     """The YAML document of ``path``, its size checked (`_check_size`) on the composed nodes,
-    before the constructor expands anything (merge keys ``<<`` are copied by PyYAML's
-    constructor, so the check cannot wait for the constructed data)."""
+    before the constructor builds anything: whatever a PyYAML release does with aliases and
+    merge keys ``<<`` (releases before 6.0.4 copy merged keys once per use), nothing has been
+    expanded when a bomb is refused."""
     size = path.stat().st_size
     if size > LIMITS['file_bytes']:
         raise SpecError(f'{path}: a sweep spec file must have at most {LIMITS["file_bytes"]} '

@@ -32,8 +32,9 @@ def laughs(levels: int = LEVELS) -> str:
 
 
 def merges(levels: int = LEVELS) -> str:
-    """Mappings each merging the previous one 9 times (``<<``): PyYAML's constructor copies
-    merged keys, so this one grows 9-fold per level inside the loader itself."""
+    """Mappings each merging the previous one 9 times (``<<``): merges count like aliases
+    (PyYAML releases before 6.0.4 copied merged keys once per use, 9-fold per level, inside
+    the constructor itself; the check runs before the constructor)."""
     parts = ['&m0 {a: 1, b: 2, c: 3}']
     parts += [f'&m{k} {{<<: [' + ', '.join([f'*m{k - 1}'] * 9) + f'], k{k}: 0}}'
               for k in range(1, levels)]
