@@ -510,12 +510,13 @@ def _read_yaml(path: Path) -> Any:
     before the constructor builds anything: whatever a PyYAML release does with aliases and
     merge keys ``<<`` (releases before 6.0.4 copy merged keys once per use), nothing has been
     expanded when a bomb is refused."""
-    size = path.stat().st_size
-    if size > LIMITS['file_bytes']:
-        raise SpecError(f'{path}: a sweep spec file must have at most {LIMITS["file_bytes"]} '
-                        f'bytes, got {size}')
+    most = LIMITS['file_bytes']
+    with open(path, 'rb') as fh:         # read no more than allowed: /dev/zero has no size
+        raw = fh.read(most + 1)
+    if len(raw) > most:
+        raise SpecError(f'{path}: a sweep spec file must have at most {most} bytes, got more')
     try:
-        text = path.read_text(encoding='utf-8')
+        text = raw.decode('utf-8')
     except UnicodeDecodeError as exc:
         raise SpecError(f'{path}: not UTF-8 text ({exc.reason} at byte {exc.start})') from None
     loader = _SpecLoader(text)

@@ -113,6 +113,9 @@ def test_a_spec_file_over_the_size_limit_is_refused_before_it_is_parsed(tmp_path
     path = write(tmp_path, BASE_YAML + '# ' + 'x' * LIMITS['file_bytes'] + '\n')
     message = refused(lambda: load_spec(path))
     assert str(path) in message and f'at most {LIMITS["file_bytes"]} bytes' in message
+    # a file without an end: read no further than the limit
+    message = refused(lambda: load_spec('/dev/zero'))
+    assert message.startswith('/dev/zero: a sweep spec file must have at most')
 
 
 @pytest.mark.parametrize('kw, fragment', [
