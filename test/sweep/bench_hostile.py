@@ -23,6 +23,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from typing import Iterable
 
 BASE = ('  base:\n    crawler: {masses: [1.0, 1.0], mu: [0.3, 0.3]}\n'
         '    gait: {type: scallop, mean: 0.1, amplitude: 0.02, frequency: 1.0, asymmetry: 0.3}\n')
@@ -175,8 +176,10 @@ def stream(tmp: Path) -> None:
         kill_tree(proc)
 
 
-def kill_tree(proc: subprocess.Popen) -> None:
-    workers = children(proc.pid)
+def kill_tree(proc: subprocess.Popen, workers: Iterable[int] = ()) -> None:
+    """Kill the driver and its workers: those it has now and ``workers`` (seen before it died:
+    orphans are not its children any more)."""
+    workers = [*workers, *children(proc.pid)]
     if proc.poll() is None:
         proc.kill()
         proc.wait()
@@ -230,6 +233,7 @@ def kill(tmp: Path) -> None:
             '    params:\n      crawler.mu[1]: {uniform: [0.1, 0.6]}\n')
     for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGKILL):
         proc = cli(tmp, text, f'kill{sig.value}', '--workers', '2')
+        workers: list[int] = []
         try:
             end = time.monotonic() + 300
             while len(children(proc.pid)) < 2 and time.monotonic() < end:
@@ -242,11 +246,14 @@ def kill(tmp: Path) -> None:
                 time.sleep(0.01)
             left = [p for p in workers if running(p)]
             gone = f'{time.monotonic() - t:.2f} s' if not left else f'NOT within 30 s ({left})'
-            proc.wait(timeout=60)
-            print(f'  {sig.name}: {len(workers)} workers gone after {gone}; driver exit '
-                  f'{proc.returncode}', flush=True)
+            try:
+                code = f'exit {proc.wait(timeout=60)}'
+            except subprocess.TimeoutExpired:
+                code = 'still running after 60 s'
+            print(f'  {sig.name}: {len(workers)} workers gone after {gone}; driver {code}',
+                  flush=True)
         finally:
-            kill_tree(proc)
+            kill_tree(proc, workers)
 
 
 def main(argv: list[str]) -> None:
