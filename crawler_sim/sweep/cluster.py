@@ -5,12 +5,15 @@ not a one-millisecond job), computed by the same pure function as a local run
 (`crawler_sim.sweep.runner.run_chunk`), so the assembled DataFrame is bit-identical. The spec
 is sent once (``client.scatter``) and every task only carries its chunk index. Results are
 gathered as they finish so the driver can checkpoint them (resume after an interruption).
+A few tasks per worker thread are in flight at once, the next submitted as one finishes, so a
+sweep of millions of chunks neither floods the scheduler nor the driver's memory.
 
 The workers must be able to import ``crawler_sim`` (the same version as the driver).
 """
 from __future__ import annotations
 
-from typing import Any, Callable
+import itertools
+from typing import Any, Callable, Iterable
 import uuid
 
 import pandas as pd
@@ -32,18 +35,34 @@ def connect(address: str) -> Any:
         raise OSError(f'cannot reach the Dask scheduler at {address}: {exc}') from None
 
 
-def run_on_client(client: Any, spec: SweepSpec, todo: list[int],
-                  on_done: Callable[[int, pd.DataFrame], None]) -> None:
-    """Run chunks ``todo`` of ``spec`` on ``client``; ``on_done(index, frame)`` as each ends."""
+def run_on_client(client: Any, spec: SweepSpec, todo: Iterable[int],
+                  on_done: Callable[[int, pd.DataFrame], None], *,
+                  window: int | None = None) -> None:
+    """Run chunks ``todo`` of ``spec`` on ``client``; ``on_done(index, frame)`` as each ends.
+
+    At most ``window`` tasks are in flight (default: twice the cluster's worker threads, at
+    least 4); ``todo`` is consumed lazily.
+    """
     from distributed import as_completed
 
     data = client.scatter(spec.to_dict(), broadcast=True)
     run_id = uuid.uuid4().hex[:12]      # keys unique per call, readable on the dashboard
-    futures = [client.submit(run_chunk, data, i, key=f'crawler-sweep-{spec.name}-{run_id}-{i}',
-                             pure=False) for i in todo]
-    index = {f.key: i for f, i in zip(futures, todo)}
+    todo = iter(todo)
+    window = window or max(4, 2 * sum(client.nthreads().values()))
+    live: dict[str, tuple[Any, int]] = {}       # key -> (future, chunk index)
+
+    def submit(i: int) -> Any:
+        fut = client.submit(run_chunk, data, i, key=f'crawler-sweep-{spec.name}-{run_id}-{i}',
+                            pure=False)
+        live[fut.key] = (fut, i)
+        return fut
+
+    running = as_completed([submit(i) for i in itertools.islice(todo, window)])
     try:
-        for fut in as_completed(futures):
-            on_done(index[fut.key], fut.result())
+        for fut in running:
+            _, i = live.pop(fut.key)
+            on_done(i, fut.result())
+            for nxt in itertools.islice(todo, 1):
+                running.add(submit(nxt))
     finally:
-        client.cancel(futures)
+        client.cancel([f for f, _ in live.values()])

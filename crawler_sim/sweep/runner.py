@@ -9,18 +9,32 @@ DataFrame bit for bit.
 With a ``checkpoint`` directory every finished chunk is written there as Parquet as soon as it
 arrives, and a later run of the same spec reads finished chunks instead of recomputing them
 (resuming after an interruption). The directory holds the spec; another spec is refused.
+
+Local worker processes die with the driver: each arms the Linux parent-death signal (SIGKILL)
+when it starts, so a driver killed by SIGTERM or SIGKILL takes them with it, and a driver that is
+interrupted (Ctrl-C) or fails kills them before the error propagates.
+
+The driver streams: chunks are planned lazily (each from its own index, O(chunk_size)), only a
+few chunks per worker are in flight at once, and with a checkpoint a finished chunk lives on
+disk, not in the driver's memory, until the result is assembled at the end. So a spec of a
+billion scenes starts computing, reporting progress and checkpointing at once, with the
+driver's memory bounded by the chunks in flight.
 """
 from __future__ import annotations
 
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+import ctypes
+import itertools
 import json
 import math
 import multiprocessing
 import os
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
+import re
+import signal
 import sys
 import time
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, Iterable, Iterator
 
 import pandas as pd
 
@@ -28,9 +42,10 @@ from .. import __version__
 from ..core.scene import SceneError
 from .metrics import FIGURES, scene_figures
 from .spec import SpecError, SweepSpec, spec_from_dict
+from .tables import write_atomically
 
-__all__ = ['sweep', 'run_chunk', 'chunk_params', 'n_chunks', 'assemble', 'metadata',
-           'Progress', 'Checkpoint']
+__all__ = ['sweep', 'run_chunk', 'chunk_params', 'chunk_len', 'n_chunks', 'assemble',
+           'metadata', 'Progress', 'Checkpoint']
 
 Progress = Callable[[int, int], None]
 
@@ -40,16 +55,17 @@ def n_chunks(spec: SweepSpec) -> int:
     return max(1, math.ceil(len(spec) / spec.chunk_size))
 
 
+def chunk_len(spec: SweepSpec, index: int) -> int:
+    """Number of scenes of chunk ``index`` (the last chunk may be short)."""
+    return max(0, min(spec.chunk_size, len(spec) - index * spec.chunk_size))
+
+
 def chunk_params(spec: SweepSpec, index: int) -> list[dict]:
-    """The parameter sets of chunk ``index`` (scenes index * chunk_size onwards)."""
+    """The parameter sets of chunk ``index`` (scenes index * chunk_size onwards), each computed
+    from its scene index: O(chunk_size) wherever the chunk lies in the spec."""
     start = index * spec.chunk_size
-    out = []
-    for k, params in enumerate(spec.param_sets()):
-        if k >= start + spec.chunk_size:
-            break
-        if k >= start:
-            out.append(params)
-    return out
+    stop = min(start + spec.chunk_size, len(spec))
+    return [spec.param_set(k) for k in range(start, stop)]
 
 
 def _row(spec: SweepSpec, scene_index: int, params: dict) -> dict:
@@ -111,6 +127,9 @@ def metadata(spec: SweepSpec) -> dict:
     return {'kind': 'sweep', 'version': __version__, 'spec': spec.to_dict()}
 
 
+_CHUNK_NAME = re.compile(r'^chunk_(\d+)\.parquet$')
+
+
 class Checkpoint:
     """Finished chunks of one spec as Parquet files in a directory (see the module doc)."""
 
@@ -124,7 +143,7 @@ class Checkpoint:
                 raise SpecError(f'{self.dir}: checkpoint of another sweep spec; use another '
                                 'directory or delete it')
         else:
-            stamp.write_text(data, encoding='utf-8')
+            write_atomically(stamp, lambda tmp: tmp.write_text(data, encoding='utf-8'))
 
     def _path(self, index: int) -> Path:
         return self.dir / f'chunk_{index:06d}.parquet'
@@ -132,13 +151,19 @@ class Checkpoint:
     def done(self, index: int) -> bool:
         return self._path(index).exists()
 
+    def finished(self) -> set[int]:
+        """Indices of the finished chunks, from one listing of the directory (not one stat per
+        chunk: a spec of a billion scenes has millions of chunks)."""
+        names = (e.name for e in os.scandir(self.dir))
+        return {int(m.group(1)) for m in map(_CHUNK_NAME.match, names) if m}
+
     def load(self, index: int) -> pd.DataFrame:
         return pd.read_parquet(self._path(index))
 
     def save(self, index: int, df: pd.DataFrame) -> None:
-        tmp = self._path(index).with_suffix('.tmp')
-        df.to_parquet(tmp, index=False)
-        tmp.replace(self._path(index))      # atomic: a killed run never leaves half a chunk
+        """Write chunk ``index`` atomically: a killed run never leaves half a chunk, a failed
+        write (full disk) no temporary file, and the OSError names the chunk's path."""
+        write_atomically(self._path(index), lambda tmp: df.to_parquet(tmp, index=False))
 
 
 def bar(label: str) -> Progress:
@@ -161,30 +186,97 @@ def bar(label: str) -> Progress:
     return show
 
 
-def _local(spec: SweepSpec, todo: list[int], workers: int, on_done: Callable) -> None:
+def _warm_up(spec: SweepSpec) -> None:
+    """Run a short first scene, so forked workers inherit scipy's root finders (about 1 s of
+    imports) instead of each paying for them."""
+    try:
+        scene_figures(spec.scene(spec.param_set(0)), 4, 4)
+    except (SceneError, ValueError, ArithmeticError, RuntimeError):
+        pass
+
+
+_PR_SET_PDEATHSIG = 1         # <linux/prctl.h>
+
+
+def _die_with_parent(parent: int) -> None:
+    """Ask Linux to SIGKILL this process when its parent dies (prctl PR_SET_PDEATHSIG), then
+    exit if the parent ``parent`` already died before that was armed (we were re-parented).
+    Elsewhere (no prctl) only the driver's own clean-up on an exception applies."""
+    if sys.platform.startswith('linux'):
+        try:
+            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL),
+                                                    0, 0, 0)
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent:
+        os._exit(1)       # the driver is gone: nobody would read our results
+
+
+def _worker_init(parent: int) -> None:
+    """Pool worker set-up: die with the driver; leave Ctrl-C to the driver (a terminal sends it
+    to the whole process group), which then stops the workers itself."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _die_with_parent(parent)
+
+
+def _kill_workers(pool: ProcessPoolExecutor, before: set) -> None:
+    """Kill the pool's worker processes now: Python 3.14's ``kill_workers``, else the
+    multiprocessing children that appeared since ``before`` (the pool's, started by it)."""
+    kill = getattr(pool, 'kill_workers', None)
+    if kill is not None:
+        kill()
+        return
+    for proc in set(multiprocessing.active_children()) - before:
+        proc.kill()
+        proc.join(timeout=5)
+
+
+def _local(spec: SweepSpec, todo: Iterator[int], n_todo: int, workers: int,
+           on_done: Callable) -> None:
+    """Run chunks ``todo`` (``n_todo`` of them) in this process or in ``workers`` processes."""
     data = spec.to_dict()
-    if workers <= 1 or len(todo) <= 1:
+    if workers <= 1 or n_todo <= 1:
         for i in todo:
             on_done(i, run_chunk(data, i))
         return
-    try:
-        # the first simulation imports scipy's root finders (about 1 s): do it once here so the
-        # forked workers inherit it instead of each paying it
-        scene_figures(spec.scene(next(spec.param_sets())), 4, 4)
-    except (SceneError, ValueError, ArithmeticError, RuntimeError):
-        pass
+    _warm_up(spec)
     methods = multiprocessing.get_all_start_methods()
     # fork: the workers inherit the imported package instead of importing it again
     ctx = multiprocessing.get_context('fork' if 'fork' in methods else None)
-    with ProcessPoolExecutor(max_workers=min(workers, len(todo)), mp_context=ctx) as pool:
-        futures = {pool.submit(run_chunk, data, i): i for i in todo}
+    workers = min(workers, n_todo)
+    before = set(multiprocessing.active_children())
+    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init,
+                             initargs=(os.getpid(),)) as pool:
         try:
-            for fut in as_completed(futures):
-                on_done(futures[fut], fut.result())
+            _stream(pool, data, todo, 2 * workers, on_done)
         except BaseException:
-            for fut in futures:
-                fut.cancel()
+            # interrupted (Ctrl-C) or failed (a chunk, a full disk): the chunks in flight are
+            # abandoned, so stop their workers now rather than wait for them to finish
+            pool.shutdown(wait=False, cancel_futures=True)
+            _kill_workers(pool, before)
             raise
+
+
+def _stream(pool: ProcessPoolExecutor, data: dict, todo: Iterator[int], window: int,
+            on_done: Callable) -> None:
+    """Keep ``window`` chunks in flight on ``pool``; hand each result to ``on_done`` as it
+    arrives. Submitting every chunk up front held millions of pending calls in the driver."""
+    pending: dict[Future, int] = {}
+    for i in itertools.islice(todo, window):
+        pending[pool.submit(run_chunk, data, i)] = i
+    while pending:
+        finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+        for fut in finished:
+            on_done(pending.pop(fut), fut.result())
+            for i in itertools.islice(todo, 1):
+                pending[pool.submit(run_chunk, data, i)] = i
+
+
+# Up to this many scenes a checkpointed sweep also keeps its finished chunks in memory: the
+# result holds them anyway, and reading back thousands of small Parquet files costs seconds.
+# Beyond it (a run that may last days) they live on disk only, so the driver's memory stays
+# flat while it runs; the result is read back at the end.
+_IN_MEMORY_SCENES = 1_000_000
 
 
 def sweep(spec: SweepSpec | dict | str | os.PathLike, *, client: Any = None,
@@ -214,30 +306,30 @@ def sweep(spec: SweepSpec | dict | str | os.PathLike, *, client: Any = None,
     total_chunks, total = n_chunks(spec), len(spec)
     report = bar(f'sweep {spec.name}') if progress is True else progress or None
     store = Checkpoint(checkpoint, spec) if checkpoint is not None else None
+    finished = {i for i in store.finished() if i < total_chunks} if store is not None else set()
+    # a checkpointed spec of more than _IN_MEMORY_SCENES keeps its chunks on disk only
+    on_disk = store is not None and total > _IN_MEMORY_SCENES
     frames: dict[int, pd.DataFrame] = {}
-    todo = []
-    for i in range(total_chunks):
-        if store is not None and store.done(i):
-            frames[i] = store.load(i)
-        else:
-            todo.append(i)
-
-    def done_scenes() -> int:
-        return min(total, sum(len(f) for f in frames.values()))
+    done = [sum(chunk_len(spec, i) for i in finished)]     # scenes finished
 
     def on_done(i: int, df: pd.DataFrame) -> None:
-        frames[i] = df
         if store is not None:
             store.save(i, df)
+        if not on_disk:
+            frames[i] = df
+        done[0] += len(df)
         if report:
-            report(done_scenes(), total)
+            report(done[0], total)
 
     if report:
-        report(done_scenes(), total)
-    if todo:
+        report(done[0], total)
+    todo = (i for i in range(total_chunks) if i not in finished)
+    n_todo = total_chunks - len(finished)
+    if n_todo:
         if client is not None:
             from .cluster import run_on_client
             run_on_client(client, spec, todo, on_done)
         else:
-            _local(spec, todo, workers or os.cpu_count() or 1, on_done)
-    return assemble(spec, (frames[i] for i in range(total_chunks)))
+            _local(spec, todo, n_todo, workers or os.cpu_count() or 1, on_done)
+    return assemble(spec, (frames[i] if i in frames else store.load(i)    # type: ignore
+                           for i in range(total_chunks)))

@@ -12,13 +12,19 @@ A simulated `Trajectory` and a recorded bag (`crawler_sim.bag.load`) become the 
 :func:`write_table` stores a frame's ``attrs['crawler_sim']`` (the sweep spec or the scene, and
 the package version) in the file: Parquet schema metadata under the key ``crawler_sim``, or a
 first CSV line ``# crawler_sim: {JSON}``. :func:`read_table` restores it into ``attrs``.
+
+Files are written through :func:`write_atomically`: a temporary ``<name>.tmp`` beside the file,
+renamed over it once complete. A failed write (a full disk, an unwritable directory) removes the
+temporary file and raises an OSError naming the file, e.g. ``out.parquet: cannot write: No space
+left on device``.
 """
 from __future__ import annotations
 
+import errno
 import json
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 import pandas as pd
@@ -27,7 +33,7 @@ from .. import __version__
 from ..core.trajectory import Trajectory
 
 __all__ = ['trajectory_frames', 'run_frames', 'frames', 'write_table', 'read_table',
-           'export_bag', 'FORMATS']
+           'export_bag', 'write_atomically', 'FORMATS']
 
 FORMATS = ('parquet', 'csv')
 _META_KEY = 'crawler_sim'
@@ -107,13 +113,44 @@ def _format(path: Path, fmt: str | None) -> str:
     return fmt
 
 
+def write_atomically(path: str | os.PathLike, write: Callable[[Path], Any]) -> Path:
+    """Write ``path`` by calling ``write(tmp)`` on ``<path>.tmp`` beside it, then renaming that
+    over ``path``: the old file stays whole until the new one is complete.
+
+    If ``write`` or the rename fails, or is interrupted, the temporary file is removed; an
+    OSError (a full disk, an unwritable directory) is raised again as an OSError of the same
+    errno whose ``filename`` is ``path`` (pyarrow's name neither the file nor the cause plainly).
+    """
+    path = Path(path)
+    tmp = path.with_name(path.name + '.tmp')
+    try:
+        write(tmp)
+        tmp.replace(path)
+    except BaseException as exc:
+        try:
+            tmp.unlink(missing_ok=True)
+        except OSError:
+            pass                # e.g. the directory does not exist: there is no tmp either
+        if isinstance(exc, OSError):
+            raise _naming(exc, path) from exc
+        raise
+    return path
+
+
+def _naming(exc: OSError, path: Path) -> OSError:
+    """An OSError like ``exc`` (same errno, so the same subclass) that names ``path``."""
+    code = exc.errno or errno.EIO
+    reason = os.strerror(exc.errno) if exc.errno else str(exc).splitlines()[0]
+    return OSError(code, f'cannot write: {reason}', str(path))
+
+
 def write_table(df: pd.DataFrame, path: str | os.PathLike, fmt: str | None = None) -> Path:
-    """Write ``df`` to Parquet or CSV (``fmt`` or the suffix) with its ``attrs['crawler_sim']``."""
+    """Write ``df`` to Parquet or CSV (``fmt`` or the suffix) with its ``attrs['crawler_sim']``,
+    atomically (:func:`write_atomically`; OSError naming ``path`` if it cannot be written)."""
     path = Path(path)
     fmt = _format(path, fmt)
     meta = json.dumps(df.attrs.get(_META_KEY, {'version': __version__}), sort_keys=True,
                       default=str)
-    tmp = path.with_name(path.name + '.tmp')
     if fmt == 'parquet':
         import pyarrow as pa
         import pyarrow.parquet as pq
@@ -121,13 +158,13 @@ def write_table(df: pd.DataFrame, path: str | os.PathLike, fmt: str | None = Non
         table = pa.Table.from_pandas(df)
         table = table.replace_schema_metadata({**(table.schema.metadata or {}),
                                                _META_KEY.encode(): meta.encode()})
-        pq.write_table(table, tmp)
-    else:
+        return write_atomically(path, lambda tmp: pq.write_table(table, tmp))
+
+    def write_csv(tmp: Path) -> None:
         with open(tmp, 'w', encoding='utf-8', newline='') as fh:
             fh.write(_CSV_PREFIX + meta + '\n')
             df.to_csv(fh, float_format='%.17g')       # 17 digits: floats read back exactly
-    tmp.replace(path)          # the old file stays whole until the new one is complete
-    return path
+    return write_atomically(path, write_csv)
 
 
 def read_table(path: str | os.PathLike) -> pd.DataFrame:

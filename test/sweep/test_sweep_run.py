@@ -100,3 +100,98 @@ def test_the_benchmark_compares_local_and_a_local_dask_cluster_and_finds_them_id
     # the overhead is derived from the two medians it reports
     assert res['dask_overhead_pct'] == pytest.approx(
         100 * (res['dask_median_s'] / res['local_median_s'] - 1))
+
+
+BILLION = dict(SPEC, name='billion', periods=4, samples_per_period=4, chunk_size=2,
+               random={'n': 10**9, 'seed': 1,
+                       'params': {'crawler.mu[1]': {'uniform': [0.1, 0.6]}}})
+
+
+class Stop(Exception):
+    """Raised by a progress callback to end a sweep that would run for years."""
+
+
+def stop_after(chunks: int, reports: list):
+    def progress(done: int, total: int) -> None:
+        reports.append((done, total))
+        if len(reports) > chunks:
+            raise Stop
+    return progress
+
+
+def budget(fn, limit: int):
+    """``fn`` that fails past ``limit`` calls: a driver that walked every chunk of a billion
+    scenes up front stops there instead of running for hours."""
+    calls = [0]
+
+    def wrapped(*args, **kw):
+        calls[0] += 1
+        assert calls[0] <= limit, f'{fn.__name__} called for every chunk up front'
+        return fn(*args, **kw)
+    return wrapped
+
+
+def test_a_billion_scene_sweep_starts_at_once_checkpoints_and_resumes(tmp_path, monkeypatch):
+    monkeypatch.setattr(runner.Checkpoint, 'done', budget(runner.Checkpoint.done, 100))
+    reports: list = []
+    with pytest.raises(Stop):
+        sweep(BILLION, workers=1, checkpoint=tmp_path, progress=stop_after(3, reports))
+    assert reports == [(0, 10**9), (2, 10**9), (4, 10**9), (6, 10**9)]
+    assert sorted(p.name for p in tmp_path.glob('chunk_*')) == [
+        'chunk_000000.parquet', 'chunk_000001.parquet', 'chunk_000002.parquet']
+    # resumed: the finished scenes count from the start, the next chunk is the fourth
+    reports.clear()
+    with pytest.raises(Stop):
+        sweep(BILLION, workers=1, checkpoint=tmp_path, progress=stop_after(1, reports))
+    assert reports == [(6, 10**9), (8, 10**9)]
+    again = pd.read_parquet(tmp_path / 'chunk_000003.parquet')
+    assert list(again['scene']) == [6, 7] and (again['error'] == '').all()
+
+
+def test_local_workers_get_a_few_chunks_at_a_time_not_the_whole_sweep(tmp_path, monkeypatch):
+    submitted: list[int] = []
+
+    class Counting(runner.ProcessPoolExecutor):
+        def submit(self, fn, data, index):
+            submitted.append(index)
+            assert len(submitted) <= 50, 'every chunk submitted up front'
+            return super().submit(fn, data, index)
+
+    monkeypatch.setattr(runner, 'ProcessPoolExecutor', Counting)
+    monkeypatch.setattr(runner.Checkpoint, 'done', budget(runner.Checkpoint.done, 100))
+    reports: list = []
+    with pytest.raises(Stop):
+        sweep(BILLION, workers=2, checkpoint=tmp_path, progress=stop_after(6, reports))
+    done = [d for d, _ in reports]
+    assert done == sorted(done) and done[-1] == 12
+    # in flight: two per worker; the next chunk is submitted when one ends
+    assert len(submitted) <= 4 + 6 and submitted == list(range(len(submitted)))
+
+
+def test_a_dask_sweep_keeps_a_few_tasks_in_flight_not_the_whole_sweep(dask_client, monkeypatch):
+    from crawler_sim.sweep.cluster import run_on_client
+    spec = spec_from_dict(BILLION)
+    monkeypatch.setattr(dask_client, 'submit', budget(dask_client.submit, 50))
+    done: list[int] = []
+
+    def on_done(i: int, df: pd.DataFrame) -> None:
+        done.append(i)
+        assert list(df['scene']) == [2 * i, 2 * i + 1]
+        if len(done) == 6:
+            raise Stop
+
+    with pytest.raises(Stop):
+        run_on_client(dask_client, spec, range(runner.n_chunks(spec)), on_done)
+    assert sorted(done) == sorted(set(done)) and len(done) == 6
+
+
+def test_a_large_checkpointed_sweep_keeps_chunks_on_disk_and_reads_them_back(serial, tmp_path,
+                                                                            monkeypatch):
+    monkeypatch.setattr(runner, '_IN_MEMORY_SCENES', 10)     # SPEC's 30 scenes count as large
+    loaded: list[int] = []
+    real = runner.Checkpoint.load
+    monkeypatch.setattr(runner.Checkpoint, 'load',
+                        lambda self, i: loaded.append(i) or real(self, i))
+    df = sweep(SPEC, workers=2, checkpoint=tmp_path)
+    assert loaded == [0, 1, 2, 3, 4]              # every chunk came back from disk, in order
+    pd.testing.assert_frame_equal(df, serial, check_exact=True)
