@@ -73,7 +73,7 @@ def engine_baseline(seconds: float = 3.0) -> float:
     """Speed-up of the core engine alone (no ROS) on the default two-body crawler driven by the
     default stroke, sampled at 50 Hz (sim s per wall s)."""
     from crawler_sim.core import gaits
-    from crawler_sim.core.engine import Engine
+    from crawler_sim.core.plant import Engine
     from crawler_sim.ros.sim.params import PARAMETERS, SimConfig
     cfg = SimConfig.from_values({k: v[0] for k, v in PARAMETERS.items()})
     gait = gaits.Scallop(0.1, 0.02, 2.0, 0.2, [0.0], n_links=1)
@@ -82,7 +82,7 @@ def engine_baseline(seconds: float = 3.0) -> float:
     t0 = time.perf_counter()
     for k in range(n):
         if k % 20 == 0:
-            engine.set_target(gait.length(k / 1000).tolist())
+            engine.command(gait.length(k / 1000).tolist())
         engine.tick()
     return seconds / (time.perf_counter() - t0)
 

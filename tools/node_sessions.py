@@ -6,11 +6,11 @@
 the node falls back to the implicit method for the rest of the run"; floor: 300 random 10 s
 sessions with 0 solver fallbacks.)
 
-Each session is what a node gets, run through ``crawler_sim.core.engine.Engine`` exactly as
+Each session is what a node gets, run through ``crawler_sim.core.plant.Engine`` exactly as
 ``sim_node`` runs it (1 kHz ticks, sync every 10 ticks, the actuator model): a random crawler
 (p = 2..5, masses and friction forces over two decades, some direction-dependent, some on a
-slope) and a random command stream mixing step commands (``set_target``) at random times and
-timed trajectories (``TrajectoryReference``, positions only, with velocities, or with velocities
+slope) and a random command stream mixing step commands (``Engine.command``) at random times and
+timed trajectories (``Engine.trajectory``, positions only, with velocities, or with velocities
 and accelerations), e.g. two ordinary trajectories 2 s apart, a trajectory cut short by a step
 command, bursts of steps at the tick rate. Commands are applied at tick boundaries, like the
 node's subscriptions between ticks.
@@ -33,8 +33,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from crawler_sim.core.actuator import ActuatorLimits, TrajectoryReference  # noqa: E402
-from crawler_sim.core.engine import Engine, EngineConfig  # noqa: E402
+from crawler_sim.core.actuator import ActuatorLimits  # noqa: E402
+from crawler_sim.core.plant import Engine, EngineConfig, PreparedTrajectory  # noqa: E402
 from crawler_sim.core.model import Crawler  # noqa: E402
 
 DT_NS = 1_000_000          # 1 kHz, the node's default integration rate
@@ -117,11 +117,13 @@ def session(seed: int, seconds: float, method: str) -> dict:
                 _, kind, payload = cmds[k_cmd]
                 k_cmd += 1
                 if kind == 'step':
-                    eng.set_target(payload)
+                    eng.command(payload)
                 else:
                     times, pos, vel, acc = payload
-                    eng.actuator.set_trajectory(TrajectoryReference(
-                        eng.t, eng.actuator.state(), times, pos, vel, acc))
+                    eng.trajectory(PreparedTrajectory(
+                        0, np.rint(np.asarray(times) * 1e9).astype(np.int64), np.asarray(pos),
+                        None if vel is None else np.asarray(vel),
+                        None if acc is None else np.asarray(acc)))
             if eng.tick():
                 st = eng.stepper.state
                 if not (np.all(np.isfinite(st.x)) and np.all(np.isfinite(st.v))):

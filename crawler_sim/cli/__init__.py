@@ -330,69 +330,35 @@ def _cmd_stress(args: argparse.Namespace) -> int:
 
 # ------------------------------------------------------------------------------- replay
 
-def _commands(commands: Any) -> tuple[list[float], list[list[float]]]:
-    """(times [s], target lengths) from a bag's ``Commands(t, values)`` (or any such pair)."""
-    if commands is None:
-        return [], []
-    times, values = commands
-    return [float(t) for t in times], [[float(x) for x in row] for row in values]
+def _replay_node(run: Any, method: str | None) -> tuple[Any, Any, str]:
+    """Re-run a sim_node bag through the plant's engine (``crawler_sim.core.plant.replay``):
+    the recorded inputs (commands, trajectories, parameter changes, resets) at the ticks they
+    took effect, so the arithmetic is the node's. Returns the states (x, v) at the recorded
+    times and the inputs replayed, by kind."""
+    from ..bag.inputs import load_inputs
+    from ..core.plant.replay import replay
+
+    recorded = load_inputs(run.path, run.namespace)
+    if not recorded.journaled:
+        _info('note: the bag has no plant_inputs journal (recorded before crawler_sim 0.4): '
+              'replaying its linkage_cmd and linkage_trajectory messages only (parameter '
+              'changes and resets are not repeated)')
+    until = int(run.t_ns[-1]) if len(run.t_ns) else 0
+    snaps = replay(run.scene, recorded.inputs, until, method=method,
+                   on_failure=lambda msg: _info(msg + '; continuing with method implicit, as '
+                                                'the node does'))
+    kinds: dict[str, int] = {}
+    for item in recorded.inputs:
+        kinds[item.kind] = kinds.get(item.kind, 0) + 1
+    label = {'command': ('command', 'commands'), 'trajectory': ('trajectory', 'trajectories'),
+             'configure': ('parameter change', 'parameter changes'),
+             'reset': ('reset', 'resets'), 'pause': ('pause', 'pauses'),
+             'resume': ('resume', 'resumes'), 'sync': ('cut off the grid', 'cuts off the grid')}
+    what = ', '.join(f'{n} {label[kind][n != 1]}' for kind, n in kinds.items()) or 'no input'
+    return (*snaps.at(run.t_ns, run.p), what)
 
 
-def _replay_node(run: Any, method: str | None) -> tuple[Any, Any]:
-    """Re-run the node's ticks with the node's own integration loop (``engine.Engine``):
-    commands take effect at the tick starting at their recorded time and the queued ticks are
-    integrated on the same publish grid, so the arithmetic is the node's. Returns the states
-    (x, v) at the recorded times."""
-    import numpy as np
-
-    from ..core.actuator import ActuatorLimits
-    from ..core.engine import Engine, EngineConfig
-    from ..core.model import Crawler
-
-    sc = run.scene
-    c = sc['crawler']
-    crawler = Crawler(c['masses'], c['friction'], c['friction_backward'], c['slope'],
-                      c['gravity'])
-    p = crawler.p
-    lengths = [float(x) for x in sc['initial_lengths']]
-    lengths = lengths * (p - 1) if len(lengths) == 1 else lengths
-    rate = float(sc['integration_rate'])
-    dt_ns = max(1, round(1e9 / rate))
-    limits = ActuatorLimits(float(sc['actuator_bandwidth']), float(sc['actuator_max_speed']),
-                            float(sc['actuator_max_acceleration']))
-    method = method or sc['method']
-    penalty = [float(n) for n in sc.get('penalty', [1e6])] if method == 'penalty' else None
-    engine = Engine(EngineConfig(crawler, method, dt_ns,
-                                 max(1, round(rate / float(sc['publish_rate']))), lengths,
-                                 float(sc['initial_position']), limits, penalty))
-    cmd_t, cmd_v = _commands(getattr(run, 'commands', None))
-    cmd_ns = [round(t * 1e9) for t in cmd_t]
-    want_ns = np.rint(np.asarray(run.t, dtype=float) * 1e9).astype(np.int64)
-    x = np.empty((want_ns.size, p))
-    v = np.empty((want_ns.size, p))
-    k = i = 0
-    reported = 0
-    while True:
-        while i < want_ns.size and want_ns[i] <= engine.t_ns:
-            if want_ns[i] == engine.t_ns:
-                st = engine.state
-                x[i], v[i] = st.x, st.v
-            else:
-                x[i] = v[i] = np.nan     # not on the tick grid: the node cannot have sent it
-            i += 1
-        if i >= want_ns.size:
-            break
-        while k < len(cmd_ns) and cmd_ns[k] <= engine.t_ns:
-            engine.set_target(cmd_v[k])
-            k += 1
-        engine.tick()
-        if len(engine.failures) > reported:
-            reported = len(engine.failures)
-            _info(engine.failures[-1] + '; continuing with method implicit, as the node does')
-    return x, v
-
-
-def _replay_scene(run: Any, method: str | None) -> tuple[Any, Any]:
+def _replay_scene(run: Any, method: str | None) -> tuple[Any, Any, str]:
     """Re-simulate an offline run from its scene dict. When the recorded stamps are the default
     sample times of that run (rounded to ns), compare at those exact times; otherwise sample the
     re-simulation at the recorded times."""
@@ -408,17 +374,18 @@ def _replay_scene(run: Any, method: str | None) -> tuple[Any, Any]:
     # compare in the recorded ns base: every stamp a sample of the run (also a truncated bag)
     from ..bag.clock import rows_at_ns
     rows = rows_at_ns(tr.t, getattr(run, 't_ns', np.rint(t * 1e9).astype(np.int64)))
+    what = f'the scene {scene.name!r}'
     if rows.size and np.all(rows >= 0):
-        return tr.x[rows], tr.v[rows]
+        return tr.x[rows], tr.v[rows], what
     tr = scene.with_run(t_end=max(float(t[-1]), scene.run.t_end)).simulate(t_eval=t)
-    return tr.x, tr.v
+    return tr.x, tr.v, what
 
 
 def _replay(run: Any, method: str | None, tol: float) -> dict:
     """Re-simulate a recorded run with the core and compare with the recorded states.
 
-    Node bags (scene = the node's parameters) replay the recorded commands tick by tick through
-    the actuator; offline bags (scene = a scene dict) re-run the scene.
+    Node bags (scene = the node's parameters) replay the recorded plant inputs tick by tick
+    through the node's engine; offline bags (scene = a scene dict) re-run the scene.
     """
     import numpy as np
 
@@ -427,14 +394,13 @@ def _replay(run: Any, method: str | None, tol: float) -> dict:
     if not node and 'gait' not in sc:
         raise UsageError('the bag holds no scene (neither node parameters nor a scene dict); '
                          'it cannot be replayed')
-    if any(name.endswith('linkage_trajectory') for name in getattr(run, 'topics', {})):
-        _info('warning: the bag holds linkage_trajectory commands, which replay does not '
-              're-apply (only linkage_cmd); expect a mismatch after the first one')
-    x, v = (_replay_node if node else _replay_scene)(run, method)
+    x, v, inputs = (_replay_node if node else _replay_scene)(run, method)
     rx, rv = np.asarray(run.x, dtype=float), np.asarray(run.v, dtype=float)
     if rx.shape != x.shape:
         raise ValueError(f'recorded states have shape {rx.shape}, the replay {x.shape}')
-    dx, dv = np.abs(x - rx), np.abs(v - rv)
+    # NaN in both (a body that did not exist then) is agreement; NaN in one is not
+    dx = np.where(np.isnan(x) & np.isnan(rx), 0.0, np.abs(x - rx))
+    dv = np.where(np.isnan(v) & np.isnan(rv), 0.0, np.abs(v - rv))
     bad_x, bad_v = np.nan_to_num(dx, nan=np.inf), np.nan_to_num(dv, nan=np.inf)
     ix = np.unravel_index(int(np.argmax(bad_x)), dx.shape) if dx.size else (0, 0)
     iv = np.unravel_index(int(np.argmax(bad_v)), dv.shape) if dv.size else (0, 0)
@@ -442,7 +408,7 @@ def _replay(run: Any, method: str | None, tol: float) -> dict:
     max_dv = float(bad_v[iv]) if dv.size else 0.0
     return {'kind': 'node' if node else 'offline', 'method': method or sc.get('method') or
             sc.get('run', {}).get('method', 'exact'), 'samples': int(rx.shape[0]),
-            'commands': len(_commands(getattr(run, 'commands', None))[0]) if node else 0,
+            'inputs': inputs,
             'max_position_error': max_dx, 'at_position': (float(run.t[ix[0]]), int(ix[1])),
             'max_velocity_error': max_dv, 'at_velocity': (float(run.t[iv[0]]), int(iv[1])),
             'tolerance': tol, 'match': max_dx <= tol and max_dv <= tol}
@@ -459,7 +425,7 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     t_v, body_v = res['at_velocity']
     _print_table([
         ('bag', f'{args.bag} ({res["kind"]} run, {res["samples"]} samples, '
-                f'{res["commands"]} commands)'),
+                f'{res["inputs"]})'),
         ('method', res['method']),
         ('max |dx|', f'{res["max_position_error"]:.3g} m (body_{body_x} at t = {t_x:.9g} s)'),
         ('max |dv|', f'{res["max_velocity_error"]:.3g} m/s (body_{body_v} at t = {t_v:.9g} s)'),

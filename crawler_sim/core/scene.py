@@ -68,7 +68,7 @@ from .stepper import METHODS, simulate
 from .trajectory import Trajectory
 
 __all__ = ['SceneError', 'RunOptions', 'Scene', 'GAIT_TYPES', 'LIMITS', 'load_scene',
-           'scene_from_dict', 'scene_to_dict']
+           'scene_from_dict', 'scene_to_dict', 'crawler_from_mapping']
 
 
 class SceneError(ValueError):
@@ -157,9 +157,14 @@ def _array(path: str, value: Any) -> NDArray[np.float64]:
     return arr
 
 
-def _per_body(path: str, value: Any, p: int | None, *, positive: bool) -> NDArray[np.float64]:
-    """One number or a list of one number per body, each finite and > 0 (or >= 0)."""
+def _per_body(path: str, value: Any, p: int | None, *, positive: bool, limit: str = ''
+              ) -> NDArray[np.float64]:
+    """One number or a list of one number per body, each finite and > 0 (or >= 0); the
+    message names the range ``LIMITS[limit]`` when given."""
     rule = 'finite and > 0' if positive else 'finite and >= 0'
+    if limit:
+        lo, hi, unit = LIMITS[limit]
+        rule = f'in [{lo:g}, {hi:g}]{" " + unit if unit else ""}'
     scalar = _is_number(value)
     if not scalar and not isinstance(value, (list, tuple)):
         raise SceneError(f'{path}: must be a number or a list of numbers ({rule}), '
@@ -205,47 +210,59 @@ _CRAWLER_KEYS = ('masses', 'mu', 'mu_backward', 'friction', 'friction_backward',
                  'slope_deg', 'gravity')
 
 
-def _crawler(spec: Any) -> Crawler:
-    path = 'scene.crawler'
-    d = _mapping(path, spec, _CRAWLER_KEYS, ('masses',))
-    masses = _per_body(f'{path}.masses', d['masses'], None, positive=True)
-    _in_range(f'{path}.masses', masses, 'masses')
+def crawler_from_mapping(spec: Any, path: str = 'crawler') -> Crawler:
+    """The one validator of a crawler description (scenes, sweeps, the bench, the node's
+    parameters, replay): ``masses`` [kg], ``mu`` or ``friction`` [N] (one or one per body),
+    optional ``mu_backward`` / ``friction_backward``, ``slope`` [rad] or ``slope_deg``,
+    ``gravity`` [m/s^2]. SceneError (a ValueError) names the field under ``path`` and its
+    allowed range."""
+    def k(name: str) -> str:
+        return f'{path}.{name}' if path else name
+    d = _mapping(path or 'crawler', spec, _CRAWLER_KEYS, ('masses',))
+    masses = _per_body(k('masses'), d['masses'], None, positive=True, limit='masses')
+    _in_range(k('masses'), masses, 'masses')
     p = masses.size
     if p < 2:
-        raise SceneError(f'{path}.masses: must list p >= 2 bodies, got {p}')
+        raise SceneError(f"{k('masses')}: must list p >= 2 bodies, got {p}")
     if 'slope' in d and 'slope_deg' in d:
-        raise SceneError(f'{path}: give slope [rad] or slope_deg [deg], not both')
+        raise SceneError(f'{path or "crawler"}: give slope [rad] or slope_deg [deg], not both')
     if 'slope_deg' in d:
-        slope = math.radians(_number(f'{path}.slope_deg', d['slope_deg'],
+        slope = math.radians(_number(k('slope_deg'), d['slope_deg'],
                                      'finite, in (-90, 90) deg'))
-        slope_path = f'{path}.slope_deg'
+        slope_path = k('slope_deg')
     else:
-        slope = _number(f'{path}.slope', d.get('slope', 0.0), 'finite, in (-pi/2, pi/2) rad')
-        slope_path = f'{path}.slope'
+        slope = _number(k('slope'), d.get('slope', 0.0), 'finite, in (-pi/2, pi/2) rad')
+        slope_path = k('slope')
     if not abs(slope) < math.pi / 2:
         raise SceneError(f'{slope_path}: must be in (-pi/2, pi/2) rad = (-90, 90) deg, '
                          f'got {d.get("slope", d.get("slope_deg"))!r}')
-    gravity = _number(f'{path}.gravity', d.get('gravity', 9.81), 'finite and >= 0 m/s^2', lo=0.0)
-    _in_range(f'{path}.gravity', gravity, 'gravity')
+    gravity = _number(k('gravity'), d.get('gravity', 9.81), 'finite and >= 0 m/s^2', lo=0.0)
+    _in_range(k('gravity'), gravity, 'gravity')
     has_mu, has_f = 'mu' in d, 'friction' in d
     if has_mu == has_f:
-        raise SceneError(f'{path}: give exactly one of mu (coefficients) or friction '
-                         f'(forces [N]), got {"both" if has_mu else "neither"}')
+        raise SceneError(f'{path or "crawler"}: give exactly one of mu (coefficients) or '
+                         f'friction (forces [N]), got {"both" if has_mu else "neither"}')
     if has_mu and 'friction_backward' in d or has_f and 'mu_backward' in d:
-        raise SceneError(f'{path}: do not mix mu/mu_backward with friction/friction_backward')
+        raise SceneError(f'{path or "crawler"}: do not mix mu/mu_backward with '
+                         'friction/friction_backward')
     key = 'mu' if has_mu else 'friction'
-    fwd = _per_body(f'{path}.{key}', d[key], p, positive=False)
-    bwd = (_per_body(f'{path}.{key}_backward', d[f'{key}_backward'], p, positive=False)
+    fwd = _per_body(k(key), d[key], p, positive=False, limit=key)
+    bwd = (_per_body(k(key + '_backward'), d[f'{key}_backward'], p, positive=False,
+                     limit=f'{key}_backward')
            if f'{key}_backward' in d else None)
-    _in_range(f'{path}.{key}', fwd, key)
+    _in_range(k(key), fwd, key)
     if bwd is not None:
-        _in_range(f'{path}.{key}_backward', bwd, f'{key}_backward')
+        _in_range(k(key + '_backward'), bwd, f'{key}_backward')
     try:
         if has_mu:
             return Crawler.from_coefficients(masses, fwd, bwd, slope, gravity)
         return Crawler(masses, fwd, bwd, slope, gravity)
     except ValueError as exc:     # derived quantities (sums, products); the message names them
-        raise SceneError(f'{path}.{exc}') from None
+        raise SceneError(f'{path}.{exc}' if path else str(exc)) from None
+
+
+def _crawler(spec: Any) -> Crawler:
+    return crawler_from_mapping(spec, 'scene.crawler')
 
 
 # ---------------------------------------------------------------------------------------------

@@ -2,9 +2,9 @@
 of ``SimNode``; the node itself lives in :mod:`crawler_sim.ros.sim` (one module per
 responsibility)."""
 from crawler_sim.ros.sim import (LoopTakenGroup, OUTPUTS, PARAMETERS, SimConfig, SimNode, main,
-                                 validate_command)
+                                 check_command)
 
-__all__ = ['SimNode', 'SimConfig', 'PARAMETERS', 'OUTPUTS', 'main', 'validate_command',
+__all__ = ['SimNode', 'SimConfig', 'PARAMETERS', 'OUTPUTS', 'main', 'check_command',
            'LoopTakenGroup']
 
 if __name__ == '__main__':

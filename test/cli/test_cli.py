@@ -168,7 +168,7 @@ def _scene_file(tmp_path: Path, name: str, old: str, new: str) -> str:
 BAD_INPUT = {  # case -> (edit of wave_3body.yaml or None, extra arguments, error fragments)
     'missing file': (None, (), ('nope.yaml: no such file',)),
     'negative mass': (('masses: [1.0, 1.0, 1.0]', 'masses: [1.0, -1.0, 1.0]'), (),
-                      ('scene.crawler.masses[1]: must be finite and > 0, got -1.0',)),
+                      ('scene.crawler.masses[1]: must be in [1e-09, 1e+09] kg, got -1.0',)),
     'wrong list length': (('mu: 0.3 ', 'mu: [0.3, 0.3] '), (),
                           ('scene.crawler.mu: must have 1 or 3 entries (one per body), got 2',)),
     'gait for other bodies': (('phase: [0.0, -2.0943951023931953]', 'phase: [0.0, 1.0, 2.0]'),

@@ -6,7 +6,7 @@ import pytest
 
 from crawler_sim.core import gaits
 from crawler_sim.core.actuator import ActuatorLimits, TrajectoryReference
-from crawler_sim.core.engine import Engine, EngineConfig
+from crawler_sim.core.plant import Engine, EngineConfig
 from crawler_sim.core.model import Crawler
 
 
@@ -25,7 +25,7 @@ def states(engine: Engine, batched: bool, n_periods: int) -> list:
                          n_links=engine.actuator.n_links)
     for k in range(n_periods):
         if k == 3:
-            engine.set_target([0.13] * engine.actuator.n_links)
+            engine.command([0.13] * engine.actuator.n_links)
         if k == 40:
             t = np.arange(1, 200) * 0.02
             l, ld, ldd = gait(t)
@@ -55,8 +55,8 @@ def test_ticks_to_the_grid_equal_single_ticks_bit_for_bit(p, publish_every, meth
 
 def test_ticks_to_the_grid_start_anywhere_within_a_period():
     a, b = Engine(config(2, 10)), Engine(config(2, 10))
-    a.set_target([0.12])
-    b.set_target([0.12])
+    a.command([0.12])
+    b.command([0.12])
     for _ in range(3):
         a.tick()
         b.tick()

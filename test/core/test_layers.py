@@ -37,7 +37,8 @@ class _Block:
         return None
 sys.meta_path.insert(0, _Block())
 import crawler_sim, crawler_sim.core
-import crawler_sim.core.solvers.exact, crawler_sim.core.engine, crawler_sim.core.scene
+import crawler_sim.core.solvers.exact, crawler_sim.core.plant, crawler_sim.core.scene
+import crawler_sim.core.plant.replay, crawler_sim.core.plant.config
 import crawler_sim.core.actuator
 from crawler_sim import Crawler, simulate, gaits, verify, Stepper
 run = simulate(Crawler([1.0, 1.0], [1.0, 2.0]), gaits.Sinusoid(1.0, 0.2, 1.0), 2.0)

@@ -163,12 +163,13 @@ _DELETE = object()
 
 BAD = [  # (edit, message the error must contain)
     (_set('crawler.masses', [1.0, -1.0, 1.0]),
-     'scene.crawler.masses[1]: must be finite and > 0, got -1.0'),
+     'scene.crawler.masses[1]: must be in [1e-09, 1e+09] kg, got -1.0'),
     (_set('crawler.masses', [1.0]), 'scene.crawler.masses: must list p >= 2 bodies, got 1'),
     (_set('crawler.masses', 'heavy'), 'scene.crawler.masses: must be a number or a list'),
     (_set('crawler.mu', [0.3, 0.3]),
      'scene.crawler.mu: must have 1 or 3 entries (one per body), got 2'),
-    (_set('crawler.mu_backward', float('nan')), 'scene.crawler.mu_backward: must be finite'),
+    (_set('crawler.mu_backward', float('nan')),
+     'scene.crawler.mu_backward: must be in [0, 1000], got nan'),
     (_set('crawler.friction', 3.0), 'give exactly one of mu (coefficients) or friction'),
     (_set('crawler.mu', _DELETE), 'give exactly one of mu (coefficients) or friction'),
     (_set('crawler.slope', 2.0), 'scene.crawler.slope: must be in (-pi/2, pi/2)'),

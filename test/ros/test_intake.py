@@ -12,9 +12,11 @@ from rclpy.serialization import serialize_message
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from crawler_sim.core.actuator import TrajectoryReference
-from crawler_sim.ros.sim import intake, trajarrays
-from crawler_sim.ros.sim.intake import RejectionLog, validate_command
-from crawler_sim.ros.sim.trajarrays import MAX_TRAJECTORY_POINTS, TrajectoryFormatError
+from crawler_sim.bag import trajarrays
+from crawler_sim.ros.sim import intake
+from crawler_sim.core.plant.inputs import check_command
+from crawler_sim.ros.sim.intake import RejectionLog
+from crawler_sim.bag.trajarrays import MAX_TRAJECTORY_POINTS, TrajectoryFormatError
 
 LO, HI = 0.02, 0.5
 
@@ -159,10 +161,10 @@ def test_the_reference_looks_up_segments_by_bisection_and_interpolates_linearly(
 # --------------------------------------------------------------------------- commands
 
 def test_an_all_nan_command_of_the_wrong_size_is_rejected_for_its_size():
-    assert 'expected 1 lengths' in validate_command([math.nan, math.nan], 1, LO, HI)
-    assert validate_command([math.nan], 1, LO, HI) is None          # right size: no command
-    assert 'not finite' in validate_command([0.1, math.nan], 2, LO, HI)
-    assert 'outside' in validate_command([0.6], 1, LO, HI)
+    assert 'expected 1 lengths' in check_command([math.nan, math.nan], 1, LO, HI)
+    assert check_command([math.nan], 1, LO, HI) is None          # right size: no command
+    assert 'not finite' in check_command([0.1, math.nan], 2, LO, HI)
+    assert 'outside' in check_command([0.6], 1, LO, HI)
 
 
 def test_rejections_are_counted_but_logged_at_most_once_per_period():

@@ -210,7 +210,7 @@ def test_the_sim_process_matches_the_offline_solution_and_runs_faster_than_real_
     print(f'\n{method}: 10 sim s in {t_ten - t_start:.2f} wall s')
 
     assert not bad_param.results[0].successful
-    assert 'friction must have 1 or 3 entries' in bad_param.results[0].reason
+    assert 'friction: must have 1 or 3 entries' in bad_param.results[0].reason
     values = diagnostics_values(diags[-1])
     assert (values['commands_accepted'], values['commands_rejected']) == ('3', '3'), values
     assert sensor, 'the SensorData subscriber received nothing'
@@ -281,7 +281,7 @@ def test_invalid_parameters_at_start_give_one_line_and_exit_code_1(ament_env, tm
     sim.err.seek(0)
     err = sim.err.read()
     assert code == 1
-    assert 'friction must have 1 or 2 entries' in err and 'Traceback' not in err
+    assert 'friction: must have 1 or 2 entries' in err and 'Traceback' not in err
 
 
 def test_a_scene_file_as_params_file_gives_one_clear_line_and_exit_code_2(ament_env,

@@ -26,7 +26,7 @@ def warm_up(node) -> None:
     """Run once what the first ticks would compile, import or build cold (the solver's first
     call, the encoders' templates) on a scratch engine, so that cold start stays out of the
     real-time loop; ``main`` calls it before the loop starts. The node's state is unchanged."""
-    from crawler_sim.core.engine import Engine
+    from crawler_sim.core.plant import Engine
     with node._lock:
         cfg = node._cfg
         scratch = Engine(cfg.engine_config(), node._t_ns)

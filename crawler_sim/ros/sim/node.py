@@ -1,6 +1,6 @@
 """``SimNode``: the crawler as a ROS 2 node driven by commanded linkage lengths.
 
-The node glues the pieces of this package around ``crawler_sim.core.engine.Engine`` (the
+The node glues the pieces of this package around ``crawler_sim.core.plant.Engine`` (the
 actuator model and the core's exact ``Stepper``, no ROS): :mod:`.params` (parameters to a
 :class:`~.params.SimConfig`), :mod:`.intake` (commands and trajectories), :mod:`.outputs`
 (publishers and encoders), :mod:`.recording` (the bag), :mod:`.diagnostics` and :mod:`.loop`
@@ -31,6 +31,7 @@ delegates lives in its own module.
 """
 from __future__ import annotations
 
+import json
 import math
 import threading
 import time
@@ -41,11 +42,11 @@ from rclpy.callback_groups import CallbackGroup
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import SetBool, Trigger
 from trajectory_msgs.msg import JointTrajectory
 
-from crawler_sim.core.engine import Engine
+from crawler_sim.core.plant import Engine
 from crawler_sim.ros import messages as M
 from . import intake, loop
 from .diagnostics import COUNTERS, Diagnostics, node_values
@@ -111,12 +112,15 @@ class SimNode(Node):
         self._traj_intake = (0.0, 0)          # (wall s, bytes) of the latest trajectory
         self._pending_cmd: list[float] | None = None
         self._pending_traj: intake.PreparedTrajectory | None = None
-        self.paused = bool(self._cfg.start_paused)
         self._anchor_needed = True
         self._last_state = None
         self._stop = False        # set by stop() (signals); run() returns at the next tick
         self.recorder = Recorder(self._absolute_topic, self._log)
-        self._build(self._cfg, t_ns=0)
+        self._journal_seq = 0
+        # the one owner of the plant: every input goes through it and into its journal
+        self._engine = Engine(self._cfg.engine_config(), 0, journal=self._journal)
+        if self._cfg.start_paused:
+            self._engine.pause()
         if self._cfg.record:      # last: nothing below can fail and leave the bag open
             scene = {k: (list(v) if isinstance(v, (list, tuple)) else v)
                      for k, v in self._cfg.values.items()}
@@ -126,6 +130,7 @@ class SimNode(Node):
             recorded = {**self.outputs.topics(), 'linkage_cmd': M.OUTPUT_TYPES['linkage_cmd'],
                         '~/applied_command': M.OUTPUT_TYPES['applied_command'],
                         'linkage_trajectory': 'trajectory_msgs/msg/JointTrajectory',
+                        '~/plant_inputs': 'std_msgs/msg/String',
                         'events': 'std_msgs/msg/Int32MultiArray',
                         '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray'}
             topics = {self._absolute_topic(name): type_ for name, type_ in recorded.items()}
@@ -172,33 +177,45 @@ class SimNode(Node):
         with self._lock:
             self._pending_cfg = cfg
 
-    def _build(self, cfg: SimConfig, t_ns: int) -> None:
-        """(Re)build actuator and stepper at rest in the initial configuration at sim time t_ns."""
-        self._cfg = cfg
-        self._t_ns = t_ns
-        self._engine = Engine(cfg.engine_config(), t_ns)
-        self._pending_cmd = None
-        self._pending_traj = None
-        self._anchor_needed = True
-
     def _apply_config(self, new: SimConfig) -> None:
         old = self._cfg
-        if new.p != old.p:
+        self._cfg = new
+        if self._engine.reconfigure(new.engine_config()):
             self._log.info(f'number of bodies changed {old.p} -> {new.p}: resetting')
-            self._build(new, self._t_ns)
             self.counters['resets'] += 1
-        else:
-            self._cfg = new
-            if (new.crawler.to_dict() != old.crawler.to_dict() or new.method != old.method
-                    or new.dt_ns != old.dt_ns or new.penalty_n != old.penalty_n):
-                self._engine.restart_stepper(new.engine_config())
-            else:
-                self._engine.sync()
-                self._engine.cfg = new.engine_config()
-                if new.limits != old.limits:
-                    self._engine.actuator.configure(limits=new.limits)
-            self._anchor_needed = True
+            self._drop_pending()
+        self._anchor_needed = True
         self.outputs.sync(self._cfg)
+
+    def _drop_pending(self) -> None:
+        self._pending_cmd = None
+        self._pending_traj = None
+
+    def _journal(self, kind: str, t_ns: int, payload: Any) -> None:
+        """The engine's journal: every plant input, in order, on ``~/plant_inputs`` (JSON, at
+        the sim time it took effect), so that ``crawler-sim replay`` repeats the run bit for
+        bit (``crawler_sim.core.plant.replay``). A trajectory's points go on
+        ``linkage_trajectory`` at the same time (stamp 0 made absolute)."""
+        rec = self.recorder
+        if not rec.on:
+            return
+        self._journal_seq += 1
+        entry: dict[str, Any] = {'seq': self._journal_seq, 'kind': kind}
+        if kind == 'command':
+            entry['lengths'] = payload
+        elif kind in ('configure', 'reset'):
+            entry['values'] = {k: (list(v) if isinstance(v, (list, tuple)) else v)
+                               for k, v in payload.values.items()}
+        elif kind == 'trajectory':
+            entry['points'] = 0 if payload is None else len(payload.tfs_ns)
+            raw = getattr(payload, 'raw', None)
+            if raw is not None:
+                rec.write('linkage_trajectory', 'trajectory_msgs/msg/JointTrajectory',
+                          applied_trajectory(raw, payload.stamp_ns, t_ns), t_ns)
+            else:
+                entry['points'] = -1          # not recorded (a trajectory given in Python)
+        rec.write('~/plant_inputs', 'std_msgs/msg/String', String(data=json.dumps(entry)),
+                  t_ns)
 
     # ------------------------------------------------------------------ inputs
     def take_inputs(self) -> int:
@@ -235,7 +252,7 @@ class SimNode(Node):
     def _on_command(self, msg: Float64MultiArray) -> None:
         data = msg.data
         cfg = self._cfg
-        reason = intake.validate_command(data, cfg.n_links, cfg.min_length, cfg.max_length)
+        reason = intake.check_command(data, cfg.n_links, cfg.min_length, cfg.max_length)
         if reason is not None:
             self._rejections.note('commands', 'linkage_cmd', reason)
             return
@@ -274,7 +291,10 @@ class SimNode(Node):
 
     def _on_pause(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
         with self._lock:
-            self.paused = bool(request.data)
+            if request.data:
+                self._engine.pause()
+            else:
+                self._engine.resume()
             self._anchor_needed = True
             response.success = True
             response.message = (f'{"paused" if self.paused else "running"} at '
@@ -288,13 +308,25 @@ class SimNode(Node):
             self.take_inputs()
             cfg = self._pending_cfg or self._cfg
             self._pending_cfg = None
-            self._build(cfg, self._t_ns)
+            self._cfg = cfg
+            self._engine.reset(cfg.engine_config())
+            self._drop_pending()
+            self._anchor_needed = True
             self.outputs.sync(cfg)
             self.outputs.refresh()
             self.counters['resets'] += 1
             self._publish_outputs()
 
     # ------------------------------------------------------------------ the tick
+    @property
+    def _t_ns(self) -> int:
+        return self._engine.t_ns
+
+    @property
+    def paused(self) -> bool:
+        """True while the simulation is paused (``~/pause``)."""
+        return self._engine.paused
+
     @property
     def sim_time_ns(self) -> int:
         """Current sim time [ns]."""
@@ -334,7 +366,6 @@ class SimNode(Node):
         else:
             synced = engine.tick()
             self.counters['ticks'] += 1
-        self._t_ns = engine.t_ns
         if not synced:
             return
         if engine.failures:
@@ -354,7 +385,7 @@ class SimNode(Node):
 
     def _apply_command(self, t_ns: int) -> None:
         cmd, self._pending_cmd = self._pending_cmd, None
-        self._engine.actuator.set_target(cmd)
+        self._engine.command(cmd)
         recording = self.recorder.on
         if not recording and self._applied_pub.get_subscription_count() == 0:
             return
@@ -368,19 +399,10 @@ class SimNode(Node):
 
     def _apply_trajectory(self, t_ns: int) -> None:
         tr, self._pending_traj = self._pending_traj, None
-        actuator = self._engine.actuator
-        if not len(tr.tfs_ns):               # an empty trajectory: stop, hold position
-            actuator.set_trajectory(None)
-            return
         try:
-            ref = intake.reference(tr, t_ns, actuator.state())
+            self._engine.trajectory(tr)
         except ValueError as exc:       # e.g. times that round together at this sim time
             self._rejections.note('trajectories', 'linkage_trajectory', str(exc))
-            return
-        actuator.set_trajectory(ref)
-        if self.recorder.on and tr.raw is not None:
-            self.recorder.write('linkage_trajectory', 'trajectory_msgs/msg/JointTrajectory',
-                                applied_trajectory(tr.raw, tr.stamp_ns, t_ns), t_ns)
 
     # ------------------------------------------------------------------ outputs
     def _publish_outputs(self) -> None:
@@ -391,7 +413,8 @@ class SimNode(Node):
             self.counters['nonfinite_outputs'] += 1
             self._log.error('non-finite state: outputs withheld, resetting',
                             throttle_duration_sec=1.0)
-            self._build(self._cfg, self._t_ns)
+            self._engine.reset()
+            self._drop_pending()
             return
         self._last_state = st
         self.outputs.publish(row, self._t_ns, self._cfg.crawler.masses,

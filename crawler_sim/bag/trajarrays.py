@@ -18,10 +18,11 @@ JointTrajectoryPoint[] points; a point is float64[] positions, velocities, accel
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 import struct
 
 import numpy as np
+
+from crawler_sim.core.plant.inputs import TrajectoryArrays
 
 __all__ = ['TrajectoryArrays', 'parse', 'from_message', 'MAX_TRAJECTORY_POINTS',
            'MAX_IRREGULAR_POINTS', 'TrajectoryFormatError']
@@ -35,31 +36,6 @@ _U32 = struct.Struct('<I')
 
 class TrajectoryFormatError(ValueError):
     """The bytes are not a JointTrajectory this parser (or rclpy) can read."""
-
-
-@dataclass
-class TrajectoryArrays:
-    """One JointTrajectory as arrays (units: ns, m, m/s, m/s^2).
-
-    ``velocities``/``accelerations``/``effort`` are None when every point leaves them empty; a
-    trajectory that fills them only for some points has ``mixed`` set (the node rejects it).
-    """
-
-    stamp_ns: int
-    joint_names: list[str]
-    tfs_ns: np.ndarray                 # int64 (N,): time_from_start of each point
-    positions: np.ndarray              # (N, n_names) float64, or (N, k) when sizes mismatch
-    velocities: np.ndarray | None
-    accelerations: np.ndarray | None
-    effort: np.ndarray | None
-    sizes: tuple[int, int, int, int]   # per-point sizes of the four arrays (first point)
-    mixed: bool = False                # points of different shapes
-    nbytes: int = 0                    # bytes the message uses (0: unknown); rclpy's buffers
-    # may carry unused bytes after it, which rosbags refuses ("CDR message size mismatch")
-
-    @property
-    def n_points(self) -> int:
-        return len(self.tfs_ns)
 
 
 def _align(off: int, n: int) -> int:

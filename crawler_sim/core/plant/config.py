@@ -1,0 +1,215 @@
+"""The plant's parameters (the crawler, its actuator, the integration grid) and their validation.
+
+``PARAMETERS`` are the node's physical parameters (sim_node declares them, adding its own for
+outputs and recording); ``PlantConfig.from_values`` validates a full set of their values and
+turns it into core objects. It is the one reader of these values: sim_node on every parameter
+change, ``crawler-sim replay`` on a bag's recorded parameters, offline runs "as the node runs
+them". The crawler itself is validated by ``scene.crawler_from_mapping``, as in scenes.
+
+The defaults are the seed's crawler: two bodies (a 0.5 kg head and a 1 kg tail, friction
+coefficient 0.3, i.e. friction forces proportional to weight) joined by one linkage. Every
+per-body or per-linkage list accepts one entry meaning "the same for all".
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from typing import Any, Mapping
+
+from ..actuator import ActuatorLimits
+from ..model import Crawler
+from ..scene import LIMITS, crawler_from_mapping
+from ..stepper import METHODS
+from .engine import EngineConfig
+
+__all__ = ['PARAMETERS', 'PlantConfig', 'MAX_BODIES', 'as_float']
+
+#: the most bodies the live node takes (measured: the exact method keeps real time at 1 kHz up
+#: to this p on the machines of docs/bench.md; offline runs take any p)
+MAX_BODIES = 64
+
+#: name -> (default, description, range of a float or None)
+PARAMETERS: dict[str, tuple[Any, str, tuple[float, float] | None]] = {
+    'masses': ([0.5, 1.0], f'Body masses [kg], 2 to {MAX_BODIES} entries, each in [1e-9, 1e9]; '
+               'p sets the number of bodies (a change of p resets the simulation; the seed: '
+               '2 bodies)', None),
+    'mu': ([0.3], 'Coulomb friction coefficient against forward sliding, one entry for all '
+           'bodies or one per body, each in [0, 1e3]: friction force = mu m g cos(slope) '
+           '(unless friction is set)', None),
+    'mu_backward': ([0.3], 'Coulomb friction coefficient against backward sliding (as mu)',
+                    None),
+    'friction': ([], 'Friction force resisting forward sliding [N], one entry for all bodies '
+                 'or one per body, each in [0, 1e12]; empty (the default): from mu; when set '
+                 'it replaces mu', None),
+    'friction_backward': ([], 'Friction force resisting backward sliding [N] (as friction); '
+                          'empty: from mu_backward', None),
+    'slope': (0.0, 'Incline [rad], uphill is +x', (-1.5, 1.5)),
+    'gravity': (9.81, 'Gravitational acceleration [m/s^2] (acts through the slope)',
+                (0.0, 100.0)),
+    'initial_lengths': ([0.1], 'Linkage lengths at start and after reset [m], one entry for '
+                        'all linkages or p-1 entries, within [min_length, max_length]', None),
+    'initial_position': (0.0, 'Position of body 0 at start and after reset [m]',
+                         (-1e6, 1e6)),
+    'integration_rate': (1000.0, 'Ticks per simulated second [Hz]; dt = 1/integration_rate',
+                         (1.0, 100000.0)),
+    'publish_rate': (100.0, 'Output (and /clock) rate [Hz] in sim time, <= integration_rate; '
+                     'outputs go out every round(integration_rate/publish_rate) ticks',
+                     (0.1, 100000.0)),
+    'method': ('exact', 'Solver: exact (event driven), implicit (Moreau-Jean) or penalty',
+               None),
+    'penalty': ([10000.0], 'Method penalty only: the regularisation n [N s/m] of the seed, one '
+                'entry for all bodies or one per body, each in [1e-6, 1e15] '
+                '(error ~ sqrt(t f^2 / (M n)))', None),
+    'actuator_bandwidth': (5.0, 'Actuator -3 dB bandwidth [Hz] (critically damped 3rd order)',
+                           (0.01, 1000.0)),
+    'actuator_max_speed': (0.5, 'Largest |l\'| of a linkage [m/s]', (1e-6, 100.0)),
+    'actuator_max_acceleration': (5.0, 'Largest |l\'\'| of a linkage [m/s^2]', (1e-6, 1e5)),
+    'min_length': (0.02, 'Shortest linkage length [m]: commands and trajectory points outside '
+                   '[min_length, max_length] are rejected, and the actuator keeps the length '
+                   'inside it', (0.0, 100.0)),
+    'max_length': (0.5, 'Longest linkage length [m]', (0.0, 100.0)),
+    'max_trajectory_lead': (3600.0, 'A stamped linkage_trajectory must start within this many '
+                            'seconds of the current sim time [s] (a wall-clock stamp on sim '
+                            'time is rejected, not held for decades)', (0.0, 1e6)),
+}
+
+
+def as_float(name: str, value: Any, rng: tuple[float, float]) -> float:
+    """A number (an int is a number too) in ``rng``; ValueError naming ``name`` otherwise."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f'{name} must be a number in [{rng[0]:g}, {rng[1]:g}], got {value!r}')
+    x = float(value)
+    if not (math.isfinite(x) and rng[0] <= x <= rng[1]):
+        raise ValueError(f'{name} must be in [{rng[0]:g}, {rng[1]:g}], got {value!r}')
+    return x
+
+
+def _as_list(name: str, value: Any, n_max: int) -> list[float]:
+    """A number or a list of numbers as a list of floats (at most ``n_max`` entries)."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return [float(value)]
+    try:
+        out = list(value)
+    except TypeError:
+        raise ValueError(f'{name} must be a number or a list of numbers, got {value!r}') from None
+    if len(out) > n_max:
+        raise ValueError(f'{name} must have at most {n_max} entries, got {len(out)}')
+    if any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in out):
+        raise ValueError(f'{name} must be a list of numbers, got {value!r}')
+    return [float(x) for x in out]
+
+
+def _crawler(v: Mapping[str, Any]) -> Crawler:
+    """The crawler of the node's parameters (``scene.crawler_from_mapping``): friction forces
+    where they are set, else the coefficients."""
+    masses = _as_list('masses', v['masses'], MAX_BODIES)
+    if not 2 <= len(masses) <= MAX_BODIES:
+        raise ValueError(f'masses must list 2 to {MAX_BODIES} bodies (the live node\'s limit; '
+                         f'offline runs take any number), got {len(masses)}')
+    fwd = _as_list('friction', v['friction'], MAX_BODIES)
+    bwd = _as_list('friction_backward', v['friction_backward'], MAX_BODIES)
+    spec: dict[str, Any] = {'masses': masses, 'slope': v['slope'], 'gravity': v['gravity']}
+    if not fwd and not bwd:
+        spec.update(mu=_as_list('mu', v['mu'], MAX_BODIES),
+                    mu_backward=_as_list('mu_backward', v['mu_backward'], MAX_BODIES))
+        return crawler_from_mapping(spec, '')
+    if not fwd or not bwd:
+        # one side as forces, the other from its coefficient: that side's forces first
+        coeff = crawler_from_mapping({**spec, 'mu': v['mu'] if not fwd else 0.0,
+                                      'mu_backward': v['mu_backward'] if not bwd else 0.0}, '')
+        fwd = fwd or coeff.friction.tolist()
+        bwd = bwd or coeff.friction_backward.tolist()
+    return crawler_from_mapping({**spec, 'friction': fwd, 'friction_backward': bwd}, '')
+
+
+@dataclass(frozen=True)
+class PlantConfig:
+    """The plant's parameters validated: the crawler, the actuator, the tick grid. Every
+    parameter value is also a plain attribute (``cfg.publish_rate``); ``values`` holds them."""
+
+    values: dict
+    crawler: Crawler
+    initial_lengths: tuple[float, ...]
+    limits: ActuatorLimits
+    dt_ns: int
+    publish_every: int
+
+    @property
+    def p(self) -> int:
+        """Number of bodies."""
+        return self.crawler.p
+
+    @property
+    def n_links(self) -> int:
+        """Number of linkages (p - 1)."""
+        return self.crawler.p - 1
+
+    @property
+    def penalty_n(self) -> list[float] | None:
+        """The ``penalty`` argument of ``Stepper`` (None unless method is penalty)."""
+        if self.values['method'] != 'penalty':
+            return None
+        n = _as_list('penalty', self.values['penalty'], MAX_BODIES)
+        return n * self.p if len(n) == 1 else n
+
+    def engine_config(self) -> EngineConfig:
+        """The part of the configuration the plant's engine uses."""
+        v = self.values
+        return EngineConfig(self.crawler, v['method'], self.dt_ns, self.publish_every,
+                            self.initial_lengths, float(v['initial_position']), self.limits,
+                            self.penalty_n, {name: v[name] for name in PARAMETERS})
+
+    def __post_init__(self) -> None:
+        for name, value in self.values.items():
+            if name not in self.__dict__ and not hasattr(type(self), name):
+                object.__setattr__(self, name, value)
+
+    @classmethod
+    def from_values(cls, values: Mapping[str, Any]) -> PlantConfig:
+        """Validate a full set of parameter values (at least every name of ``PARAMETERS``);
+        raise ValueError naming the field and the allowed range."""
+        v = dict(values)
+        for name, (default, _, rng) in PARAMETERS.items():
+            if name not in v:
+                raise ValueError(f'missing parameter {name}')
+            if rng is not None:
+                v[name] = as_float(name, v[name], rng)
+        crawler = _crawler(v)
+        p = crawler.p
+        pen = _as_list('penalty', v['penalty'], MAX_BODIES)
+        lo_n, hi_n, _ = LIMITS['penalty']
+        if len(pen) not in (1, p) or not all(lo_n <= n <= hi_n for n in pen):
+            raise ValueError(f'penalty must have 1 or {p} entries, each in [{lo_n:g}, '
+                             f'{hi_n:g}] N s/m, got {pen}')
+        if v['method'] not in METHODS:
+            raise ValueError(f'method must be one of {", ".join(METHODS)}, got {v["method"]!r}')
+        lo, hi = v['min_length'], v['max_length']
+        if not lo < hi:
+            raise ValueError(f'min_length ({lo}) must be < max_length ({hi})')
+        lengths = _as_list('initial_lengths', v['initial_lengths'], MAX_BODIES)
+        if len(lengths) == 1:
+            lengths = lengths * (p - 1)
+        if len(lengths) != p - 1:
+            raise ValueError(f'initial_lengths must have 1 or {p - 1} entries (p-1 linkages), '
+                             f'got {len(lengths)}')
+        for j, x in enumerate(lengths):
+            if not (math.isfinite(x) and lo <= x <= hi):
+                raise ValueError(f'initial_lengths[{j}] = {x} outside [min_length, max_length]'
+                                 f' = [{lo}, {hi}]')
+        rate, pub = v['integration_rate'], v['publish_rate']
+        if pub > rate:
+            raise ValueError(f'publish_rate ({pub} Hz) must be <= integration_rate ({rate} Hz)')
+        limits = ActuatorLimits(v['actuator_bandwidth'], v['actuator_max_speed'],
+                                v['actuator_max_acceleration'])
+        for name in ('masses', 'mu', 'mu_backward', 'friction', 'friction_backward', 'penalty',
+                     'initial_lengths'):
+            v[name] = _as_list(name, v[name], MAX_BODIES)
+        return cls(v, crawler, tuple(lengths), limits, max(1, round(1e9 / rate)),
+                   max(1, round(rate / pub)))
+
+    @classmethod
+    def defaults(cls, **overrides: Any) -> PlantConfig:
+        """The default parameters (the seed's crawler) with ``overrides``."""
+        values = {name: default for name, (default, _, _) in PARAMETERS.items()}
+        values.update(overrides)
+        return cls.from_values(values)

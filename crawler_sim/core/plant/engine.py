@@ -1,0 +1,240 @@
+"""The plant: the actuator and the crawler on a fixed tick grid, and every input that changes it.
+
+``Engine`` is the one owner of the simulated plant. sim_node, ``crawler-sim replay``, the
+offline runs "as the node runs them" (``streams``) and the optimiser drive it through its input
+methods only: ``command`` (target lengths), ``trajectory`` (timed points), ``reconfigure`` (new
+parameters: masses and p, friction, method, actuator limits), ``reset``, ``pause`` and
+``resume``. Each input takes effect at the current tick boundary and is handed, with its time,
+to the ``journal`` callback: a node records them, and replaying the journal through another
+engine repeats the run bit for bit (``replay``).
+
+Each tick the actuator model emits one constant-jerk piece of l(t) (``actuator.py``); the pieces
+are queued and the core ``Stepper`` integrates them exactly in one call at each publish tick
+(``sync``). The physics does not depend on where the integration is cut, only the rounding does,
+so sync points are part of the determinism contract: the publish grid (every ``publish_every``
+ticks) and explicit ``sync()`` calls. Times are integer nanoseconds.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+from ..actuator import Actuator, ActuatorLimits
+from ..gaits import Cubic, PiecewiseCubic
+from ..model import Crawler
+from ..stepper import Stepper
+from ..trajectory import Event, State
+from .inputs import PreparedTrajectory
+
+__all__ = ['Engine', 'EngineConfig', 'Journal']
+
+#: journal(kind, t_ns, payload): kind is 'command' (lengths), 'trajectory'
+#: (PreparedTrajectory or None), 'configure' and 'reset' (EngineConfig), 'pause', 'resume' and
+#: 'sync' (an integration cut off the publish grid) (None)
+Journal = Callable[[str, int, Any], None]
+
+
+@dataclass(frozen=True)
+class EngineConfig:
+    """What the engine needs (units: s, m, ns); ``values``: the parameter values it was made
+    from (``PlantConfig``), kept for the journal."""
+
+    crawler: Crawler
+    method: str
+    dt_ns: int                           # tick length [ns]
+    publish_every: int                   # sync every this many ticks
+    initial_lengths: Sequence[float]     # [m]
+    initial_position: float              # body 0 [m]
+    limits: ActuatorLimits
+    penalty: Sequence[float] | None = None
+    values: dict | None = field(default=None, compare=False, repr=False)
+
+
+class Engine:
+    """Actuator + core stepper on a fixed tick grid in integer nanoseconds."""
+
+    def __init__(self, cfg: EngineConfig, t_ns: int = 0, journal: Journal | None = None) -> None:
+        self.failures: list[str] = []
+        self.journal = journal
+        self.paused = False
+        self._build(cfg, t_ns)
+
+    # ------------------------------------------------------------------ inputs
+    def command(self, lengths: Sequence[float]) -> None:
+        """Step targets [m], one per linkage, from the current tick boundary (cancels a
+        trajectory)."""
+        lengths = [float(x) for x in lengths]
+        self.actuator.set_target(lengths)
+        self._note('command', lengths)
+
+    def trajectory(self, prepared: PreparedTrajectory | None) -> None:
+        """Follow timed points from the current tick boundary (None or no point: hold the
+        current length). Raises ValueError, changing nothing, when the point times cannot be
+        used at this sim time (``PreparedTrajectory.reference``)."""
+        if prepared is None or not len(prepared.tfs_ns):
+            self.actuator.set_trajectory(None)
+        else:
+            self.actuator.set_trajectory(prepared.reference(self.t_ns, self.actuator.state()))
+        self._note('trajectory', prepared)
+
+    def reconfigure(self, cfg: EngineConfig) -> bool:
+        """New parameters from the current tick boundary. A change of p starts again at rest
+        in the initial configuration (returns True); a new crawler, method or step keeps the
+        bodies' positions and velocities; new actuator limits keep its state."""
+        old = self.cfg
+        if cfg.crawler.p != old.crawler.p:
+            self._build(cfg, self.t_ns)
+            self._note('configure', cfg)
+            return True
+        if (cfg.crawler.to_dict() != old.crawler.to_dict() or cfg.method != old.method
+                or cfg.dt_ns != old.dt_ns or cfg.penalty != old.penalty):
+            self._restart_stepper(cfg)
+        else:
+            self.sync()
+            self.cfg = cfg
+            if cfg.limits != old.limits:
+                self.actuator.configure(limits=cfg.limits)
+        self._note('configure', cfg)
+        return False
+
+    def reset(self, cfg: EngineConfig | None = None) -> None:
+        """Back to rest in the initial configuration (of ``cfg``, default the current one) at
+        the current sim time; events not popped yet are dropped."""
+        self._build(cfg or self.cfg, self.t_ns)
+        self._note('reset', self.cfg)
+
+    def pause(self) -> None:
+        """Stop ticking (the caller does not tick a paused engine; sim time stands still)."""
+        self.paused = True
+        self._note('pause', None)
+
+    def resume(self) -> None:
+        self.paused = False
+        self._note('resume', None)
+
+    def _note(self, kind: str, payload: Any) -> None:
+        if self.journal is not None:
+            self.journal(kind, self.t_ns, payload)
+
+    # ------------------------------------------------------------------ building
+    def _build(self, cfg: EngineConfig, t_ns: int) -> None:
+        """(Re)start at rest in the initial configuration at sim time ``t_ns``."""
+        self.cfg = cfg
+        self.t_ns = t_ns
+        dt = cfg.dt_ns * 1e-9
+        self.actuator = Actuator(list(cfg.initial_lengths), dt, cfg.limits)
+        t = t_ns / 1e9
+        rest = Cubic(t, list(cfg.initial_lengths), 0.0, 0.0, 0.0)
+        self.stepper = Stepper(cfg.crawler, rest, cfg.method, t0=t, x0=cfg.initial_position,
+                               v0=0.0, dt=dt, penalty=cfg.penalty)
+        self.stepper.pop_events()
+        self._starts: list[float] = []
+        self._pieces: list[Cubic] = []
+        self._events: list[Event] = []
+
+    def _restart_stepper(self, cfg: EngineConfig) -> None:
+        """New crawler, method or step from the current state on (bodies keep x and v)."""
+        self.sync()
+        st = self.stepper.state
+        t = self.t_ns / 1e9
+        self.actuator.configure(dt=cfg.dt_ns * 1e-9, limits=cfg.limits)
+        ls, vs, as_ = zip(*self.actuator.state())
+        here = Cubic(t, list(ls), list(vs), list(as_), 0.0)
+        self._events.extend(self.stepper.pop_events())
+        self.stepper = Stepper(cfg.crawler, here, cfg.method, t0=t, x0=float(st.x[0]),
+                               v0=float(st.v[0]), dt=cfg.dt_ns * 1e-9, penalty=cfg.penalty)
+        self.stepper.pop_events()
+        self.cfg = cfg
+
+    # ------------------------------------------------------------------ time
+    @property
+    def t(self) -> float:
+        """Sim time [s] at the current tick boundary."""
+        return self.t_ns / 1e9
+
+    def tick(self) -> bool:
+        """One tick of the actuator; integrates (syncs) on the publish grid.
+
+        Returns True when this tick ended on the publish grid (the state is then current).
+        """
+        t0_ns = self.t_ns
+        t1_ns = t0_ns + self.cfg.dt_ns
+        t0 = t0_ns / 1e9
+        self._starts.append(t0)
+        self._pieces.append(self.actuator.step(t0, t1_ns / 1e9))
+        self.t_ns = t1_ns
+        if (t1_ns // self.cfg.dt_ns) % self.cfg.publish_every == 0:
+            self.sync()
+            return True
+        return False
+
+    def tick_to_grid(self) -> int:
+        """``tick()`` repeated up to and including the next tick that ends on the publish grid
+        (which syncs); returns how many ticks ran. The same pieces, bit for bit, as calling
+        ``tick()`` that many times: a caller that has nothing to apply between those ticks
+        (the flat-out node between two publish ticks) saves the per-tick calls."""
+        dt_ns, every = self.cfg.dt_ns, self.cfg.publish_every
+        step, starts, pieces = self.actuator.step, self._starts, self._pieces
+        t0_ns, n = self.t_ns, 0
+        while True:
+            t1_ns = t0_ns + dt_ns
+            t0 = t0_ns / 1e9
+            starts.append(t0)
+            pieces.append(step(t0, t1_ns / 1e9))
+            t0_ns = t1_ns
+            n += 1
+            if (t1_ns // dt_ns) % every == 0:
+                break
+        self.t_ns = t0_ns
+        self.sync()
+        return n
+
+    def sync(self) -> None:
+        """Integrate the queued pieces up to the current tick boundary."""
+        if not self._pieces:
+            return
+        if (self.t_ns // self.cfg.dt_ns) % self.cfg.publish_every:
+            # off the publish grid: where the integration is cut changes the rounding, so a
+            # replay must cut here too
+            self._note('sync', None)
+        pieces, starts = self._pieces, self._starts
+        self._pieces, self._starts = [], []
+        t1 = self.t_ns / 1e9
+        if self.stepper.method != 'exact':
+            # time stepping: one call per tick keeps its steps on the tick grid
+            ends = starts[1:] + [t1]
+            for end, piece in zip(ends, pieces):
+                self.stepper.advance(end, piece)
+            self._events.extend(self.stepper.pop_events())
+            return
+        gait = pieces[0] if len(pieces) == 1 or all(pc is pieces[0] for pc in pieces) \
+            else PiecewiseCubic.trusted(starts, pieces)
+        try:
+            self.stepper.advance(t1, gait)
+        except (ValueError, RuntimeError, ArithmeticError) as exc:
+            self._fallback(t1, gait, exc)
+        self._events.extend(self.stepper.pop_events())
+
+    def _fallback(self, t1: float, gait, exc: Exception) -> None:
+        """Redo the interval with the implicit method from its start, so one failure never
+        stops the node; the failure is kept in ``failures``."""
+        self.failures.append(f'{self.stepper.method} solver failed before t = {t1} s: {exc}')
+        st = self.stepper.state
+        self.stepper = Stepper(self.cfg.crawler, gait, 'implicit', t0=float(st.t),
+                               x0=float(st.x[0]), v0=float(st.v[0]), dt=self.cfg.dt_ns * 1e-9)
+        self.stepper.advance(t1, gait)
+
+    @property
+    def state(self) -> State:
+        """The crawler now (integrates what is queued first)."""
+        self.sync()
+        return self.stepper.state
+
+    def actuator_state(self) -> list[tuple[float, float, float]]:
+        """(l [m], l' [m/s], l'' [m/s^2]) per linkage at the current tick boundary."""
+        return self.actuator.state()
+
+    def pop_events(self) -> list[Event]:
+        """Contact events integrated so far and not yet popped, in time order."""
+        out, self._events = self._events, []
+        return out
