@@ -5,8 +5,11 @@ the gait's t is measured from the first tick of the timer. Default gait: the see
 ``Scallop`` stroke of ONE linkage (extension in 20 % of the period, contraction in 80 %) at
 2 Hz, 0.08-0.12 m, which makes sim_node's default two-body crawler move forward (about
 +4 mm/s, although it asks more of the default actuator than it gives: |l'| up to
-0.77 m/s and |l''| up to 22 m/s^2). With ``n_links`` > 1 linkage j+1 leads linkage j
-by ``phase_lag``: a travelling wave for chains. Two modes:
+0.77 m/s and |l''| up to 22 m/s^2). With more than one linkage linkage j+1 leads linkage j
+by ``phase_lag``: a travelling wave for chains. How the gait is sent (``mode``, ``rate``,
+``horizon``, ``preload``, ``duration``) is a ``crawler_sim.core.plant.streams.Stream``, the
+same description ``crawler-sim optimize`` scores with (one sampler of a gait into trajectory
+points, ``streams.trajectory_points``):
 
 - ``command`` (default): every ``1/rate`` s it samples the lengths l(t) and publishes them on
   ``linkage_cmd`` (std_msgs/Float64MultiArray), the sim's step-command input; the sim's
@@ -15,24 +18,28 @@ by ``phase_lag``: a travelling wave for chains. Two modes:
 - ``trajectory``: every ``horizon/4`` s it publishes on ``linkage_trajectory`` a JointTrajectory
   stamped with absolute sim times, holding the next ``horizon`` s of the gait sampled at
   ``rate`` with positions, velocities and accelerations (quintic interpolation in the sim), plus
-  a final point at rest as joint_trajectory_controller requires. Each one replaces the previous
-  one long before its end, so the stroke is played exactly on sim time whatever the latency.
+  a final point at rest as joint_trajectory_controller requires.
+- ``preload`` (trajectory mode): one trajectory of the whole ``duration``, stamped 0 (start at
+  the tick it is applied), sent once a subscriber is matched: the same command stream whatever
+  the timing, hence a deterministic run (the demo's, and what an optimised gait file asks for).
+  The node then has no use for ROS time left and stops taking /clock, which would otherwise wake
+  it at every publish tick of a flat-out sim.
 
-Parameters: ``gait`` (scallop | sinusoid), ``n_links``, ``mean`` [m], ``amplitude`` [m],
-``frequency`` [Hz], ``asymmetry`` (scallop: fraction of the period spent extending),
-``phase_lag`` [rad] between neighbouring linkages, ``rate`` [Hz], ``mode``, ``horizon`` [s],
-``duration`` [s] of ROS time after which it stops publishing (0: forever), ``preload``
-(trajectory mode: one trajectory of the whole duration, stamped 0, sent once a subscriber is
-matched: the demo's deterministic command stream; the node then has no use for ROS time left
-and stops taking /clock, which would otherwise wake it at every publish tick of a flat-out sim).
+``n_links`` 0 (the default) asks the running sim_node (``sim_node`` names it, in this node's
+namespace) for its number of linkages and length limits, waiting up to ``wait_for_sim`` s; a
+``gait_file`` gives its own. Every parameter is checked at start: a bad value, a parameter the
+node does not have (``-p frequncy:=1.0``) or an argument outside ``--ros-args`` ends the node
+with one line naming it and its allowed range (exit code 1, 2 for arguments).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 import math
+import sys
 from typing import Any
 
 import numpy as np
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rcl_interfaces.msg import ParameterDescriptor
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -40,12 +47,49 @@ from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from crawler_sim.core import gaits
+from crawler_sim.core.plant.config import MAX_BODIES
+from crawler_sim.core.plant.streams import MODES, Stream, trajectory_points
 from crawler_sim.ros.messages import float64_array_msg, linkage_names, stamp_from_ns
 
-__all__ = ['GaitNode', 'make_gait', 'main']
+__all__ = ['GaitNode', 'GaitSettings', 'PARAMETERS', 'make_gait', 'main']
 
 GAITS = ('scallop', 'sinusoid')
-MODES = ('command', 'trajectory')
+MAX_LINKS = MAX_BODIES - 1
+
+#: name -> (default, description with unit and allowed values, (lo, hi) of a number or None)
+PARAMETERS: dict[str, tuple[Any, str, tuple[float, float] | None]] = {
+    'gait': ('scallop', 'Gait: ' + ' | '.join(GAITS), None),
+    'n_links': (0, f'Number of linkages (bodies - 1), 0 to {MAX_LINKS}; 0: ask the running '
+                'sim_node (a gait_file gives its own)', (0, MAX_LINKS)),
+    'mean': (0.1, 'Mean length [m], in (0, 100]', (0.0, 100.0)),
+    'amplitude': (0.02, 'Half stroke [m], in [0, 100] and below mean', (0.0, 100.0)),
+    'frequency': (2.0, 'Stroke frequency [Hz], in [0.001, 100]', (1e-3, 100.0)),
+    'asymmetry': (0.2, 'Scallop: fraction of the period spent extending, in [0.01, 0.99]',
+                  (0.01, 0.99)),
+    'phase_lag': (-math.pi / 2, 'Phase lag of linkage j+1 behind linkage j [rad], in '
+                  '[-10, 10] (negative: it leads)', (-10.0, 10.0)),
+    'rate': (50.0, 'Command rate [Hz] of ROS time (trajectory mode: samples per second), in '
+             '[0.1, 10000]', (0.1, 10000.0)),
+    'duration': (0.0, 'Stop publishing after this much ROS time [s], in [0, 1e9] (0: never)',
+                 (0.0, 1e9)),
+    'mode': ('command', 'command (lengths on linkage_cmd) | trajectory (on linkage_trajectory)',
+             None),
+    'horizon': (4.0, 'Trajectory mode: seconds of gait per trajectory, in [0.1, 3600]',
+                (0.1, 3600.0)),
+    'preload': (False, 'Trajectory mode: publish ONE trajectory of the whole duration, stamped '
+                '0 (start at the tick it is applied), as soon as a subscriber is matched; then '
+                'nothing. The same command stream whatever the timing: a deterministic run',
+                None),
+    'gait_file': ('', 'A scene YAML file (top-level "scene:", e.g. the OUT_scene.yaml of '
+                  'crawler-sim optimize): play its gait, of any family, instead of the gait '
+                  'parameters above', None),
+    'sim_node': ('crawler_sim', 'Name of the sim_node to ask for the number of linkages when '
+                 'n_links is 0 (relative: in this node\'s namespace)', None),
+    'wait_for_sim': (10.0, 'Seconds to wait for that sim_node, in [0, 3600]', (0.0, 3600.0)),
+}
+_GAIT_PARAMETERS = ('gait', 'mean', 'amplitude', 'frequency', 'asymmetry', 'phase_lag')
+_UNITS = {'mean': ' m', 'amplitude': ' m', 'frequency': ' Hz', 'phase_lag': ' rad',
+          'rate': ' Hz', 'duration': ' s', 'horizon': ' s', 'wait_for_sim': ' s'}
 
 
 def make_gait(name: str, n_links: int, mean: float, amplitude: float, frequency: float,
@@ -69,64 +113,113 @@ def gait_from_file(path: str) -> gaits.Gait:
         raise ValueError(f'gait_file: {exc}') from None
 
 
-def _desc(text: str, lo: float | None = None, hi: float | None = None,
-          integer: bool = False) -> ParameterDescriptor:
-    d = ParameterDescriptor(description=text, read_only=True)
-    if lo is not None:
-        if integer:
-            d.integer_range = [IntegerRange(from_value=int(lo), to_value=int(hi), step=1)]
-        else:
-            d.floating_point_range = [FloatingPointRange(from_value=lo, to_value=hi, step=0.0)]
-    return d
+def _number(name: str, value: Any, integer: bool = False) -> float:
+    """``value`` as a number in the range of ``PARAMETERS[name]`` (an int is a number; an
+    integral float is an integer); ValueError naming the field and the range."""
+    lo, hi = PARAMETERS[name][2]
+    unit = _UNITS.get(name, '')
+    kind = 'an integer' if integer else 'a number'
+    ok_type = isinstance(value, (int, float)) and not isinstance(value, bool)
+    if ok_type and integer and isinstance(value, float):
+        ok_type = value.is_integer()
+    if not ok_type:
+        raise ValueError(f'{name} must be {kind} in [{lo:g}, {hi:g}]{unit}, got {value!r}')
+    x = float(value)
+    if not (math.isfinite(x) and lo <= x <= hi):
+        raise ValueError(f'{name} must be in [{lo:g}, {hi:g}]{unit}, got {value!r}')
+    return int(x) if integer else x
+
+
+@dataclass(frozen=True)
+class GaitSettings:
+    """gait_node's parameters validated (no ROS): the gait (None while n_links is still to be
+    asked from the sim), its number of linkages (0: ask) and how it is sent."""
+
+    values: dict
+    n_links: int
+    stream: Stream
+    gait: gaits.Gait | None
+
+    @classmethod
+    def from_values(cls, values: dict) -> GaitSettings:
+        """Validate gait_node's parameter values; ValueError naming the field and the
+        allowed range."""
+        v = dict(values)
+        for name in ('gait', 'mode', 'gait_file', 'sim_node'):
+            if not isinstance(v[name], str):
+                raise ValueError(f'{name} must be a string ({PARAMETERS[name][1]}), got '
+                                 f'{v[name]!r}')
+        if v['gait'] not in GAITS:
+            raise ValueError(f'gait must be one of {", ".join(GAITS)}, got {v["gait"]!r}')
+        if v['mode'] not in MODES:
+            raise ValueError(f'mode must be one of {", ".join(MODES)}, got {v["mode"]!r}')
+        if not isinstance(v['preload'], bool):
+            raise ValueError(f'preload must be true or false, got {v["preload"]!r}')
+        n_links = _number('n_links', v['n_links'], integer=True)
+        for name, (_, _, rng) in PARAMETERS.items():
+            if rng is not None and name != 'n_links':
+                v[name] = _number(name, v[name])
+        if not v['mean'] > 0:
+            raise ValueError(f'mean must be in (0, 100] m, got {v["mean"]!r}')
+        if not v['amplitude'] < v['mean']:
+            raise ValueError(f'amplitude ({v["amplitude"]} m) must be below mean '
+                             f'({v["mean"]} m): a linkage length stays > 0')
+        try:
+            stream = Stream(v['mode'], v['rate'], v['horizon'], v['preload'], v['duration'])
+        except ValueError as exc:
+            raise ValueError(str(exc)) from None
+        gait = None
+        if v['gait_file']:
+            gait = gait_from_file(v['gait_file'])
+            if n_links and n_links != gait.n_links:
+                raise ValueError(f'n_links = {n_links}, but gait_file {v["gait_file"]} drives '
+                                 f'{gait.n_links} linkages')
+            n_links = gait.n_links
+        elif n_links:
+            gait = cls._gait(v, n_links)
+        return cls(v, n_links, stream, gait)
+
+    @staticmethod
+    def _gait(v: dict, n_links: int) -> gaits.Gait:
+        return make_gait(v['gait'], n_links, v['mean'], v['amplitude'], v['frequency'],
+                         v['asymmetry'], v['phase_lag'])
+
+    def with_links(self, n_links: int) -> GaitSettings:
+        """The settings with the number of linkages the sim reported."""
+        return GaitSettings(self.values, n_links, self.stream, self._gait(self.values, n_links))
+
+
+def _descriptor(name: str) -> ParameterDescriptor:
+    # dynamic typing: `-p amplitude:=1` (an integer) is a number too, and every value goes
+    # through GaitSettings, which names the field and its range in one line (rclpy's own type
+    # and range errors are tracebacks); read-only: the gait is fixed at start
+    return ParameterDescriptor(description=PARAMETERS[name][1], read_only=True,
+                               dynamic_typing=True)
 
 
 class GaitNode(Node):
-    """Publishes ``gait(t)`` lengths on ``linkage_cmd`` at ``rate`` Hz of ROS time."""
+    """Publishes ``gait(t)`` lengths on ``linkage_cmd`` (or trajectories) at ``rate`` Hz of
+    ROS time. Raises ValueError (one line) for a parameter it cannot use."""
 
-    def __init__(self, **kwargs: Any) -> None:
+    def __init__(self, argv: list[str] | None = None, **kwargs: Any) -> None:
         super().__init__('gait_node', **kwargs)
-        p = {
-            'gait': self.declare_parameter('gait', 'scallop', _desc(
-                'Gait: ' + ' | '.join(GAITS))).value,
-            'n_links': self.declare_parameter('n_links', 1, _desc(
-                'Number of linkages (bodies - 1)', 1, 100, integer=True)).value,
-            'mean': self.declare_parameter('mean', 0.1, _desc(
-                'Mean length [m]', 0.0, 100.0)).value,
-            'amplitude': self.declare_parameter('amplitude', 0.02, _desc(
-                'Half stroke [m]', 0.0, 100.0)).value,
-            'frequency': self.declare_parameter('frequency', 2.0, _desc(
-                'Stroke frequency [Hz]', 1e-3, 100.0)).value,
-            'asymmetry': self.declare_parameter('asymmetry', 0.2, _desc(
-                'Scallop: fraction of the period spent extending', 0.01, 0.99)).value,
-            'phase_lag': self.declare_parameter('phase_lag', -math.pi / 2, _desc(
-                'Phase lag of linkage j+1 behind linkage j [rad] (negative: it leads)',
-                -10.0, 10.0)).value,
-        }
-        rate = self.declare_parameter('rate', 50.0, _desc(
-            'Command rate [Hz] of ROS time', 0.1, 10000.0)).value
-        self._duration = self.declare_parameter('duration', 0.0, _desc(
-            'Stop publishing after this much ROS time [s] (0: never)', 0.0, 1e9)).value
-        self.mode = self.declare_parameter('mode', 'command', _desc(
-            'command (lengths on linkage_cmd) | trajectory (on linkage_trajectory)')).value
-        self._horizon = self.declare_parameter('horizon', 4.0, _desc(
-            'Trajectory mode: seconds of gait per trajectory', 0.1, 3600.0)).value
-        self._preload = self.declare_parameter('preload', False, _desc(
-            'Trajectory mode: publish ONE trajectory of the whole duration, stamped 0 (start at '
-            'the tick it is applied), as soon as a subscriber is matched; then nothing. The '
-            'same command stream whatever the timing: a deterministic run')).value
-        if self._preload and not (self.mode == 'trajectory' and self._duration > 0):
-            raise ValueError('preload needs mode trajectory and a duration > 0')
-        if self.mode not in MODES:
-            raise ValueError(f'mode must be one of {", ".join(MODES)}, got {self.mode!r}')
-        gait_file = self.declare_parameter('gait_file', '', _desc(
-            'A scene YAML file (top-level "scene:", e.g. the OUT_scene.yaml of crawler-sim '
-            'optimize): play its gait, of any family, instead of the gait parameters above')).value
-        self.gait = (gait_from_file(gait_file) if gait_file else
-                     make_gait(p['gait'], p['n_links'], p['mean'], p['amplitude'],
-                               p['frequency'], p['asymmetry'], p['phase_lag']))
-        if gait_file:
-            p = {'gait_file': gait_file, 'n_links': self.gait.n_links}
-        self._rate = rate
+        from crawler_sim.ros.args import unknown_parameters
+        values = {name: self.declare_parameter(name, default, _descriptor(name)).value
+                  for name, (default, _, _) in PARAMETERS.items()}
+        unknown = unknown_parameters(self, argv or [])
+        if unknown:
+            raise ValueError('; '.join(unknown))
+        settings = GaitSettings.from_values(values)
+        if settings.gait is None:
+            settings = settings.with_links(self._ask_sim(settings.values))
+        self.settings = settings
+        self.gait = settings.gait
+        self.mode = settings.stream.mode
+        self._stream = settings.stream
+        self._rate = settings.stream.rate
+        self._horizon = settings.stream.horizon
+        self._duration = settings.stream.duration
+        self._preload = settings.stream.preload
         if self.mode == 'command':
             self._pub = self.create_publisher(Float64MultiArray, 'linkage_cmd', 10)
         else:
@@ -139,10 +232,49 @@ class GaitNode(Node):
             self._preload_timer = self.create_timer(
                 0.05, self._on_preload, clock=Clock(clock_type=ClockType.STEADY_TIME))
         else:
-            self.create_timer(1.0 / rate, self._on_timer)
+            self.create_timer(1.0 / self._rate, self._on_timer)
         topic = 'linkage_cmd' if self.mode == 'command' else 'linkage_trajectory'
-        what = p.get('gait_file') or p['gait']
-        self.get_logger().info(f'playing {what} on {topic} at {rate} Hz: {p}')
+        v = settings.values
+        what = v['gait_file'] or {k: v[k] for k in _GAIT_PARAMETERS}
+        self.get_logger().info(f'playing {what} on {self.gait.n_links} linkage(s), {topic} at '
+                               f'{self._rate} Hz ({"preloaded" if self._preload else self.mode})')
+
+    def _ask_sim(self, v: dict) -> int:
+        """The number of linkages of the running sim_node (and a check of the gait against its
+        length limits); ValueError when it does not answer within ``wait_for_sim``."""
+        from rcl_interfaces.srv import GetParameters
+        from rclpy.executors import SingleThreadedExecutor
+        name = self.resolve_service_name(f'{v["sim_node"]}/get_parameters')
+        client = self.create_client(GetParameters, name)
+        executor = SingleThreadedExecutor(context=self.context)
+        executor.add_node(self)
+        try:
+            wait = v['wait_for_sim']
+            if not client.wait_for_service(timeout_sec=wait):
+                raise ValueError(f'n_links is 0 (ask the sim) but no sim_node answers at '
+                                 f'{client.srv_name} within wait_for_sim = {wait:g} s: start '
+                                 'sim_node first or give -p n_links:=N')
+            future = client.call_async(GetParameters.Request(
+                names=['masses', 'min_length', 'max_length']))
+            executor.spin_until_future_complete(future, timeout_sec=max(wait, 1.0))
+            if not future.done() or future.result() is None:
+                raise ValueError(f'{client.srv_name} did not answer within {wait:g} s')
+            masses, lo, hi = future.result().values
+        finally:
+            executor.remove_node(self)
+            executor.shutdown()
+            self.destroy_client(client)
+        n_links = len(masses.double_array_value) - 1
+        if not 1 <= n_links <= MAX_LINKS:
+            raise ValueError(f'the sim_node at {client.srv_name} reports {n_links} linkages')
+        low = v['mean'] - v['amplitude']
+        high = v['mean'] + v['amplitude']
+        if low < lo.double_value or high > hi.double_value:
+            raise ValueError(f'the gait spans [{low:g}, {high:g}] m, outside the sim\'s '
+                             f'[min_length, max_length] = [{lo.double_value:g}, '
+                             f'{hi.double_value:g}] m: every command would be rejected')
+        self.get_logger().info(f'{client.srv_name}: {n_links} linkage(s)')
+        return n_links
 
     def _on_timer(self) -> None:
         now = self.get_clock().now().nanoseconds
@@ -156,7 +288,7 @@ class GaitNode(Node):
             self.sent += 1
         elif now >= self._next_ns:
             self._pub.publish(self.trajectory(now))
-            self._next_ns = now + round(self._horizon / 4 * 1e9)
+            self._next_ns = now + self._stream.period_ns
             self.sent += 1
 
     def _on_preload(self) -> None:
@@ -183,26 +315,17 @@ class GaitNode(Node):
 
     def trajectory(self, now_ns: int, horizon: float | None = None) -> JointTrajectory:
         """The next ``horizon`` seconds of the gait from ROS time ``now_ns``, stamped
-        absolutely."""
-        n = max(2, round((self._horizon if horizon is None else horizon) * self._rate))
-        step = 1.0 / self._rate
-        tau = np.arange(n) * step
-        gait_t = (now_ns - self._t0_ns) / 1e9 + tau
-        if self._duration:
-            keep = gait_t <= self._duration
-            tau, gait_t = tau[keep], gait_t[keep]
-        l, ld, ldd = self.gait(gait_t)
+        absolutely (``streams.trajectory_points``)."""
+        tfs, pos, vel, acc = trajectory_points(
+            self.gait, (now_ns - self._t0_ns) / 1e9,
+            self._horizon if horizon is None else horizon, self._rate, self._duration)
         msg = JointTrajectory()
         msg.header.stamp = stamp_from_ns(now_ns)
         msg.joint_names = list(linkage_names(self.gait.n_links))
-        zeros = [0.0] * self.gait.n_links
-        rows = [(tk, l[k].tolist(), ld[k].tolist(), ldd[k].tolist()) for k, tk in enumerate(tau)]
-        last = rows[-1][0] if rows else 0.0
-        end_l = rows[-1][1] if rows else self.gait.length(gait_t[0] if len(gait_t) else 0.0)
-        rows.append((last + step, list(end_l), zeros, zeros))     # at rest, as JTC requires
-        for tk, pos, vel, acc in rows:
-            pt = JointTrajectoryPoint(positions=pos, velocities=vel, accelerations=acc)
-            pt.time_from_start.sec, pt.time_from_start.nanosec = divmod(round(tk * 1e9),
+        for k in range(len(tfs)):
+            pt = JointTrajectoryPoint(positions=pos[k].tolist(), velocities=vel[k].tolist(),
+                                      accelerations=acc[k].tolist())
+            pt.time_from_start.sec, pt.time_from_start.nanosec = divmod(int(tfs[k]),
                                                                         1_000_000_000)
             msg.points.append(pt)
         return msg
@@ -210,13 +333,24 @@ class GaitNode(Node):
 
 def main(args: list[str] | None = None) -> None:
     """Entry point of ``ros2 run crawler_sim gait_node``."""
-    rclpy.init(args=args)
+    from crawler_sim.ros.args import ArgsError, check_args
+    argv = list(sys.argv if args is None else args)
+    try:
+        check_args(argv, 'gait_node')
+    except ArgsError as exc:
+        print(f'[gait_node] cannot start: {exc}', file=sys.stderr, flush=True)
+        raise SystemExit(2) from None
+    rclpy.init(args=argv)
     node = None
     try:
-        node = GaitNode()
+        node = GaitNode(argv)
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except ValueError as exc:
+        if rclpy.ok():
+            print(f'[gait_node] cannot start: {exc}', file=sys.stderr, flush=True)
+            raise SystemExit(1) from None
     except Exception:
         if rclpy.ok():
             raise

@@ -604,7 +604,8 @@ def test_gait_node_plays_its_gait_on_sim_time(ros, mode, tolerance):
     # trajectory mode can play it exactly (the default stroke saturates the actuator)
     gait = GaitNode(context=ros.ctx, parameter_overrides=[
         Parameter('use_sim_time', value=True), Parameter('mode', value=mode),
-        Parameter('frequency', value=1.0), Parameter('asymmetry', value=0.4)])
+        Parameter('frequency', value=1.0), Parameter('asymmetry', value=0.4),
+        Parameter('n_links', value=1)])    # (asking the sim would block: it is not spun)
     ros.ex.add_node(gait)
     ros.others.append(gait)
     counter = 'commands_accepted' if mode == 'command' else 'trajectories_accepted'
@@ -627,7 +628,8 @@ def test_gait_node_stops_taking_clock_once_its_preload_is_sent(ros):
     sim = ros.sim(seed=True)
     gait = GaitNode(context=ros.ctx, parameter_overrides=[
         Parameter('use_sim_time', value=True), Parameter('mode', value='trajectory'),
-        Parameter('preload', value=True), Parameter('duration', value=2.0)])
+        Parameter('preload', value=True), Parameter('duration', value=2.0),
+        Parameter('n_links', value=1)])
     ros.ex.add_node(gait)
     ros.others.append(gait)
 

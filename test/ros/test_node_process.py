@@ -356,3 +356,76 @@ def test_the_demo_crawls_the_same_every_time_in_the_users_domain(ament_env, tmp_
     np.testing.assert_array_equal(a.t[:n], b.t[:n])
     np.testing.assert_array_equal(a.x[:n], b.x[:n])
     assert a.x[n - 1, 0] - a.x[0, 0] > 1e-3          # and it crawls forward
+
+
+def _run_to_exit(proc: Proc) -> tuple[int, str]:
+    try:
+        code = proc.popen.wait(timeout=DEADLINE)
+    finally:
+        proc.kill()
+    proc.err.seek(0)
+    return code, proc.err.read()
+
+
+@pytest.mark.parametrize('args,code,line', [
+    (['-p', 'gait:=scalop'], 1, "gait must be one of scallop, sinusoid, got 'scalop'"),
+    (['-p', 'n_links:=-2'], 1, 'n_links must be in [0, 63], got -2'),
+    (['-p', 'amplitude:=-1.0'], 1, 'amplitude must be in [0, 100] m, got -1.0'),
+    (['-p', 'amplitude:=abc'], 1, "amplitude must be a number in [0, 100] m, got 'abc'"),
+    (['-p', 'frequncy:=1.0', '-p', 'n_links:=1'], 1,
+     'frequncy is not a parameter of gait_node (did you mean frequency?)'),
+    (['-p', 'mode:=trajectory', '-p', 'preload:=true'], 1,
+     'preload needs mode trajectory and a duration > 0'),
+])
+def test_gait_node_names_a_bad_parameter_in_one_line(ament_env, tmp_path, args, code, line):
+    got, err = _run_to_exit(Proc(tmp_path, ament_env, 'gait_node', *args))
+    assert got == code, err
+    assert line in err and 'Traceback' not in err
+    assert len([ln for ln in err.splitlines() if 'cannot start' in ln]) == 1
+
+
+@pytest.mark.parametrize('name', ['gait_node', 'sim_node'])
+def test_a_params_file_outside_ros_args_is_reported_not_ignored(ament_env, tmp_path, name):
+    """``gait_node --params-file best.yaml`` (``--ros-args`` forgotten): rclpy would hand the
+    arguments to the program, which ignores them and plays its defaults."""
+    params = tmp_path / 'p.yaml'
+    params.write_text('gait_node:\n  ros__parameters:\n    frequency: 1.0\n')
+    proc = Proc(tmp_path, ament_env, name)
+    proc.popen.kill()
+    proc.popen.wait()
+    proc.popen = subprocess.Popen([str(executable(name)), '--params-file', str(params)],
+                                  env=ament_env, stdout=proc.out, stderr=proc.err)
+    got, err = _run_to_exit(proc)
+    assert got == 2, err
+    assert 'ROS arguments go after --ros-args' in err and 'Traceback' not in err
+
+
+def test_a_misspelt_sim_node_parameter_is_reported(ament_env, tmp_path):
+    got, err = _run_to_exit(Proc(tmp_path, ament_env, 'sim_node', '-p', 'masess:=[1.0, 2.0]'))
+    assert got == 1, err
+    assert 'masess is not a parameter of crawler_sim (did you mean masses?)' in err
+
+
+def test_gait_node_takes_the_number_of_linkages_from_the_running_sim(ament_env, peer,
+                                                                      tmp_path):
+    """No n_links: gait_node asks the sim (three bodies, two linkages) and sends two lengths,
+    which the sim accepts (a single length would be rejected: 'expected 2 lengths')."""
+    sim = Proc(tmp_path, ament_env, 'sim_node', '--params-file',
+               str(config_file('chain_3body.yaml')), '-p', 'real_time_factor:=4.0',
+               '-p', 'diagnostics_period:=0.2', '-p', 'publish_markers:=false')
+    gait = Proc(tmp_path, ament_env, 'gait_node', '-p', 'use_sim_time:=true')
+    try:
+        diags: list[DiagnosticArray] = []
+        peer.node.create_subscription(DiagnosticArray, '/diagnostics', diags.append, 100)
+        peer.until(lambda: diags and int(
+            diagnostics_values(diags[-1])['commands_accepted']) > 20, 'commands from gait_node',
+            timeout=60.0)
+        codes = [gait.stop(signal.SIGINT), sim.stop(signal.SIGINT)]
+    finally:
+        gait.kill()
+        sim.kill()
+    for code, err in codes:
+        assert code == 0 and 'Traceback' not in err, err
+    assert '2 linkage(s)' in codes[0][1] or '2 linkage(s)' in open(tmp_path /
+                                                                   'gait_node.out').read()
+    assert diagnostics_values(diags[-1])['commands_rejected'] == '0'

@@ -53,10 +53,17 @@ class EngineConfig:
 class Engine:
     """Actuator + core stepper on a fixed tick grid in integer nanoseconds."""
 
-    def __init__(self, cfg: EngineConfig, t_ns: int = 0, journal: Journal | None = None) -> None:
+    def __init__(self, cfg: EngineConfig, t_ns: int = 0, journal: Journal | None = None, *,
+                 integrate: bool = True) -> None:
+        """``integrate=False``: the actuator only; the pieces it emits are kept for
+        :meth:`actuator_output` instead of being integrated (an offline run hands them to the
+        core in one call, ``streams``)."""
         self.failures: list[str] = []
         self.journal = journal
         self.paused = False
+        self.integrate = integrate
+        self._log_starts: list[float] = []
+        self._log_pieces: list[Cubic] = []
         self._build(cfg, t_ns)
 
     # ------------------------------------------------------------------ inputs
@@ -193,6 +200,11 @@ class Engine:
         """Integrate the queued pieces up to the current tick boundary."""
         if not self._pieces:
             return
+        if not self.integrate:
+            self._log_starts.extend(self._starts)
+            self._log_pieces.extend(self._pieces)
+            self._pieces, self._starts = [], []
+            return
         if (self.t_ns // self.cfg.dt_ns) % self.cfg.publish_every:
             # off the publish grid: where the integration is cut changes the rounding, so a
             # replay must cut here too
@@ -227,8 +239,20 @@ class Engine:
     @property
     def state(self) -> State:
         """The crawler now (integrates what is queued first)."""
+        if not self.integrate:
+            raise RuntimeError('an Engine(..., integrate=False) has no crawler state')
         self.sync()
         return self.stepper.state
+
+    def actuator_output(self) -> PiecewiseCubic:
+        """l(t) the actuator emitted so far (``integrate=False``): one constant-jerk piece per
+        tick."""
+        if self.integrate:
+            raise RuntimeError('actuator_output() needs an Engine(..., integrate=False)')
+        self.sync()
+        if not self._log_pieces:
+            raise ValueError('no tick has run yet')
+        return PiecewiseCubic.trusted(list(self._log_starts), list(self._log_pieces))
 
     def actuator_state(self) -> list[tuple[float, float, float]]:
         """(l [m], l' [m/s], l'' [m/s^2]) per linkage at the current tick boundary."""

@@ -4,10 +4,10 @@ The simulation loop runs in the main thread; ROS callbacks (services, parameters
 thread. On SIGINT/SIGTERM the loop stops between two ticks; the executor thread is joined before
 anything is destroyed, then the bag is closed, the node destroyed and rclpy shut down.
 
-Before rclpy parses them, the ``--params-file`` arguments are checked: a file that is missing,
-not YAML, or not a ROS parameter file (no ``ros__parameters`` section, e.g. one of the scene
-files of ``config/scenes/``) gives one line naming the file and exit code 2, instead of an rcl
-traceback.
+Before rclpy parses them, the arguments are checked (``crawler_sim.ros.args``): a
+``--params-file`` that is missing, not YAML, or not a ROS parameter file, or an argument
+outside ``--ros-args``, gives one line naming it and exit code 2, instead of an rcl traceback
+or silence.
 """
 from __future__ import annotations
 
@@ -18,55 +18,19 @@ import threading
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
-__all__ = ['main', 'check_params_files', 'ParamsFileError']
+__all__ = ['main']
 
 SPIN_TIMEOUT = 2.0       # s, the longest wait of the executor thread for a callback
-
-
-class ParamsFileError(ValueError):
-    """A --params-file argument that rcl could not use."""
-
-
-def _has_ros_parameters(node) -> bool:
-    if not isinstance(node, dict):
-        return False
-    return 'ros__parameters' in node or any(_has_ros_parameters(v) for v in node.values())
-
-
-def check_params_files(args: list[str]) -> None:
-    """Raise ParamsFileError for a ``--params-file`` in ``args`` that is not a ROS 2
-    parameter file."""
-    import yaml
-    for k, arg in enumerate(args):
-        if arg != '--params-file':
-            continue
-        if k + 1 >= len(args):
-            raise ParamsFileError('--params-file needs a file name')
-        path = args[k + 1]
-        try:
-            with open(path, encoding='utf-8') as f:
-                doc = yaml.safe_load(f)
-        except OSError as exc:
-            raise ParamsFileError(f'cannot read parameter file {path}: {exc.strerror}') from None
-        except yaml.YAMLError as exc:
-            raise ParamsFileError(f'{path} is not valid YAML: {exc}') from None
-        if not _has_ros_parameters(doc):
-            hint = ''
-            if isinstance(doc, dict) and 'scene' in doc:
-                hint = (' It is a scene file: run it with `crawler-sim simulate ' + path
-                        + '`; the node\'s parameter files are in config/ros/ '
-                        '(e.g. config/ros/crawler_sim.yaml).')
-            raise ParamsFileError(f'{path} is not a ROS 2 parameter file (no '
-                                  f'"<node name>: ros__parameters:" section).{hint}')
 
 
 def main(args: list[str] | None = None) -> None:
     """Run sim_node until SIGINT/SIGTERM."""
     from .node import SimNode
+    from crawler_sim.ros.args import ArgsError, check_args, unknown_parameters
     argv = sys.argv if args is None else args
     try:
-        check_params_files(list(argv))
-    except ParamsFileError as exc:
+        check_args(list(argv), 'sim_node')
+    except ArgsError as exc:
         print(f'[crawler_sim] cannot start: {exc}', file=sys.stderr, flush=True)
         raise SystemExit(2) from None
     rclpy.init(args=args)
@@ -77,6 +41,11 @@ def main(args: list[str] | None = None) -> None:
     try:
         executor = SingleThreadedExecutor()
         node = SimNode()
+        unknown = unknown_parameters(node, argv)
+        if unknown:                 # a misspelt name would otherwise be ignored silently
+            print(f'[crawler_sim] cannot start: {"; ".join(unknown)}', file=sys.stderr,
+                  flush=True)
+            raise SystemExit(1)
         executor.add_node(node)
         node.warm_up()
         # From here a signal only asks the loop to stop between two ticks: an exception raised

@@ -1,0 +1,127 @@
+"""Command-line checks shared by the nodes: what rcl would reject with a traceback, or ignore
+without a word, is reported in one line naming the argument (``main`` exits with code 2).
+
+- ``--params-file FILE``: missing, not YAML, or not a ROS 2 parameter file (no
+  ``<node>: ros__parameters:``, e.g. a scene file of ``config/scenes/``);
+- arguments outside ``--ros-args``: rclpy hands them to the program, which takes none, so
+  ``gait_node --params-file best_gait.yaml`` (``--ros-args`` forgotten) would otherwise play the
+  default gait without a word;
+- parameters given for the node that it does not declare (``-p frequncy:=1.0``), with the
+  nearest declared name: rclpy ignores them silently.
+"""
+from __future__ import annotations
+
+import difflib
+from typing import Iterable, Sequence
+
+__all__ = ['ArgsError', 'check_args', 'check_params_files', 'unknown_parameters']
+
+#: parameters rclpy or the middleware declare or read on every node
+_ROS_OWN = ('use_sim_time', 'start_type_description_service')
+
+
+class ArgsError(ValueError):
+    """A command-line argument the node cannot use."""
+
+
+def _has_ros_parameters(node) -> bool:
+    if not isinstance(node, dict):
+        return False
+    return 'ros__parameters' in node or any(_has_ros_parameters(v) for v in node.values())
+
+
+def check_params_files(args: Sequence[str]) -> None:
+    """Raise ArgsError for a ``--params-file`` in ``args`` that is not a ROS 2 parameter
+    file."""
+    import yaml
+    for k, arg in enumerate(args):
+        if arg != '--params-file':
+            continue
+        if k + 1 >= len(args):
+            raise ArgsError('--params-file needs a file name')
+        path = args[k + 1]
+        try:
+            with open(path, encoding='utf-8') as f:
+                doc = yaml.safe_load(f)
+        except OSError as exc:
+            raise ArgsError(f'cannot read parameter file {path}: {exc.strerror}') from None
+        except yaml.YAMLError as exc:
+            raise ArgsError(f'{path} is not valid YAML: {exc}'.replace('\n', ' ')) from None
+        if not _has_ros_parameters(doc):
+            hint = ''
+            if isinstance(doc, dict) and 'scene' in doc:
+                hint = (' It is a scene file: run it with `crawler-sim simulate ' + path
+                        + '`; the node\'s parameter files are in config/ros/ '
+                        '(e.g. config/ros/crawler_sim.yaml).')
+            raise ArgsError(f'{path} is not a ROS 2 parameter file (no '
+                            f'"<node name>: ros__parameters:" section).{hint}')
+
+
+def check_args(argv: Sequence[str], executable: str) -> None:
+    """Raise ArgsError for a bad ``--params-file`` or an argument outside ``--ros-args``
+    (``argv[0]`` is the program). ``executable`` names the node in the hint."""
+    args = list(argv[1:])
+    check_params_files(args)
+    from rclpy.utilities import remove_ros_args
+    stray = remove_ros_args(['prog', *args])[1:]
+    if not stray:
+        return
+    if '--params-file' in stray or '-p' in stray or '--param' in stray:
+        raise ArgsError(f'{" ".join(stray)}: ROS arguments go after --ros-args, e.g. '
+                        f'`ros2 run crawler_sim {executable} --ros-args --params-file FILE` '
+                        f'(without --ros-args the file is not read)')
+    raise ArgsError(f'unexpected argument(s) {" ".join(stray)}: {executable} takes only ROS '
+                    f'arguments (after --ros-args: -p name:=value, --params-file FILE, -r ...)')
+
+
+def _wildcard_names(args: Sequence[str]) -> set[str]:
+    """Parameter names a ``--params-file`` gives every node (under a key with ``*``, e.g.
+    ``/**``): one file may serve several nodes, so a name there is not a typo for this one."""
+    import yaml
+    names: set[str] = set()
+
+    def walk(doc, wild: bool) -> None:
+        if not isinstance(doc, dict):
+            return
+        for key, value in doc.items():
+            if key == 'ros__parameters' and isinstance(value, dict):
+                if wild:
+                    names.update(_flat(value))
+            else:
+                walk(value, wild or '*' in str(key))
+    for k, arg in enumerate(args[:-1]):
+        if arg == '--params-file':
+            try:
+                with open(args[k + 1], encoding='utf-8') as f:
+                    walk(yaml.safe_load(f), False)
+            except (OSError, yaml.YAMLError):
+                pass                    # check_params_files reports it
+    return names
+
+
+def _flat(params: dict, prefix: str = '') -> list[str]:
+    out = []
+    for key, value in params.items():
+        name = f'{prefix}{key}'
+        out.extend(_flat(value, name + '.') if isinstance(value, dict) else [name])
+    return out
+
+
+def unknown_parameters(node, argv: Sequence[str]) -> list[str]:
+    """One message per parameter given to ``node`` (``-p`` or a ``--params-file`` section for
+    its name) that it does not declare, with the nearest declared name. Names given to every
+    node (a ``/**`` section) and rclpy's own are not reported."""
+    # rclpy keeps the overrides it read from the arguments in Node._parameter_overrides and has
+    # no public accessor for them; without it a misspelt name is ignored without a word
+    given: Iterable[str] = getattr(node, '_parameter_overrides', {}).keys()
+    known = set(node.get_parameters_by_prefix(''))
+    wild = _wildcard_names(list(argv))
+    out = []
+    for name in given:
+        if (name in known or name in _ROS_OWN or name in wild
+                or name.startswith('qos_overrides.')):
+            continue
+        near = difflib.get_close_matches(name, sorted(known - set(_ROS_OWN)), n=1)
+        hint = f' (did you mean {near[0]}?)' if near else ''
+        out.append(f'{name} is not a parameter of {node.get_name()}{hint}')
+    return out
