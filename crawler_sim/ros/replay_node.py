@@ -8,6 +8,26 @@ each batch of messages that share a log time, ``/clock`` (rosgraph_msgs/Clock) i
 that log time, so ``use_sim_time`` nodes follow the bag's time. Use ROS remapping
 (``-r /linkage_cmd:=/other``) to publish a topic under another name.
 
+Looping: sim time continues, ``/clock`` never goes backwards. Pass k (k = 0, 1, 2, ...) of the
+bag publishes everything shifted by k * (D + P) of sim time, where
+
+* D [ns] is the span of one pass: from the start point (start of the bag + ``start_offset``) to
+  the last log time played;
+* P [ns] is one publish period: the most common spacing between consecutive distinct log times
+  played (ties: the shortest), i.e. 1/publish_rate for a sim_node bag; 1 s when only one log
+  time is played.
+
+The shift applies to ``/clock``, to every ``builtin_interfaces/Time`` in a replayed message
+(header stamps, the stamps of each marker, a recorded ``/clock``: found from the message type,
+at any depth), and to the ``sim_time`` value of a ``/diagnostics`` status. Two exceptions keep
+their meaning: a zero stamp in a ``trajectory_msgs`` message ("start on receipt") stays zero, and
+durations (``time_from_start``, marker lifetimes) are relative, so they are not shifted. Data
+fields (positions, commands, the plant_inputs journal) are published as recorded. At the seam,
+``/clock`` steps from the last log time of pass k to the first of pass k + 1: forward by P plus
+the gap between the start point and the first message played; the wall clock waits that step /
+``rate``, so pacing is continuous across the seam (a pass shorter than 0.1 s of wall time is
+stretched to 0.1 s, so a tiny bag at a high rate does not loop hot; sim time is unaffected).
+
 Parameters
 ----------
 bag : str
@@ -15,11 +35,13 @@ bag : str
 rate : float
     Playback speed factor (> 0; 2 plays twice as fast). Default 1.
 loop : bool
-    Start again from ``start_offset`` at the end of the bag. Default false.
+    Start again from ``start_offset`` at the end of the bag, with sim time continued (see
+    Looping above). Default false.
 start_offset : float
     Seconds of log time after the start of the bag at which playback starts (>= 0).
 publish_clock : bool
-    Publish ``/clock`` with the log time of every batch. Default true.
+    Publish ``/clock`` with the log time of every batch (plus the shift of the pass when
+    looping). Default true.
 topics : string array
     Topics to play (e.g. ``['/linkage_cmd']`` to drive a live sim_node with a recorded
     controller). Default: every topic of the bag except the latched scene topic.
@@ -38,11 +60,15 @@ invalid parameters (one line on stderr, no traceback).
 from __future__ import annotations
 
 from bisect import bisect_left
+from collections import Counter
 from dataclasses import dataclass
+from functools import lru_cache
+from importlib import import_module
 import sys
 import time
 from typing import Any, Callable
 
+from diagnostic_msgs.msg import DiagnosticArray
 from mcap.records import Channel, Schema
 from rcl_interfaces.msg import ParameterDescriptor
 import rclpy
@@ -54,20 +80,23 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
+from rosidl_parser.definition import AbstractNestedType, NamespacedType
 from std_srvs.srv import SetBool
 
 from crawler_sim.bag import BagError, bag_files
 from crawler_sim.bag.mcapfile import Batch, scan
 from crawler_sim.bag.schema import message_class, parse_qos_yaml
 from crawler_sim.bag.topics import SCENE, split_topic
-from crawler_sim.ros.messages import stamp_from_ns
+from crawler_sim.ros.messages import ns_from_stamp, stamp_from_ns
 
-__all__ = ['ReplayError', 'ReplayNode', 'Recording', 'Track', 'read_bag', 'main']
+__all__ = ['ReplayError', 'ReplayNode', 'Recording', 'Track', 'read_bag', 'publish_period_ns',
+           'shift_stamps', 'main']
 
 NODE_NAME = 'replay_node'
 QUEUE_DEPTH = 100          # publisher history: bursts at a high rate are not dropped
 MAX_WAIT_SLICE = 0.1       # s: longest single wait, so parameter services stay responsive
 ACK_TIMEOUT = 2.0          # s to wait at the end for reliable subscribers to acknowledge
+SINGLE_TIME_PERIOD_NS = 1_000_000_000   # loop period P [ns] of a bag with one log time to play
 
 
 class ReplayError(ValueError):
@@ -180,6 +209,110 @@ def read_bag(path: str, topics: list[str] | None = None,
                      [e[3] for e in entries], start_ns, end_ns)
 
 
+def publish_period_ns(log_times: list[int]) -> int:
+    """One publish period P [ns] of sorted ``log_times`` [ns]: the most common spacing between
+    consecutive distinct times (ties: the shortest); :data:`SINGLE_TIME_PERIOD_NS` for fewer
+    than two distinct times.
+
+    The most common spacing, not the smallest: in a sim_node bag an event or a command logged
+    between two publish ticks makes a shorter, irregular spacing, while the publish grid
+    (1/publish_rate) makes most of them.
+    """
+    distinct = sorted(set(log_times))
+    gaps = Counter(b - a for a, b in zip(distinct, distinct[1:]))
+    if not gaps:
+        return SINGLE_TIME_PERIOD_NS
+    return min(gaps, key=lambda gap: (-gaps[gap], gap))
+
+
+# A plan of where a message type holds builtin_interfaces/Time: (field, kind, sub-plan) per
+# field that can hold one. kind: 'time' (a Time), 'times' (a sequence of Time), 'msg' (a message
+# holding Time somewhere), 'msgs' (a sequence of such messages).
+_Plan = tuple[tuple[str, str, Any], ...]
+_TIME = (('builtin_interfaces', 'msg'), 'Time')
+
+
+@lru_cache(maxsize=None)
+def _message_type(namespaces: tuple[str, ...], name: str) -> type:
+    return getattr(import_module('.'.join(namespaces)), name)
+
+
+@lru_cache(maxsize=None)
+def _time_plan(cls: type) -> _Plan:
+    """Where a message of class ``cls`` holds ``builtin_interfaces/Time``, from its IDL types
+    (so any message type of any package is covered, at any depth)."""
+    plan = []
+    for field, slot_type in zip(cls.get_fields_and_field_types(), cls.SLOT_TYPES):
+        nested = isinstance(slot_type, AbstractNestedType)
+        value_type = slot_type.value_type if nested else slot_type
+        if not isinstance(value_type, NamespacedType):
+            continue                     # numbers, strings and their arrays: no time in them
+        key = (tuple(value_type.namespaces), value_type.name)
+        if key == _TIME:
+            plan.append((field, 'times' if nested else 'time', None))
+            continue
+        sub = _time_plan(_message_type(*key))
+        if sub:
+            plan.append((field, 'msgs' if nested else 'msg', sub))
+    return tuple(plan)
+
+
+def _shifted(stamp: Any, offset_ns: int, keep_zero: bool) -> Any:
+    t_ns = ns_from_stamp(stamp)
+    if keep_zero and t_ns == 0:
+        return stamp
+    return stamp_from_ns(t_ns + offset_ns)
+
+
+def _apply_plan(msg: Any, plan: _Plan, offset_ns: int, keep_zero: bool,
+                seen: set[int]) -> None:
+    # A message built in Python may share one object between several fields (messages.
+    # markers_msg gives every marker the same Time): Times are replaced by new ones, never
+    # changed in place, and a shared sub-message is shifted once (``seen``: ids visited)
+    if id(msg) in seen:
+        return
+    seen.add(id(msg))
+    for field, kind, sub in plan:
+        value = getattr(msg, field)
+        if kind == 'time':
+            setattr(msg, field, _shifted(value, offset_ns, keep_zero))
+        elif kind == 'times':
+            setattr(msg, field, [_shifted(t, offset_ns, keep_zero) for t in value])
+        elif kind == 'msg':
+            _apply_plan(value, sub, offset_ns, keep_zero, seen)
+        else:
+            for item in value:
+                _apply_plan(item, sub, offset_ns, keep_zero, seen)
+
+
+def shift_stamps(msg: Any, offset_ns: int) -> Any:
+    """Shift every sim time that ``msg`` carries by ``offset_ns`` [ns], in place; return it.
+
+    That is every ``builtin_interfaces/Time`` in it (header stamps, at any depth) and the
+    ``sim_time`` value [s] of each status of a ``diagnostic_msgs/DiagnosticArray`` (sim_node's
+    diagnostics). A zero stamp in a ``trajectory_msgs`` message stays zero: there it means
+    "start on receipt", not sim time 0. Durations are relative and stay as they are.
+    """
+    if offset_ns == 0:
+        return msg
+    cls = type(msg)
+    # JointTrajectory, MultiDOFJointTrajectory: header stamp 0 = start on receipt
+    keep_zero = cls.__module__.split('.', 1)[0] == 'trajectory_msgs'
+    _apply_plan(msg, _time_plan(cls), offset_ns, keep_zero, set())
+    if isinstance(msg, DiagnosticArray):
+        for status in msg.status:
+            for item in status.values:
+                if item.key != 'sim_time':
+                    continue
+                try:
+                    t_s = float(item.value)
+                except ValueError:
+                    continue            # not a number: not sim_node's figure, left as is
+                # the format sim_node writes it in (messages.diagnostics_msg)
+                item.value = f'{t_s + offset_ns / 1e9:.6g}'
+    return msg
+
+
 class ReplayNode(Node):
     """Publishes a :class:`Recording` against the wall clock; see the module docstring."""
 
@@ -221,6 +354,12 @@ class ReplayNode(Node):
             duration = (self.rec.end_ns - self.rec.start_ns) / 1e9
             raise ReplayError(f'{path}: start_offset {offset} s is past the last message to '
                               f'play (the bag lasts {duration:.3f} s)')
+        played = self.rec.log_times[self.first:]
+        self.period_ns = publish_period_ns(played)
+        # sim time a pass adds: its span from the start point plus one publish period, so the
+        # next pass starts one period after this one ends and /clock keeps increasing
+        self.loop_ns = played[-1] - self.begin_ns + self.period_ns
+        self._t0: float | None = None     # wall time [s] of the start point of pass 0
         self.pubs = {name: self.create_publisher(t.cls, name, t.qos)
                      for name, t in self.rec.tracks.items()}
         self.clock_pub = (self.create_publisher(Clock, '/clock', 10)
@@ -245,27 +384,38 @@ class ReplayNode(Node):
         return list(self.pubs.values()) + ([self.clock_pub] if self.clock_pub else [])
 
     def play(self, executor: SingleThreadedExecutor) -> None:
-        """Wait for subscribers if asked, then play once (or forever with ``loop``)."""
+        """Wait for subscribers if asked, then play once (or forever with ``loop``, pass k
+        shifted by k * :attr:`loop_ns` of sim time; see the module docstring)."""
         if self.wait_for > 0:
             self.get_logger().info(f'waiting for {self.wait_for} subscriber(s) per topic')
             while not all(p.get_subscription_count() >= self.wait_for
                           for p in self.all_publishers()):
                 executor.spin_once(timeout_sec=0.05)
+        self._t0 = time.monotonic()
+        loop_pass = 0
         while True:
-            started = time.monotonic()
-            self.play_once(executor)
+            self.play_once(executor, loop_pass * self.loop_ns)
             if not self.loop:
                 break
-            if time.monotonic() - started < MAX_WAIT_SLICE:    # one batch: no hot loop
-                executor.spin_once(timeout_sec=MAX_WAIT_SLICE)
+            loop_pass += 1
+            # a pass shorter than MAX_WAIT_SLICE of wall time (one batch at a high rate) is
+            # stretched to it, so that a loop is never a hot loop; sim time is unaffected
+            self._t0 += max(0.0, MAX_WAIT_SLICE - self.loop_ns / 1e9 / self.rate)
         deadline = Duration(seconds=ACK_TIMEOUT)
         for pub in self.all_publishers():     # let reliable subscribers get the last messages
             pub.wait_for_all_acked(deadline)
 
-    def play_once(self, executor: SingleThreadedExecutor) -> None:
-        """Publish every message from ``start_offset`` to the end, paced by the wall clock."""
+    def play_once(self, executor: SingleThreadedExecutor, offset_ns: int = 0) -> None:
+        """Publish every message from ``start_offset`` to the end, each stamp shifted by
+        ``offset_ns`` [ns] of sim time, paced by the wall clock.
+
+        Log time t is due at wall time t0 + (t + offset_ns - start point) / rate, t0 being the
+        wall time of pass 0's start point (moved on by pauses): one schedule for every pass, so
+        the seam between two passes lasts the sim-time step / rate, as any other spacing.
+        """
         rec, rate, log = self.rec, self.rate, self.get_logger()
-        t0 = time.monotonic()
+        if self._t0 is None:
+            self._t0 = time.monotonic()
         i, n = self.first, len(rec.log_times)
         while i < n:
             t_ns = rec.log_times[i]
@@ -274,13 +424,14 @@ class ReplayNode(Node):
                     paused_at = time.monotonic()
                     while self.paused:
                         executor.spin_once(timeout_sec=MAX_WAIT_SLICE)
-                    t0 += time.monotonic() - paused_at
-                left = t0 + (t_ns - self.begin_ns) / 1e9 / rate - time.monotonic()
+                    self._t0 += time.monotonic() - paused_at
+                left = (self._t0 + (t_ns + offset_ns - self.begin_ns) / 1e9 / rate
+                        - time.monotonic())
                 if left <= 0.0:
                     break
                 executor.spin_once(timeout_sec=min(left, MAX_WAIT_SLICE))
             if self.clock_pub is not None:
-                self.clock_pub.publish(Clock(clock=stamp_from_ns(t_ns)))
+                self.clock_pub.publish(Clock(clock=stamp_from_ns(t_ns + offset_ns)))
             while i < n and rec.log_times[i] == t_ns:
                 topic = rec.topics[i]
                 try:
@@ -289,7 +440,7 @@ class ReplayNode(Node):
                     log.warning(f'{topic}: cannot deserialize the message at {t_ns} ns: {exc}',
                                 throttle_duration_sec=1.0)
                 else:
-                    self.pubs[topic].publish(msg)
+                    self.pubs[topic].publish(shift_stamps(msg, offset_ns))
                 i += 1
 
 

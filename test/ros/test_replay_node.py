@@ -14,6 +14,7 @@ import signal
 import time
 
 from ament_index_python.packages import get_package_share_directory
+from builtin_interfaces.msg import Duration as BuiltinDuration
 from diagnostic_msgs.msg import DiagnosticArray
 import numpy as np
 import pytest
@@ -21,9 +22,13 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import SetBool
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+from visualization_msgs.msg import Marker, MarkerArray
+import yaml
 
 from crawler_sim.bag import BagWriter, load
-from crawler_sim.ros.messages import ns_from_stamp, stamp_from_ns
+from crawler_sim.ros.messages import diagnostics_msg, ns_from_stamp, stamp_from_ns
+from crawler_sim.ros.replay_node import publish_period_ns, shift_stamps
 
 from test_node_process import (  # noqa: F401 (fixtures)
     ament_env, DEADLINE, diagnostics_values, peer, Proc)
@@ -153,7 +158,114 @@ def test_start_offset_skips_earlier_messages_loop_repeats_and_a_signal_ends_it_c
     assert body_publishers == 0               # topics: only /linkage_cmd is played
     later = [d for t, d in CMDS if t >= 2.9]
     assert [list(m.data) for m in cmds.msgs[:5]] == (later * 3)[:5]
-    assert [ns_from_stamp(m.clock) for m in clock.msgs[:5]] == [ns(3.0), ns(4.0)] * 2 + [ns(3.0)]
+    # sim time continues: a pass spans the start point (2.9 s) to the last command (4.0 s), and
+    # the one spacing of the commands played (3.0 -> 4.0 s) is the publish period
+    step = (ns(4.0) - ns(2.9)) + (ns(4.0) - ns(3.0))
+    assert [ns_from_stamp(m.clock) for m in clock.msgs[:5]] == [
+        ns(3.0), ns(4.0), ns(3.0) + step, ns(4.0) + step, ns(3.0) + 2 * step]
+
+
+# ------------------------------------------------------------- loop: sim time continues
+
+LOOP_PERIOD = ns(0.2)                                        # the looped bag's publish grid
+LOOP_TIMES = [ns(1.0) + i * LOOP_PERIOD for i in range(6)]   # log times [ns], 1.0 ... 2.0 s
+LOOP_X = [[0.001 * i, 0.1 + 0.002 * i, 0.2 + 0.003 * i] for i in range(len(LOOP_TIMES))]
+LOOP_CMDS = {1: [0.10, 0.11], 4: [0.12, 0.13]}               # grid index -> command
+# body states are stamped at acquisition, 5 ms before they were logged: a stamp copied from
+# /clock (or a clock copied from a stamp) cannot pass for the shifted recorded stamp
+ACQUISITION_LAG = ns(0.005)
+
+
+def make_loop_bag(path: Path) -> Path:
+    """/body_states on a regular 0.2 s grid (LOOP_X), /linkage_cmd at two grid points."""
+    w = BagWriter(path, scene={'masses': [1.0, 1.0, 1.0]})
+    for i, (t, x) in enumerate(zip(LOOP_TIMES, LOOP_X)):
+        msg = JointState(name=['body_0', 'body_1', 'body_2'], position=x,
+                         velocity=[2.0 * v for v in x], effort=[0.5, 0.0, -0.5])
+        msg.header.stamp = stamp_from_ns(t - ACQUISITION_LAG)
+        w.write('/body_states', 'sensor_msgs/msg/JointState', msg, t)
+        if i in LOOP_CMDS:
+            w.write('/linkage_cmd', 'std_msgs/msg/Float64MultiArray',
+                    Float64MultiArray(data=LOOP_CMDS[i]), t)
+    w.close()
+    return path
+
+
+def test_a_loop_continues_sim_time_and_shifts_every_stamp_by_the_bag_duration_plus_a_period(
+        ament_env, peer, tmp_path):
+    bag = make_loop_bag(tmp_path / 'loop')
+    # the step of sim time per pass, from the bag as written: its duration (metadata.yaml, as
+    # `ros2 bag info` shows it) plus one publish period (its grid)
+    duration = yaml.safe_load((bag / 'metadata.yaml').read_text())[
+        'rosbag2_bagfile_information']['duration']['nanoseconds']
+    assert duration == LOOP_TIMES[-1] - LOOP_TIMES[0]
+    step = duration + LOOP_PERIOD
+    n = len(LOOP_TIMES)
+    passes = 3                                                  # two seams
+    states = Received(peer, JointState, '/body_states')
+    cmds = Received(peer, Float64MultiArray, '/linkage_cmd')
+    clock = Received(peer, Clock, '/clock')
+    proc = replay(tmp_path, ament_env, f'bag:={bag}', f'rate:={RATE}', 'loop:=true')
+    try:
+        resume_when_discovered(peer, ['/body_states', '/linkage_cmd', '/clock'])
+        peer.until(lambda: len(states) >= passes * n and len(clock) >= passes * n
+                   and len(cmds) >= passes * len(LOOP_CMDS), f'{passes} passes of the bag')
+        assert proc.popen.poll() is None                        # still looping
+        code, err = proc.stop(signal.SIGINT)
+    finally:
+        proc.kill()
+    assert code == 0 and 'Traceback' not in err, err
+
+    def expected(times: list[int], count: int) -> list[int]:
+        """``times`` shifted by k * step in pass k, for the first ``count`` messages."""
+        return [times[j % len(times)] + (j // len(times)) * step for j in range(count)]
+
+    # (a) /clock never goes backwards, and moves on by one publish period at each seam
+    got_clock = [ns_from_stamp(m.clock) for m in clock.msgs]
+    assert all(b > a for a, b in zip(got_clock, got_clock[1:])), got_clock
+    assert [got_clock[k * n] - got_clock[k * n - 1] for k in range(1, passes)] == [
+        LOOP_PERIOD] * (passes - 1)
+    assert got_clock == expected(LOOP_TIMES, len(got_clock))
+    # (b) the header stamps of pass k are the recorded ones + k * step
+    recorded_stamps = [t - ACQUISITION_LAG for t in LOOP_TIMES]
+    got_stamps = [ns_from_stamp(m.header.stamp) for m in states.msgs]
+    assert got_stamps == expected(recorded_stamps, len(got_stamps))
+    # (c) the data are the recorded ones in every pass
+    assert [(list(m.position), list(m.velocity), list(m.effort)) for m in states.msgs] == [
+        (x, [2.0 * v for v in x], [0.5, 0.0, -0.5])
+        for x in (LOOP_X * (len(states) // n + 1))[:len(states)]]
+    recorded_cmds = [LOOP_CMDS[i] for i in sorted(LOOP_CMDS)]
+    assert [list(m.data) for m in cmds.msgs] == (
+        recorded_cmds * (len(cmds) // len(recorded_cmds) + 1))[:len(cmds)]
+
+
+def test_the_loop_shift_reaches_every_stamp_but_keeps_durations_and_zero_trajectory_stamps():
+    """shift_stamps on messages with stamps at depth, durations and sim_node's diagnostics."""
+    markers = MarkerArray(markers=[Marker(id=i) for i in range(3)])
+    for i, m in enumerate(markers.markers):
+        m.header.stamp = stamp_from_ns(ns(1.0) + i)
+        m.lifetime = BuiltinDuration(sec=2)
+    shift_stamps(markers, ns(10.0))
+    assert [ns_from_stamp(m.header.stamp) for m in markers.markers] == [
+        ns(11.0) + i for i in range(3)]
+    assert all(m.lifetime == BuiltinDuration(sec=2) for m in markers.markers)
+    # a trajectory stamped 0 starts on receipt (still so after the shift); a stamped one moves
+    point = JointTrajectoryPoint(positions=[0.1], time_from_start=BuiltinDuration(sec=1))
+    now = JointTrajectory(joint_names=['linkage_0'], points=[point])
+    later = JointTrajectory(joint_names=['linkage_0'], points=[point])
+    later.header.stamp = stamp_from_ns(ns(2.5))
+    shift_stamps(now, ns(10.0))
+    shift_stamps(later, ns(10.0))
+    assert ns_from_stamp(now.header.stamp) == 0
+    assert ns_from_stamp(later.header.stamp) == ns(12.5)
+    assert later.points[0].time_from_start == BuiltinDuration(sec=1)
+    diag = diagnostics_msg(ns(1.5), {'sim_time': 1.5, 'real_time_factor': 2.0})
+    shift_stamps(diag, ns(10.0))
+    assert ns_from_stamp(diag.header.stamp) == ns(11.5)
+    assert diagnostics_values(diag) == {'sim_time': '11.5', 'real_time_factor': '2'}
+    # the period: sim_node's 10 ms grid, with a contact event logged between two ticks
+    grid = [ns(0.01) * i for i in range(5)]
+    assert publish_period_ns(sorted(grid + [ns(0.013)])) == ns(0.01)
 
 
 @pytest.mark.parametrize('case', ['missing', 'not_mcap', 'no_parameter', 'bad_rate'])
