@@ -9,7 +9,9 @@ from typing import Any, Callable
 
 from mcap.opcode import Opcode
 from mcap.records import MessageIndex
-from mcap.writer import Writer
+from mcap.writer import CompressionType, Writer
+
+from .mcapfile import CHUNK_FLOOR
 
 #: MCAP Message record up to its data: opcode, record length, channel id, sequence, log time,
 #: publish time (the MCAP spec's field order; 22 bytes of fields before the data)
@@ -23,6 +25,11 @@ class LeanWriter(Writer):
     recorded message costs). Same bookkeeping, same bytes; a file written through it is
     byte-identical to one written by the base class (tested). It reaches into the base class's
     private state, so it checks that state once and otherwise falls back to the base method.
+
+    A chunk that grew past ``mcapfile.CHUNK_FLOOR`` (it holds a message larger than a chunk,
+    e.g. a preloaded trajectory of minutes) is written uncompressed: readers bound a chunk's
+    claimed size by the file's size (a zip bomb is refused), and a well-compressing large message
+    would otherwise claim more than its file holds.
     """
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
@@ -84,8 +91,14 @@ class LeanWriter(Writer):
         buffer.write(_MESSAGE_HEAD.pack(Opcode.MESSAGE, _MESSAGE_FIELDS + len(data), channel_id,
                                         sequence, log_time, publish_time))
         buffer.write(data)
+        if buffer.tell() > CHUNK_FLOOR and hasattr(self, '_Writer__compression'):
+            saved = self._Writer__compression
+            self._Writer__compression = CompressionType.NONE
+            try:
+                self._Writer__maybe_finalize_chunk()
+            finally:
+                self._Writer__compression = saved
+            return
         self._Writer__maybe_finalize_chunk()
-
-
 
 __all__ = ['LeanWriter']

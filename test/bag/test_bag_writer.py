@@ -293,3 +293,35 @@ def test_the_lean_writer_holds_the_same_records_as_mcap_with_definitions_outside
     # schemas and channels are top-level records (on disk before any chunk is complete)
     top = [type(r) for r in StreamReader(io.BytesIO(lean), emit_chunks=True).records]
     assert top.index(Schema) < top.index(Channel) < top.index(Chunk)
+
+
+def test_a_message_larger_than_a_chunk_that_compresses_well_reads_back_intact(tmp_path):
+    """A preloaded trajectory of 10 minutes at 100 Hz (about 3.4 MB, compressing ~2x): its chunk
+    holds more than the reader lets a chunk claim for a file of that size when compressed (a
+    zip-bomb guard), so the writer stores it uncompressed; before, the reader skipped it as
+    damage and the run could not be replayed (issue 24)."""
+    from rclpy.serialization import serialize_message
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+    from crawler_sim.bag.inputs import load_inputs
+    from crawler_sim.bag.mcapfile import scan
+    t = np.arange(60_000) / 100.0
+    msg = JointTrajectory(joint_names=['linkage_0'])
+    for k, tk in enumerate(t):
+        pt = JointTrajectoryPoint(positions=[0.1 + 0.02 * np.sin(tk)], velocities=[0.0],
+                                  accelerations=[0.0])
+        pt.time_from_start.sec, pt.time_from_start.nanosec = divmod(k * 10_000_000,
+                                                                    1_000_000_000)
+        msg.points.append(pt)
+    data = serialize_message(msg)
+    assert len(data) > 3_000_000
+    w = BagWriter(tmp_path / 'big')
+    w.write('/linkage_trajectory', 'trajectory_msgs/msg/JointTrajectory', data, 5)
+    w.write('/body_states', JOINT_STATE, joint_state(0), 10)
+    w.close()
+    files = list((tmp_path / 'big').glob('*.mcap'))
+    result = scan(files[0], verify=True)
+    assert not result.damage and not result.truncated
+    rec = load_inputs(tmp_path / 'big')
+    (item,) = rec.inputs
+    assert item.kind == 'trajectory' and item.t_ns == 5
+    np.testing.assert_array_equal(item.payload.positions[:, 0], 0.1 + 0.02 * np.sin(t))
