@@ -268,8 +268,9 @@ def _crawler(spec: Any) -> Crawler:
 # ---------------------------------------------------------------------------------------------
 # Gaits: type -> (builder, required parameters, optional parameters with defaults)
 
-def _stroke(mean, amplitude, frequency, asymmetry, *, n_links=None):
-    return gaits.PiecewiseParabolic.stroke(mean, amplitude, frequency, asymmetry, n_links=n_links)
+def _stroke(mean, amplitude, frequency, asymmetry, phase=0.0, *, n_links=None):
+    return gaits.PiecewiseParabolic.stroke(mean, amplitude, frequency, asymmetry, phase,
+                                           n_links=n_links)
 
 
 #: type name -> (builder, required keys, optional keys with defaults, takes n_links)
@@ -280,7 +281,7 @@ _GAITS: dict[str, tuple[Any, tuple[str, ...], dict[str, Any], bool]] = {
                 {'phase': 0.0}, True),
     'piecewise_parabolic': (gaits.PiecewiseParabolic, ('times', 'accelerations', 'l0'),
                             {'v0': 0.0, 'periodic': True}, False),
-    'stroke': (_stroke, ('mean', 'amplitude', 'frequency', 'asymmetry'), {}, True),
+    'stroke': (_stroke, ('mean', 'amplitude', 'frequency', 'asymmetry'), {'phase': 0.0}, True),
     'spline': (gaits.Spline, ('times', 'lengths'), {'periodic': False}, False),
 }
 GAIT_TYPES = tuple(_GAITS)

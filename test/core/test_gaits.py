@@ -496,3 +496,25 @@ def test_a_spline_gives_a_snap_bound_only_between_its_knots():
             acc = sp.acceleration(t)[:, 0]
             line = acc[0] + (acc[-1] - acc[0]) * (t - t0) / (t1 - t0)
             assert np.max(np.abs(acc - line)) < 1e-9 * (1 + np.max(np.abs(acc)))
+
+
+def test_a_phased_stroke_is_the_stroke_shifted_in_time_per_linkage():
+    """stroke(..., phase) against the one-linkage stroke evaluated at t + phase / (2 pi f): l,
+    l' and l'' on a grid of two periods, and every knot of each linkage is a breakpoint."""
+    f, phase = 1.7, [0.0, -2.0, 2.5]
+    g = gaits.PiecewiseParabolic.stroke([0.1, 0.12, 0.09], [0.02, 0.03, 0.01], f, 0.35, phase)
+    t = np.linspace(0.0, 2.0 / f, 4001)
+    for j, ph in enumerate(phase):
+        one = gaits.PiecewiseParabolic.stroke([0.1, 0.12, 0.09][j], [0.02, 0.03, 0.01][j], f,
+                                              0.35)
+        want = one(t + ph / (2 * np.pi * f))
+        got = g(t)
+        for k in range(2):
+            np.testing.assert_allclose(got[k][:, j], want[k][:, 0], atol=1e-13)
+        # l'' away from the knots (where it jumps)
+        knots = (one.breakpoints(-2.0, 4.0) - ph / (2 * np.pi * f))
+        away = np.min(np.abs(t[:, None] - knots[None, :]), axis=1) > 1e-9
+        np.testing.assert_array_equal(got[2][away, j], want[2][away, 0])
+    assert g.period == pytest.approx(1.0 / f, rel=1e-15)
+    zero = gaits.PiecewiseParabolic.stroke(0.1, 0.02, f, 0.35, 0.0)
+    assert zero.times.tolist() == gaits.PiecewiseParabolic.stroke(0.1, 0.02, f, 0.35).times.tolist()

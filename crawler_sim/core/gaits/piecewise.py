@@ -91,7 +91,7 @@ class PiecewiseParabolic(BuiltinGait):
 
     @classmethod
     def stroke(cls, mean: ArrayLike, amplitude: ArrayLike, frequency: float, asymmetry: float,
-               *, n_links: int | None = None) -> PiecewiseParabolic:
+               phase: ArrayLike = 0.0, *, n_links: int | None = None) -> PiecewiseParabolic:
         """A closed bang-bang stroke between ``mean - amplitude`` and ``mean + amplitude``.
 
         Extension takes the fraction r = ``asymmetry`` of the period T = 1 / ``frequency``:
@@ -108,11 +108,16 @@ class PiecewiseParabolic(BuiltinGait):
             Stroke frequency [Hz].
         asymmetry : float
             Fraction of the period spent extending, in the open interval (0, 1).
+        phase : float or array_like, shape (n_links,)
+            Phase of each linkage [rad], as ``Scallop``'s: linkage j is at its shortest when
+            2 pi f t + phase_j = 0 (mod 2 pi), i.e. l_j(t) = stroke(t + phase_j / (2 pi f)).
+            The knots of every linkage together are the breakpoints.
         n_links : int, optional
             Number of linkages when ``mean`` and ``amplitude`` are floats (default 1).
         """
-        n = _n_links(n_links, max(np.size(mean), np.size(amplitude)))
+        n = _n_links(n_links, max(np.size(mean), np.size(amplitude), np.size(phase)))
         mean_, amp = _per_link('mean', mean, n), _per_link('amplitude', amplitude, n)
+        ph = _per_link('phase', phase, n)
         if np.any(amp < 0):
             raise ValueError(f'amplitude must be >= 0 m, got {amp.tolist()}')
         period = 1.0 / _positive('frequency', frequency, 'Hz')
@@ -122,7 +127,30 @@ class PiecewiseParabolic(BuiltinGait):
         t_ext, t_con = r * period, (1.0 - r) * period
         times = [0.0, 0.5 * t_ext, t_ext, t_ext + 0.5 * t_con, period]
         a_e, a_c = 8.0 * amp / t_ext ** 2, 8.0 * amp / t_con ** 2
-        return cls(times, np.vstack([a_e, -a_e, -a_c, a_c]), mean_ - amp, 0.0, periodic=True)
+        base = cls(times, np.vstack([a_e, -a_e, -a_c, a_c]), mean_ - amp, 0.0, periodic=True)
+        shift = np.mod(ph / (2.0 * math.pi) * period, period)
+        if not np.any(shift):
+            return base
+        return base._shifted(shift)
+
+    def _shifted(self, shift: NDArray[np.float64]) -> PiecewiseParabolic:
+        """This periodic stroke with linkage j advanced by ``shift[j]`` in [0, T) [s]:
+        l_j(t) = self_j(t + shift_j), on the union of every linkage's knots."""
+        T, t0 = self.period, float(self.times[0])
+        knots = [np.mod(self.times[:-1] - t0 - s, T) for s in shift]
+        times = np.unique(np.concatenate([[0.0, T], *knots]))
+        times = times[np.concatenate([[True], np.diff(times) > 1e-12 * T])]   # merge ties
+        times[-1] = T
+        mid = 0.5 * (times[:-1] + times[1:])
+        n = self.n_links
+        acc = np.empty((mid.size, n))
+        l0, v0 = np.empty(n), np.empty(n)
+        for j in range(n):
+            tau = np.mod(mid + shift[j], T) + t0
+            acc[:, j] = self(tau)[2][:, j]
+            at0 = self(np.array([t0 + shift[j]]))
+            l0[j], v0[j] = at0[0][0, j], at0[1][0, j]
+        return type(self)(times, acc, l0, v0, periodic=True)
 
     def _kind(self):
         from ..solvers._gait import table
