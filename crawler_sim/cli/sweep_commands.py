@@ -98,32 +98,36 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     EXIT_OK, UsageError, _existing, _info, _print_table = _cli()
     import yaml
 
+    from dataclasses import replace
+
     from ..core.actuator import ActuatorLimits
     from ..core.scene import load_scene, scene_to_dict
-    from ..sweep.optimize import gait_node_params, optimize
+    from ..sweep.optimize import STREAM, gait_node_params, optimize, sim_node_params
 
     scene = load_scene(_existing(args.scene))
     limits = ActuatorLimits(args.bandwidth, args.max_speed, args.max_acceleration)
+    stream = replace(STREAM, rate=args.play_rate, duration=args.play_seconds)
+    out = Path(args.output)
+    stem = out.with_suffix('')
+    scene_file = stem.with_name(stem.name + '_scene.yaml')
+    sim_file = stem.with_name(stem.name + '_sim.yaml')
     client = _client(args.scheduler)
     try:
         res = optimize(scene, objective=args.objective, family_name=args.family,
                        limits=limits, harmonics=args.harmonics, periods=args.periods,
                        maxiter=args.maxiter, popsize=args.popsize, seed=args.seed,
-                       client=client, workers=args.workers, progress=_info)
+                       client=client, workers=args.workers, score=args.score,
+                       stream=stream, progress=_info)
     finally:
         if client is not None:
             client.close()
-    out = Path(args.output)
-    stem = out.with_suffix('')
-    scene_file = stem.with_name(stem.name + '_scene.yaml')
     best_scene = scene_to_dict(scene)
     spec: dict[str, Any] = {'type': res.family.name}      # the scene-file gait schema
     params = res.params
     if res.family.name in ('scallop', 'stroke'):
         spec.update(mean=list(res.family.mean), amplitude=params['amplitude'],
                     frequency=params['frequency'], asymmetry=params['asymmetry'])
-        if res.family.name == 'scallop':
-            spec['phase'] = [-j * params.get('phase_lag', 0.0) for j in range(res.family.n_links)]
+        spec['phase'] = [-j * params.get('phase_lag', 0.0) for j in range(res.family.n_links)]
     else:
         spec.update(mean=list(res.family.mean), frequency=res.family.frequency,
                     coefficients=[res.gait.cos.tolist(), res.gait.sin.tolist()])
@@ -131,15 +135,24 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     best_scene['name'] = f'{scene.name}_optimized'
     best_scene['description'] = (f'{scene.name} with the {res.family.name} stroke of best '
                                  f'{args.objective} found by crawler-sim optimize')
+    scored = ('as sim_node runs it (OUT_sim.yaml) when gait_node plays it (OUT)'
+              if args.score == 'node' else 'on its ideal lengths (an ideal actuator; the '
+              'node\'s servo changes it)')
     header = (f'# crawler-sim optimize {args.scene}: {args.family} stroke, objective '
               f'{args.objective}, limits |l\'| <= {limits.max_speed} m/s, |l\'\'| <= '
               f'{limits.max_acceleration} m/s^2, bandwidth {limits.bandwidth} Hz\n'
               f'# mean speed {res.best["mean_speed"]:.6g} m/s, cost of transport '
-              f'{res.best["cost_of_transport"]:.6g}\n')
+              f'{res.best["cost_of_transport"]:.6g}, scored {scored}\n')
+    play = (f'# play: ros2 run crawler_sim sim_node --ros-args --params-file {sim_file.name}\n'
+            f'#       ros2 run crawler_sim gait_node --ros-args --params-file {out.name}\n'
+            if args.score == 'node' else
+            f'# play: ros2 run crawler_sim gait_node --ros-args --params-file {out.name}\n')
     scene_file.write_text(header + yaml.safe_dump({'scene': best_scene}, sort_keys=False))
     node = gait_node_params(res, str(scene_file.resolve()))
-    out.write_text(header + '# play: ros2 run crawler_sim gait_node --ros-args '
-                   f'--params-file {out.name}\n' + yaml.safe_dump(node, sort_keys=False))
+    out.write_text(header + play + yaml.safe_dump(node, sort_keys=False))
+    sim = sim_node_params(res)
+    if sim is not None:
+        sim_file.write_text(header + play + yaml.safe_dump(sim, sort_keys=False))
     if args.history:
         from ..sweep.figures import optimize_history
         optimize_history(res, args.history)
@@ -154,14 +167,19 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
             ('best', ', '.join(f'{k} {v:.6g}' for k, v in params.items())),
             ('mean speed', f'{res.best["mean_speed"]:.6g} m/s'),
             ('cost of transport', f'{res.best["cost_of_transport"]:.6g}'),
+            ('scored', scored.replace('OUT_sim.yaml', str(sim_file)).replace('OUT', str(out))),
             ('scene', str(scene_file))]
     rows.append(('gait_node params', str(out)))
+    if sim is not None:
+        rows.append(('sim_node params', str(sim_file)))
     if args.json:
         print(json.dumps({'params': params, 'best': {k: (v if not isinstance(v, float) or
                                                           math.isfinite(v) else None)
                                                       for k, v in res.best.items()},
-                          'scene': str(scene_file),
-                          'gait_node_params': str(out)}, indent=2))
+                          'scene': str(scene_file), 'score': args.score,
+                          'gait_node_params': str(out),
+                          'sim_node_params': str(sim_file) if sim is not None else None},
+                         indent=2))
     else:
         _print_table(rows)
     return EXIT_OK
@@ -193,8 +211,10 @@ def register(add: Add, positive: Callable[[str], float],
     p = add('optimize', _cmd_optimize, 'find the fastest or cheapest stroke',
             'Find the stroke that maximises the steady mean speed (or minimises the cost of '
             'transport) of the crawler of SCENE.yaml under sim_node\'s actuator limits: '
-            'differential evolution, then Nelder-Mead. Writes OUT (a gait_node parameter file) '
-            'and OUT_scene.yaml (a scene with the best gait).')
+            'differential evolution, then Nelder-Mead. Scored by default as sim_node runs it '
+            '(--score). Writes OUT (a gait_node parameter file: the stroke as one preloaded '
+            'trajectory), OUT_sim.yaml (the sim_node parameters it was scored with) and '
+            'OUT_scene.yaml (a scene with the best gait).')
     p.add_argument('scene', metavar='SCENE.yaml', help='scene: crawler, run options, mean lengths')
     p.add_argument('--objective', choices=('speed', 'cot'), default='speed',
                    help='speed (maximise) or cot (minimise cost of transport); default speed')
@@ -207,6 +227,13 @@ def register(add: Add, positive: Callable[[str], float],
                    help="largest |l''| [m/s^2] (actuator_max_acceleration, default 5)")
     p.add_argument('--bandwidth', type=positive, default=5.0, metavar='HZ',
                    help='highest stroke frequency [Hz] (actuator_bandwidth, default 5)')
+    p.add_argument('--score', choices=('node', 'ideal'), default='node',
+                   help='node (default): the stroke as sim_node runs it when gait_node plays '
+                   'the written file (the servo shapes it); ideal: its own lengths')
+    p.add_argument('--play-rate', type=positive, default=100.0, metavar='HZ',
+                   help='trajectory samples per second gait_node sends (default 100)')
+    p.add_argument('--play-seconds', type=positive, default=600.0, metavar='S',
+                   help='length of the preloaded trajectory gait_node sends (default 600)')
     p.add_argument('--periods', type=int, default=12, metavar='N', help='periods per run')
     p.add_argument('--maxiter', type=int, default=15, metavar='N', help='generations')
     p.add_argument('--popsize', type=int, default=8, metavar='N', help='population factor')

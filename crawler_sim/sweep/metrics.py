@@ -31,7 +31,7 @@ from ..core.trajectory import Trajectory
 from ..core.verify import verify
 
 __all__ = ['FIGURES', 'STEADY_RTOL', 'MIN_STEADY', 'steady_window', 'run_figures',
-           'scene_figures']
+           'scene_figures', 'window_speed']
 
 STEADY_RTOL = 1e-8   # agreement of the per-period displacements, relative to the stroke scale
 MIN_STEADY = 2       # periods that must agree before a run counts as steady
@@ -57,6 +57,17 @@ def steady_window(boundary_x: np.ndarray, scale: float) -> tuple[int, bool]:
     if n - k0 < MIN_STEADY:
         return n // 2, False
     return k0, True
+
+
+def window_speed(t: np.ndarray, com: np.ndarray, start: float, end: float) -> float:
+    """Mean speed [m/s] of the centre of mass ``com`` [m] sampled at times ``t`` [s] over
+    [start, end], its values at the ends interpolated linearly between samples (a recorded
+    run's states are on the publish grid, not on the period boundaries)."""
+    if not (t[0] <= start < end <= t[-1]):
+        raise ValueError(f'the window [{start}, {end}] s is not inside the run '
+                         f'[{t[0]}, {t[-1]}] s')
+    a, b = np.interp([start, end], t, com)
+    return float((b - a) / (end - start))
 
 
 def _stuck_time(tr: Trajectory, a: float, b: float) -> np.ndarray:

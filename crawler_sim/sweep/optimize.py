@@ -7,13 +7,25 @@ Families (the vector z that is optimised, with its bounds):
   spent extending), and for p > 2 ``phase_lag`` [rad] of linkage j+1 behind linkage j (the
   parameters of gait_node, which plays the result directly);
 - ``stroke``: the bang-bang `PiecewiseParabolic.stroke` with ``amplitude``, ``frequency``,
-  ``asymmetry`` (phase times r T / 2 and (1 - r) T / 2);
+  ``asymmetry`` (phase times r T / 2 and (1 - r) T / 2), and for p > 2 ``phase_lag`` as above;
 - ``fourier``: the cos and sin coefficients [m] of K harmonics of every linkage at the base
   gait's frequency.
 
-A stroke is feasible when, over one period, |l'| <= max_speed, |l''| <= max_acceleration (the
-servo's hard limits), l > 0 (the bodies do not pass through each other) and its frequency
-(its highest harmonic for ``fourier``) is at most the actuator bandwidth, so the servo tracks it.
+Scores (``score``):
+
+- ``node`` (the default): the stroke as the robot gets it. gait_node preloads it as one
+  trajectory (``STREAM``: 100 samples per second with velocities and accelerations), sim_node's
+  actuator follows it on its tick grid, and the core solves the crawler under the lengths the
+  actuator produced (``crawler_sim.core.plant.streams``): the figures are those of the run
+  ``crawler-sim optimize`` writes the files for (OUT for gait_node, OUT_sim.yaml for sim_node).
+  The default because the optimiser's output is played by the node: a stroke scored on its
+  ideal lengths can crawl backwards once a servo with finite bandwidth shapes it (issue 24).
+  Feasible: every length within sim_node's [min_length, max_length] (it rejects the trajectory
+  otherwise) and l > 0; the servo's speed and acceleration limits are part of the plant.
+- ``ideal``: the stroke's own lengths l(t) drive the crawler (an ideal actuator). Feasible when,
+  over one period, |l'| <= max_speed, |l''| <= max_acceleration, l > 0 and its frequency (its
+  highest harmonic for ``fourier``) is at most the actuator bandwidth.
+
 An infeasible z scores ``PENALTY`` plus its relative violation, so the optimisers keep away.
 The global stage is ``scipy.optimize.differential_evolution``, every generation evaluated as one
 batch through a map (serial, local processes, or a Dask client); the local stage polishes the
@@ -29,13 +41,20 @@ import numpy as np
 
 from ..core import gaits
 from ..core.actuator import ActuatorLimits
+from ..core.plant import PlantConfig
+from ..core.plant.streams import Stream, simulate_as_node
 from ..core.scene import Scene, scene_to_dict
-from .metrics import scene_figures
+from .metrics import run_figures, scene_figures
 
-__all__ = ['FAMILIES', 'OBJECTIVES', 'PENALTY', 'Family', 'Objective', 'OptimizeResult',
-           'optimize', 'family', 'gait_node_params']
+__all__ = ['FAMILIES', 'OBJECTIVES', 'SCORES', 'STREAM', 'PENALTY', 'Family', 'Objective',
+           'OptimizeResult', 'optimize', 'family', 'gait_node_params', 'sim_node_params',
+           'plant_for']
 
 OBJECTIVES = ('speed', 'cot')
+SCORES = ('node', 'ideal')
+#: how gait_node plays an optimised stroke: one preloaded trajectory of 10 minutes, 100 samples
+#: per second (the same command stream whatever the timing: what was scored is what is played)
+STREAM = Stream('trajectory', rate=100.0, preload=True, duration=600.0)
 FAMILIES = ('scallop', 'stroke', 'fourier')
 PENALTY = 1e6     # score of an infeasible stroke (plus its violation); speeds are << 1 m/s
 _GRID = 2048      # samples per period for the feasibility check (plus the breakpoints)
@@ -65,10 +84,11 @@ class Family:
             sin = np.asarray(z[half:]).reshape(n, k)
             return gaits.Fourier(mean, (cos, sin), self.frequency, n_links=n)
         amp, freq, r = float(z[0]), float(z[1]), float(z[2])
-        if self.name == 'stroke':
-            return gaits.PiecewiseParabolic.stroke(mean, amp, freq, r, n_links=n)
         lag = float(z[3]) if n > 1 else 0.0
-        return gaits.Scallop(mean, amp, freq, r, [-j * lag for j in range(n)], n_links=n)
+        phase = [-j * lag for j in range(n)]
+        if self.name == 'stroke':
+            return gaits.PiecewiseParabolic.stroke(mean, amp, freq, r, phase, n_links=n)
+        return gaits.Scallop(mean, amp, freq, r, phase, n_links=n)
 
     def top_frequency(self, z: np.ndarray) -> float:
         return self.frequency * self.harmonics if self.name == 'fourier' else float(z[1])
@@ -99,15 +119,29 @@ def family(name: str, base: Scene, limits: ActuatorLimits, harmonics: int = 3) -
     return Family(name, names, bounds, mean)
 
 
-def _violation(gait: gaits.Gait, fam: Family, z: np.ndarray, limits: ActuatorLimits) -> float:
-    """Relative excess over the limits (0 when feasible)."""
+def plant_for(base: Scene, fam: Family, limits: ActuatorLimits) -> PlantConfig:
+    """sim_node's plant for the base scene's crawler and method, at rest at the family's mean
+    lengths, with the actuator ``limits`` (the length limits wide enough for the family)."""
+    return PlantConfig.for_crawler(base.crawler, fam.mean, limits, method=base.run.method,
+                                   initial_position=float(base.run.x0))
+
+
+def _violation(gait: gaits.Gait, fam: Family, z: np.ndarray, limits: ActuatorLimits,
+               lengths: tuple[float, float] | None = None) -> float:
+    """Relative excess over the limits (0 when feasible). ``lengths``: score "node", only the
+    plant's [min_length, max_length] (and l > 0) bound the stroke."""
     T = gait.period
     t = np.linspace(0.0, T, _GRID, endpoint=False)
     t = np.union1d(t, gait.breakpoints(0.0, T))
     l, ld, ldd = gait(t)
+    short = max(0.0, -float(l.min()) / min(fam.mean) + 1e-3) if l.min() <= 0 else 0.0
+    if lengths is not None:
+        lo, hi = lengths
+        scale = min(fam.mean)
+        return (short + max(0.0, (lo - float(l.min())) / scale)
+                + max(0.0, (float(l.max()) - hi) / scale))
     v = max(0.0, float(np.abs(ld).max()) / limits.max_speed - 1.0)
     a = max(0.0, float(np.abs(ldd).max()) / limits.max_acceleration - 1.0)
-    short = max(0.0, -float(l.min()) / min(fam.mean) + 1e-3) if l.min() <= 0 else 0.0
     f = max(0.0, fam.top_frequency(z) / limits.bandwidth - 1.0)
     return v + a + short + f
 
@@ -122,25 +156,49 @@ class Objective:
     objective: str = 'speed'
     periods: int = 12
     samples_per_period: int = 40
+    score: str = 'node'
+    plant: dict | None = None        # sim_node's plant parameter values (score "node")
+    stream: Stream = STREAM
 
-    def evaluate(self, z: Iterable[float]) -> dict[str, Any]:
-        """{score, feasible, violation, mean_speed, cost_of_transport, error} of z."""
+    def figures(self, gait: gaits.Gait) -> dict[str, Any]:
+        """The figures of ``gait`` over ``periods`` periods, scored as ``score`` says."""
         from ..core.scene import scene_from_dict
         from dataclasses import replace
 
+        if self.score == 'ideal':
+            scene = replace(scene_from_dict(self.base), gait=gait)
+            return scene_figures(scene, self.periods, self.samples_per_period)
+        T = gait.period
+        t_end = self.periods * T
+        plant = PlantConfig.from_values(self.plant)
+        # the points after t_end do not change l(t) before it: a shorter preload scores the
+        # same run (the played one holds 10 minutes)
+        stream = replace(self.stream, duration=min(self.stream.duration,
+                                                   t_end + 2.0 / self.stream.rate))
+        n = self.periods * self.samples_per_period
+        if plant.values['method'] == 'exact':      # dt: the sample grid, plus every event
+            tr = simulate_as_node(plant, gait, stream, t_end, dt=t_end / n)
+        else:                                      # the node's step, sampled on the grid
+            tr = simulate_as_node(plant, gait, stream, t_end, dt=plant.dt_ns * 1e-9,
+                                  t_eval=np.linspace(0.0, t_end, n + 1))
+        return run_figures(tr, T, self.periods)
+
+    def evaluate(self, z: Iterable[float]) -> dict[str, Any]:
+        """{score, feasible, violation, mean_speed, cost_of_transport, error} of z."""
         z = np.asarray(list(z), dtype=float)
         out: dict[str, Any] = {'score': PENALTY, 'feasible': False, 'violation': math.nan,
                                'mean_speed': math.nan, 'cost_of_transport': math.nan,
                                'error': ''}
         try:
             gait = self.fam.gait(z)
-            viol = _violation(gait, self.fam, z, self.limits)
+            lengths = ((self.plant['min_length'], self.plant['max_length'])
+                       if self.score == 'node' else None)
+            viol = _violation(gait, self.fam, z, self.limits, lengths)
             out['violation'] = viol
             if viol > 0:
                 out['score'] = PENALTY * (1.0 + viol)
                 return out
-            scene = replace(scene_from_dict(self.base), gait=gait)
-            fig = scene_figures(scene, self.periods, self.samples_per_period)
+            fig = self.figures(gait)
         except (ValueError, ArithmeticError, RuntimeError) as exc:
             out['error'] = f'{type(exc).__name__}: {exc}'.splitlines()[0]
             out['score'] = PENALTY * 2
@@ -169,6 +227,9 @@ class OptimizeResult:
     best: dict
     gait: gaits.Gait
     history: list[dict] = field(default_factory=list)
+    score: str = 'node'
+    plant: PlantConfig | None = None     # the sim_node plant it was scored on (score "node")
+    stream: Stream = STREAM
 
     @property
     def params(self) -> dict[str, float]:
@@ -194,11 +255,14 @@ def _mapper(client: Any, workers: int) -> tuple[Callable, Callable[[], None]]:
 def optimize(base: Scene, *, objective: str = 'speed', family_name: str = 'scallop',
              limits: ActuatorLimits | None = None, harmonics: int = 3, periods: int = 12,
              maxiter: int = 15, popsize: int = 8, local_maxiter: int = 150, seed: int = 0,
-             client: Any = None, workers: int = 1,
+             client: Any = None, workers: int = 1, score: str = 'node',
+             stream: Stream = STREAM,
              progress: Callable[[str], None] | None = None) -> OptimizeResult:
     """Search the family's stroke for ``base`` (crawler and run options; its gait gives the mean
     lengths) that maximises the steady mean speed (``objective='speed'``) or minimises the cost
-    of transport (``'cot'``) under ``limits`` (default: sim_node's actuator defaults).
+    of transport (``'cot'``) under ``limits`` (default: sim_node's actuator defaults), scored
+    as sim_node runs it when gait_node plays it with ``stream`` (``score='node'``) or on its
+    ideal lengths (``'ideal'``); see the module docstring.
 
     ``client`` (a Dask client) or ``workers`` > 1 (local processes) evaluate each generation of
     the global stage in parallel. Deterministic for a given ``seed``.
@@ -207,9 +271,13 @@ def optimize(base: Scene, *, objective: str = 'speed', family_name: str = 'scall
 
     if objective not in OBJECTIVES:
         raise ValueError(f'objective must be one of {", ".join(OBJECTIVES)}, got {objective!r}')
+    if score not in SCORES:
+        raise ValueError(f'score must be one of {", ".join(SCORES)}, got {score!r}')
     limits = limits or ActuatorLimits()
     fam = family(family_name, base, limits, harmonics)
-    obj = Objective(scene_to_dict(base), fam, limits, objective, periods)
+    plant = plant_for(base, fam, limits) if score == 'node' else None
+    obj = Objective(scene_to_dict(base), fam, limits, objective, periods, score=score,
+                    plant=None if plant is None else plant.values, stream=stream)
     history: list[dict] = []
     run_map, close = _mapper(client, workers)
 
@@ -243,21 +311,40 @@ def optimize(base: Scene, *, objective: str = 'speed', family_name: str = 'scall
         progress(f'local: {len(history)} evaluations, best score {loc.fun:.6g}')
     best = min(history, key=lambda h: h['score'])
     x = np.array([best[k] for k in fam.names])
-    return OptimizeResult(fam, objective, x, best, fam.gait(x), history)
+    return OptimizeResult(fam, objective, x, best, fam.gait(x), history, score, plant, stream)
 
 
 def gait_node_params(result: OptimizeResult, scene_file: str | None = None) -> dict | None:
     """The ROS 2 parameter file content (``gait_node: ros__parameters: ...``) that makes
-    gait_node play the best stroke: its own gait parameters for a Scallop of one mean length,
-    otherwise ``gait_file`` pointing at ``scene_file`` (the scene with the best gait); None
-    when neither applies."""
-    fam = result.family
+    gait_node send what was scored: the best stroke as gait_node's own gait parameters for a
+    Scallop of one mean length, otherwise ``gait_file`` pointing at ``scene_file`` (the scene
+    with the best gait), sent as ``result.stream`` says (one preloaded trajectory); None when
+    neither applies."""
+    fam, st = result.family, result.stream
+    send = {'mode': st.mode, 'rate': st.rate, 'preload': st.preload, 'duration': st.duration,
+            'horizon': st.horizon, 'n_links': fam.n_links}
     if fam.name != 'scallop' or len(set(fam.mean)) != 1:
         if scene_file is None:
             return None
-        return {'gait_node': {'ros__parameters': {'gait_file': str(scene_file)}}}
+        return {'gait_node': {'ros__parameters': {'gait_file': str(scene_file), **send}}}
     p = result.params
     return {'gait_node': {'ros__parameters': {
-        'gait': 'scallop', 'n_links': fam.n_links, 'mean': float(fam.mean[0]),
+        'gait': 'scallop', 'mean': float(fam.mean[0]),
         'amplitude': p['amplitude'], 'frequency': p['frequency'], 'asymmetry': p['asymmetry'],
-        'phase_lag': p.get('phase_lag', 0.0)}}}
+        'phase_lag': p.get('phase_lag', 0.0), **send}}}
+
+
+def sim_node_params(result: OptimizeResult) -> dict | None:
+    """The sim_node parameter file content (``crawler_sim: ros__parameters: ...``) of the plant
+    the stroke was scored on (score "node"; None for "ideal"): the crawler as friction forces,
+    the actuator limits, the length limits and the method."""
+    if result.plant is None:
+        return None
+    names = ('masses', 'friction', 'friction_backward', 'slope', 'gravity', 'initial_lengths',
+             'initial_position', 'min_length', 'max_length', 'method', 'actuator_bandwidth',
+             'actuator_max_speed', 'actuator_max_acceleration', 'integration_rate',
+             'publish_rate')
+    v = result.plant.values
+    return {'crawler_sim': {'ros__parameters': {
+        name: (list(v[name]) if isinstance(v[name], (list, tuple)) else v[name])
+        for name in names}}}

@@ -61,7 +61,11 @@ def _parameters(rng: np.random.Generator, node: SimNode) -> list[Parameter]:
     choice = rng.choice(['p', 'friction', 'mu', 'method', 'limits', 'rates', 'slope'])
     if choice == 'p':
         p = int(rng.integers(2, 5))
-        return [Parameter('masses', value=rng.uniform(0.3, 2.0, p).tolist())]
+        out = [Parameter('masses', value=rng.uniform(0.3, 2.0, p).tolist())]
+        for name in ('friction', 'friction_backward'):   # per-body lists follow p
+            if len(cfg.values[name]) > 1:
+                out.append(Parameter(name, value=rng.uniform(0.5, 5.0, 1).tolist()))
+        return out
     if choice == 'friction':
         return [Parameter('friction', value=rng.uniform(0.5, 5.0, 1).tolist()),
                 Parameter('friction_backward', value=rng.uniform(0.5, 5.0, 1).tolist())]
@@ -168,8 +172,9 @@ def _act(rng, action: str, node: SimNode, ex, cmd_pub, traj_pub) -> None:
                 msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
         _deliver(ex, node, traj_pub, msg, ('trajectories_accepted', 'trajectories_rejected'))
     elif action == 'parameters':
-        results = node.set_parameters(_parameters(rng, node))
-        assert all(r.successful for r in results), [r.reason for r in results]
+        # atomically: a new p and per-body lists of that p are only valid together
+        result = node.set_parameters_atomically(_parameters(rng, node))
+        assert result.successful, result.reason
     elif action == 'pause':
         node._on_pause(SetBool.Request(data=not node.paused), SetBool.Response())
     elif action == 'reset':

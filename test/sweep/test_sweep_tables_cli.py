@@ -144,6 +144,7 @@ def test_optimize_writes_a_gait_node_parameter_file_whose_stroke_keeps_the_limit
     out = tmp_path / 'best.yaml'
     proc = run(capsys, 'optimize', str(REPO / 'config' / 'scenes' / 'scallop_2body.yaml'), '--maxiter', '3',
                '--popsize', '4', '--max-acceleration', '1.5', '--max-speed', '0.1',
+               '--score', 'ideal',
                '-o', str(out), '--history', str(tmp_path / 'hist.png'), '--history-table',
                str(tmp_path / 'hist.csv'))
     assert proc.returncode == 0, proc.stderr

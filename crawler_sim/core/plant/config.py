@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 from ..actuator import ActuatorLimits
 from ..model import Crawler
@@ -206,6 +206,28 @@ class PlantConfig:
             v[name] = _as_list(name, v[name], MAX_BODIES)
         return cls(v, crawler, tuple(lengths), limits, max(1, round(1e9 / rate)),
                    max(1, round(rate / pub)))
+
+    @classmethod
+    def for_crawler(cls, crawler: Crawler, lengths: Sequence[float],
+                    limits: ActuatorLimits | None = None, **overrides: Any) -> PlantConfig:
+        """The plant of sim_node with this crawler (friction as forces [N]), at rest with
+        linkage lengths ``lengths`` [m], the actuator ``limits`` (default: the node's), and
+        the node's defaults for the rest (``overrides`` replace them). The length limits are
+        widened, when needed, to [0.05, 2] x the given lengths (a stroke of the optimiser's
+        families stays inside them)."""
+        limits = limits or ActuatorLimits()
+        lo, hi = PARAMETERS['min_length'][0], PARAMETERS['max_length'][0]
+        values: dict[str, Any] = {
+            'masses': crawler.masses.tolist(), 'friction': crawler.friction.tolist(),
+            'friction_backward': crawler.friction_backward.tolist(),
+            'slope': float(crawler.slope), 'gravity': float(crawler.gravity),
+            'initial_lengths': [float(x) for x in lengths],
+            'min_length': min(lo, 0.05 * min(lengths)), 'max_length': max(hi, 2 * max(lengths)),
+            'actuator_bandwidth': float(limits.bandwidth),
+            'actuator_max_speed': float(limits.max_speed),
+            'actuator_max_acceleration': float(limits.max_acceleration)}
+        values.update(overrides)
+        return cls.defaults(**values)
 
     @classmethod
     def defaults(cls, **overrides: Any) -> PlantConfig:
