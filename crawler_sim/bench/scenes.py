@@ -123,19 +123,9 @@ def _need(d: dict, key: str, where: str) -> Any:
 
 
 def _crawler(d: Any, where: str) -> Crawler:
-    if not isinstance(d, dict):
-        raise ValueError(f'{where}: must be a mapping, got {type(d).__name__}')
-    masses = _need(d, 'masses', where)
-    if 'slope' in d and 'slope_deg' in d:
-        raise ValueError(f'{where}: give slope [rad] or slope_deg [deg], not both')
-    slope = math.radians(float(d['slope_deg'])) if 'slope_deg' in d else float(
-        d.get('slope', 0.0))
-    gravity = float(d.get('gravity', 9.81))
-    if ('mu' in d) == ('friction' in d):
-        raise ValueError(f'{where}: give exactly one of mu or friction')
-    if 'mu' in d:
-        return Crawler.from_coefficients(masses, d['mu'], d.get('mu_backward'), slope, gravity)
-    return Crawler(masses, d['friction'], d.get('friction_backward'), slope, gravity)
+    """The crawler of a bench scene: ``scene.crawler_from_mapping``, the one validator."""
+    from ..core.scene import crawler_from_mapping
+    return crawler_from_mapping(d, where)
 
 
 def make_gait(spec: dict, where: str = 'gait') -> gaits.Gait:

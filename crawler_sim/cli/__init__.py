@@ -202,12 +202,16 @@ def _figure_rows(f: dict) -> list[tuple[str, str]]:
     return rows
 
 
-def _record(out: Path, scene: Any, tr: Any) -> None:
-    """Write the run (states, contact events, the scene) as a bag with the node's topics."""
+def _record(out: Path, scene: Any, tr: Any, as_node: dict | None = None) -> None:
+    """Write the run (states, contact events, the scene, and how it was driven when it ran as
+    the node runs it) as a bag with the node's topics."""
     from ..bag import BagError, record_trajectory
     from ..core.scene import scene_to_dict
 
-    writer = record_trajectory(out, tr, scene=scene_to_dict(scene))
+    sc = scene_to_dict(scene)
+    if as_node:
+        sc['as_node'] = dict(as_node)
+    writer = record_trajectory(out, tr, scene=sc)
     if getattr(writer, 'error', None):
         raise BagError(f'{out}: {writer.error}')
 
@@ -241,6 +245,28 @@ def plot_trajectory(tr: Any, png: Path, title: str = '') -> None:
     plt.close(fig)
 
 
+def _as_node(scene: Any, as_node: dict) -> Any:
+    """The scene's run as sim_node runs it when gait_node plays the scene's gait with
+    ``as_node`` (``mode``: preload, trajectory or command; ``rate`` [Hz]): the node's actuator
+    and tick grid (default parameters, at rest at the gait's first lengths), then the core."""
+    import numpy as np
+
+    from ..core.plant import PlantConfig
+    from ..core.plant.streams import Stream, simulate_as_node
+
+    r = scene.run
+    plant = PlantConfig.for_crawler(scene.crawler, np.atleast_1d(scene.gait.length(0.0)),
+                                    method=r.method, initial_position=r.x0)
+    mode = as_node['mode']
+    stream = Stream('command' if mode == 'command' else 'trajectory', float(as_node['rate']),
+                    preload=mode == 'preload', duration=r.t_end + 1.0 if mode == 'preload'
+                    else 0.0)
+    kw: dict[str, Any] = {'dt': r.dt} if r.dt else {}
+    if r.method == 'exact':
+        kw.update(tol=r.tol, max_step=r.max_step)
+    return simulate_as_node(plant, scene.gait, stream, r.t_end, **kw)
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from ..core.scene import load_scene
 
@@ -249,12 +275,22 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if args.out and Path(args.out).exists():       # fail before a long run, not after it
         raise UsageError(f'{args.out} exists already, not overwriting')
     r = scene.run
-    with _Progress(f'simulating {scene.name}: {r.t_end:g} s with method {r.method}') as prog:
-        tr = scene.simulate()
+    as_node = None
+    if args.as_node:
+        as_node = {'mode': args.as_node, 'rate': args.rate}
+        if r.v0:
+            raise UsageError(f'--as-node starts at rest as sim_node does, but scene.run.v0 = '
+                             f'{r.v0} m/s')
+    what = f' as sim_node runs it ({args.as_node} at {args.rate:g} Hz)' if as_node else ''
+    with _Progress(f'simulating {scene.name}{what}: {r.t_end:g} s with method '
+                   f'{r.method}') as prog:
+        tr = _as_node(scene, as_node) if as_node else scene.simulate()
     figures = _figures(scene, tr, prog.elapsed)
+    if as_node:
+        figures['as_node'] = f'{args.as_node} at {args.rate:g} Hz'
     if args.out:
         with _Progress(f'recording to {args.out}'):
-            _record(Path(args.out), scene, tr)
+            _record(Path(args.out), scene, tr, as_node)
         figures['bag'] = str(args.out)
     if args.plot:
         if args.out:
@@ -370,14 +406,20 @@ def _replay_scene(run: Any, method: str | None) -> tuple[Any, Any, str]:
     scene = scene_from_dict({k: v for k, v in run.scene.items() if k in keys})
     scene = scene.with_run(method=method)
     t = np.asarray(run.t, dtype=float)
-    tr = scene.simulate()
+    as_node = run.scene.get('as_node')
+    tr = _as_node(scene, as_node) if as_node else scene.simulate()
     # compare in the recorded ns base: every stamp a sample of the run (also a truncated bag)
     from ..bag.clock import rows_at_ns
     rows = rows_at_ns(tr.t, getattr(run, 't_ns', np.rint(t * 1e9).astype(np.int64)))
-    what = f'the scene {scene.name!r}'
+    what = f'the scene {scene.name!r}' + (' as sim_node runs it' if as_node else '')
     if rows.size and np.all(rows >= 0):
         return tr.x[rows], tr.v[rows], what
-    tr = scene.with_run(t_end=max(float(t[-1]), scene.run.t_end)).simulate(t_eval=t)
+    longer = scene.with_run(t_end=max(float(t[-1]), scene.run.t_end))
+    if as_node:
+        tr = _as_node(longer, as_node)
+        return (np.column_stack([np.interp(t, tr.t, tr.x[:, i]) for i in range(tr.p)]),
+                np.column_stack([np.interp(t, tr.t, tr.v[:, i]) for i in range(tr.p)]), what)
+    tr = longer.simulate(t_eval=t)
     return tr.x, tr.v, what
 
 
@@ -506,6 +548,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--out', metavar='BAG_DIR', help='record the run to a new bag directory')
     p.add_argument('--plot', metavar='PNG', help='write a plot of the run')
     p.add_argument('--json', action='store_true', help='print the figures as JSON')
+    p.add_argument('--as-node', choices=('preload', 'trajectory', 'command'),
+                   help='run it as sim_node does when gait_node plays the gait: one preloaded '
+                   'trajectory, streamed trajectories, or set-points on linkage_cmd (the '
+                   "node's actuator and tick grid, without ROS)")
+    p.add_argument('--rate', type=_positive, default=50.0, metavar='HZ',
+                   help='with --as-node: gait_node\'s rate [Hz] (default 50)')
 
     p = add('bench', _cmd_bench, 'benchmark the solvers on the bench scenes',
             'Run every solver on the bench scenes (config/bench/) and write tables and plots.')
