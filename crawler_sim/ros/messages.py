@@ -118,12 +118,16 @@ def markers_msg(state, t_ns: int, *, frame_id: str = ODOM_FRAME) -> MarkerArray:
 
 def diagnostics_msg(t_ns: int, values: Mapping[str, object], *, warn: Iterable[str] = (),
                     name: str = 'crawler_sim: simulation',
-                    hardware_id: str = 'crawler_sim') -> DiagnosticArray:
-    """``/diagnostics``: one status; level WARN with the reasons in ``message`` when ``warn`` is
-    non-empty, else OK. Values are stringified in the given order."""
-    reasons = list(warn)
+                    hardware_id: str = 'crawler_sim',
+                    error: Iterable[str] = ()) -> DiagnosticArray:
+    """``/diagnostics``: one status; level ERROR with the reasons in ``message`` (errors first)
+    when ``error`` is non-empty, WARN when only ``warn`` is, else OK. Values are stringified in
+    the given order."""
+    errors = list(error)
+    reasons = errors + list(warn)
     status = DiagnosticStatus()
-    status.level = DiagnosticStatus.WARN if reasons else DiagnosticStatus.OK
+    status.level = (DiagnosticStatus.ERROR if errors else
+                    DiagnosticStatus.WARN if reasons else DiagnosticStatus.OK)
     status.name = name
     status.hardware_id = hardware_id
     status.message = '; '.join(reasons) if reasons else 'running'

@@ -63,10 +63,35 @@ def test_the_numpy_parser_reads_what_rclpy_reads(n_links, vel, acc, frame, n_pts
             np.testing.assert_array_equal(a, b)
 
 
-def test_points_of_different_shapes_go_through_rclpy_and_are_flagged():
+def test_points_of_different_shapes_are_refused_without_rclpys_per_point_parse():
     msg = traj(3, 1)
     msg.points[1].velocities = [0.0]
-    assert trajarrays.parse(serialize_message(msg)).mixed
+    with pytest.raises(TrajectoryFormatError, match='points differ'):
+        trajarrays.parse(serialize_message(msg))
+    reason, prepared = intake.prepare(serialize_message(msg), 1, LO, HI, 0, 3600.0)
+    assert prepared is None and 'points differ' in reason
+
+
+@pytest.mark.parametrize('names,positions,problem', [
+    (['linkage_0'], 1001, 'mismatch between joint_names size (1) and positions (1001)'),
+    (['linkage_0', 'linkage_1'], 1, "unknown joint 'linkage_1' (expected linkage_0)"),
+    (['elbow'], 1, "unknown joint 'elbow'"),
+])
+def test_a_message_that_breaks_the_head_rules_is_refused_before_its_points_are_read(
+        names, positions, problem):
+    """Issue 25: an 80 MB trajectory (10k points x 1001 positions) cost 0.5-1.2 s of the sim
+    loop. The head (names, the first point's sizes) is checked before any point: the parser
+    never reads the rest, so a message whose remaining bytes are garbage is refused the same."""
+    msg = JointTrajectory(joint_names=names)
+    pt = JointTrajectoryPoint(positions=[0.1] * positions)
+    pt.time_from_start.sec = 1
+    msg.points = [pt] * 3
+    data = serialize_message(msg)
+    head = len(data) - 2 * (len(data) - 40) // 3            # cut into the second point
+    garbage = data[:head] + b'\xff' * (len(data) - head)
+    for raw in (data, garbage):
+        reason, prepared = intake.prepare(raw, 1, LO, HI, 0, 3600.0)
+        assert prepared is None and problem in reason, reason
 
 
 def test_a_point_count_above_the_limit_is_refused_from_the_header_alone():

@@ -77,32 +77,40 @@ PARAMETERS: dict[str, tuple[Any, str, tuple[float, float] | None]] = {
 def as_float(name: str, value: Any, rng: tuple[float, float]) -> float:
     """A number (an int is a number too) in ``rng``; ValueError naming ``name`` otherwise."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ValueError(f'{name} must be a number in [{rng[0]:g}, {rng[1]:g}], got {value!r}')
+        raise ValueError(f'{name} must be a number in [{rng[0]:g}, {rng[1]:g}], got '
+                         f'{_short(value)}')
     x = float(value)
     if not (math.isfinite(x) and rng[0] <= x <= rng[1]):
         raise ValueError(f'{name} must be in [{rng[0]:g}, {rng[1]:g}], got {value!r}')
     return x
 
 
-def _as_list(name: str, value: Any, n_max: int) -> list[float]:
+def _short(value: Any, limit: int = 80) -> str:
+    """``repr(value)``, cut to ``limit`` characters (a 10^6-entry list is not a message)."""
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit - 5] + ' ...' + text[-1]
+
+
+def _as_list(name: str, value: Any, n_max: float) -> list[float]:
     """A number or a list of numbers as a list of floats (at most ``n_max`` entries)."""
     if isinstance(value, (int, float)) and not isinstance(value, bool):
         return [float(value)]
     try:
         out = list(value)
     except TypeError:
-        raise ValueError(f'{name} must be a number or a list of numbers, got {value!r}') from None
+        raise ValueError(f'{name} must be a number or a list of numbers, got '
+                         f'{_short(value)}') from None
     if len(out) > n_max:
         raise ValueError(f'{name} must have at most {n_max} entries, got {len(out)}')
     if any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in out):
-        raise ValueError(f'{name} must be a list of numbers, got {value!r}')
+        raise ValueError(f'{name} must be a list of numbers, got {_short(value)}')
     return [float(x) for x in out]
 
 
 def _crawler(v: Mapping[str, Any]) -> Crawler:
     """The crawler of the node's parameters (``scene.crawler_from_mapping``): friction forces
     where they are set, else the coefficients."""
-    masses = _as_list('masses', v['masses'], MAX_BODIES)
+    masses = _as_list('masses', v['masses'], math.inf)
     if not 2 <= len(masses) <= MAX_BODIES:
         raise ValueError(f'masses must list 2 to {MAX_BODIES} bodies (the live node\'s limit; '
                          f'offline runs take any number), got {len(masses)}')
@@ -180,7 +188,7 @@ class PlantConfig:
         lo_n, hi_n, _ = LIMITS['penalty']
         if len(pen) not in (1, p) or not all(lo_n <= n <= hi_n for n in pen):
             raise ValueError(f'penalty must have 1 or {p} entries, each in [{lo_n:g}, '
-                             f'{hi_n:g}] N s/m, got {pen}')
+                             f'{hi_n:g}] N s/m, got {_short(pen)}')
         if v['method'] not in METHODS:
             raise ValueError(f'method must be one of {", ".join(METHODS)}, got {v["method"]!r}')
         lo, hi = v['min_length'], v['max_length']

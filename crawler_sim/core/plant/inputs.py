@@ -28,7 +28,7 @@ import numpy as np
 from ..actuator import TrajectoryReference
 
 __all__ = ['linkage_names', 'check_command', 'TrajectoryArrays', 'PreparedTrajectory',
-           'check_trajectory']
+           'check_head', 'check_trajectory']
 
 
 def linkage_names(n: int) -> tuple[str, ...]:
@@ -111,37 +111,53 @@ class PreparedTrajectory:
                                                vel, acc)
 
 
+def check_head(names: Sequence[str], sizes: Sequence[int], n_points: int, n_links: int
+               ) -> str | None:
+    """The rules a trajectory's head meets (joint names, and the array sizes of its first
+    point): the reason it is rejected, or None. Cheap: a parser checks it before reading any
+    point (``crawler_sim.bag.trajarrays.parse``), so a wrong message costs microseconds
+    whatever its size."""
+    if not names:
+        return 'empty joint_names'
+    if len(set(names)) != len(names):
+        shown = list(names[:8]) + (['...'] if len(names) > 8 else [])
+        return f'duplicate joint names {shown}'
+    known = linkage_names(n_links)
+    for name in names:
+        if name not in known:
+            return f'unknown joint {name[:80]!r} (expected {", ".join(known)})'
+    if len(names) != n_links:
+        return f'joint_names must list all {n_links} linkages, got {len(names)}'
+    if n_points == 0:
+        return None
+    if sizes[0] != n_links:
+        return (f'mismatch between joint_names size ({n_links}) and positions ({sizes[0]}) '
+                'at point #0')
+    for field, size in (('velocities', sizes[1]), ('accelerations', sizes[2])):
+        if size not in (0, n_links):
+            return (f'mismatch between joint_names size ({n_links}) and {field} ({size}) '
+                    'at point #0')
+    if sizes[3]:
+        return 'trajectories with effort fields are not supported'
+    return None
+
+
 def check_trajectory(tr: TrajectoryArrays, n_links: int, lo: float, hi: float, t_ns: int,
                      max_lead_s: float) -> tuple[str | None, PreparedTrajectory | None]:
     """(reason, None) when ``tr`` is rejected, else (None, the prepared trajectory)."""
     names = tr.joint_names
-    if not names:
-        return 'empty joint_names', None
-    if len(set(names)) != len(names):
-        return f'duplicate joint names {names}', None
-    known = linkage_names(n_links)
-    for name in names:
-        if name not in known:
-            return f'unknown joint {name!r} (expected {", ".join(known)})', None
-    if len(names) != n_links:
-        return f'joint_names must list all {n_links} linkages, got {len(names)}', None
     n = tr.n_points
+    if n and tr.mixed:
+        reason = check_head(names, (n_links, 0, 0, 0), 0, n_links)
+        return (reason or 'points differ in which of positions/velocities/accelerations/'
+                'effort they fill'), None
+    reason = check_head(names, tr.sizes, n, n_links)
+    if reason:
+        return reason, None
+    known = linkage_names(n_links)
     if n == 0:
         empty = np.zeros(0, dtype=np.int64)
         return None, PreparedTrajectory(tr.stamp_ns, empty, np.zeros((0, n_links)), None, None)
-    if tr.mixed:
-        return ('points differ in which of positions/velocities/accelerations/effort they '
-                'fill'), None
-    sizes = tr.sizes
-    if sizes[0] != n_links:
-        return (f'mismatch between joint_names size ({n_links}) and positions ({sizes[0]}) '
-                'at point #0'), None
-    for field, size in (('velocities', sizes[1]), ('accelerations', sizes[2])):
-        if size not in (0, n_links):
-            return (f'mismatch between joint_names size ({n_links}) and {field} ({size}) '
-                    'at point #0'), None
-    if sizes[3]:
-        return 'trajectories with effort fields are not supported', None
     tfs = tr.tfs_ns
     if tfs[0] < 0:
         return f'time_from_start of point #0 is negative ({tfs[0] / 1e9} s)', None

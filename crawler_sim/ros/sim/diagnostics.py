@@ -18,7 +18,8 @@ __all__ = ['Diagnostics', 'COUNTERS', 'node_values']
 
 COUNTERS = ('ticks', 'late_ticks', 'commands_accepted', 'commands_rejected',
             'commands_no_value', 'trajectories_accepted', 'trajectories_rejected',
-            'solver_events', 'resets', 'lag_resets', 'solver_failures', 'nonfinite_outputs')
+            'solver_events', 'resets', 'lag_resets', 'solver_failures', 'nonfinite_outputs',
+            'tick_failures')
 
 
 class Diagnostics:
@@ -53,12 +54,17 @@ class Diagnostics:
             k = kind + '_rejected'
             if c[k] > c_prev[k]:
                 warn.append(f'{c[k] - c_prev[k]} {kind} rejected')
+        # what the simulation got wrong is an ERROR (the node goes on, but the run is not what
+        # was asked for); what was refused or late is a WARN
+        error = []
         if c['solver_failures'] > c_prev['solver_failures']:
-            warn.append('solver failed, fell back to implicit')
+            error.append('solver failed, fell back to implicit')
         if c['nonfinite_outputs'] > c_prev['nonfinite_outputs']:
-            warn.append('non-finite state: outputs withheld')
+            error.append('non-finite state: outputs withheld, reset')
+        if c['tick_failures'] > c_prev['tick_failures']:
+            error.append('a tick failed: reset to rest')
         warn += extra_warnings or []
-        return M.diagnostics_msg(t_ns, out, warn=warn, name=self.name)
+        return M.diagnostics_msg(t_ns, out, warn=warn, name=self.name, error=error)
 
 
 def _count(query) -> int:

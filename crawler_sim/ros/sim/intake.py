@@ -30,7 +30,7 @@ def prepare(data: bytes, n_links: int, lo: float, hi: float, t_ns: int, max_lead
             ) -> tuple[str | None, PreparedTrajectory | None]:
     """Parse and check a raw ``linkage_trajectory`` message (see :func:`check_trajectory`)."""
     try:
-        tr = trajarrays.parse(data)
+        tr = trajarrays.parse(data, n_links)
     except TrajectoryFormatError as exc:
         return str(exc), None
     reason, prepared = check_trajectory(tr, n_links, lo, hi, t_ns, max_lead_s)

@@ -349,7 +349,28 @@ class SimNode(Node):
     def _tick(self, to_grid: bool = False) -> None:
         """:meth:`tick` for a caller that holds the lock (the loop). ``to_grid``: go on ticking
         up to the next publish tick (inputs are taken at the first tick only; the flat-out
-        loop: the same states as single ticks with no input arriving in between)."""
+        loop: the same states as single ticks with no input arriving in between).
+
+        Never raises (the last line of defence: inputs are checked before they reach the
+        engine, and the engine contains the solver's failures): anything that escapes is
+        counted in ``tick_failures``, logged at ERROR level, reported in the diagnostics, and
+        the plant starts again at rest at the current sim time."""
+        try:
+            self._tick_inner(to_grid)
+        except Exception as exc:      # noqa: BLE001 - the node must keep running
+            self.counters['tick_failures'] += 1
+            self._solver_error = (f'tick at t = {self._t_ns / 1e9:.9f} s failed '
+                                  f'({type(exc).__name__}: {exc}); reset to rest')
+            self._log.error(self._solver_error, throttle_duration_sec=1.0)
+            try:
+                self._engine.reset()
+                self._drop_pending()
+                self._publish_outputs()
+            except Exception as again:  # noqa: BLE001
+                self._log.error(f'reset after a failed tick failed too: {again}',
+                                throttle_duration_sec=1.0)
+
+    def _tick_inner(self, to_grid: bool) -> None:
         self._take_inputs()
         if self._pending_cfg is not None:
             cfg, self._pending_cfg = self._pending_cfg, None
