@@ -22,13 +22,11 @@ import struct
 
 import numpy as np
 
-from crawler_sim.core.plant.inputs import TrajectoryArrays, check_head
+from crawler_sim.core.plant.inputs import MAX_TRAJECTORY_POINTS, TrajectoryArrays, check_head
 
 __all__ = ['TrajectoryArrays', 'parse', 'from_message', 'MAX_TRAJECTORY_POINTS',
            'TrajectoryFormatError']
 
-#: the largest number of points accepted in one linkage_trajectory
-MAX_TRAJECTORY_POINTS = 1_000_000
 _U32 = struct.Struct('<I')
 
 

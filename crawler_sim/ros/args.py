@@ -63,7 +63,10 @@ def check_args(argv: Sequence[str], executable: str) -> None:
     args = list(argv[1:])
     check_params_files(args)
     from rclpy.utilities import remove_ros_args
-    stray = remove_ros_args(['prog', *args])[1:]
+    try:
+        stray = remove_ros_args(['prog', *args])[1:]
+    except Exception as exc:  # noqa: BLE001 - rclpy's RCLInvalidROSArgsError, a traceback
+        raise ArgsError(_rcl_reason(str(exc))) from None
     if not stray:
         return
     if '--params-file' in stray or '-p' in stray or '--param' in stray:
@@ -105,6 +108,16 @@ def _flat(params: dict, prefix: str = '') -> list[str]:
         name = f'{prefix}{key}'
         out.extend(_flat(value, name + '.') if isinstance(value, dict) else [name])
     return out
+
+
+def _rcl_reason(text: str) -> str:
+    """rcl's message on arguments it cannot parse, without its source locations."""
+    text = text.split('Failed to parse ROS arguments: ', 1)[-1]
+    reason = text.split('. Error:', 1)[0].split(', at /', 1)[0]
+    if 'remap rule' in reason:
+        reason += (' (-r FROM:=TO: names are letters, digits and _, not starting with a digit; '
+                   '__ns:=/a/b for a namespace, __node:=name for the node\'s name)')
+    return f'invalid ROS arguments: {reason}'
 
 
 def unknown_parameters(node, argv: Sequence[str]) -> list[str]:

@@ -347,14 +347,14 @@ def main(args: list[str] | None = None) -> None:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except ValueError as exc:
-        if rclpy.ok():
+    except Exception as exc:
+        if not rclpy.ok():
+            pass            # a signal shut ROS down while the node was starting: a clean exit
+        elif node is None:  # a parameter or a name it cannot use: one line, exit 1
             print(f'[gait_node] cannot start: {exc}', file=sys.stderr, flush=True)
             raise SystemExit(1) from None
-    except Exception:
-        if rclpy.ok():
+        else:
             raise
-        # a signal shut ROS down while the node was starting: a clean exit
     finally:
         if node is not None:
             node.destroy_node()

@@ -376,6 +376,12 @@ def _run_to_exit(proc: Proc) -> tuple[int, str]:
      'frequncy is not a parameter of gait_node (did you mean frequency?)'),
     (['-p', 'mode:=trajectory', '-p', 'preload:=true'], 1,
      'preload needs mode trajectory and a duration > 0'),
+    # 1.5 M points (1.7 GB) that sim_node would refuse; 1e9 s died allocating 373 GiB
+    (['-p', 'n_links:=1', '-p', 'mode:=trajectory', '-p', 'preload:=true', '-p',
+      'duration:=30000.0'], 1, 'makes 1500002 points per trajectory, more than sim_node takes'),
+    (['-p', 'n_links:=1', '-p', 'mode:=trajectory', '-p', 'preload:=true', '-p',
+      'duration:=1e9'], 1, 'more than sim_node takes (1000000)'),
+    (['-r', '__ns:=/bad-name'], 2, "invalid ROS arguments: Couldn't parse remap rule"),
 ])
 def test_gait_node_names_a_bad_parameter_in_one_line(ament_env, tmp_path, args, code, line):
     got, err = _run_to_exit(Proc(tmp_path, ament_env, 'gait_node', *args))

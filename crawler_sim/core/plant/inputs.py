@@ -27,7 +27,12 @@ import numpy as np
 
 from ..actuator import TrajectoryReference
 
-__all__ = ['linkage_names', 'check_command', 'TrajectoryArrays', 'PreparedTrajectory',
+#: the most points one trajectory may hold (1,000,000: 48 MB of positions, velocities and
+#: accelerations for one linkage, parsed in a few tens of ms); gait_node and the offline streams
+#: keep to it too
+MAX_TRAJECTORY_POINTS = 1_000_000
+
+__all__ = ['MAX_TRAJECTORY_POINTS', 'linkage_names', 'check_command', 'TrajectoryArrays', 'PreparedTrajectory',
            'check_head', 'check_trajectory']
 
 

@@ -33,7 +33,7 @@ from ..stepper import simulate
 from ..trajectory import Trajectory
 from .config import PlantConfig
 from .engine import Engine
-from .inputs import PreparedTrajectory
+from .inputs import MAX_TRAJECTORY_POINTS, PreparedTrajectory
 
 __all__ = ['Stream', 'MODES', 'trajectory_points', 'actuator_output', 'simulate_as_node']
 
@@ -68,6 +68,16 @@ class Stream:
                 raise ValueError(f'{name} must be in [{lo:g}, {hi:g}], got {x!r}')
         if self.preload and not (self.mode == 'trajectory' and self.duration > 0):
             raise ValueError('preload needs mode trajectory and a duration > 0')
+        if self.mode == 'trajectory':
+            span, what = ((self.duration, 'duration') if self.preload
+                          else (self.horizon, 'horizon'))
+            points = round(span * self.rate) + 2
+            if points > MAX_TRAJECTORY_POINTS:
+                raise ValueError(
+                    f'{what} x rate = {span:g} s x {self.rate:g} Hz makes {points} points per '
+                    f'trajectory, more than sim_node takes ({MAX_TRAJECTORY_POINTS}): lower '
+                    f'{what} or rate' + (' (or stream it: preload false)' if self.preload
+                                         else ''))
 
     @property
     def period_ns(self) -> int:
