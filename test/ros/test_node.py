@@ -762,3 +762,20 @@ def test_published_and_recorded_outputs_are_the_same_bytes_in_a_namespace(ros, t
         assert len(recorded[name]) == 30                       # t = 10 ms, ..., 300 ms
         assert box == recorded[name][-len(box):], name          # what was sent is what was kept
     assert len({tuple(m.data) for m in boxes['contact_states']}) > 1   # the contacts changed
+
+
+def test_two_sims_with_one_name_are_reported_not_silent(ros):
+    """Issue 25: two sim_nodes in one namespace interleave body_states and share one
+    diagnostics name. Each now counts the other and says so (WARN, naming the remedy)."""
+    a, b = ros.sim(), ros.sim()
+    ros.until(lambda: node_values_of(a)['same_name_nodes'] >= 1, 'the graph to show both')
+    status = a.diagnostics().status[0]
+    assert status.level == DiagnosticStatus.WARN
+    assert "other node(s) named /crawler_sim" in status.message
+    assert 'own namespace' in status.message
+
+
+def node_values_of(sim):
+    from crawler_sim.ros.sim.diagnostics import node_values
+    with sim._lock:
+        return node_values(sim)[0]

@@ -93,5 +93,13 @@ def node_values(node) -> tuple[dict[str, Any], list[str]]:
         'recording': rec.path, 'recording_error': rec.error,
         'last_trajectory_intake_ms': node._traj_intake[0] * 1e3,
         'last_trajectory_bytes': node._traj_intake[1],
+        'same_name_nodes': _count(lambda: node.get_fully_qualified_node_names().count(
+            node.get_fully_qualified_name()) - 1),
     }
-    return values, (['recording failed'] if rec.error else [])
+    warn = ['recording failed'] if rec.error else []
+    if values['same_name_nodes'] > 0:
+        # two sims in one namespace interleave their outputs and share this status's name
+        warn.append(f'{values["same_name_nodes"]} other node(s) named '
+                    f'{node.get_fully_qualified_name()}: outputs interleave (give each sim its '
+                    'own namespace, -r __ns:=/robot2)')
+    return values, warn

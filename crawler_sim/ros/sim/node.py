@@ -117,6 +117,7 @@ class SimNode(Node):
         self._stop = False        # set by stop() (signals); run() returns at the next tick
         self.recorder = Recorder(self._absolute_topic, self._log)
         self._journal_seq = 0
+        self._same_name_logged = False
         # the one owner of the plant: every input goes through it and into its journal
         self._engine = Engine(self._cfg.engine_config(), 0, journal=self._journal)
         if self._cfg.start_paused:
@@ -445,6 +446,10 @@ class SimNode(Node):
         """Build the /diagnostics message (figures since the previous call)."""
         with self._lock:
             values, warn = node_values(self)
+            same = values['same_name_nodes'] > 0
+            if same and not self._same_name_logged:
+                self._log.warning(next(w for w in warn if 'other node(s) named' in w))
+            self._same_name_logged = same
             return self._diag.message(self._t_ns, values, wall_now, warn)
 
     def _publish_diagnostics(self, wall_now: float) -> None:
