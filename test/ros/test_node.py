@@ -362,7 +362,7 @@ def test_a_stamped_trajectory_that_already_ended_is_rejected(ros):
     ([Parameter('friction_backward', value=[1.0, 2.0, 3.0, 4.0])], 'friction_backward: must'),
     ([Parameter('publish_rate', value=2000.0)], 'must be <= integration_rate'),
     ([Parameter('integration_rate', value=1e7)], 'out of range'),
-    ([Parameter('slope', value='steep')], 'type'),
+    ([Parameter('slope', value='steep')], 'slope must be a number'),
     ([Parameter('method', value='rk4')], 'method must be one of'),
     ([Parameter('initial_lengths', value=[0.1, 0.9])], 'outside [min_length, max_length]'),
     ([Parameter('min_length', value=0.6)], 'must be < max_length'),
@@ -779,3 +779,44 @@ def node_values_of(sim):
     from crawler_sim.ros.sim.diagnostics import node_values
     with sim._lock:
         return node_values(sim)[0]
+
+
+def test_get_parameters_over_the_full_list_returns_every_value(ros):
+    """Issue 26: ``friction`` declared without a value made rclpy empty the whole reply (what
+    ``ros2 param dump``, rqt and Foxglove ask). ListParameters, then one GetParameters of every
+    name, over DDS."""
+    from rcl_interfaces.srv import GetParameters, ListParameters
+    sim = ros.sim(seed=True)
+    names = ros.call(ListParameters, '/crawler_sim/list_parameters',
+                     ListParameters.Request()).result.names
+    assert 'friction' in names and 'masses' in names and len(names) >= 30
+    values = ros.call(GetParameters, '/crawler_sim/get_parameters',
+                      GetParameters.Request(names=list(names))).values
+    assert len(values) == len(names)
+    got = dict(zip(names, values))
+    assert list(got['masses'].double_array_value) == [0.5, 1.0]
+    assert got['friction'].type != 0                       # set (an empty array), not NOT_SET
+    assert sim.config.values['friction'] == []
+
+
+@pytest.mark.parametrize('param,expect', [
+    (Parameter('real_time_factor', value=0), ('real_time_factor', 0.0)),     # README: "0"
+    (Parameter('mu', value=0.4), ('mu', [0.4])),                             # one for all
+    (Parameter('masses', value=[1, 1, 1]), ('masses', [1.0, 1.0, 1.0])),     # integers
+    (Parameter('integration_rate', value=2000), ('integration_rate', 2000.0)),
+])
+def test_values_as_people_type_them_are_taken(ros, param, expect):
+    sim = ros.sim(seed=True)
+    result = sim.set_parameters([param])[0]
+    assert result.successful, result.reason
+    ticks(sim, 1)
+    name, value = expect
+    assert sim.config.values[name] == value
+    if name == 'masses':
+        assert sim.config.p == 3
+
+
+def test_a_string_where_a_number_belongs_names_the_field(ros):
+    sim = ros.sim(seed=True)
+    result = sim.set_parameters([Parameter('slope', value='steep')])[0]
+    assert not result.successful and 'slope must be a number in [-1.5, 1.5]' in result.reason

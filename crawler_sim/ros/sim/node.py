@@ -164,8 +164,9 @@ class SimNode(Node):
             if prm.name not in PARAMETERS:
                 continue
             value = prm.value
-            if isinstance(PARAMETERS[prm.name][0], (list, tuple)) and value is not None:
-                value = list(value)
+            if (isinstance(PARAMETERS[prm.name][0], (list, tuple)) and value is not None
+                    and not isinstance(value, (int, float, str))):
+                value = list(value)           # an array (a scalar is one entry for all)
             values[prm.name] = value
         try:
             SimConfig.from_values(values)

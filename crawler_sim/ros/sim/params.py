@@ -59,10 +59,17 @@ OUTPUTS = ('joint_states', 'body_states', 'contact_states', 'contacts_stamped', 
 
 
 def descriptor(name: str):
-    """The ParameterDescriptor of parameter ``name`` (description, range, read-only)."""
+    """The ParameterDescriptor of parameter ``name`` (description, range, read-only).
+
+    Numbers and lists of numbers are dynamically typed: values as people type them are taken
+    (``real_time_factor:=0``, an integer; ``mu:=0.4``, one number for a per-body list;
+    ``masses:=[1,1,1]``, integers) and checked by ``SimConfig.from_values``, which names the
+    field and its range. (rclpy's static typing refuses them: "expecting type 'DOUBLE'".)
+    """
     from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
     default, desc, rng, ro = PARAMETERS[name]
-    d = ParameterDescriptor(description=desc, read_only=ro)
+    numeric = isinstance(default, (int, float, list)) and not isinstance(default, bool)
+    d = ParameterDescriptor(description=desc, read_only=ro, dynamic_typing=numeric)
     if rng is not None:
         d.floating_point_range = [FloatingPointRange(from_value=float(rng[0]),
                                                      to_value=float(rng[1]), step=0.0)]
@@ -72,11 +79,10 @@ def descriptor(name: str):
 
 
 def declare_all(node) -> dict[str, Any]:
-    """Declare every parameter on ``node``; return the values (overrides applied)."""
-    from rclpy.parameter import Parameter
+    """Declare every parameter on ``node`` with a value (``friction`` is the empty list, "from
+    mu": a parameter declared without a value empties a whole GetParameters reply in rclpy);
+    return the values (overrides applied)."""
     for name, (default, *_rest) in PARAMETERS.items():
-        if isinstance(default, list) and not default:
-            default = Parameter.Type.DOUBLE_ARRAY     # an empty list has no type to infer
         node.declare_parameter(name, default, descriptor(name))
     return {name: node.get_parameter_or(name).value for name in PARAMETERS}
 
@@ -96,8 +102,8 @@ class SimConfig(PlantConfig):
             if rng is not None:
                 v[name] = plant.as_float(name, v[name], rng)
         for name, (default, _, _) in plant.PARAMETERS.items():
-            if isinstance(default, list) and v.get(name) is None:
-                v[name] = []              # a DOUBLE_ARRAY declared without a value
+            if isinstance(default, list) and v.get(name) in (None, b''):
+                v[name] = []              # an empty array of any type: "not set"
         if v['record_name']:      # a bag name stays inside record_dir: refused before the run
             check_record_name(v['record_name'])
         return super().from_values(v)
