@@ -820,3 +820,66 @@ def test_a_string_where_a_number_belongs_names_the_field(ros):
     sim = ros.sim(seed=True)
     result = sim.set_parameters([Parameter('slope', value='steep')])[0]
     assert not result.successful and 'slope must be a number in [-1.5, 1.5]' in result.reason
+
+
+def test_step_advances_one_publish_period_while_paused_and_only_then(ros):
+    """``~/step`` (std_srvs/Trigger) over DDS: paused at a publish tick, one step is
+    publish_every ticks (10 ms at the defaults) and its state goes out stamped with that
+    time; a running node refuses to step."""
+    sim = ros.sim(seed=True)
+    states = ros.listen(JointState, 'body_states')
+    ticks(sim, 20)
+    pause = ros.call(SetBool, '/crawler_sim/pause', SetBool.Request(data=True))
+    assert pause.success and sim.paused
+    before = sim.sim_time_ns
+    got = ros.call(Trigger, '/crawler_sim/step', Trigger.Request())
+    assert got.success and sim.sim_time_ns == before + 10_000_000
+    ros.until(lambda: states and ns_from_stamp(states[-1].header.stamp) == before + 10_000_000,
+              'the stepped state')
+    assert ros.call(SetBool, '/crawler_sim/pause', SetBool.Request(data=False)).success
+    refused = ros.call(Trigger, '/crawler_sim/step', Trigger.Request())
+    assert not refused.success and 'not paused' in refused.message
+
+
+def test_a_paused_node_keeps_its_state_visible_to_a_late_subscriber(ros):
+    sim = ros.sim(seed=True, start_paused=True)
+    thread = threading.Thread(target=sim.run, daemon=True)
+    thread.start()
+    try:
+        clocks = ros.listen(Clock, '/clock')
+        late = ros.listen(JointState, 'body_states')        # after the node published once
+        ros.until(lambda: len(late) >= 2 and len(clocks) >= 2, 'republished state and clock')
+        assert sim.paused and sim.sim_time_ns == 0
+        assert all(ns_from_stamp(m.header.stamp) == 0 for m in late)
+    finally:
+        sim.stop()
+        thread.join(timeout=10.0)
+
+
+def test_diagnostics_warn_on_persistent_lateness_or_a_low_factor_not_on_two_late_ticks():
+    from crawler_sim.ros.sim.diagnostics import Diagnostics, LATE_STREAK
+    counters = dict.fromkeys(('ticks', 'late_ticks', 'commands_rejected',
+                              'trajectories_rejected', 'solver_failures', 'nonfinite_outputs',
+                              'tick_failures'), 0)
+    d = Diagnostics(counters, 'x')
+    paced = {'real_time_factor_target': 1.0, 'paused': False}
+
+    def report(late: int, sim_s: float, wall_s: float, **kw):
+        counters['ticks'] += round(sim_s * 1000)
+        counters['late_ticks'] += late
+        report.t += sim_s
+        report.wall += wall_s
+        return d.message(round(report.t * 1e9), dict(paced), report.wall, **kw).status[0]
+    report.t, report.wall = 0.0, d._prev[1]
+    assert report(2, 1.0, 1.0).level == DiagnosticStatus.OK           # two of 1000: noise
+    for _ in range(LATE_STREAK - 2):
+        assert report(1, 1.0, 1.0).level == DiagnosticStatus.OK
+    status = report(1, 1.0, 1.0)
+    assert status.level == DiagnosticStatus.WARN and 'in a row' in status.message
+    assert report(0, 1.0, 1.0).level == DiagnosticStatus.OK
+    assert report(50, 1.0, 1.0).level == DiagnosticStatus.WARN         # 5 % of the ticks
+    slow = report(0, 0.5, 1.0)
+    assert slow.level == DiagnosticStatus.WARN and 'real-time factor 0.5 below' in slow.message
+    last = report(0, 0.01, 1.0, final=True)                               # shutdown
+    assert last.level == DiagnosticStatus.OK
+    assert dict((kv.key, kv.value) for kv in last.values)['real_time_factor'] == '0.5'

@@ -491,3 +491,31 @@ def test_an_optimised_stroke_crawls_live_as_predicted_and_its_bag_replays_exactl
                          env=ament_env, timeout=600)
     assert rep.returncode == 0, rep.stdout + rep.stderr
     assert 'max |dx|  0 m' in rep.stdout and 'match' in rep.stdout
+
+
+def test_sim_node_says_when_it_is_ready_and_when_it_pauses_resumes_or_resets(
+        ament_env, peer, tmp_path):
+    """Issue 26: one INFO line when ready (bodies, method, rates, pacing, clock, recording) and
+    one per pause, resume and reset."""
+    from std_srvs.srv import Trigger
+    sim = Proc(tmp_path, ament_env, 'sim_node', '-p', 'start_paused:=true')
+
+    def log() -> str:
+        sim.err.flush()
+        return (tmp_path / 'sim_node.err').read_text() + (tmp_path / 'sim_node.out').read_text()
+    try:
+        peer.until(lambda: 'ready:' in log(), 'the ready line')
+        line = next(ln for ln in log().splitlines() if 'ready:' in ln)
+        for part in ('2 bodies', '1 linkage(s): linkage_cmd takes 1 length(s)', 'method exact',
+                     '1000 Hz ticks', 'outputs every 10 ticks', '1 x real time',
+                     '/clock published', 'not recording', 'paused: ~/pause false starts it'):
+            assert part in line, (part, line)
+        assert peer.call(SetBool, '/crawler_sim/pause', SetBool.Request(data=False)).success
+        assert peer.call(Trigger, '/crawler_sim/reset', Trigger.Request()).success
+        assert peer.call(SetBool, '/crawler_sim/pause', SetBool.Request(data=True)).success
+        peer.until(lambda: all(w in log() for w in ('running at t =', 'reset to rest at t =',
+                                                     'paused at t =')), 'the three lines')
+        code, err = sim.stop(signal.SIGINT)
+    finally:
+        sim.kill()
+    assert code == 0 and 'Traceback' not in err

@@ -22,6 +22,14 @@ COUNTERS = ('ticks', 'late_ticks', 'commands_accepted', 'commands_rejected',
             'tick_failures')
 
 
+#: WARN when a paced run keeps less than this fraction of its real-time factor target
+RTF_WARN = 0.9
+#: ... or when ticks were late in this many reports in a row, or in more than LATE_SHARE of a
+#: report's ticks (a couple of late ticks on a loaded machine is not trouble)
+LATE_STREAK = 3
+LATE_SHARE = 0.01
+
+
 class Diagnostics:
     """Tick lateness and counter deltas between two reports."""
 
@@ -30,14 +38,21 @@ class Diagnostics:
         self.name = name
         self.lateness: list[float] = []       # wall s, one entry per real-time tick
         self._prev = (0, time.perf_counter(), dict(counters))
+        self._rtf = 0.0
+        self._late_streak = 0
 
     def message(self, t_ns: int, values: dict[str, Any], wall_now: float | None = None,
-                extra_warnings: list[str] | None = None) -> DiagnosticArray:
-        """The report at sim time ``t_ns`` [ns]; ``values`` are the node's own figures."""
+                extra_warnings: list[str] | None = None, final: bool = False
+                ) -> DiagnosticArray:
+        """The report at sim time ``t_ns`` [ns]; ``values`` are the node's own figures
+        (``paused``, ``real_time_factor_target``). ``final``: the report at shutdown, whose
+        period was cut short: it repeats the last real-time factor instead of measuring one."""
         wall_now = time.perf_counter() if wall_now is None else wall_now
         t_prev, wall_prev, c_prev = self._prev
         c = dict(self.counters)
-        rtf = (t_ns - t_prev) / 1e9 / max(wall_now - wall_prev, 1e-9)
+        if not final:
+            self._rtf = (t_ns - t_prev) / 1e9 / max(wall_now - wall_prev, 1e-9)
+        rtf = self._rtf
         late = sorted(self.lateness)
         self.lateness = []
         self._prev = (t_ns, wall_now, c)
@@ -48,8 +63,18 @@ class Diagnostics:
         out.update(values)
         out.update(c)
         warn = []
-        if c['late_ticks'] > c_prev['late_ticks']:
-            warn.append(f'{c["late_ticks"] - c_prev["late_ticks"]} late ticks')
+        n_late = c['late_ticks'] - c_prev['late_ticks']
+        n_ticks = max(c['ticks'] - c_prev['ticks'], 1)
+        self._late_streak = self._late_streak + 1 if n_late else 0
+        if n_late and (self._late_streak >= LATE_STREAK or n_late > LATE_SHARE * n_ticks):
+            warn.append(f'{n_late} late ticks of {n_ticks}'
+                        + (f' ({self._late_streak} reports in a row)'
+                           if self._late_streak >= LATE_STREAK else ''))
+        target = float(values.get('real_time_factor_target', 0.0) or 0.0)
+        if (target > 0 and not values.get('paused') and not final
+                and c['ticks'] > c_prev['ticks'] and rtf < RTF_WARN * target):
+            warn.append(f'real-time factor {rtf:.3g} below {RTF_WARN:g} x the target '
+                        f'{target:g}')
         for kind in ('commands', 'trajectories'):
             k = kind + '_rejected'
             if c[k] > c_prev[k]:

@@ -10,6 +10,9 @@ deadline is counted as late, and the loop catches up by running the due ticks ba
 iteration runs one whole publish period (``SimNode._tick(to_grid=True)``): the inputs that
 arrived are taken at its first tick, as in the paced modes, where a period's ticks run back to
 back too.
+While paused the loop takes (and counts) the inputs, and republishes the latest state and
+/clock every ``PAUSED_REPUBLISH`` wall seconds, unrecorded, so a subscriber that connects while
+the crawler is paused sees it (``~/step`` advances one publish period).
 Diagnostics go out every ``diagnostics_period`` wall seconds from this loop, so they do not
 wait for a message; the bag flushes itself on a wall timer in its own thread (crawler_sim.bag).
 """
@@ -17,9 +20,10 @@ from __future__ import annotations
 
 import time
 
-__all__ = ['run', 'warm_up', 'MAX_LAG']
+__all__ = ['run', 'warm_up', 'MAX_LAG', 'PAUSED_REPUBLISH']
 
 MAX_LAG = 0.5            # wall s of lag after which the real-time loop re-anchors
+PAUSED_REPUBLISH = 0.5   # wall s between two republications of the state while paused
 
 
 def warm_up(node) -> None:
@@ -62,6 +66,7 @@ def _loop(node) -> None:
         with node._lock:
             node._publish_outputs()       # the initial state at t = 0 (a bag starts there)
     checks = 0
+    next_republish = 0.0
     while not node._stop:
         # context.ok() costs ~1 us: flat out, ask every 16th iteration
         checks = (checks + 1) & 15
@@ -73,6 +78,9 @@ def _loop(node) -> None:
             next_diag = t + node._cfg.diagnostics_period
         if node.paused:
             node.take_inputs()        # count (and warn about) commands while paused too
+            if t >= next_republish:   # the state stays visible to late subscribers
+                node.republish()
+                next_republish = t + PAUSED_REPUBLISH
             time.sleep(0.01)
             continue
         if node._anchor_needed:

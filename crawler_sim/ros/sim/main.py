@@ -48,6 +48,7 @@ def main(args: list[str] | None = None) -> None:
             raise SystemExit(1)
         executor.add_node(node)
         node.warm_up()
+        node.log_ready()
         # From here a signal only asks the loop to stop between two ticks: an exception raised
         # at an arbitrary point (e.g. inside a bag write) could leave the MCAP file inconsistent.
         for sig in (signal.SIGINT, signal.SIGTERM):

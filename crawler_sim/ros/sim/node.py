@@ -107,6 +107,7 @@ class SimNode(Node):
                                             (self._traj_sub, self._on_trajectory))]
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.create_service(SetBool, '~/pause', self._on_pause)
+        self.create_service(Trigger, '~/step', self._on_step)
 
         self._solver_error = ''
         self._traj_intake = (0.0, 0)          # (wall s, bytes) of the latest trajectory
@@ -114,6 +115,8 @@ class SimNode(Node):
         self._pending_traj: intake.PreparedTrajectory | None = None
         self._anchor_needed = True
         self._last_state = None
+        self._last_row = None
+        self._last_row_ns = 0
         self._stop = False        # set by stop() (signals); run() returns at the next tick
         self.recorder = Recorder(self._absolute_topic, self._log)
         self._journal_seq = 0
@@ -301,7 +304,32 @@ class SimNode(Node):
             response.success = True
             response.message = (f'{"paused" if self.paused else "running"} at '
                                 f't = {self._t_ns / 1e9:.9f} s')
+            self._log.info(response.message)
         return response
+
+    def _on_step(self, request: Trigger.Request, response: Trigger.Response
+                 ) -> Trigger.Response:
+        """While paused: advance one publish period (to the next publish tick, taking the
+        inputs that arrived, as the loop does) and publish it. Finer steps: a publish_rate equal
+        to integration_rate makes a step one tick. (std_srvs/Trigger: common_interfaces has no
+        step service with a count; Gazebo's world control steps the same way.)"""
+        with self._lock:
+            if not self.paused:
+                response.success = False
+                response.message = 'not paused: call ~/pause with true first'
+                return response
+            self._tick(to_grid=True)
+            response.success = True
+            response.message = f'stepped to t = {self._t_ns / 1e9:.9f} s'
+        return response
+
+    def republish(self) -> None:
+        """Publish the latest state and /clock again, unchanged and not recorded (the loop
+        does it while paused, so a late subscriber sees the crawler)."""
+        with self._lock:
+            if self._last_row is not None:
+                self.outputs.publish(self._last_row, self._last_row_ns,
+                                     self._cfg.crawler.masses)
 
     def reset(self) -> None:
         """Back to the initial state (pending parameter changes applied); sim time goes on.
@@ -317,6 +345,7 @@ class SimNode(Node):
             self.outputs.sync(cfg)
             self.outputs.refresh()
             self.counters['resets'] += 1
+            self._log.info(f'reset to rest at t = {self._t_ns / 1e9:.9f} s')
             self._publish_outputs()
 
     # ------------------------------------------------------------------ the tick
@@ -440,18 +469,20 @@ class SimNode(Node):
             self._drop_pending()
             return
         self._last_state = st
+        self._last_row, self._last_row_ns = row, self._t_ns
         self.outputs.publish(row, self._t_ns, self._cfg.crawler.masses,
                              self.recorder.write if self.recorder.on else None)
 
-    def diagnostics(self, wall_now: float | None = None):
-        """Build the /diagnostics message (figures since the previous call)."""
+    def diagnostics(self, wall_now: float | None = None, final: bool = False):
+        """Build the /diagnostics message (figures since the previous call; ``final``: the
+        last one, at shutdown)."""
         with self._lock:
             values, warn = node_values(self)
             same = values['same_name_nodes'] > 0
             if same and not self._same_name_logged:
                 self._log.warning(next(w for w in warn if 'other node(s) named' in w))
             self._same_name_logged = same
-            return self._diag.message(self._t_ns, values, wall_now, warn)
+            return self._diag.message(self._t_ns, values, wall_now, warn, final=final)
 
     def _publish_diagnostics(self, wall_now: float) -> None:
         msg = self.diagnostics(wall_now)
@@ -474,10 +505,24 @@ class SimNode(Node):
         with self._lock:
             if self.recorder.on:
                 self.recorder.write('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray',
-                                    self.diagnostics(), self._t_ns)
+                                    self.diagnostics(final=True), self._t_ns)
             self.recorder.close()
 
     # ------------------------------------------------------------------ the loop
+    def log_ready(self) -> None:
+        """One INFO line when the node is ready: what it simulates, how fast, where to."""
+        cfg = self._cfg
+        rtf = cfg.real_time_factor
+        pace = 'as fast as possible' if rtf <= 0 else f'{rtf:g} x real time'
+        clock = ('/clock published' if self.outputs.clock_pub is not None
+                 else '/clock not published')
+        rec = f'recording to {self.recorder.path}' if self.recorder.on else 'not recording'
+        self._log.info(
+            f'ready: {cfg.p} bodies ({cfg.n_links} linkage(s): linkage_cmd takes '
+            f'{cfg.n_links} length(s)), method {cfg.method}, {1e9 / cfg.dt_ns:g} Hz ticks, '
+            f'outputs every {cfg.publish_every} ticks, {pace}, {clock}, {rec}'
+            + ('; paused: ~/pause false starts it' if self.paused else ''))
+
     def warm_up(self) -> None:
         """Run once what the first ticks would compute cold (see :func:`.loop.warm_up`)."""
         loop.warm_up(self)
