@@ -381,6 +381,7 @@ def _replay_node(run: Any, method: str | None) -> tuple[Any, Any, str]:
               'changes and resets are not repeated)')
     until = int(run.t_ns[-1]) if len(run.t_ns) else 0
     snaps = replay(run.scene, recorded.inputs, until, method=method,
+                   from_ns=int(run.t_ns[0]) if len(run.t_ns) else None,
                    on_failure=lambda msg: _info(msg + '; continuing with method implicit, as '
                                                 'the node does'))
     kinds: dict[str, int] = {}

@@ -59,8 +59,12 @@ class Proc:
     """A child process with its output in files (no pipe can fill up and block it)."""
 
     def __init__(self, tmp: Path, env: dict, name: str, *ros_args: str) -> None:
-        self.out = open(tmp / f'{name}.out', 'w+')
-        self.err = open(tmp / f'{name}.err', 'w+')
+        stem, k = name, 0
+        while (tmp / f'{stem}.out').exists():     # several processes of one executable
+            k += 1
+            stem = f'{name}_{k}'
+        self.out = open(tmp / f'{stem}.out', 'w+')
+        self.err = open(tmp / f'{stem}.err', 'w+')
         self.popen = subprocess.Popen([str(executable(name)), '--ros-args', *ros_args],
                                       env=env, stdout=self.out, stderr=self.err)
 
@@ -519,3 +523,46 @@ def test_sim_node_says_when_it_is_ready_and_when_it_pauses_resumes_or_resets(
     finally:
         sim.kill()
     assert code == 0 and 'Traceback' not in err
+
+
+@pytest.mark.parametrize('robots', [2, 3])
+def test_several_namespaced_sims_share_one_monotonic_clock_and_keep_their_topics_apart(
+        ament_env, peer, tmp_path, robots):
+    """Issue 26: two crawlers in one domain (-r __ns:=/r1, /r2) both published /clock and 99 of
+    507 clock messages went backwards. Started together, one owns /clock, the others follow it:
+    every /clock received is >= the one before, each robot's body_states come from its own
+    crawler (its own number of bodies), and exactly one node does not say it follows. The last
+    one records, and its bag replays bit for bit from the time it joined."""
+    from rosgraph_msgs.msg import Clock
+    names = [f'r{k + 1}' for k in range(robots)]
+    procs = [Proc(tmp_path, ament_env, 'sim_node', '-r', f'__ns:=/{ns}', '-p',
+                  f'masses:=[{", ".join(["1.0"] * (k + 2))}]', '-p', 'real_time_factor:=2.0',
+                  *(['-p', 'record:=true', '-p', f'record_dir:={tmp_path}', '-p',
+                     'record_name:=follower'] if k == robots - 1 else []))
+             for k, ns in enumerate(names)]
+    clocks: list[int] = []
+    states: dict[str, list] = {ns: [] for ns in names}
+    peer.node.create_subscription(Clock, '/clock', lambda m: clocks.append(
+        m.clock.sec * 1_000_000_000 + m.clock.nanosec), qos_profile_sensor_data)
+    for ns in names:
+        peer.node.create_subscription(JointState, f'/{ns}/body_states',
+                                      states[ns].append, 1000)
+    try:
+        peer.until(lambda: len(clocks) > 400 and all(len(v) > 100 for v in states.values()),
+                   'clock and states from every robot', timeout=60.0)
+        codes = [p.stop(signal.SIGINT) for p in reversed(procs)]
+    finally:
+        for p in procs:
+            p.kill()
+    for code, err in codes:
+        assert code == 0 and 'Traceback' not in err, err
+    assert all(b >= a for a, b in zip(clocks, clocks[1:])), 'a /clock message went backwards'
+    for k, ns in enumerate(names):
+        assert {len(m.position) for m in states[ns]} == {k + 2}     # its own crawler
+    errs = [e for _, e in codes]
+    followers = sum('this node follows it' in e for e in errs)
+    assert followers == robots - 1, errs
+    rep = subprocess.run([sys.executable, '-m', 'crawler_sim.cli', 'replay',
+                          str(tmp_path / 'follower')], capture_output=True, text=True,
+                         env=ament_env, timeout=600)
+    assert rep.returncode == 0 and 'max |dx|  0 m' in rep.stdout, rep.stdout + rep.stderr

@@ -104,10 +104,17 @@ class Engine:
         self._note('configure', cfg)
         return False
 
-    def reset(self, cfg: EngineConfig | None = None) -> None:
+    def reset(self, cfg: EngineConfig | None = None, t_ns: int | None = None) -> None:
         """Back to rest in the initial configuration (of ``cfg``, default the current one) at
-        the current sim time; events not popped yet are dropped."""
-        self._build(cfg or self.cfg, self.t_ns)
+        the current sim time (or at ``t_ns``, a tick boundary at or after it: a node that
+        follows another's clock starts at that clock's time); events not popped yet are
+        dropped."""
+        cfg = cfg or self.cfg
+        if t_ns is None:
+            t_ns = self.t_ns
+        elif t_ns % cfg.dt_ns:
+            t_ns += cfg.dt_ns - t_ns % cfg.dt_ns
+        self._build(cfg, t_ns)
         self._note('reset', self.cfg)
 
     def pause(self) -> None:

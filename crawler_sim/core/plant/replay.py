@@ -91,17 +91,26 @@ def plant_config(values: Mapping[str, Any], method: str | None = None) -> PlantC
 
 
 def replay(values: Mapping[str, Any], inputs: Sequence[Input], until_ns: int, *,
-           method: str | None = None, t0_ns: int = 0,
+           method: str | None = None, t0_ns: int = 0, from_ns: int | None = None,
            on_failure: Callable[[str], Any] | None = None) -> Snapshots:
     """Run the plant from rest in the configuration of ``values`` (sim_node's parameter
     values) at ``t0_ns``, applying ``inputs`` (in order, each before the tick that starts at
     its time) up to ``until_ns``; the snapshots the node would publish. ``method`` replaces the
     recorded method everywhere (then the states are close, not identical). Solver failures,
-    which the engine survives as the node does, are reported through ``on_failure``."""
+    which the engine survives as the node does, are reported through ``on_failure``.
+
+    ``from_ns``: the first recorded sample. When the first input is a reset at or before it
+    (a node that follows another's /clock starts its time there), the run starts at that reset
+    instead of ticking up to it."""
+    pending = sorted(range(len(inputs)), key=lambda k: (inputs[k].t_ns, k))   # stable in time
+    first = inputs[pending[0]] if pending else None
+    if (first is not None and first.kind == 'reset' and from_ns is not None
+            and t0_ns < first.t_ns <= from_ns):
+        values, t0_ns = first.payload, first.t_ns
+        pending = pending[1:]
     engine = Engine(plant_config(values, method).engine_config(), t0_ns)
     snaps = Snapshots()
     snaps.take(engine)
-    pending = sorted(range(len(inputs)), key=lambda k: (inputs[k].t_ns, k))   # stable in time
     i, n = 0, len(pending)
     reported = 0
     while True:

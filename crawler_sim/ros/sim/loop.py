@@ -87,6 +87,16 @@ def _loop(node) -> None:
             node._anchor_needed = False
             anchor_wall, anchor_tick = t, counters['ticks']
         cfg = node._cfg
+        target = node._clock_target_ns
+        if target is not None:
+            # following another node's /clock: tick up to its time, never past it (the stamps
+            # of every robot agree with the one clock)
+            with node._lock:
+                if not node.paused and node._t_ns + cfg.dt_ns <= target:
+                    node._tick()
+                    continue
+            time.sleep(0.001)
+            continue
         rtf = cfg.real_time_factor
         if rtf <= 0.0:
             # Flat out: one publish period per iteration (its ticks back to back, inputs taken

@@ -48,7 +48,6 @@ def main(args: list[str] | None = None) -> None:
             raise SystemExit(1)
         executor.add_node(node)
         node.warm_up()
-        node.log_ready()
         # From here a signal only asks the loop to stop between two ticks: an exception raised
         # at an arbitrary point (e.g. inside a bag write) could leave the MCAP file inconsistent.
         for sig in (signal.SIGINT, signal.SIGTERM):
@@ -57,6 +56,8 @@ def main(args: list[str] | None = None) -> None:
         spin_thread = threading.Thread(target=_spin, args=(executor, stop_spin, node, failure),
                                        daemon=True)
         spin_thread.start()
+        node.choose_clock()         # several sims in one domain: one of them owns /clock
+        node.log_ready()
         node.run()
         if failure:
             raise failure[0]

@@ -41,6 +41,7 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import CallbackGroup
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import SetBool, Trigger
@@ -57,6 +58,8 @@ from .recording import applied_trajectory, Recorder
 __all__ = ['SimNode', 'LoopTakenGroup', 'NODE_NAME']
 
 NODE_NAME = 'crawler_sim'
+CLOCK_DISCOVERY = 1.0     # wall s a starting node listens for another's /clock (2 republishes)
+CLOCK_FIRST_TICK = 10.0   # wall s a follower waits for the owner's first /clock
 
 
 class LoopTakenGroup(CallbackGroup):
@@ -117,6 +120,10 @@ class SimNode(Node):
         self._last_state = None
         self._last_row = None
         self._last_row_ns = 0
+        self._clock_owner = ''                 # FQN of the /clock owner this node follows
+        self._clock_target_ns: int | None = None    # following: tick up to this sim time
+        self._clock_heard: list[int] = []
+        self._follow_sub = None
         self._stop = False        # set by stop() (signals); run() returns at the next tick
         self.recorder = Recorder(self._absolute_topic, self._log)
         self._journal_seq = 0
@@ -509,13 +516,62 @@ class SimNode(Node):
             self.recorder.close()
 
     # ------------------------------------------------------------------ the loop
+    # ------------------------------------------------------------------ the clock
+    def choose_clock(self, wait: float = CLOCK_DISCOVERY) -> None:
+        """Decide who publishes ``/clock`` (several sims in one domain share one clock). Call
+        with the executor spinning, before the loop: for ``wait`` wall seconds the node listens
+        to /clock and looks at its publishers. A /clock that ticks (a sim already running, or
+        paused: it republishes) is followed; otherwise, among sims starting together, the one
+        with the smallest fully qualified name owns it and the others follow. A follower
+        publishes no /clock, starts its sim time at the owner's and ticks up to it (one sim
+        clock for every robot: their stamps agree). ``publish_clock`` false: neither."""
+        if not self._cfg.publish_clock:
+            return
+        heard = self._clock_heard
+        sub = self.create_subscription(Clock, '/clock', self._on_clock, 10)
+        mine = self.get_fully_qualified_name()
+        end = time.monotonic() + wait
+        while time.monotonic() < end and not heard:
+            time.sleep(0.02)
+        others = sorted(f'{info.node_namespace.rstrip("/")}/{info.node_name}'
+                        for info in self.get_publishers_info_by_topic('/clock'))
+        others = [fqn for fqn in others if fqn != mine]
+        if not heard and not (others and others[0] < mine):
+            self.destroy_subscription(sub)
+            return                                  # this node owns /clock
+        owner = others[0] if others else 'another node'
+        with self._lock:
+            self.outputs.following_clock = True
+            self.outputs.sync(self._cfg)
+        self._follow_sub = sub
+        self._clock_owner = owner
+        end = time.monotonic() + max(wait, CLOCK_FIRST_TICK)
+        while not heard and time.monotonic() < end:
+            time.sleep(0.02)
+        start = heard[-1] if heard else 0
+        with self._lock:
+            self._clock_target_ns = start
+            self._engine.reset(self._cfg.engine_config(), t_ns=start)
+        self._log.warning(f'/clock is published by {owner}: this node follows it (sim time from '
+                          f'{self._t_ns / 1e9:.9f} s) and publishes no /clock of its own')
+
+    def _on_clock(self, msg: Clock) -> None:
+        t_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
+        if self._clock_target_ns is None:
+            self._clock_heard.append(t_ns)       # still choosing
+        else:
+            self._clock_target_ns = max(self._clock_target_ns, t_ns)
+
     def log_ready(self) -> None:
         """One INFO line when the node is ready: what it simulates, how fast, where to."""
         cfg = self._cfg
         rtf = cfg.real_time_factor
         pace = 'as fast as possible' if rtf <= 0 else f'{rtf:g} x real time'
         clock = ('/clock published' if self.outputs.clock_pub is not None
+                 else f'following the /clock of {self._clock_owner}' if self._clock_owner
                  else '/clock not published')
+        if self._clock_owner:
+            pace = 'paced by that clock'
         rec = f'recording to {self.recorder.path}' if self.recorder.on else 'not recording'
         self._log.info(
             f'ready: {cfg.p} bodies ({cfg.n_links} linkage(s): linkage_cmd takes '

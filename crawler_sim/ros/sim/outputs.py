@@ -42,6 +42,7 @@ class Outputs:
         self._node = node
         self.pubs: dict[str, Any] = {}
         self.clock_pub = None
+        self.following_clock = False      # another node owns /clock (SimNode.choose_clock)
         self.encoder = M.OutputEncoder()
         # (name, topic, publisher, encode, publish_raw) on the publish grid, and those with a
         # subscriber
@@ -66,10 +67,11 @@ class Outputs:
                        self.pubs[name].handle.publish_raw)
                       for name in OUTPUTS[:-1] if name in self.pubs]
         self._countdown = 0
-        if cfg.publish_clock and self.clock_pub is None:
+        own_clock = cfg.publish_clock and not self.following_clock
+        if own_clock and self.clock_pub is None:
             self.clock_pub = node.create_publisher(Clock, '/clock', 10)
             self._clock_raw = self.clock_pub.handle.publish_raw
-        elif not cfg.publish_clock and self.clock_pub is not None:
+        elif not own_clock and self.clock_pub is not None:
             node.destroy_publisher(self.clock_pub)
             self.clock_pub = None
 
