@@ -10,8 +10,10 @@ A simulated `Trajectory` and a recorded bag (`crawler_sim.bag.load`) become the 
 - events: one row per contact change, columns ``t`` [s], ``body``, ``old``, ``new``.
 
 :func:`write_table` stores a frame's ``attrs['crawler_sim']`` (the sweep spec or the scene, and
-the package version) in the file: Parquet schema metadata under the key ``crawler_sim``, or a
-first CSV line ``# crawler_sim: {JSON}``. :func:`read_table` restores it into ``attrs``.
+the package version) with the file: Parquet schema metadata under the key ``crawler_sim``, or for
+CSV a JSON file beside it, ``<name>.csv.json`` (the CSV itself is plain: ``pd.read_csv`` and
+``np.genfromtxt`` read it as is). :func:`read_table` restores it into ``attrs`` (also from the
+first line ``# crawler_sim: {JSON}`` of CSV files written before).
 
 Files are written through :func:`write_atomically`: a temporary ``<name>.tmp`` beside the file,
 renamed over it once complete. A failed write (a full disk, an unwritable directory) removes the
@@ -162,9 +164,14 @@ def write_table(df: pd.DataFrame, path: str | os.PathLike, fmt: str | None = Non
 
     def write_csv(tmp: Path) -> None:
         with open(tmp, 'w', encoding='utf-8', newline='') as fh:
-            fh.write(_CSV_PREFIX + meta + '\n')
             df.to_csv(fh, float_format='%.17g')       # 17 digits: floats read back exactly
+    write_atomically(_sidecar(path), lambda tmp: tmp.write_text(meta + '\n', encoding='utf-8'))
     return write_atomically(path, write_csv)
+
+
+def _sidecar(path: Path) -> Path:
+    """The metadata file of a CSV table: ``<name>.json`` beside it."""
+    return path.with_name(path.name + '.json')
 
 
 def read_table(path: str | os.PathLike) -> pd.DataFrame:
@@ -182,8 +189,10 @@ def read_table(path: str | os.PathLike) -> pd.DataFrame:
         with open(path, encoding='utf-8') as fh:
             first = fh.readline()
             meta = json.loads(first[len(_CSV_PREFIX):]) if first.startswith(_CSV_PREFIX) else {}
-            if not meta:
+            if not meta:                # the current layout: a plain CSV and its sidecar
                 fh.seek(0)
+                side = _sidecar(path)
+                meta = json.loads(side.read_text(encoding='utf-8')) if side.is_file() else {}
             df = pd.read_csv(fh, index_col=0)
     df.attrs[_META_KEY] = meta
     return df

@@ -209,3 +209,19 @@ def test_optimize_writes_a_file_gait_node_plays_for_every_family(tmp_path, capsy
     t = np.linspace(0.0, 2.0 * best.period, 1001)
     for a, b in zip(played(t), best(t)):
         np.testing.assert_array_equal(a, b)
+
+
+def test_a_csv_table_is_plain_for_pandas_and_numpy_and_keeps_its_metadata_beside_it(tmp_path):
+    """Issue 27: the first line ``# crawler_sim: {json}`` broke ``pd.read_csv`` and
+    ``np.genfromtxt``. The metadata now lives in ``<name>.csv.json``."""
+    from crawler_sim.sweep.tables import read_table, write_table
+    df = pd.DataFrame({'a': [1.0, 0.1 + 0.2], 'b': [3.0, 4.0]}, index=pd.Index([0, 1], name='t'))
+    df.attrs['crawler_sim'] = {'kind': 'sweep', 'spec': {'n': 2}}
+    path = write_table(df, tmp_path / 'out.csv')
+    plain = pd.read_csv(path, index_col=0)
+    assert plain['a'].tolist() == [1.0, 0.1 + 0.2]            # 17 digits: exact
+    arr = np.genfromtxt(path, delimiter=',', names=True)
+    assert arr['b'].tolist() == [3.0, 4.0]
+    back = read_table(path)
+    assert back.attrs['crawler_sim'] == {'kind': 'sweep', 'spec': {'n': 2}}
+    assert (tmp_path / 'out.csv.json').is_file()
