@@ -270,8 +270,13 @@ def _as_node(scene: Any, as_node: dict) -> Any:
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from ..core.scene import load_scene
 
-    scene = load_scene(_existing(args.scene)).with_run(method=args.method, t_end=args.t_end,
-                                                       dt=args.dt)
+    scene = load_scene(_existing(args.scene))
+    penalty = args.penalty
+    if args.method == 'penalty' and penalty is None and scene.run.penalty is None:
+        from ..core.plant.config import PARAMETERS
+        penalty = PARAMETERS['penalty'][0][0]          # sim_node's default regularisation
+        _info(f'method penalty: n = {penalty:g} N s/m (sim_node\'s default; --penalty N)')
+    scene = scene.with_run(method=args.method, t_end=args.t_end, dt=args.dt, penalty=penalty)
     if args.out and Path(args.out).exists():       # fail before a long run, not after it
         raise UsageError(f'{args.out} exists already, not overwriting')
     r = scene.run
@@ -546,6 +551,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help='simulated time [s] (overrides scene.run.t_end)')
     p.add_argument('--dt', type=_positive, metavar='DT',
                    help='step of implicit/penalty [s] (overrides scene.run.dt)')
+    p.add_argument('--penalty', type=_positive, metavar='N',
+                   help='method penalty: the regularisation n [N s/m] (overrides '
+                   'scene.run.penalty; default sim_node\'s 1e4)')
     p.add_argument('--out', metavar='BAG_DIR', help='record the run to a new bag directory')
     p.add_argument('--plot', metavar='PNG', help='write a plot of the run')
     p.add_argument('--json', action='store_true', help='print the figures as JSON')

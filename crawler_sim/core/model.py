@@ -76,6 +76,29 @@ def _check_derived(masses: NDArray, fp: NDArray, fm: NDArray, slope: float,
                          f'got {acc!r}; reduce friction or raise masses')
 
 
+def _forces(m: NDArray[np.float64], mu: ArrayLike, mu_backward: ArrayLike | None,
+            slope: float, gravity: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Friction forces [N] f_i = mu_i m_i g cos(slope), forward and backward; ValueError naming
+    the coefficient when a force would exceed ``DERIVED_LIMIT``."""
+    mu_f = _check_vector('mu', mu, m.size, positive=False)
+    mu_b = mu_f if mu_backward is None else _check_vector(
+        'mu_backward', mu_backward, m.size, positive=False)
+    slope = _check_scalar('slope', slope, allowed='in (-pi/2, pi/2) rad')
+    gravity = _check_scalar('gravity', gravity, lo=0.0, allowed='>= 0 m/s^2')
+    with np.errstate(over='ignore', invalid='ignore'):
+        normal = m * gravity * math.cos(slope)
+        f_fwd, f_bwd = mu_f * normal, mu_b * normal
+    for name, mu_arr, f in (('mu', mu_f, f_fwd), ('mu_backward', mu_b, f_bwd)):
+        bad = ~(f <= DERIVED_LIMIT)
+        if np.any(bad):
+            i = int(np.argmax(bad))
+            raise ValueError(f'{name}[{i}]: the friction force {name}[{i}] * masses[{i}] * '
+                             f'gravity * cos(slope) must be <= {DERIVED_LIMIT:g} N, got '
+                             f'{float(f[i])!r} (mu {float(mu_arr[i])!r}, mass {float(m[i])!r}'
+                             ' kg)')
+    return f_fwd, f_bwd
+
+
 @dataclass(frozen=True, init=False, eq=False)
 class Crawler:
     """A chain of p >= 2 bodies on a line.
@@ -85,13 +108,17 @@ class Crawler:
     masses : array_like, shape (p,)
         Body masses [kg], finite and > 0.
     friction : float or array_like, shape (p,)
-        Friction force magnitude resisting forward (+x) sliding [N], finite and >= 0.
+        Friction force magnitude resisting forward (+x) sliding [N], finite and >= 0 (or give
+        ``mu`` instead).
     friction_backward : float or array_like, shape (p,), optional
         The same for backward sliding [N]; defaults to ``friction``.
     slope : float
         Inclination [rad], uphill is +x, in (-pi/2, pi/2); adds ``-m_i g sin(slope)`` to body i.
     gravity : float
         Gravitational acceleration [m/s^2], finite and >= 0.
+    mu, mu_backward : float or array_like, shape (p,), keyword only
+        Friction coefficients instead of forces: f_i = mu_i m_i g cos(slope)
+        (``Crawler([0.5, 1.0], mu=0.3)``; the same as :meth:`from_coefficients`).
 
     Derived quantities are checked too (ValueError naming the field): sum(masses) [kg], the
     total friction sum(friction) + sum(friction_backward) [N], the weight gravity * sum(masses)
@@ -106,13 +133,23 @@ class Crawler:
     slope: float
     gravity: float
 
-    def __init__(self, masses: ArrayLike, friction: ArrayLike,
+    def __init__(self, masses: ArrayLike, friction: ArrayLike | None = None,
                  friction_backward: ArrayLike | None = None, slope: float = 0.0,
-                 gravity: float = 9.81) -> None:
+                 gravity: float = 9.81, *, mu: ArrayLike | None = None,
+                 mu_backward: ArrayLike | None = None) -> None:
         m = _check_vector('masses', masses, None, positive=True)
         if m.size < 2:
             raise ValueError(f'masses must list p >= 2 bodies, got p = {m.size}')
         p = m.size
+        if (friction is None) == (mu is None):
+            raise ValueError('give friction forces [N] or coefficients mu, exactly one of them')
+        if mu is not None:
+            if friction_backward is not None:
+                raise ValueError('friction_backward [N] goes with friction; with mu give '
+                                 'mu_backward')
+            friction, friction_backward = _forces(m, mu, mu_backward, slope, gravity)
+        elif mu_backward is not None:
+            raise ValueError('mu_backward goes with mu; with friction give friction_backward')
         f = _check_vector('friction', friction, p, positive=False)
         fb = f if friction_backward is None else _check_vector(
             'friction_backward', friction_backward, p, positive=False)
@@ -131,24 +168,9 @@ class Crawler:
     def from_coefficients(cls, masses: ArrayLike, mu: ArrayLike,
                           mu_backward: ArrayLike | None = None, slope: float = 0.0,
                           gravity: float = 9.81) -> Crawler:
-        """Build from friction coefficients: f_i = mu_i m_i g cos(slope)."""
-        m = _check_vector('masses', masses, None, positive=True)
-        mu_f = _check_vector('mu', mu, m.size, positive=False)
-        mu_b = mu_f if mu_backward is None else _check_vector(
-            'mu_backward', mu_backward, m.size, positive=False)
-        slope = _check_scalar('slope', slope, allowed='in (-pi/2, pi/2) rad')
-        gravity = _check_scalar('gravity', gravity, lo=0.0, allowed='>= 0 m/s^2')
-        with np.errstate(over='ignore', invalid='ignore'):
-            normal = m * gravity * math.cos(slope)
-            f_fwd, f_bwd = mu_f * normal, mu_b * normal
-        for name, mu_arr, f in (('mu', mu_f, f_fwd), ('mu_backward', mu_b, f_bwd)):
-            bad = ~(f <= DERIVED_LIMIT)
-            if np.any(bad):
-                i = int(np.argmax(bad))
-                raise ValueError(f'{name}[{i}]: the friction force {name}[{i}] * masses[{i}] * '
-                                 f'gravity * cos(slope) must be <= {DERIVED_LIMIT:g} N, got '
-                                 f'{float(f[i])!r} (mu {float(mu_arr[i])!r}, mass {float(m[i])!r} kg)')
-        return cls(m, f_fwd, f_bwd, slope, gravity)
+        """Build from friction coefficients: f_i = mu_i m_i g cos(slope) (the same as
+        ``Crawler(masses, mu=mu, ...)``)."""
+        return cls(masses, slope=slope, gravity=gravity, mu=mu, mu_backward=mu_backward)
 
     @property
     def p(self) -> int:

@@ -261,3 +261,19 @@ def test_a_crawler_at_the_derived_limits_gives_finite_outputs(method):
                      penalty=1e6 if method == 'penalty' else None)
     for name in ('x', 'v', 'friction', 'impulse', 'linkage_force'):
         assert np.all(np.isfinite(getattr(tr, name))), name
+
+
+def test_a_crawler_takes_coefficients_by_keyword_as_from_coefficients_does():
+    """Issue 27: ``Crawler(masses, mu=...)`` was a TypeError. f_i = mu_i m_i g cos(slope):
+    0.3 * 0.5 * 9.81 = 1.4715 N by hand."""
+    from crawler_sim import Crawler
+    c = Crawler([0.5, 1.0], mu=0.3, mu_backward=[0.5, 0.2], slope=0.1)
+    ref = Crawler.from_coefficients([0.5, 1.0], 0.3, [0.5, 0.2], slope=0.1)
+    assert c.friction.tolist() == ref.friction.tolist()
+    assert c.friction_backward.tolist() == ref.friction_backward.tolist()
+    assert Crawler([0.5, 1.0], mu=0.3).friction[0] == pytest.approx(1.4715, rel=1e-15)
+    for kw, msg in ((dict(), 'exactly one'), (dict(friction=1.0, mu=0.3), 'exactly one'),
+                    (dict(mu=0.3, friction_backward=1.0), 'with mu give mu_backward'),
+                    (dict(friction=1.0, mu_backward=0.3), 'with friction give')):
+        with pytest.raises(ValueError, match=msg):
+            Crawler([1.0, 1.0], **kw)
