@@ -43,7 +43,7 @@ setup(
     description='Exact simulation of friction-based crawling locomotion as a ROS 2 node.',
     license='Apache-2.0',
     tests_require=['pytest'],
-    extras_require={'test': ['pytest', 'hypothesis', 'rosbags']},
+    extras_require={'test': ['pytest', 'hypothesis', 'rosbags', 'yourdfpy']},
     entry_points={
         'console_scripts': [
             'sim_node = crawler_sim.ros.sim_node:main',

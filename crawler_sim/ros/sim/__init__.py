@@ -3,11 +3,13 @@
 - :mod:`.params`: the node's parameters (the plant's and its own), validation to a ``SimConfig``;
 - :mod:`.intake`: raw ``linkage_trajectory`` to plant inputs, cheap rejection (the rules live
   with the plant, ``crawler_sim.core.plant.inputs``);
-- :mod:`.outputs`: publishers and CDR encoders of the outputs;
+- :mod:`.outputs`: publishers and CDR encoders of the outputs; :mod:`.model`: the URDF
+  (``robot_description``);
 - :mod:`.recording`: the bag; :mod:`.diagnostics`: ``/diagnostics``;
 - :mod:`.loop`: the real-time loop; :mod:`.node`: ``SimNode``; :mod:`.main`: the entry point.
 
-Everything but ``node``, ``outputs``, ``diagnostics`` and ``main`` works without DDS.
+Everything but ``node``, ``outputs``, ``diagnostics`` and ``main`` works without DDS
+(``model`` imports nothing of ROS).
 """
 from .intake import check_command
 from .main import main

@@ -5,6 +5,11 @@ serialisation serves the publisher and the bag, and no rclpy message is built pe
 output is encoded only when someone takes it (a subscriber, or the bag); the subscriber counts
 are read from rclpy at most every :data:`COUNT_PERIOD` publish ticks, as each query costs a few
 microseconds and a late subscriber then misses at most that many messages.
+
+``robot_description`` (std_msgs/String, the URDF of :func:`.model.robot_description`) is not on
+the grid: it goes out once with transient-local durability (depth 1, the robot_state_publisher
+convention, so a subscriber that joins later still gets it) at the first :meth:`Outputs.sync`
+and again whenever the model changes (number of bodies, masses, linkage limits).
 """
 from __future__ import annotations
 
@@ -12,15 +17,17 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Int8MultiArray
+from std_msgs.msg import Int8MultiArray, String
 from visualization_msgs.msg import MarkerArray
 
 from crawler_sim.ros import messages as M
+from .model import robot_description
 from .params import OUTPUTS
 
-__all__ = ['Outputs', 'TOPICS', 'COUNT_PERIOD']
+__all__ = ['Outputs', 'TOPICS', 'COUNT_PERIOD', 'DESCRIPTION_TOPIC', 'DESCRIPTION_QOS']
 
 #: output name -> (message class, topic)
 TOPICS: dict[str, tuple[type, str]] = {
@@ -33,6 +40,12 @@ TOPICS: dict[str, tuple[type, str]] = {
     'diagnostics': (DiagnosticArray, '/diagnostics'),
 }
 COUNT_PERIOD = 16       # publish ticks between two reads of the subscriber counts
+#: the robot model's topic (relative: it lives in the robot's namespace, as
+#: robot_state_publisher's does) and its QoS: reliable, transient local, depth 1 (the latest
+#: description only, kept for late subscribers)
+DESCRIPTION_TOPIC = 'robot_description'
+DESCRIPTION_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 class Outputs:
@@ -49,9 +62,17 @@ class Outputs:
         self._grid: list[tuple] = []
         self._takers: list[tuple] = []
         self._countdown = 0
+        self.description_pub = node.create_publisher(String, DESCRIPTION_TOPIC,
+                                                      DESCRIPTION_QOS)
+        self._model_key: tuple | None = None     # what the published description was made of
+        #: the URDF last published on ``robot_description`` ('' before the first sync)
+        self.description = ''
 
-    def sync(self, cfg) -> None:
-        """Create the publishers of switched-on outputs, destroy those switched off."""
+    def sync(self, cfg) -> bool:
+        """Create the publishers of switched-on outputs, destroy those switched off; publish
+        ``robot_description`` if the model of ``cfg`` differs from the one last published.
+        Return whether it did (:attr:`description` is then the new URDF, e.g. to record)."""
+        changed = self._sync_description(cfg)
         node = self._node
         for name in OUTPUTS:
             on = bool(getattr(cfg, 'publish_' + name))
@@ -74,6 +95,23 @@ class Outputs:
         elif not own_clock and self.clock_pub is not None:
             node.destroy_publisher(self.clock_pub)
             self.clock_pub = None
+        return changed
+
+    def _sync_description(self, cfg) -> bool:
+        """Publish the URDF of ``cfg``'s crawler when what it is made of changed: p and the
+        masses (which also set the mimic multipliers of the base chain), and the linkage
+        limits. Parameter changes that leave the model alone publish nothing: a transient-local
+        message is what every late subscriber gets, so it changes only with the model."""
+        key = (tuple(float(m) for m in cfg.crawler.masses), float(cfg.min_length),
+               float(cfg.max_length), float(cfg.limits.max_speed))
+        if key == self._model_key:
+            return False
+        masses, lo, hi, speed = key
+        self.description = robot_description(len(masses), masses, min_length=lo,
+                                             max_length=hi, max_speed=speed)
+        self.description_pub.publish(String(data=self.description))
+        self._model_key = key
+        return True
 
     def topics(self) -> dict[str, str]:
         """``{topic: type}`` of the grid outputs this node publishes (as given, unresolved)."""
