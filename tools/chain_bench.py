@@ -138,6 +138,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument('--keep', type=Path, help='keep files and bags here')
     args = ap.parse_args(argv)
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    # a domain of its own: another sim on the host would answer the waits below
+    os.environ.setdefault('ROS_DOMAIN_ID', str(100 + os.getpid() % 100))
     env = _workspace_env(dict(os.environ))
     work = args.keep or Path(tempfile.mkdtemp(prefix='chain_bench_'))
     work.mkdir(parents=True, exist_ok=True)
