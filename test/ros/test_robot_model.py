@@ -278,3 +278,34 @@ def test_nothing_of_ros_is_imported_by_the_model():
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                          check=True)
     assert out.stdout.strip() == '[]'
+
+
+def test_the_model_is_recorded_with_the_run_and_again_when_p_changes(tmp_path):
+    """A bag holds the robot model of each part of the run (Foxglove draws it from the bag)."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    from crawler_sim.ros.sim_node import SimNode
+    from rclpy.parameter import Parameter
+    from test_node import Harness
+    h = Harness()
+    try:
+        sim = SimNode(context=h.ctx, parameter_overrides=[
+            Parameter('record', value=True), Parameter('record_dir', value=str(tmp_path)),
+            Parameter('record_name', value='model')])
+        h.nodes.append(sim)
+        for _ in range(20):
+            sim.tick()
+        assert sim.set_parameters([Parameter('masses', value=[1.0, 1.0, 1.0])])[0].successful
+        for _ in range(20):
+            sim.tick()
+    finally:
+        h.close()
+    urdfs = []
+    for path in (tmp_path / 'model').glob('*.mcap'):
+        with open(path, 'rb') as f:
+            reader = make_reader(f, decoder_factories=[DecoderFactory()])
+            for _, channel, _, msg in reader.iter_decoded_messages(
+                    topics=['/robot_description']):
+                urdfs.append(msg.data)
+    assert len(urdfs) == 2
+    assert urdfs[0].count('<link name="body_') == 2 and urdfs[1].count('<link name="body_') == 3

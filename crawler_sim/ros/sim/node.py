@@ -13,8 +13,11 @@ actuator model and the core's exact ``Stepper``, no ROS): :mod:`.params` (parame
   (std_msgs/Int8MultiArray), ``contacts`` (sensor_msgs/JointState: the stamped alternative),
   ``odom`` (nav_msgs/Odometry), ``markers`` (visualization_msgs/MarkerArray),
   ``~/applied_command`` (sensor_msgs/JointState: the target that took effect, stamped with the
-  tick it took effect at), ``/diagnostics`` and ``/clock`` (by default, at every publish tick);
-- services ``~/reset`` (std_srvs/Trigger) and ``~/pause`` (std_srvs/SetBool).
+  tick it took effect at), ``/diagnostics``, ``/clock`` (by default, at every publish tick;
+  one node owns it when several run, ``choose_clock``) and ``robot_description``
+  (std_msgs/String, transient local: the URDF of :mod:`.model`);
+- services ``~/reset`` (std_srvs/Trigger), ``~/pause`` (std_srvs/SetBool) and ``~/step``
+  (std_srvs/Trigger: one publish period while paused).
 
 Timing. Sim time is an integer number of nanoseconds that advances by ``dt`` per tick, so a run
 is deterministic: the same commands taking effect at the same ticks give bit-identical states.
@@ -142,10 +145,12 @@ class SimNode(Node):
                         '~/applied_command': M.OUTPUT_TYPES['applied_command'],
                         'linkage_trajectory': 'trajectory_msgs/msg/JointTrajectory',
                         '~/plant_inputs': 'std_msgs/msg/String',
+                        'robot_description': 'std_msgs/msg/String',
                         'events': 'std_msgs/msg/Int32MultiArray',
                         '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray'}
             topics = {self._absolute_topic(name): type_ for name, type_ in recorded.items()}
             self.recorder.open(self._cfg.record_dir, self._cfg.record_name, scene, topics)
+            self._record_description()
 
     # ------------------------------------------------------------------ compatibility
     @property
@@ -197,7 +202,17 @@ class SimNode(Node):
             self.counters['resets'] += 1
             self._drop_pending()
         self._anchor_needed = True
-        self.outputs.sync(self._cfg)
+        self._sync_outputs(self._cfg)
+
+    def _sync_outputs(self, cfg: SimConfig) -> None:
+        """Publishers as ``cfg`` says; a new robot model (p, masses, limits) is recorded too."""
+        if self.outputs.sync(cfg):
+            self._record_description()
+
+    def _record_description(self) -> None:
+        if self.recorder.on and self.outputs.description:
+            self.recorder.write('robot_description', 'std_msgs/msg/String',
+                                String(data=self.outputs.description), self._t_ns)
 
     def _drop_pending(self) -> None:
         self._pending_cmd = None
@@ -349,7 +364,7 @@ class SimNode(Node):
             self._engine.reset(cfg.engine_config())
             self._drop_pending()
             self._anchor_needed = True
-            self.outputs.sync(cfg)
+            self._sync_outputs(cfg)
             self.outputs.refresh()
             self.counters['resets'] += 1
             self._log.info(f'reset to rest at t = {self._t_ns / 1e9:.9f} s')
