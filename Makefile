@@ -36,7 +36,7 @@ $(STAMP): requirements.txt
 
 build: $(INSTALL_STAMP)
 
-$(INSTALL_STAMP): $(STAMP) setup.py setup.cfg pyproject.toml package.xml $(wildcard config/*/* launch/*.py scripts/*) $(wildcard crawler_sim/*.py crawler_sim/*/*.py crawler_sim/*/*/*.py crawler_sim/*/*/*.pyx crawler_sim/*/*/*.pxd)
+$(INSTALL_STAMP): $(STAMP) setup.py setup.cfg pyproject.toml package.xml $(wildcard config/*/* launch/*.py scripts/*) $(wildcard crawler_sim/*.py crawler_sim/*/*.py crawler_sim/*/*/*.py crawler_sim/*/*.pyx crawler_sim/*/*/*.pyx crawler_sim/*/*/*.pxd)
 	source $(VENV)/bin/activate && colcon --log-base log build --paths . --build-base build --install-base install --symlink-install
 	touch $@
 

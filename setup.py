@@ -8,12 +8,16 @@ package_name = 'crawler_sim'
 
 
 def compiled_core() -> list[Extension]:
-    """The compiled solvers (Cython sources, cythonized and compiled by setuptools' build_ext
-    at install time: ``pip install``, ``colcon build``), so nothing compiles on first use."""
+    """The compiled solvers and the actuator's tick (Cython sources, cythonized and compiled by
+    setuptools' build_ext at install time: ``pip install``, ``colcon build``), so nothing
+    compiles on first use."""
     # IEEE arithmetic as written: no fused multiply-add (bit-identical runs across builds)
     flags = ['-O2', '-ffp-contract=off']
     return [Extension(f'crawler_sim.core.solvers.{n}', [f'crawler_sim/core/solvers/{n}.pyx'],
-                      extra_compile_args=flags) for n in ('_gait', '_exact', '_stepping')]
+                      extra_compile_args=flags) for n in ('_gait', '_exact', '_stepping')] + [
+        # the actuator's per-tick work (core/actuator.py is its Python side)
+        Extension('crawler_sim.core._actuator', ['crawler_sim/core/_actuator.pyx'],
+                  extra_compile_args=flags)]
 
 
 setup(

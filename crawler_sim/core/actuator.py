@@ -1,8 +1,15 @@
 """Actuator model: step-like length commands in, a C2 linkage length l(t) with bounded l', l'' out.
 
 The node receives target lengths (``linkage_cmd``) or timed trajectories (``linkage_trajectory``)
-and must hand the core a gait that is at least C2. This module is pure Python (no ROS); the node
-calls :meth:`Actuator.step` once per integration tick.
+and must hand the core a gait that is at least C2. No ROS here. The node calls
+:meth:`Actuator.step` once per integration tick; a run of ticks with no input in between (the
+flat-out node between publish ticks, offline runs) is one call of :meth:`Actuator.run`, which
+returns the pieces as arrays (:class:`Pieces`, ``PiecewiseCubic.from_arrays``).
+
+Where the code lives: the per-tick work (the jerk law, settling, the piece end values and the
+evaluation of a :class:`TrajectoryReference`) is compiled, in ``_actuator.pyx`` (built by
+setup.py), its one implementation; this module holds the model's description, the gains, the
+inputs and their validation.
 
 Model
 -----
@@ -53,8 +60,11 @@ not moved, so l stays continuous; the residual offset from the target is <= 1e-1
 rest emits jerk 0, so a crawler at rest under a constant command gets ``Cubic`` pieces with
 ``is_constant() == True`` and the core's stepper takes its cheap path.
 
-Determinism: :func:`jerk_law` is a pure function of (state, reference, dt, gains, limits) written
-with Python floats; the same commands at the same ticks give bit-identical pieces.
+Determinism: :func:`jerk_law` is a pure function of (state, reference, dt, gains, limits) in IEEE
+double arithmetic as written (compiled without fused multiply-add); the same commands at the
+same ticks give bit-identical pieces, whether ticked one by one (``step``) or in runs (``run``).
+The compiled code gives bit for bit the floats of the pure-Python model it replaced, kept as the
+tests' reference in test/core/actuator_oracle.py.
 
 Trajectories
 ------------
@@ -67,28 +77,27 @@ after the last point the reference holds the last position. The reference then g
 same actuator (with r' and r'' as feedforward), so the limits above hold for trajectories too and
 a feasible, smooth trajectory is tracked with a lag of about one tick.
 
-Module size: about 430 lines, over the ~400 guide: the servo law, the derivation of its gains
-(about a third of the lines are that derivation) and ``TrajectoryReference`` share the actuator's
-time base and limits.
+Units: s, m, m/s, m/s^2, m/s^3; ``run`` takes integer nanoseconds (the engine's time base).
 """
 from __future__ import annotations
 
-from bisect import bisect_right
+import copyreg
 from dataclasses import dataclass
 import math
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
-from crawler_sim.core.gaits import Cubic, cubic_values
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['ActuatorLimits', 'Actuator', 'TrajectoryReference', 'gains', 'jerk_law',
+from crawler_sim.core.gaits import Cubic, PiecewiseCubic, cubic_values
+
+from ._actuator import Reference, Servo, jerk_law
+
+__all__ = ['ActuatorLimits', 'Actuator', 'Pieces', 'TrajectoryReference', 'gains', 'jerk_law',
            'cubic_end', 'BANDWIDTH_TO_POLE']
 
 #: w / (2 pi bandwidth): the triple pole that puts the -3 dB point of w^3/(s+w)^3 at bandwidth.
 BANDWIDTH_TO_POLE = 1.0 / math.sqrt(2.0 ** (1.0 / 3.0) - 1.0)
-
-_SETTLE_L = 1e-12   # m
-_SETTLE_V = 1e-10   # m/s
-_SETTLE_A = 1e-8    # m/s^2
 
 
 @dataclass(frozen=True)
@@ -108,7 +117,9 @@ class ActuatorLimits:
 
 
 def gains(bandwidth: float, dt: float) -> tuple[float, float, float]:
-    """(kp, kv, ka) of the cascade for a triple discrete pole at exp(-w dt) (see module doc)."""
+    """(kp [1/s], kv [1/s], ka [1/s]) of the cascade for a triple discrete pole at exp(-w dt)
+    (see module doc); ``bandwidth`` [Hz], ``dt`` [s]. Once per configuration, not per tick:
+    Python floats, handed to the compiled law."""
     if not (dt > 0 and math.isfinite(dt)):
         raise ValueError(f'`dt` must be finite and > 0, got {dt!r}')
     w = 2.0 * math.pi * bandwidth * BANDWIDTH_TO_POLE
@@ -118,82 +129,42 @@ def gains(bandwidth: float, dt: float) -> tuple[float, float, float]:
     return c / (dt * (q + 2.0)), 6.0 * c * (q + 2.0) / (dt * den), c * den / (6.0 * dt)
 
 
-def _sqrt_p(e: float, kp: float, a_brake: float) -> float:
-    """Position-to-velocity law: linear (kp e) near zero, braking curve sqrt(2 A_b |e|) far away.
-
-    C1 at the junction |e| = A_b / kp^2 (ArduPilot's ``sqrt_controller``).
-    """
-    linear = a_brake / (kp * kp)
-    if e > linear:
-        return math.sqrt(2.0 * a_brake * (e - 0.5 * linear))
-    if e < -linear:
-        return -math.sqrt(2.0 * a_brake * (-e - 0.5 * linear))
-    return kp * e
-
-
-def jerk_law(l: float, v: float, a: float, r: float, rd: float, rdd: float, dt: float,
-             k: tuple[float, float, float], max_speed: float, max_acceleration: float) -> float:
-    """Jerk for one linkage over one tick: a pure function of state, reference and dt.
-
-    Assumes the viability invariant at the start (see module doc); the result keeps
-    |l'| <= max_speed and |l''| <= max_acceleration over the whole tick, and the invariant at
-    its end.
-    """
-    kp, kv, ka = k
-    vmax, amax = max_speed, max_acceleration
-    # One call per linkage per 1 kHz tick: the clamps are written as comparisons instead of
-    # builtin min/max calls (about half the cost). Each keeps builtin min/max's choice exactly
-    # (the earlier argument on ties, so also the sign of a zero), hence the same bits.
-    e = r - l
-    linear = 0.5 * amax / (kp * kp)          # _sqrt_p inlined (a_brake = amax / 2)
-    if e > linear:
-        v_d = rd + math.sqrt(2.0 * (0.5 * amax) * (e - 0.5 * linear))
-    elif e < -linear:
-        v_d = rd + -math.sqrt(2.0 * (0.5 * amax) * (-e - 0.5 * linear))
-    else:
-        v_d = rd + kp * e
-    if -vmax > v_d:                          # min(max(v_d, -vmax), vmax)
-        v_d = -vmax
-    if vmax < v_d:
-        v_d = vmax
-    a_d = rdd + kv * (v_d - v)
-    if -amax > a_d:                          # min(max(a_d, -amax), amax)
-        a_d = -amax
-    if amax < a_d:
-        a_d = amax
-    j = ka * (a_d - a)
-    dt2 = dt * dt
-    hi = (amax - a) / dt                     # min of three
-    x = 2.0 * (vmax - v - a * dt) / dt2
-    if x < hi:
-        hi = x
-    x = (vmax - v - 1.5 * a * dt) / dt2
-    if x < hi:
-        hi = x
-    lo = (-amax - a) / dt                    # max of three
-    x = 2.0 * (-vmax - v - a * dt) / dt2
-    if x > lo:
-        lo = x
-    x = (-vmax - v - 1.5 * a * dt) / dt2
-    if x > lo:
-        lo = x
-    if lo > hi:            # only through rounding at the boundary; -a/dt is always admissible
-        return -a / dt
-    if lo > j:                               # min(max(j, lo), hi)
-        j = lo
-    if hi < j:
-        j = hi
-    return j
-
-
 #: (l, l', l'') of a constant-jerk piece after d seconds: the expression of ``gaits.Cubic``
-#: itself, so the next piece starts bit-identically where the previous one ended
+#: itself (the compiled tick computes a piece's end with the same expression, so the next piece
+#: starts bit-identically where the previous one ended)
 cubic_end = cubic_values
+
+
+class Pieces(NamedTuple):
+    """The constant-jerk pieces of ``n`` consecutive ticks (``Actuator.run``), as arrays: tick k
+    is what ``Actuator.step`` returns for it, as (``anchors[k]``, ``coef[k]``), i.e. the piece
+    ``Cubic(anchors[k], *coef[k].T)`` valid from ``starts[k]``.
+
+    A settled actuator hands out one constant piece object again and again (the engine hands
+    the solver that one object when a whole window is at rest): every tick from ``rest_from``
+    on (``n``: none) is ``rest_piece``, whose ``t0`` (its anchor) is the tick it was made at.
+    """
+
+    starts: NDArray[np.float64]      # (n,) tick starts [s]
+    anchors: NDArray[np.float64]     # (n,) time origin t0 of each tick's piece [s]
+    coef: NDArray[np.float64]        # (n, n_links, 4): l0 [m], v0 [m/s], a0 [m/s^2], jerk [m/s^3]
+    rest_from: int
+    rest_piece: Cubic | None
+
+    def piece(self, k: int) -> Cubic:
+        """The piece of tick k as ``step`` returns it (the rest piece: that same object)."""
+        if k >= self.rest_from:
+            return self.rest_piece
+        return Cubic.trusted(float(self.anchors[k]), *self.coef[k].T.tolist())
+
+    def gait(self) -> PiecewiseCubic:
+        """The ticks as one ``PiecewiseCubic`` (no Cubic object per tick)."""
+        return PiecewiseCubic.from_arrays(self.starts, self.anchors, self.coef)
 
 
 class TrajectoryReference:
     """Reference r(t), r'(t), r''(t) from timed points, interpolated like ros2_control's
-    joint_trajectory_controller.
+    joint_trajectory_controller (evaluated by the compiled ``_actuator.Reference``).
 
     Parameters
     ----------
@@ -235,20 +206,19 @@ class TrajectoryReference:
             pos.insert(0, [s[0] for s in state])
             vel.insert(0, [s[1] for s in state] if self.order >= 3 else zero)
             acc.insert(0, [s[2] for s in state] if self.order >= 5 else zero)
-        self._t = knots_t
-        self._p, self._v, self._a = pos, vel, acc
-        self.end_time = self.t_start + knots_t[-1]
+        self._knots(knots_t, *(np.array(x, dtype=float).reshape(len(knots_t), self.n_links)
+                               for x in (pos, vel, acc)))
 
     @classmethod
-    def from_arrays(cls, t_start: float, state: Sequence[Sequence[float]], times,
-                    positions, velocities=None, accelerations=None) -> TrajectoryReference:
+    def from_arrays(cls, t_start: float, state: Sequence[Sequence[float]], times: ArrayLike,
+                    positions: ArrayLike, velocities: ArrayLike | None = None,
+                    accelerations: ArrayLike | None = None) -> TrajectoryReference:
         """The same reference as ``cls(...)`` from numpy arrays of any length, without the
         per-element conversions of ``__init__`` (a million points: tens of ms, not seconds).
 
         ``times`` (N,) and ``positions`` (N, n_links) etc. as in ``__init__``; the times must be
         finite, >= 0 and strictly increasing (checked here with numpy).
         """
-        import numpy as np
         ts = np.asarray(times, dtype=float)
         if ts.ndim != 1 or len(ts) == 0 or len(positions) != len(ts):
             raise ValueError('a trajectory needs at least one point and one position row per time')
@@ -261,8 +231,6 @@ class TrajectoryReference:
         self.t_start = float(t_start)
         self.order = 5 if accelerations is not None else 3 if velocities is not None else 1
         n_pts = len(ts)
-        # rows stay numpy arrays (a list of a million small lists costs seconds to build);
-        # __call__ takes the two rows it needs as floats (_row)
         pos = np.asarray(positions, dtype=float).reshape(n_pts, self.n_links)
         zeros = np.zeros((n_pts, self.n_links))
         vel = (np.asarray(velocities, dtype=float).reshape(n_pts, self.n_links)
@@ -277,81 +245,37 @@ class TrajectoryReference:
             pos = np.vstack([st[:, 0][None, :], pos])
             vel = np.vstack([st[:, 1][None, :] if self.order >= 3 else zero, vel])
             acc = np.vstack([st[:, 2][None, :] if self.order >= 5 else zero, acc])
-        self._t = knots_t
-        self._p, self._v, self._a = pos, vel, acc
-        self.end_time = self.t_start + knots_t[-1]
+        self._knots(knots_t, pos, vel, acc)
         return self
 
+    def _knots(self, knots_t: list[float], pos: NDArray[np.float64], vel: NDArray[np.float64],
+               acc: NDArray[np.float64]) -> None:
+        """Keep the knots (times [s] from ``t_start``, rows (m, n_links)) and compile them."""
+        self._t = knots_t
+        self._p, self._v, self._a = pos, vel, acc
+        self._c = Reference(self.t_start, knots_t, pos, vel, acc, self.order)
+        self.end_time = self._c.end_time       # t_start + the last knot time [s]
+
+    def __getstate__(self) -> dict:
+        # the compiled evaluator is rebuilt from the knots (it does not pickle)
+        state = self.__dict__.copy()
+        del state['_c']
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._knots(self._t, self._p, self._v, self._a)
+
     def __call__(self, t: float) -> tuple[list[float], list[float], list[float]]:
-        """(r, r', r'') per linkage at sim time t."""
-        tau = t - self.t_start
-        kt = self._t
-        if tau >= kt[-1]:
-            return list(_row(self._p, -1)), [0.0] * self.n_links, [0.0] * self.n_links
-        if tau <= kt[0]:
-            return (list(_row(self._p, 0)), list(_row(self._v, 0)),
-                    list(_row(self._a, 0)))
-        # A 1 kHz actuator evaluates each segment of a 50 Hz trajectory 20 times in a row: the
-        # segment and its per-linkage coefficients are kept until tau leaves it (same floats as
-        # computing them every call, so the reference is bit-identical).
-        seg = getattr(self, '_seg', None)
-        if seg is None or not (seg[0] <= tau < seg[1]):
-            seg = self._seg = self._segment(bisect_right(kt, tau) - 1)
-        t_k, _t_next, h, coeffs = seg
-        s = (tau - t_k) / h
-        r, rd, rdd = [], [], []
-        if self.order == 1:
-            for p0, dp, slope in coeffs:
-                r.append(p0 + s * dp)
-                rd.append(slope)
-                rdd.append(0.0)
-            return r, rd, rdd
-        h2 = h * h
-        for c0, c1, c2, c3, c4, c5 in coeffs:
-            x = c0 + s * (c1 + s * (c2 + s * (c3 + s * (c4 + s * c5))))
-            xd = c1 + s * (2 * c2 + s * (3 * c3 + s * (4 * c4 + s * 5 * c5)))
-            xdd = 2 * c2 + s * (6 * c3 + s * (12 * c4 + s * 20 * c5))
-            r.append(x)
-            rd.append(xd / h)
-            rdd.append(xdd / h2)
-        return r, rd, rdd
-
-    def _segment(self, k: int) -> tuple[float, float, float, list[tuple[float, ...]]]:
-        """(t_k, t_k+1, h, per-linkage coefficients) of segment k [s from ``t_start``]: for
-        order 1 (p0, p1 - p0, slope), else the Hermite coefficients on s in [0, 1]."""
-        kt = self._t
-        h = kt[k + 1] - kt[k]
-        P0, P1 = _row(self._p, k), _row(self._p, k + 1)
-        if self.order == 1:
-            coeffs = [(P0[i], P1[i] - P0[i], (P1[i] - P0[i]) / h) for i in range(self.n_links)]
-            return kt[k], kt[k + 1], h, coeffs
-        V0, V1 = _row(self._v, k), _row(self._v, k + 1)
-        A0, A1 = _row(self._a, k), _row(self._a, k + 1)
-        coeffs = [_hermite(P0[i], V0[i] * h, A0[i] * h * h, P1[i], V1[i] * h, A1[i] * h * h,
-                           self.order) for i in range(self.n_links)]
-        return kt[k], kt[k + 1], h, coeffs
+        """(r [m], r' [m/s], r'' [m/s^2]) per linkage at sim time t [s]: quintic, cubic Hermite
+        or linear per segment; before the first knot its row, after the last the last position
+        at rest."""
+        return self._c(t)
 
 
-def _row(rows, k: int) -> list[float]:
-    """Row k of a list of rows, or of a 2-D array as floats (same values)."""
-    return rows[k] if isinstance(rows, list) else rows[k].tolist()
-
-
-def _hermite(p0: float, v0: float, a0: float, p1: float, v1: float, a1: float,
-             order: int) -> tuple[float, ...]:
-    """Coefficients c0..c5 on s in [0, 1] of the cubic (order 3) or quintic (order 5) Hermite
-    polynomial with the given end values and (scaled) derivatives."""
-    dp = p1 - p0
-    if order == 3:
-        return (p0, v0, 3 * dp - 2 * v0 - v1, -2 * dp + v0 + v1, 0.0, 0.0)
-    return (p0, v0, 0.5 * a0,
-            10 * dp - 6 * v0 - 4 * v1 - 1.5 * a0 + 0.5 * a1,
-            -15 * dp + 8 * v0 + 7 * v1 + 1.5 * a0 - a1,
-            6 * dp - 3 * v0 - 3 * v1 - 0.5 * a0 + 0.5 * a1)
-
-
-class Actuator:
-    """The per-linkage servo of the module doc, stepping one tick at a time.
+class Actuator(Servo):
+    """The per-linkage servo of the module doc, stepping one tick at a time (``step``) or a run
+    of ticks (``run``); the tick itself is compiled (``_actuator.Servo``).
 
     Parameters
     ----------
@@ -360,31 +284,34 @@ class Actuator:
     dt : float
         Tick length [s].
     limits : ActuatorLimits
+
+    Attributes read by the node and the tests: ``n_links``, ``dt`` [s], ``limits``, ``l``,
+    ``v``, ``a`` (lists per linkage at the current tick start [m, m/s, m/s^2], copies),
+    ``target`` [m] and ``trajectory`` (the ``TrajectoryReference`` followed, or None).
+    ``step(t0, t1=None) -> Cubic``: the piece on [t0, t1] [s] (see ``Servo.step``).
     """
 
     def __init__(self, lengths: Sequence[float], dt: float, limits: ActuatorLimits) -> None:
-        self.n_links = len(lengths)
-        if self.n_links < 1:
-            raise ValueError('the actuator needs at least one linkage')
+        self._alloc(len(lengths))
         self.limits = limits
         self.dt = float(dt)
         self._k = gains(limits.bandwidth, self.dt)
         self.reset(lengths)
 
     def reset(self, lengths: Sequence[float]) -> None:
-        """Back to rest at ``lengths`` with them as target (no trajectory)."""
+        """Back to rest at ``lengths`` [m] with them as target (no trajectory)."""
         if len(lengths) != self.n_links:
             raise ValueError(f'expected {self.n_links} lengths, got {len(lengths)}')
         self.l = [float(x) for x in lengths]
         self.v = [0.0] * self.n_links
         self.a = [0.0] * self.n_links
-        self.target = list(self.l)
-        self.trajectory: TrajectoryReference | None = None
+        self.target = self.l
+        self.trajectory = None
         self._settled = [True] * self.n_links
-        self._rest_piece: Cubic | None = None
+        self._rest_piece = None
 
     def configure(self, dt: float | None = None, limits: ActuatorLimits | None = None) -> None:
-        """Change the tick length and/or limits from the next tick; the state is kept.
+        """Change the tick length [s] and/or limits from the next tick; the state is kept.
 
         If new limits are tighter than the current state, the state is clipped into them
         (a discontinuity only when limits are lowered while moving, by the caller's choice).
@@ -395,12 +322,14 @@ class Actuator:
             self.dt = float(dt)
         self._k = gains(self.limits.bandwidth, self.dt)
         vmax, amax, h = self.limits.max_speed, self.limits.max_acceleration, self.dt
+        vs, as_ = self.v, self.a
         for i in range(self.n_links):
-            a = min(max(self.a[i], -amax), amax)
-            v = self.v[i]
+            a = min(max(as_[i], -amax), amax)
+            v = vs[i]
             v = min(v, vmax - max(a, 0.0) * 0.5 * h)
             v = max(v, -vmax + max(-a, 0.0) * 0.5 * h)
-            self.v[i], self.a[i] = v, a
+            vs[i], as_[i] = v, a
+        self.v, self.a = vs, as_
 
     def set_target(self, lengths: Sequence[float]) -> None:
         """A step command: target lengths [m] held until the next command; cancels a trajectory."""
@@ -409,9 +338,11 @@ class Actuator:
         new = [float(x) for x in lengths]
         self.trajectory = None
         self._rest_piece = None
+        settled, old = self._settled, self.target
         for i in range(self.n_links):
-            if new[i] != self.target[i]:
-                self._settled[i] = False
+            if new[i] != old[i]:
+                settled[i] = False
+        self._settled = settled
         self.target = new
 
     def set_trajectory(self, trajectory: TrajectoryReference | None) -> None:
@@ -428,47 +359,27 @@ class Actuator:
         self._settled = [False] * self.n_links
 
     def state(self) -> list[tuple[float, float, float]]:
-        """(l, l', l'') per linkage at the current tick start."""
+        """(l [m], l' [m/s], l'' [m/s^2]) per linkage at the current tick start."""
         return list(zip(self.l, self.v, self.a))
 
-    def step(self, t0: float, t1: float | None = None) -> Cubic:
-        """The constant-jerk piece on [t0, t1] (t1 defaults to t0 + dt); advances the state to t1.
+    _STATE = ('dt', 'limits', '_k', 'l', 'v', 'a', 'target', 'trajectory', '_settled',
+              '_rest_piece')
 
-        The jerk uses the nominal ``dt``; pass ``t1`` so that the end state is computed with the
-        exact float ``t1 - t0`` the solver will use.
-        """
-        if t1 is None:
-            t1 = t0 + self.dt
-        d = t1 - t0
-        lim = self.limits
-        traj = self.trajectory
-        if traj is not None:
-            ref = traj(t0)
-            if t0 >= traj.end_time:
-                self.trajectory = None          # hold the last point as a plain target
-                self.target = list(ref[0])
-        elif self._rest_piece is not None:
-            return self._rest_piece
-        l0, v0, a0 = list(self.l), list(self.v), list(self.a)
-        jerk = [0.0] * self.n_links
-        for i in range(self.n_links):
-            if traj is None:
-                if self._settled[i]:
-                    continue
-                r, rd, rdd = self.target[i], 0.0, 0.0
-                if (abs(r - l0[i]) <= _SETTLE_L and abs(v0[i]) <= _SETTLE_V
-                        and abs(a0[i]) <= _SETTLE_A):
-                    self._settled[i] = True
-                    v0[i] = a0[i] = 0.0
-                    self.v[i] = self.a[i] = 0.0
-                    continue
-            else:
-                r, rd, rdd = ref[0][i], ref[1][i], ref[2][i]
-            j = jerk_law(l0[i], v0[i], a0[i], r, rd, rdd, self.dt, self._k,
-                         lim.max_speed, lim.max_acceleration)
-            jerk[i] = j
-            self.l[i], self.v[i], self.a[i] = cubic_end(l0[i], v0[i], a0[i], j, d)
-        piece = Cubic.trusted(t0, l0, v0, a0, jerk)
-        if traj is None and all(self._settled):
-            self._rest_piece = piece      # constant: valid at any time, reused until a command
-        return piece
+    def __reduce__(self):
+        # the compiled state does not pickle by itself: the object from its Python-visible
+        # state (copy and pickle as before the tick was compiled)
+        state = {name: getattr(self, name) for name in self._STATE}
+        return copyreg.__newobj__, (type(self),), (self.n_links, state, self.__dict__)
+
+    def __setstate__(self, state: tuple) -> None:
+        n_links, values, extra = state
+        self._alloc(n_links)
+        for name in self._STATE:
+            setattr(self, name, values[name])
+        self.__dict__.update(extra)
+
+    def run(self, t0_ns: int, dt_ns: int, n: int) -> Pieces:
+        """``n`` ticks of ``dt_ns`` [ns] from sim time ``t0_ns`` [ns] with no input in between:
+        the pieces, bit for bit, of ``step(t0_ns / 1e9, t1_ns / 1e9)`` for each tick (t1_ns =
+        t0_ns + dt_ns, the engine's time base), as arrays; the state advances to the end."""
+        return Pieces(*self._run(t0_ns, dt_ns, n))

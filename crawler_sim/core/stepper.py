@@ -52,7 +52,7 @@ def check_gait(gait: Gait, crawler: Crawler, t: float) -> None:
     if type(gait) in _PIECES and gait.n_links == crawler.p - 1:
         # the node's gaits (one check per publish tick): the rows at t in Python floats, the
         # values gait.at(t) gives; the general check below says what is wrong otherwise
-        pc = gait if type(gait) is Cubic else gait.pieces[gait._index(t)]
+        pc = gait if type(gait) is Cubic else gait._piece(gait._index(t))
         d = t - pc.t0
         if math.isfinite(sum(map(sum, (cubic_values(*row, d) for row in pc._rows)))):
             return

@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import math
+import os
+import sys
 
 import numpy as np
 import pytest
@@ -247,3 +249,272 @@ def test_a_reference_evaluated_in_any_time_order_equals_a_fresh_one_at_each_time
     for t in ts.tolist():
         fresh = TrajectoryReference.from_arrays(2.0, state, times, pos, vel, acc)
         assert ref(t) == fresh(t), t
+
+
+# ---------------------------------------------------------------------------------------------
+# The compiled actuator against the pure-Python model it replaced (test/core/actuator_oracle.py),
+# bit for bit: every float compared with == and by the sign of zeros.
+
+sys.path.insert(0, os.path.dirname(__file__))
+import actuator_oracle as oracle  # noqa: E402
+
+
+def _bits(x: float) -> tuple[float, float]:
+    return x, math.copysign(1.0, x)
+
+
+def assert_same_floats(got, want, where=''):
+    got, want = list(got), list(want)
+    assert len(got) == len(want), where
+    for x, y in zip(got, want):
+        assert type(x) is float and type(y) is float, where
+        assert x == y and math.copysign(1.0, x) == math.copysign(1.0, y), (where, x, y)
+
+
+def assert_same_piece(got: Cubic, want: Cubic, where=''):
+    assert type(got) is Cubic and got.n_links == want.n_links, where
+    assert_same_floats([got.t0], [want.t0], where)
+    assert len(got._rows) == len(want._rows), where
+    for rg, rw in zip(got._rows, want._rows):
+        assert_same_floats(rg, rw, where)
+    assert got.is_constant(0.0, 1.0) == want.is_constant(0.0, 1.0), where
+
+
+def assert_same_state(act: Actuator, orc, where=''):
+    for name in ('l', 'v', 'a', 'target'):
+        assert_same_floats(getattr(act, name), getattr(orc, name), f'{where} {name}')
+    assert (act.trajectory is None) == (orc.trajectory is None), where
+    assert act._settled == orc._settled, where
+    assert (act._rest_piece is None) == (orc._rest_piece is None), where
+
+
+def _limits(rng) -> tuple[float, float, float]:
+    """Bandwidth [Hz], max speed, max acceleration: mostly saturating, sometimes linear."""
+    return (float(rng.choice([0.5, 2.0, 5.0, 20.0, 80.0])),
+            float(rng.choice([0.01, 0.05, 0.5, 3.0])),
+            float(rng.choice([0.1, 1.0, 5.0, 100.0])))
+
+
+def _signed(rng, shape, scale):
+    """Random values with exact zeros of both signs mixed in."""
+    x = rng.normal(0.0, scale, shape)
+    mask = rng.random(shape)
+    x[mask < 0.15] = 0.0
+    x[(mask >= 0.15) & (mask < 0.3)] = -0.0
+    return x
+
+
+def _reference_inputs(rng, n_links: int, dt: float, state):
+    """Random trajectory points: positions only, with velocities or with accelerations; the
+    first point at 0 or later; few or many points, spaced from under a tick to many ticks."""
+    order = int(rng.choice([1, 3, 5]))
+    m = int(rng.choice([1, 2, 3, 8, 30]))
+    gaps = rng.uniform(0.3, 40.0, m) * dt
+    times = np.cumsum(gaps) - (gaps[0] if rng.random() < 0.3 else 0.0)
+    pos = rng.uniform(0.02, 0.5, (m, n_links))
+    if rng.random() < 0.2:
+        pos[0] = [s[0] for s in state]          # dp = 0 on the first segment
+    vel = _signed(rng, (m, n_links), 0.3) if order >= 3 else None
+    acc = _signed(rng, (m, n_links), 3.0) if order == 5 else None
+    return times, pos, vel, acc
+
+
+def _make_references(rng, t_start, act, orc, inputs):
+    times, pos, vel, acc = inputs
+    if rng.random() < 0.5:
+        return (TrajectoryReference.from_arrays(t_start, act.state(), times, pos, vel, acc),
+                oracle.TrajectoryReference.from_arrays(t_start, orc.state(), times, pos, vel,
+                                                       acc))
+    lists = [None if x is None else x.tolist() for x in (pos, vel, acc)]
+    return (TrajectoryReference(t_start, act.state(), times.tolist(), *lists),
+            oracle.TrajectoryReference(t_start, orc.state(), times.tolist(), *lists))
+
+
+def _inputs(rng, act, orc, t, dt):
+    """Apply one random input to both actuators (or none)."""
+    u = rng.random()
+    n = act.n_links
+    if u < 0.04:                    # a step command, often far (saturating), sometimes here
+        tgt = (rng.uniform(0.0, 0.6, n) if rng.random() < 0.8 else np.array(act.l)).tolist()
+        act.set_target(tgt)
+        orc.set_target(tgt)
+    elif u < 0.055:
+        t_start = t + float(rng.choice([0.0, -0.5 * dt, 0.7 * dt, 3 * dt]))
+        ra, ro = _make_references(rng, t_start, act, orc,
+                                  _reference_inputs(rng, n, dt, act.state()))
+        act.set_trajectory(ra)
+        orc.set_trajectory(ro)
+    elif u < 0.06:
+        act.set_trajectory(None)
+        orc.set_trajectory(None)
+    elif u < 0.068:                 # new limits (the state is clipped into tighter ones)
+        lim = _limits(rng)
+        act.configure(limits=ActuatorLimits(*lim))
+        orc.configure(limits=oracle.ActuatorLimits(*lim))
+    elif u < 0.07:                  # a new tick length for the law (the engine's dt change)
+        new_dt = dt * float(rng.choice([0.5, 1.0, 3.0]))
+        act.configure(dt=new_dt)
+        orc.configure(dt=new_dt)
+    elif u < 0.072:
+        lengths = rng.uniform(0.05, 0.4, n).tolist()
+        act.reset(lengths)
+        orc.reset(lengths)
+
+
+@pytest.mark.parametrize('seed', range(12))
+def test_the_compiled_actuator_gives_the_oracles_pieces_bit_for_bit(seed):
+    """Random command streams, trajectories (positions only, with velocities, with
+    accelerations), saturating strokes, limit changes and resets, dt from 1e-5 to 1e-1 s: every
+    piece, state, target and flag equal to the pure-Python model's, bit for bit."""
+    rng = np.random.default_rng(1000 + seed)
+    for stream in range(25):
+        n = int(rng.integers(1, 4))
+        dt = float(10.0 ** rng.uniform(-5, -1))
+        lim = _limits(rng)
+        l0 = rng.uniform(0.05, 0.3, n).tolist()
+        act = Actuator(l0, dt, ActuatorLimits(*lim))
+        orc = oracle.Actuator(l0, dt, oracle.ActuatorLimits(*lim))
+        t = float(rng.choice([0.0, 12.5, 1e4]))
+        prev_a = prev_o = None
+        for k in range(400):
+            where = f'seed {seed} stream {stream} tick {k}'
+            _inputs(rng, act, orc, t, dt)
+            if rng.random() < 0.2:          # t1 defaults to t0 + dt
+                pa, po, t1 = act.step(t), orc.step(t), t + dt
+            else:
+                t1 = t + dt * float(rng.choice([1.0, 1.0, 1.0 + 1e-9, 0.999]))
+                pa, po = act.step(t, t1), orc.step(t, t1)
+            assert_same_piece(pa, po, where)
+            # the same object again exactly when the model hands out its rest piece again
+            assert (pa is prev_a) == (po is prev_o), where
+            assert_same_state(act, orc, where)
+            prev_a, prev_o, t = pa, po, t1
+
+
+@pytest.mark.parametrize('seed', range(6))
+def test_a_run_of_ticks_gives_the_oracles_steps_bit_for_bit(seed):
+    """``Actuator.run`` (runs of ticks between inputs, integer ns) against the model stepped
+    tick by tick at the engine's times t_ns / 1e9, rest piece and its reuse included."""
+    rng = np.random.default_rng(2000 + seed)
+    for stream in range(20):
+        n = int(rng.integers(1, 4))
+        dt_ns = int(rng.choice([10_000, 100_000, 1_000_000, 3_333_333, 20_000_000,
+                                100_000_000]))
+        dt = dt_ns * 1e-9
+        lim = _limits(rng)
+        l0 = rng.uniform(0.05, 0.3, n).tolist()
+        act = Actuator(l0, dt, ActuatorLimits(*lim))
+        orc = oracle.Actuator(l0, dt, oracle.ActuatorLimits(*lim))
+        t_ns = int(rng.choice([0, 7 * dt_ns, 10**13]))
+        prev_o = None
+        for block in range(40):
+            _inputs(rng, act, orc, t_ns / 1e9, dt)
+            m = int(rng.choice([0, 1, 2, 7, 50, 300]))
+            got = act.run(t_ns, dt_ns, m)
+            assert got.coef.shape == (m, n, 4) and got.starts.shape == got.anchors.shape == (m,)
+            for k in range(m):
+                where = f'seed {seed} stream {stream} block {block} tick {k}'
+                t1_ns = t_ns + dt_ns
+                po = orc.step(t_ns / 1e9, t1_ns / 1e9)
+                assert_same_floats([float(got.starts[k])], [t_ns / 1e9], where)
+                assert_same_floats([float(got.anchors[k])], [po.t0], where)
+                for row, want in zip(got.coef[k].tolist(), po._rows):
+                    assert_same_floats(row, want, where)
+                assert_same_piece(got.piece(k), po, where)
+                # ticks from rest_from on are the rest piece, one object (as step hands it out)
+                assert (k >= got.rest_from) == (po is orc._rest_piece), where
+                if k > 0:
+                    assert (got.piece(k) is got.piece(k - 1)) == (po is prev_o), where
+                prev_o, t_ns = po, t1_ns
+            if got.rest_from < m:
+                assert got.rest_piece is act._rest_piece is act.step(t_ns / 1e9)
+                prev_o = orc.step(t_ns / 1e9)
+                t_ns += dt_ns
+            assert_same_state(act, orc, f'seed {seed} stream {stream} block {block}')
+
+
+@pytest.mark.parametrize('order', [1, 3, 5])
+def test_the_compiled_reference_equals_the_oracles_at_any_time_bit_for_bit(order):
+    rng = np.random.default_rng(30 + order)
+    for case in range(40):
+        n = int(rng.integers(1, 4))
+        m = int(rng.choice([1, 2, 5, 40]))
+        times = np.cumsum(rng.uniform(1e-4, 0.05, m)) - (0.0 if rng.random() < 0.5 else 1e-4)
+        times[0] = max(times[0], 0.0)
+        pos = _signed(rng, (m, n), 0.1)
+        vel = _signed(rng, (m, n), 1.0) if order >= 3 else None
+        acc = _signed(rng, (m, n), 10.0) if order == 5 else None
+        state = [tuple(float(x) for x in _signed(rng, 3, 0.2)) for _ in range(n)]
+        t_start = float(rng.choice([0.0, 2.0, 1e5]))
+        if rng.random() < 0.5:
+            got = TrajectoryReference.from_arrays(t_start, state, times, pos, vel, acc)
+            want = oracle.TrajectoryReference.from_arrays(t_start, state, times, pos, vel, acc)
+        else:
+            lists = [None if x is None else x.tolist() for x in (pos, vel, acc)]
+            got = TrajectoryReference(t_start, state, times.tolist(), *lists)
+            want = oracle.TrajectoryReference(t_start, state, times.tolist(), *lists)
+        assert got.end_time == want.end_time and got.order == want.order
+        knots = t_start + np.array(want._t)
+        ts = np.concatenate([knots, np.nextafter(knots, -np.inf), np.nextafter(knots, np.inf),
+                             rng.uniform(t_start - 0.01, want.end_time + 0.01, 200),
+                             [t_start, want.end_time]])
+        for t in ts.tolist():
+            for a, b in zip(got(t), want(t)):
+                assert_same_floats(a, b, f'order {order} case {case} t {t!r}')
+
+
+def test_jerk_law_equals_the_oracles_bit_for_bit_at_the_clamps_and_ties():
+    rng = np.random.default_rng(11)
+    for _ in range(20000):
+        vmax, amax = float(rng.choice([0.01, 0.5, 3.0])), float(rng.choice([0.1, 5.0, 100.0]))
+        dt = float(10.0 ** rng.uniform(-5, -1))
+        k = gains(float(rng.choice([0.5, 5.0, 80.0])), dt)
+        l = float(rng.choice([0.0, -0.0, 0.1]))
+        r = l + float(rng.choice([0.0, -0.0, 1e-13, -1e-6, 1e-3, -0.05, 0.3]))
+        v = float(rng.choice([0.0, -0.0, vmax, -vmax, rng.uniform(-vmax, vmax)]))
+        a = float(rng.choice([0.0, -0.0, amax, -amax, rng.uniform(-amax, amax)]))
+        rd = float(rng.choice([0.0, -0.0, vmax, rng.normal(0, vmax)]))
+        rdd = float(rng.choice([0.0, -0.0, -amax, rng.normal(0, amax)]))
+        args = (l, v, a, r, rd, rdd, dt, k, vmax, amax)
+        assert_same_floats([jerk_law(*args)], [oracle.jerk_law(*args)], args)
+
+
+@pytest.mark.parametrize('offset,v,a', [(1e-12, 0.0, 0.0), (-1e-12, 0.0, 0.0),
+                                        (0.0, 1e-10, 0.0), (0.0, -1e-10, 1e-8),
+                                        (0.0, 0.0, -1e-8), (1e-12, 1e-10, 1e-8),
+                                        (2e-12, 0.0, 0.0), (0.0, 2e-10, 0.0),
+                                        (0.0, 0.0, 2e-8)])
+def test_settling_thresholds_are_inclusive_as_in_the_oracle(offset, v, a):
+    """At exactly |e| = 1e-12 m, |l'| = 1e-10 m/s, |l''| = 1e-8 m/s^2 a linkage settles (and
+    a hair beyond it does not), as in the model (from l = 0, so e is exactly the offset)."""
+    act = Actuator([0.0], 1e-3, ActuatorLimits())
+    orc = oracle.Actuator([0.0], 1e-3, oracle.ActuatorLimits())
+    for x in (act, orc):
+        x.set_target([offset])
+        x.v, x.a = [v], [a]
+    for k in range(3):
+        assert_same_piece(act.step(k * 1e-3), orc.step(k * 1e-3), k)
+        assert_same_state(act, orc, k)
+
+
+def test_an_actuator_and_its_reference_copy_and_pickle_and_go_on_bit_for_bit():
+    import copy
+    import pickle
+    act = Actuator([0.1, 0.2], 1e-3, ActuatorLimits())
+    ref = TrajectoryReference(0.0, act.state(), [0.1, 0.3], [[0.2, 0.1], [0.25, 0.3]],
+                              [[0.0, 0.0], [0.1, 0.1]])
+    act.set_trajectory(ref)
+    for k in range(150):
+        act.step(k * 1e-3)
+    copies = [pickle.loads(pickle.dumps(act)), copy.deepcopy(act)]
+    for k in range(150, 4000):          # following, the end of the trajectory, settling
+        want = act.step(k * 1e-3)
+        for cp in copies:
+            assert_same_piece(cp.step(k * 1e-3), want, k)
+            assert_same_state(cp, act, k)
+    assert act._rest_piece is not None
+    for cp in (pickle.loads(pickle.dumps(act)), copy.deepcopy(act)):
+        assert_same_state(cp, act)
+        assert cp.step(9.0) is cp._rest_piece
+        assert_same_piece(cp._rest_piece, act._rest_piece)
+    assert pickle.loads(pickle.dumps(ref))(0.2) == ref(0.2)

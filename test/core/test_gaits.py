@@ -518,3 +518,28 @@ def test_a_phased_stroke_is_the_stroke_shifted_in_time_per_linkage():
     assert g.period == pytest.approx(1.0 / f, rel=1e-15)
     zero = gaits.PiecewiseParabolic.stroke(0.1, 0.02, f, 0.35, 0.0)
     assert zero.times.tolist() == gaits.PiecewiseParabolic.stroke(0.1, 0.02, f, 0.35).times.tolist()
+
+
+def test_a_piecewise_cubic_from_arrays_is_the_one_made_of_its_pieces():
+    # the actuator's runs of ticks: (starts, anchors, coef) arrays, no Cubic per piece
+    rng = np.random.default_rng(3)
+    starts = np.cumsum(rng.uniform(1e-3, 2e-3, 40))
+    anchors = starts.copy()
+    anchors[20:] = anchors[20]                  # a rest piece handed out again keeps its t0
+    coef = rng.normal(0, 1, (40, 2, 4))
+    coef[20:] = [[0.1, 0.0, 0.0, 0.0], [0.2, 0.0, 0.0, 0.0]]
+    pieces = [Cubic.trusted(float(t0), *c.T.tolist()) for t0, c in zip(anchors, coef)]
+    want = PiecewiseCubic(starts, pieces)
+    got = PiecewiseCubic.from_arrays(starts, anchors, coef)
+    t = np.sort(rng.uniform(starts[0] - 1e-3, starts[-1] + 3e-3, 300))
+    for a, b in zip(got(t), want(t)):
+        assert a.tobytes() == b.tobytes()
+    lo, hi = float(starts[0]), float(starts[-1])
+    assert got.breakpoints(lo, hi).tobytes() == want.breakpoints(lo, hi).tobytes()
+    assert got.jerk_bound(lo, hi).tolist() == want.jerk_bound(lo, hi).tolist()
+    assert got.is_constant(starts[25], starts[30]) and not got.is_constant(lo, hi)
+    assert got.starts.tolist() == starts.tolist() and got.n_links == 2
+    for k in (0, 7, 39):
+        assert got._index(float(starts[k])) == want._index(float(starts[k])) == k
+        assert got._piece(k)._rows == want.pieces[k]._rows and got._piece(k).t0 == anchors[k]
+    assert [pc._rows for pc in got.pieces] == [pc._rows for pc in pieces]

@@ -62,6 +62,20 @@ class Cubic(BuiltinGait):
         self._rows = list(zip(l0, v0, a0, jerk))
         return self
 
+    @classmethod
+    def from_rows(cls, t0: float, rows: list[tuple[float, float, float, float]],
+                  constant: bool) -> Cubic:
+        """``trusted`` from what it computes: the rows (l0, v0, a0, jerk) per linkage, tuples
+        of finite floats, and ``constant`` (v0, a0 and jerk all zero). The compiled actuator's
+        path (``core/_actuator.pyx``, one piece per tick), which has both at hand."""
+        self = cls.__new__(cls)
+        self.t0 = t0
+        self.n_links = len(rows)
+        self._arrays = None
+        self._constant = constant
+        self._rows = rows
+        return self
+
     def _kind(self):
         from ..solvers._gait import table
         return table(np.array([self._rows], dtype=float), starts=np.array([-math.inf]),
@@ -92,7 +106,8 @@ class PiecewiseCubic(BuiltinGait):
         if any(pc.n_links != self.n_links for pc in pieces):
             raise ValueError('every piece must have the same number of linkages')
         self._starts = sl
-        self.pieces = list(pieces)
+        self._pieces = list(pieces)
+        self._arrays = None
 
     @classmethod
     def trusted(cls, starts: list[float], pieces: list[Cubic]) -> PiecewiseCubic:
@@ -101,8 +116,39 @@ class PiecewiseCubic(BuiltinGait):
         self = cls.__new__(cls)
         self.n_links = pieces[0].n_links
         self._starts = starts
-        self.pieces = pieces
+        self._pieces = pieces
+        self._arrays = None
         return self
+
+    @classmethod
+    def from_arrays(cls, starts: NDArray[np.float64], anchors: NDArray[np.float64],
+                    coef: NDArray[np.float64]) -> PiecewiseCubic:
+        """The gait of ``trusted(starts, pieces)`` with piece k = ``Cubic(anchors[k],
+        *coef[k].T)``, from arrays and without one Cubic object per piece (the actuator's runs
+        of ticks, ``actuator.Pieces``): ``starts`` (n,) [s] finite and strictly increasing,
+        ``anchors`` (n,) each piece's time origin [s], ``coef`` (n, n_links, 4) float64 =
+        (l0 [m], v0 [m/s], a0 [m/s^2], jerk [m/s^3]) per piece and linkage, all finite.
+        Not checked; the arrays are used as they are (not copied)."""
+        self = cls.__new__(cls)
+        self.n_links = coef.shape[1]
+        self._starts = starts
+        self._pieces = None
+        self._arrays = (starts, anchors, coef)
+        return self
+
+    @property
+    def pieces(self) -> list[Cubic]:
+        """The pieces as ``Cubic`` objects (made on first use when built from arrays)."""
+        if self._pieces is None:
+            self._pieces = [self._piece(k) for k in range(len(self._starts))]
+        return self._pieces
+
+    def _piece(self, k: int) -> Cubic:
+        """Piece k as a Cubic (one object when built from arrays, without making the others)."""
+        if self._pieces is not None:
+            return self._pieces[k]
+        _, anchors, coef = self._arrays
+        return Cubic.trusted(float(anchors[k]), *coef[k].T.tolist())
 
     @property
     def starts(self) -> NDArray[np.float64]:
@@ -110,10 +156,15 @@ class PiecewiseCubic(BuiltinGait):
         return np.array(self._starts)
 
     def _index(self, t: float) -> int:
+        if self._arrays is not None:        # bisect_right on the array
+            return max(int(np.searchsorted(self._starts, t, side='right')) - 1, 0)
         return max(bisect_right(self._starts, t) - 1, 0)
 
     def _kind(self):
         from ..solvers._gait import table
+        if self._arrays is not None:
+            starts, anchors, coef = self._arrays
+            return table(coef, starts=starts, anchors=anchors)
         return table(np.array([pc._rows for pc in self.pieces], dtype=float),
                      starts=np.array(self._starts), anchors=np.array([pc.t0 for pc in
                                                                       self.pieces]))

@@ -13,14 +13,21 @@ are queued and the core ``Stepper`` integrates them exactly in one call at each 
 (``sync``). The physics does not depend on where the integration is cut, only the rounding does,
 so sync points are part of the determinism contract: the publish grid (every ``publish_every``
 ticks) and explicit ``sync()`` calls. Times are integer nanoseconds.
+
+Runs of ticks with no input in between (``tick_to_grid``, ``run_to``) are one compiled run of
+the actuator (``Actuator.run``, the pieces as arrays) and reach the exact solver as one
+array-built ``PiecewiseCubic``: the same pieces, gaits and states, bit for bit, as ``tick()``
+repeated.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
-from ..actuator import Actuator, ActuatorLimits
-from ..gaits import Cubic, PiecewiseCubic
+import numpy as np
+
+from ..actuator import Actuator, ActuatorLimits, Pieces
+from ..gaits import Cubic, Gait, PiecewiseCubic
 from ..model import Crawler
 from ..stepper import Stepper
 from ..trajectory import Event, State
@@ -62,8 +69,8 @@ class Engine:
         self.journal = journal
         self.paused = False
         self.integrate = integrate
-        self._log_starts: list[float] = []
-        self._log_pieces: list[Cubic] = []
+        # integrate=False: what the actuator emitted, the queue's runs (``_drain``) in order
+        self._log: list = []
         self._build(cfg, t_ns)
 
     # ------------------------------------------------------------------ inputs
@@ -142,8 +149,11 @@ class Engine:
         self.stepper = Stepper(cfg.crawler, rest, cfg.method, t0=t, x0=cfg.initial_position,
                                v0=0.0, dt=dt, penalty=cfg.penalty)
         self.stepper.pop_events()
+        # the queue of ticks not integrated yet: single ticks (tick()) as start times and Cubic
+        # pieces, and runs of ticks as (number of single ticks queued before it, Pieces)
         self._starts: list[float] = []
         self._pieces: list[Cubic] = []
+        self._blocks: list[tuple[int, Pieces]] = []
         self._events: list[Event] = []
 
     def _restart_stepper(self, cfg: EngineConfig) -> None:
@@ -182,52 +192,145 @@ class Engine:
             return True
         return False
 
+    def _ticks_to_grid(self) -> int:
+        """How many ticks from now up to and including the next one that ends on the publish
+        grid (tick k ends on it when (t1_ns // dt_ns) % publish_every == 0)."""
+        every = self.cfg.publish_every
+        return every - (self.t_ns // self.cfg.dt_ns) % every
+
+    def _run(self, n: int) -> None:
+        """``n`` ticks with no input in between, as one run of the actuator (queued)."""
+        dt_ns = self.cfg.dt_ns
+        self._blocks.append((len(self._pieces), self.actuator.run(self.t_ns, dt_ns, n)))
+        self.t_ns += n * dt_ns
+
     def tick_to_grid(self) -> int:
         """``tick()`` repeated up to and including the next tick that ends on the publish grid
         (which syncs); returns how many ticks ran. The same pieces, bit for bit, as calling
         ``tick()`` that many times: a caller that has nothing to apply between those ticks
-        (the flat-out node between two publish ticks) saves the per-tick calls."""
-        dt_ns, every = self.cfg.dt_ns, self.cfg.publish_every
-        step, starts, pieces = self.actuator.step, self._starts, self._pieces
-        t0_ns, n = self.t_ns, 0
-        while True:
-            t1_ns = t0_ns + dt_ns
-            t0 = t0_ns / 1e9
-            starts.append(t0)
-            pieces.append(step(t0, t1_ns / 1e9))
-            t0_ns = t1_ns
-            n += 1
-            if (t1_ns // dt_ns) % every == 0:
-                break
-        self.t_ns = t0_ns
+        (the flat-out node between two publish ticks) saves the per-tick calls (one compiled
+        run of the actuator, ``Actuator.run``)."""
+        n = self._ticks_to_grid()
+        self._run(n)
         self.sync()
         return n
 
+    def run_to(self, t_ns: int) -> int:
+        """``tick()`` repeated while the sim time is before ``t_ns`` [ns] (no input in between;
+        syncs on the publish grid as ``tick()`` does); returns how many ticks ran. The same
+        pieces and states, bit for bit, as those ticks one by one; an offline run
+        (``integrate=False``, ``streams``) runs them as one compiled run of the actuator."""
+        total = 0
+        dt_ns, every = self.cfg.dt_ns, self.cfg.publish_every
+        while self.t_ns < t_ns:
+            n = -(-(t_ns - self.t_ns) // dt_ns)
+            k = self._ticks_to_grid()
+            if n < k:
+                self._run(n)             # ends off the grid: queued, as single ticks are
+            elif self.integrate:
+                n = self.tick_to_grid()
+            else:
+                # without integration a sync only moves the queue to the log: one run up to
+                # the last grid tick of the span (what is after it stays queued, as with tick())
+                n = k + (n - k) // every * every
+                self._run(n)
+                self.sync()
+            total += n
+        return total
+
+    def _drain(self) -> list[tuple[list[float], list[Cubic]] | Pieces]:
+        """Empty the queue: the queued ticks in order, runs of single ticks as (starts, pieces)
+        and runs of the actuator as ``Pieces``."""
+        starts, pieces, blocks = self._starts, self._pieces, self._blocks
+        self._starts, self._pieces, self._blocks = [], [], []
+        out: list = []
+        k = 0
+        for at, block in blocks:
+            if at > k:
+                out.append((starts[k:at], pieces[k:at]))
+                k = at
+            out.append(block)
+        if k < len(pieces):
+            out.append((starts[k:], pieces[k:]))
+        return out
+
+    @staticmethod
+    def _arrays(runs: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(starts, anchors, coef) of the queued ticks (``_drain``) as arrays."""
+        parts = [(r.starts, r.anchors, r.coef) if isinstance(r, Pieces)
+                 else (np.array(r[0]), np.array([pc.t0 for pc in r[1]]),
+                       np.array([pc._rows for pc in r[1]], dtype=float)) for r in runs]
+        if len(parts) == 1:
+            return parts[0]
+        return tuple(np.concatenate(x) for x in zip(*parts))
+
+    @staticmethod
+    def _ticks(runs: list) -> tuple[list[float], list[Cubic]]:
+        """The queued ticks (``_drain``) as start times and one Cubic each (the rest piece of
+        a run is that same object, as ``step`` hands it out)."""
+        if len(runs) == 1 and not isinstance(runs[0], Pieces):
+            return runs[0]
+        starts, pieces = [], []
+        for r in runs:
+            if isinstance(r, Pieces):
+                starts += r.starts.tolist()
+                pieces += [r.piece(k) for k in range(len(r.starts))]
+            else:
+                starts += r[0]
+                pieces += r[1]
+        return starts, pieces
+
+    @staticmethod
+    def _gait(runs: list) -> Gait:
+        """The queued ticks (``_drain``) as the exact solver's gait: the piece itself when
+        there is one, or when every tick is the same rest piece (the object the solver may
+        already hold, so it continues without a gait switch), else one PiecewiseCubic (from
+        arrays when the actuator ran in blocks, without a Cubic per tick)."""
+        first = runs[0]
+        if len(runs) == 1 and not isinstance(first, Pieces):
+            starts, pieces = first
+            return pieces[0] if len(pieces) == 1 or all(pc is pieces[0] for pc in pieces) \
+                else PiecewiseCubic.trusted(starts, pieces)
+        if isinstance(first, Pieces):
+            if len(runs) == 1 and len(first.starts) == 1:
+                return first.piece(0)
+            obj = first.rest_piece if first.rest_from == 0 else None
+        else:
+            obj = first[1][0]
+        if obj is not None and all(
+                (r.rest_from == 0 and r.rest_piece is obj) if isinstance(r, Pieces)
+                else all(pc is obj for pc in r[1]) for r in runs):
+            return obj
+        return PiecewiseCubic.from_arrays(*Engine._arrays(runs))
+
     def sync(self) -> None:
         """Integrate the queued pieces up to the current tick boundary."""
-        if not self._pieces:
+        if not (self._pieces or self._blocks):
             return
         if not self.integrate:
-            self._log_starts.extend(self._starts)
-            self._log_pieces.extend(self._pieces)
-            self._pieces, self._starts = [], []
+            for run in self._drain():
+                last = self._log[-1] if self._log else None
+                if isinstance(run, Pieces) or last is None or isinstance(last, Pieces):
+                    self._log.append(run)
+                else:                   # single ticks after single ticks: one run
+                    last[0].extend(run[0])
+                    last[1].extend(run[1])
             return
         if (self.t_ns // self.cfg.dt_ns) % self.cfg.publish_every:
             # off the publish grid: where the integration is cut changes the rounding, so a
             # replay must cut here too
             self._note('sync', None)
-        pieces, starts = self._pieces, self._starts
-        self._pieces, self._starts = [], []
+        runs = self._drain()
         t1 = self.t_ns / 1e9
         if self.stepper.method != 'exact':
             # time stepping: one call per tick keeps its steps on the tick grid
+            starts, pieces = self._ticks(runs)
             ends = starts[1:] + [t1]
             for end, piece in zip(ends, pieces):
                 self.stepper.advance(end, piece)
             self._events.extend(self.stepper.pop_events())
             return
-        gait = pieces[0] if len(pieces) == 1 or all(pc is pieces[0] for pc in pieces) \
-            else PiecewiseCubic.trusted(starts, pieces)
+        gait = self._gait(runs)
         try:
             self.stepper.advance(t1, gait)
         except (ValueError, RuntimeError, ArithmeticError) as exc:
@@ -257,9 +360,12 @@ class Engine:
         if self.integrate:
             raise RuntimeError('actuator_output() needs an Engine(..., integrate=False)')
         self.sync()
-        if not self._log_pieces:
+        if not self._log:
             raise ValueError('no tick has run yet')
-        return PiecewiseCubic.trusted(list(self._log_starts), list(self._log_pieces))
+        # one run of arrays from now on (a later call adds to it)
+        starts, anchors, coef = self._arrays(self._log)
+        self._log = [Pieces(starts, anchors, coef, len(starts), None)]
+        return PiecewiseCubic.from_arrays(starts, anchors, coef)
 
     def actuator_state(self) -> list[tuple[float, float, float]]:
         """(l [m], l' [m/s], l'' [m/s^2]) per linkage at the current tick boundary."""
