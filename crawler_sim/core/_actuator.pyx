@@ -22,7 +22,7 @@ Units: s, m, m/s, m/s^2, m/s^3; times of ``_run`` in integer nanoseconds.
 """
 import numpy as np
 
-from libc.math cimport fabs, isnan, sqrt
+from libc.math cimport INFINITY, fabs, isnan, sqrt
 
 from crawler_sim.core.gaits.cubic import Cubic
 
@@ -42,19 +42,45 @@ cdef enum:
 _from_rows = Cubic.from_rows
 
 
+cdef inline double _sqrtp(double e, double kp, double amax) noexcept nogil:
+    """The position law: kp e near 0, the braking curve sqrt(2 A_b (|e| - A_b/(2 kp^2)))
+    beyond |e| = A_b / kp^2 (ArduPilot's sqrt_controller, A_b = A/2)."""
+    cdef double linear = 0.5 * amax / (kp * kp)
+    if e > linear:
+        return sqrt(2.0 * (0.5 * amax) * (e - 0.5 * linear))
+    if e < -linear:
+        return -sqrt(2.0 * (0.5 * amax) * (-e - 0.5 * linear))
+    return kp * e
+
+
 cdef inline double _jerk(double l, double v, double a, double r, double rd, double rdd,
                          double dt, double kp, double kv, double ka, double vmax,
-                         double amax) noexcept nogil:
+                         double amax, double lmin, double lmax) noexcept nogil:
     """The jerk law of ``jerk_law`` (same expressions in the same order, see there)."""
-    cdef double e, linear, v_d, a_d, j, dt2, hi, lo, x
+    cdef double e, v_d, a_d, j, dt2, hi, lo, x
+    # The feed-forward is what the servo can do: a reference faster than max_speed or
+    # max_acceleration (points 10 ms and 0.5 m apart) otherwise outweighs the position error
+    # and drives the linkage far past the reference (0.3 m beyond max_length, issue 25).
+    if -vmax > rd:
+        rd = -vmax
+    if vmax < rd:
+        rd = vmax
+    if -amax > rdd:
+        rdd = -amax
+    if amax < rdd:
+        rdd = amax
     e = r - l
-    linear = 0.5 * amax / (kp * kp)         # position law: linear near 0, a braking curve
-    if e > linear:                          # beyond (ArduPilot's sqrt_controller, A_b = A/2)
-        v_d = rd + sqrt(2.0 * (0.5 * amax) * (e - 0.5 * linear))
-    elif e < -linear:
-        v_d = rd + -sqrt(2.0 * (0.5 * amax) * (-e - 0.5 * linear))
-    else:
-        v_d = rd + kp * e
+    v_d = rd + _sqrtp(e, kp, amax)
+    # The length limits as targets the servo brakes for, as for a step command to them (a
+    # step never overshoots): never faster towards a limit than the position law would go
+    # towards a target there, from where this tick's motion already takes the linkage (a
+    # coarse tick moves it max_speed dt before the law acts again).
+    x = _sqrtp(lmax - (l + fabs(v) * dt), kp, amax)
+    if x < v_d:
+        v_d = x
+    x = _sqrtp(lmin - (l - fabs(v) * dt), kp, amax)
+    if x > v_d:
+        v_d = x
     # Each clamp keeps Python's builtin min(max(x, lo), hi) choice exactly: the earlier
     # argument on ties, so also the sign of a zero (the model was written with min/max).
     if -vmax > v_d:
@@ -94,7 +120,8 @@ cdef inline double _jerk(double l, double v, double a, double r, double rd, doub
 
 
 def jerk_law(double l, double v, double a, double r, double rd, double rdd, double dt, k,
-             double max_speed, double max_acceleration) -> float:
+             double max_speed, double max_acceleration, double min_length=-INFINITY,
+             double max_length=INFINITY) -> float:
     """Jerk [m/s^3] for one linkage over one tick of ``dt`` [s]: a pure function of the state
     (l [m], v = l' [m/s], a = l'' [m/s^2]), the reference (r [m], rd [m/s], rdd [m/s^2]), the
     gains ``k`` = (kp, kv, ka) of ``actuator.gains`` and the limits (max_speed [m/s],
@@ -105,7 +132,8 @@ def jerk_law(double l, double v, double a, double r, double rd, double rdd, doub
     its end.
     """
     kp, kv, ka = k
-    return _jerk(l, v, a, r, rd, rdd, dt, kp, kv, ka, max_speed, max_acceleration)
+    return _jerk(l, v, a, r, rd, rdd, dt, kp, kv, ka, max_speed, max_acceleration,
+                 min_length, max_length)
 
 
 cdef class Reference:
@@ -232,6 +260,25 @@ cdef class Reference:
             rdd[i] = (2.0 * c2 + s * (6.0 * c3 + s * (12.0 * c4 + s * 20.0 * c5))) / h2
         return 0
 
+    def coefficients(self):
+        """Every segment's polynomial in s = (tau - knot_k) / h_k on [0, 1] as
+        (m - 1, n_links, 6) coefficients c0..c5 of r [m] (those ``eval`` uses: a linear segment
+        is c0 + c1 s), for checks of the whole interpolant (``TrajectoryReference.outside``)."""
+        cdef Py_ssize_t k, i, j
+        out = np.zeros((max(self.m - 1, 0), self.nl, 6))
+        cdef double[:, :, ::1] o = out
+        for k in range(self.m - 1):
+            self._segment(k)
+            for i in range(self.nl):
+                if self.order == 1:
+                    o[k, i, 0] = self.coef[i, 0]
+                    o[k, i, 1] = self.coef[i, 1]
+                else:
+                    for j in range(6):
+                        o[k, i, j] = self.coef[i, j]
+        self.seg = -1                        # the cached segment was overwritten
+        return out
+
     def __call__(self, double t) -> tuple[list[float], list[float], list[float]]:
         """(r [m], r' [m/s], r'' [m/s^2]) per linkage at sim time t [s], as lists."""
         out = np.empty((3, max(self.nl, 1)))
@@ -247,7 +294,7 @@ cdef class Servo:
     a = l'' [m/s^2], the target [m] of a step command and whether it has settled at rest."""
     cdef readonly Py_ssize_t n_links
     cdef public double dt                  # nominal tick [s] of the jerk law
-    cdef double kp, kv, ka, vmax, amax
+    cdef double kp, kv, ka, vmax, amax, lmin, lmax
     cdef object _limits, _k_obj
     cdef object _store                      # the arrays the pointers below point into
     cdef double* l
@@ -386,6 +433,8 @@ cdef class Servo:
     def limits(self, lim):
         self.vmax = lim.max_speed
         self.amax = lim.max_acceleration
+        self.lmin = lim.min_length
+        self.lmax = lim.max_length
         self._limits = lim
 
     @property
@@ -445,7 +494,7 @@ cdef class Servo:
             vx = self.v0[i]
             ax = self.a0[i]
             j = _jerk(lx, vx, ax, rr, rdv, rddv, self.dt, self.kp, self.kv, self.ka,
-                      self.vmax, self.amax)
+                      self.vmax, self.amax, self.lmin, self.lmax)
             self.jk[i] = j
             # the piece at its end: the expression of gaits.cubic_values (and of the solvers'
             # TABLE kind), so the next piece starts bit-identically where this one ends

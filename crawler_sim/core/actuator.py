@@ -103,17 +103,23 @@ BANDWIDTH_TO_POLE = 1.0 / math.sqrt(2.0 ** (1.0 / 3.0) - 1.0)
 @dataclass(frozen=True)
 class ActuatorLimits:
     """Actuator parameters: ``bandwidth`` [Hz] (-3 dB), ``max_speed`` [m/s], ``max_acceleration``
-    [m/s^2]. All must be finite and > 0."""
+    [m/s^2], all finite and > 0; and the length limits ``min_length`` < ``max_length`` [m]
+    (default: none), which the servo brakes for as for a step command to them."""
 
     bandwidth: float = 5.0
     max_speed: float = 0.5
     max_acceleration: float = 5.0
+    min_length: float = -math.inf
+    max_length: float = math.inf
 
     def __post_init__(self) -> None:
         for name in ('bandwidth', 'max_speed', 'max_acceleration'):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f'`{name}` must be finite and > 0, got {value!r}')
+        if not self.min_length < self.max_length:      # (NaN fails too)
+            raise ValueError(f'`min_length` ({self.min_length!r}) must be < `max_length` '
+                             f'({self.max_length!r})')
 
 
 def gains(bandwidth: float, dt: float) -> tuple[float, float, float]:
@@ -271,6 +277,77 @@ class TrajectoryReference:
         or linear per segment; before the first knot its row, after the last the last position
         at rest."""
         return self._c(t)
+
+    def outside(self, lo: float, hi: float) -> tuple[int, int, float] | None:
+        """Where the interpolant leaves [lo, hi] [m] between its knots, or None when it stays
+        inside everywhere (and is finite): (segment k, linkage j, a value [m] beyond the
+        bound, NaN when not finite). The knots themselves are the caller's to check.
+
+        Exact up to ``_RANGE_TOL``: each segment's polynomial is bounded by the hull of its
+        Bernstein coefficients, split in halves (de Casteljau) where the hull crosses a bound,
+        up to ``_RANGE_DEPTH`` times; a piece still crossing then holds a value beyond it."""
+        coef = self._c.coefficients()                    # (segments, n_links, 6)
+        if not coef.size:
+            return None
+        with np.errstate(over='ignore', invalid='ignore'):
+            b = coef @ _TO_BERNSTEIN.T                    # Bernstein coefficients on [0, 1]
+            bad = ~np.isfinite(b).all(axis=2)
+            if bad.any():
+                k, j = (int(x) for x in np.argwhere(bad)[0])
+                return k, j, math.nan
+            where = np.argwhere(b.max(axis=2) > hi + _RANGE_TOL)
+            if len(where):
+                found = _beyond(b, where, lambda x: x.max(axis=-1) > hi + _RANGE_TOL, max)
+                if found:
+                    return found
+            where = np.argwhere(b.min(axis=2) < lo - _RANGE_TOL)
+            if len(where):
+                found = _beyond(b, where, lambda x: x.min(axis=-1) < lo - _RANGE_TOL, min)
+                if found:
+                    return found
+        return None
+
+
+#: power basis -> Bernstein basis of degree 5 on [0, 1]: b_i = sum_{k <= i} C(i,k)/C(5,k) c_k
+_TO_BERNSTEIN = np.array([[math.comb(i, k) / math.comb(5, k) if k <= i else 0.0
+                           for k in range(6)] for i in range(6)])
+_RANGE_DEPTH = 16        # halvings of a segment whose hull crosses a bound (2^-16 of it)
+_RANGE_TOL = 1e-12       # m: a hull within this of a bound is inside (a knot at the bound)
+
+
+def _beyond(b: NDArray[np.float64], where: NDArray[np.int64], crosses,
+            pick) -> tuple[int, int, float] | None:
+    """The first (segment, linkage, value) among ``where`` whose polynomial really crosses:
+    halve the Bernstein coefficients ``b[k, j]`` while their hull ``crosses``; a value of the
+    curve beyond the bound is an end coefficient of a piece that still crosses."""
+    for k, j in where:
+        pieces = [b[k, j]]
+        for _ in range(_RANGE_DEPTH):
+            nxt = []
+            for c in pieces:
+                for half in _halves(c):
+                    if crosses(half):
+                        end = pick(half[0], half[-1])       # values of the curve itself
+                        if crosses(np.array([end])):
+                            return int(k), int(j), float(end)
+                        nxt.append(half)
+            if not nxt:
+                break
+            pieces = nxt[:64]          # a bounded search: the crossing pieces nearest first
+        else:
+            return int(k), int(j), float(pick(*(c for p in pieces for c in p)))
+    return None
+
+
+def _halves(c: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """de Casteljau at s = 1/2: the Bernstein coefficients of the two halves."""
+    left, right = [c[0]], [c[-1]]
+    row = c
+    while len(row) > 1:
+        row = 0.5 * (row[:-1] + row[1:])
+        left.append(row[0])
+        right.append(row[-1])
+    return np.array(left), np.array(right[::-1])
 
 
 class Actuator(Servo):

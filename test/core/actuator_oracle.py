@@ -9,6 +9,11 @@ of ``gaits.Cubic``) and ``TrajectoryReference`` (linear / cubic Hermite / quinti
 holding after the last point). It is test code only: nothing in ``crawler_sim`` imports it, and
 it must not be "fixed" to follow later changes of the model; a deliberate change of the model
 changes this file in the same commit, with the reason.
+
+Changes of the model since: (issue 25) the feed-forward r', r'' is bounded by max_speed and
+max_acceleration, and the length limits [min_length, max_length] bound v_d as targets the
+servo brakes for (from where the tick's motion takes the linkage): a reference faster than the
+servo drove linkages 0.3 m past max_length.
 """
 from __future__ import annotations
 
@@ -36,6 +41,8 @@ class ActuatorLimits:
     bandwidth: float = 5.0
     max_speed: float = 0.5
     max_acceleration: float = 5.0
+    min_length: float = -math.inf        # issue 25
+    max_length: float = math.inf
 
     def __post_init__(self) -> None:
         for name in ('bandwidth', 'max_speed', 'max_acceleration'):
@@ -69,7 +76,8 @@ def _sqrt_p(e: float, kp: float, a_brake: float) -> float:
 
 
 def jerk_law(l: float, v: float, a: float, r: float, rd: float, rdd: float, dt: float,
-             k: tuple[float, float, float], max_speed: float, max_acceleration: float) -> float:
+             k: tuple[float, float, float], max_speed: float, max_acceleration: float,
+             min_length: float = -math.inf, max_length: float = math.inf) -> float:
     """Jerk for one linkage over one tick: a pure function of state, reference and dt.
 
     Assumes the viability invariant at the start (see module doc); the result keeps
@@ -81,6 +89,8 @@ def jerk_law(l: float, v: float, a: float, r: float, rd: float, rdd: float, dt: 
     # One call per linkage per 1 kHz tick: the clamps are written as comparisons instead of
     # builtin min/max calls (about half the cost). Each keeps builtin min/max's choice exactly
     # (the earlier argument on ties, so also the sign of a zero), hence the same bits.
+    rd = min(max(rd, -vmax), vmax)          # issue 25: the feed-forward the servo can do
+    rdd = min(max(rdd, -amax), amax)
     e = r - l
     linear = 0.5 * amax / (kp * kp)          # _sqrt_p inlined (a_brake = amax / 2)
     if e > linear:
@@ -89,6 +99,9 @@ def jerk_law(l: float, v: float, a: float, r: float, rd: float, rdd: float, dt: 
         v_d = rd + -math.sqrt(2.0 * (0.5 * amax) * (-e - 0.5 * linear))
     else:
         v_d = rd + kp * e
+    # issue 25: the length limits as targets, from where this tick's motion takes the linkage
+    v_d = min(v_d, _sqrt_p(max_length - (l + abs(v) * dt), kp, 0.5 * amax))
+    v_d = max(v_d, _sqrt_p(min_length - (l - abs(v) * dt), kp, 0.5 * amax))
     if -vmax > v_d:                          # min(max(v_d, -vmax), vmax)
         v_d = -vmax
     if vmax < v_d:
@@ -402,7 +415,7 @@ class Actuator:
             else:
                 r, rd, rdd = ref[0][i], ref[1][i], ref[2][i]
             j = jerk_law(l0[i], v0[i], a0[i], r, rd, rdd, self.dt, self._k,
-                         lim.max_speed, lim.max_acceleration)
+                         lim.max_speed, lim.max_acceleration, lim.min_length, lim.max_length)
             jerk[i] = j
             self.l[i], self.v[i], self.a[i] = cubic_end(l0[i], v0[i], a0[i], j, d)
         piece = Cubic.trusted(t0, l0, v0, a0, jerk)

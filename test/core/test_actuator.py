@@ -208,6 +208,7 @@ def _jerk_law_spec(l, v, a, r, rd, rdd, dt, k, vmax, amax):
     lin = ab / (kp * kp)
     s = (math.sqrt(2.0 * ab * (e - 0.5 * lin)) if e > lin
          else -math.sqrt(2.0 * ab * (-e - 0.5 * lin)) if e < -lin else kp * e)
+    rd, rdd = min(max(rd, -vmax), vmax), min(max(rdd, -amax), amax)   # issue 25: feasible
     v_d = min(max(rd + s, -vmax), vmax)
     a_d = min(max(rdd + kv * (v_d - v), -amax), amax)
     j = ka * (a_d - a)
@@ -518,3 +519,60 @@ def test_an_actuator_and_its_reference_copy_and_pickle_and_go_on_bit_for_bit():
         assert cp.step(9.0) is cp._rest_piece
         assert_same_piece(cp._rest_piece, act._rest_piece)
     assert pickle.loads(pickle.dumps(ref))(0.2) == ref(0.2)
+
+
+def _worst_outside(out, t_end: float, lo: float, hi: float) -> float:
+    """How far l(t) of the actuator's output goes beyond [lo, hi] [m] on a fine grid."""
+    ts = np.linspace(float(out.starts[0]), t_end, 200_001)
+    l = out(ts)[0]
+    return float(max(l.max() - hi, lo - l.min()))
+
+
+def test_an_infeasible_reference_no_longer_drives_the_linkage_past_its_limits():
+    """Issue 25: points alternating between min_length and max_length every 10 ms (linear
+    interpolation: 48 m/s of feed-forward against a 0.5 m/s servo) drove the linkage 0.3 m past
+    max_length. The feed-forward is now bounded by what the servo can do, and the length limits
+    bound the servo's speed towards them."""
+    from crawler_sim.core.plant import Engine, PlantConfig, PreparedTrajectory
+    cfg = PlantConfig.defaults()
+    eng = Engine(cfg.engine_config(), integrate=False)
+    t = np.arange(1, 201) * 0.01
+    pos = np.where(np.arange(200) % 2, 0.5, 0.02)[:, None]
+    eng.trajectory(PreparedTrajectory(0, np.rint(t * 1e9).astype(np.int64), pos, None, None))
+    eng.run_to(2_500_000_000)
+    assert _worst_outside(eng.actuator_output(), 2.5, 0.02, 0.5) <= 1e-12
+
+
+def test_at_the_nodes_defaults_random_commands_and_trajectories_keep_the_length_in_range():
+    """Random sessions at sim_node's defaults and tick rates from 100 Hz to 5 kHz: steps to
+    the limits, trajectories of positions only / with velocities / with accelerations between
+    them (those whose interpolation leaves the range are refused). The length stays in
+    [min_length, max_length] (to 1e-12 m, the settling threshold)."""
+    from crawler_sim.core.plant import Engine, PlantConfig, PreparedTrajectory
+    rng = np.random.default_rng(25)
+    worst, refused = -1.0, 0
+    for _ in range(40):
+        rate = float(rng.choice([100.0, 1000.0, 5000.0]))
+        cfg = PlantConfig.defaults(integration_rate=rate, publish_rate=min(100.0, rate))
+        eng = Engine(cfg.engine_config(), integrate=False)
+        for _ in range(20):
+            if rng.random() < 0.5:
+                eng.command([float(rng.choice([0.02, 0.5, rng.uniform(0.02, 0.5)]))])
+            else:
+                n = int(rng.integers(2, 20))
+                t = np.cumsum(rng.uniform(0.01, 0.3, n))
+                pos = rng.choice([0.02, 0.5, 0.3], n)[:, None] * 1.0
+                order = int(rng.choice([1, 3, 5]))
+                vel = rng.uniform(-2, 2, (n, 1)) if order >= 3 else None
+                if vel is not None:
+                    vel[-1] = 0.0
+                acc = rng.uniform(-20, 20, (n, 1)) if order == 5 else None
+                try:
+                    eng.trajectory(PreparedTrajectory(0, np.rint(t * 1e9).astype(np.int64),
+                                                      pos, vel, acc))
+                except ValueError:
+                    refused += 1
+            eng.run_to(eng.t_ns + int(rng.integers(1, 800)) * cfg.dt_ns)
+        worst = max(worst, _worst_outside(eng.actuator_output(), eng.t, 0.02, 0.5))
+    assert worst <= 1e-12, worst
+    assert refused > 10                 # the search met trajectories that leave the range

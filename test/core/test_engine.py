@@ -235,3 +235,27 @@ def test_streams_actuator_output_equals_the_engine_as_it_was_bit_for_bit(stream,
     want = streams.actuator_output(plant, gait, stream, 9.0)
     assert got.starts.tobytes() == want.starts.tobytes()
     assert _piece_bits(got) == _piece_bits(want)
+
+
+def test_a_failure_the_fallback_cannot_absorb_leaves_the_plant_at_rest_not_an_exception(
+        monkeypatch):
+    """Issue 25: tick() must never raise out of the node's loop. When the exact solver and its
+    implicit fallback both fail, the engine reports it and starts again at rest (the same
+    engine code runs in a replay, so a replay repeats it)."""
+    from crawler_sim.core.plant import engine as engine_mod
+    eng = Engine(config(2, 10))
+    eng.command([0.13])
+    eng.tick_to_grid()
+    real = engine_mod.Stepper.advance
+
+    def broken(self, t1, gait=None):
+        raise ValueError('gait length must be finite')
+    monkeypatch.setattr(engine_mod.Stepper, 'advance', broken)
+    t_before = eng.t_ns
+    eng.tick_to_grid()                              # does not raise
+    assert eng.t_ns == t_before + 10 * eng.cfg.dt_ns
+    assert any('starts again at rest' in f for f in eng.failures)
+    monkeypatch.setattr(engine_mod.Stepper, 'advance', real)
+    st = eng.state
+    assert st.t == eng.t and list(st.lengths) == list(eng.cfg.initial_lengths)
+    assert np.all(st.v == 0.0)

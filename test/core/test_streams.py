@@ -64,3 +64,23 @@ def test_a_command_lands_at_the_first_tick_after_its_time_plus_the_latency():
 def test_a_stream_names_the_bad_field(kw, message):
     with pytest.raises(ValueError, match=message.replace('[', r'\[')):
         Stream(**{'duration': 1.0, **kw})
+
+
+@pytest.mark.parametrize('velocity', [1e3, 1e200, 1e308])
+def test_a_trajectory_whose_interpolation_leaves_the_range_is_refused_naming_where(velocity):
+    """Issue 25: a middle point's velocity of 1e3 m/s with every position in [0.02, 0.5] m drove
+    the linkage to -0.0675 m, and 1e308 made the next tick raise. The interpolation between the
+    points is checked (its Bernstein hull, refined), not only the points."""
+    plant = PlantConfig.defaults()
+    eng = Engine(plant.engine_config())
+    tfs = np.arange(1, 6) * 100_000_000
+    vel = np.zeros((5, 1))
+    vel[2, 0] = velocity
+    prepared = PreparedTrajectory(0, tfs, np.full((5, 1), 0.1), vel, None)
+    with pytest.raises(ValueError, match=r'interpolation of linkage_0 between point #\d and '
+                                         r'point #\d reaches .* outside \[min_length'):
+        eng.trajectory(prepared)
+    assert eng.actuator.trajectory is None            # nothing changed
+    vel[2, 0] = 0.3                                   # a moderate one: accepted
+    eng.trajectory(PreparedTrajectory(0, tfs, np.full((5, 1), 0.1), vel, None))
+    assert eng.actuator.trajectory is not None

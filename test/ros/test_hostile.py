@@ -63,6 +63,30 @@ BAD_TRAJECTORIES = [
 ]
 
 
+def _with_velocity(v_mid: float) -> JointTrajectory:
+    """Issue 25: positions all in range, a middle point's velocity v_mid [m/s]: the
+    interpolation leaves [min_length, max_length] (1e308 made the next tick raise)."""
+    msg = _traj(['linkage_0'], [(k * 100_000_000, [0.1]) for k in range(1, 6)])
+    for k, pt in enumerate(msg.points):
+        pt.velocities = [v_mid if k == 2 else 0.0]
+    return msg
+
+
+def _wide(points: int = 2000, width: int = 1001) -> JointTrajectory:
+    """Issue 25: 1001 positions per point for one linkage (rclpy's slow path cost 0.5-1.2 s of
+    the loop at 80 MB); refused from its head."""
+    return _traj(['linkage_0'], [(k * 1_000_000, [0.1] * width) for k in range(1, points + 1)])
+
+
+def _mixed() -> JointTrajectory:
+    msg = _traj(['linkage_0'], [(k * 1_000_000, [0.1]) for k in range(1, 2001)])
+    msg.points[7].velocities = [0.0]
+    return msg
+
+
+BAD_TRAJECTORIES += [_with_velocity(1e308), _with_velocity(1e3), _wide(), _mixed()]
+
+
 def test_floods_huge_trajectories_and_bad_parameters_crash_nothing(live):
     ros, sim, thread = live
     states = ros.listen(JointState, 'body_states', 1000)
@@ -106,6 +130,7 @@ def test_floods_huge_trajectories_and_bad_parameters_crash_nothing(live):
 
     # 3. bad parameters: refused with a reason, the old value kept
     for params in ([Parameter('masses', value=[1e308] * 3)],
+                   [Parameter('masses', value=[1.0] * 5000)],        # issue 25: froze it
                    [Parameter('masses', value=[0.5, -1.0])],
                    [Parameter('friction', value=[1.0, 2.0, 3.0])],
                    [Parameter('mu', value=[math.inf])],

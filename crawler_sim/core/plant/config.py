@@ -208,7 +208,7 @@ class PlantConfig:
         if pub > rate:
             raise ValueError(f'publish_rate ({pub} Hz) must be <= integration_rate ({rate} Hz)')
         limits = ActuatorLimits(v['actuator_bandwidth'], v['actuator_max_speed'],
-                                v['actuator_max_acceleration'])
+                                v['actuator_max_acceleration'], lo, hi)
         for name in ('masses', 'mu', 'mu_backward', 'friction', 'friction_backward', 'penalty',
                      'initial_lengths'):
             v[name] = _as_list(name, v[name], MAX_BODIES)

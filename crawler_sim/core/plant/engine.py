@@ -22,6 +22,7 @@ repeated.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import math
 from typing import Any, Callable, Sequence
 
 import numpy as np
@@ -84,12 +85,21 @@ class Engine:
     def trajectory(self, prepared: PreparedTrajectory | None) -> None:
         """Follow timed points from the current tick boundary (None or no point: hold the
         current length). Raises ValueError, changing nothing, when the point times cannot be
-        used at this sim time (``PreparedTrajectory.reference``)."""
+        used at this sim time or the interpolation leaves [min_length, max_length]
+        (``PreparedTrajectory.reference``)."""
         if prepared is None or not len(prepared.tfs_ns):
             self.actuator.set_trajectory(None)
         else:
-            self.actuator.set_trajectory(prepared.reference(self.t_ns, self.actuator.state()))
+            self.actuator.set_trajectory(self.check_trajectory(prepared))
         self._note('trajectory', prepared)
+
+    def check_trajectory(self, prepared: PreparedTrajectory):
+        """The reference ``trajectory(prepared)`` would follow from the current tick boundary
+        (ValueError as there, nothing changed); kept with ``prepared``, so applying it in the
+        same tick builds it once (a node checks a trajectory when it arrives)."""
+        v = self.cfg.values or {}
+        lo, hi = v.get('min_length', -math.inf), v.get('max_length', math.inf)
+        return prepared.reference(self.t_ns, self.actuator.state(), lo, hi)
 
     def reconfigure(self, cfg: EngineConfig) -> bool:
         """New parameters from the current tick boundary. A change of p starts again at rest
@@ -322,19 +332,22 @@ class Engine:
             self._note('sync', None)
         runs = self._drain()
         t1 = self.t_ns / 1e9
-        if self.stepper.method != 'exact':
-            # time stepping: one call per tick keeps its steps on the tick grid
-            starts, pieces = self._ticks(runs)
-            ends = starts[1:] + [t1]
-            for end, piece in zip(ends, pieces):
-                self.stepper.advance(end, piece)
-            self._events.extend(self.stepper.pop_events())
-            return
-        gait = self._gait(runs)
         try:
-            self.stepper.advance(t1, gait)
+            if self.stepper.method != 'exact':
+                # time stepping: one call per tick keeps its steps on the tick grid
+                starts, pieces = self._ticks(runs)
+                ends = starts[1:] + [t1]
+                for end, piece in zip(ends, pieces):
+                    self.stepper.advance(end, piece)
+            else:
+                gait = self._gait(runs)
+                try:
+                    self.stepper.advance(t1, gait)
+                except (ValueError, RuntimeError, ArithmeticError) as exc:
+                    self._fallback(t1, gait, exc)
         except (ValueError, RuntimeError, ArithmeticError) as exc:
-            self._fallback(t1, gait, exc)
+            self._contain(exc)
+            return
         self._events.extend(self.stepper.pop_events())
 
     def _fallback(self, t1: float, gait, exc: Exception) -> None:
@@ -345,6 +358,15 @@ class Engine:
         self.stepper = Stepper(self.cfg.crawler, gait, 'implicit', t0=float(st.t),
                                x0=float(st.x[0]), v0=float(st.v[0]), dt=self.cfg.dt_ns * 1e-9)
         self.stepper.advance(t1, gait)
+
+    def _contain(self, exc: Exception) -> None:
+        """The last line of defence (inputs are checked before they get here): a failure the
+        fallback could not absorb leaves the plant at rest in its initial configuration at the
+        current sim time, reported in ``failures``; the engine never raises out of a tick.
+        Deterministic, so a replay of the journal repeats it."""
+        self.failures.append(f'integration failed before t = {self.t_ns / 1e9} s '
+                             f'({type(exc).__name__}: {exc}); the crawler starts again at rest')
+        self._build(self.cfg, self.t_ns)
 
     @property
     def state(self) -> State:

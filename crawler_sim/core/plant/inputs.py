@@ -19,7 +19,7 @@ Units: ns, m, m/s, m/s^2.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import math
 from typing import Sequence
 
@@ -94,6 +94,8 @@ class PreparedTrajectory:
     velocities: np.ndarray | None
     accelerations: np.ndarray | None
     raw: bytes | None = None             # the message as received (for the bag)
+    #: the reference last built (``reference``) and what it was built from
+    _ref: tuple | None = field(default=None, repr=False, compare=False)
 
     def times(self, t_ns: int) -> tuple[np.ndarray, np.ndarray]:
         """(mask of points not yet past, their times [s] from sim time ``t_ns``)."""
@@ -102,18 +104,39 @@ class PreparedTrajectory:
         keep = rel_ns >= 0
         return keep, rel_ns[keep] / 1e9
 
-    def reference(self, t_ns: int, state: Sequence[Sequence[float]]) -> TrajectoryReference:
+    def reference(self, t_ns: int, state: Sequence[Sequence[float]], lo: float = -math.inf,
+                  hi: float = math.inf) -> TrajectoryReference:
         """The actuator reference of this trajectory applied at the tick starting at ``t_ns``
         (points already past are dropped), from the actuator ``state`` (l, l', l'') per
-        linkage. Raises ValueError when the times cannot be used (see ``_times_reason``)."""
+        linkage. Raises ValueError when the times cannot be used (see ``_times_reason``), or
+        when the interpolation between the points leaves [``lo``, ``hi``] [m] or is not
+        finite (velocities or accelerations too large for the spacing of the points: a
+        velocity of 1e3 m/s between in-range points drove a linkage to -0.07 m)."""
+        key = (t_ns, tuple(tuple(row) for row in state), lo, hi)
+        if self._ref is not None and self._ref[0] == key:
+            return self._ref[1]                # checked already for this tick and state
         reason = _times_reason(self, t_ns)
         if reason:
             raise ValueError(reason)
         keep, times = self.times(t_ns)
         vel = self.velocities[keep] if self.velocities is not None else None
         acc = self.accelerations[keep] if self.accelerations is not None else None
-        return TrajectoryReference.from_arrays(t_ns / 1e9, state, times, self.positions[keep],
-                                               vel, acc)
+        ref = TrajectoryReference.from_arrays(t_ns / 1e9, state, times, self.positions[keep],
+                                              vel, acc)
+        out = ref.outside(lo, hi)
+        if out is not None:
+            k, j, value = out
+            starts_at_state = times[0] != 0.0       # segment 0 runs from the actuator's state
+            first = int(np.argmax(keep))
+            a = 'the current length' if (starts_at_state and k == 0) else (
+                f'point #{first + k - starts_at_state}')
+            b = f'point #{first + k + 1 - starts_at_state}'
+            what = ('is not finite' if math.isnan(value) else
+                    f'reaches {value:.6g} m, outside [min_length, max_length] = [{lo}, {hi}]')
+            raise ValueError(f'the interpolation of linkage_{j} between {a} and {b} {what} '
+                             '(velocities or accelerations too large for the point spacing)')
+        self._ref = (key, ref)
+        return ref
 
 
 def check_head(names: Sequence[str], sizes: Sequence[int], n_points: int, n_links: int

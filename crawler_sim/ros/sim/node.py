@@ -298,6 +298,11 @@ class SimNode(Node):
         start = time.perf_counter()
         reason, prepared = intake.prepare(msg, cfg.n_links, cfg.min_length, cfg.max_length,
                                           self._t_ns, cfg.max_trajectory_lead)
+        if prepared is not None and len(prepared.tfs_ns):
+            try:                 # the interpolation too, from the actuator's state now
+                self._engine.check_trajectory(prepared)
+            except ValueError as exc:
+                reason, prepared = str(exc), None
         # wall time of the intake (parse + checks) of the latest trajectory: a figure for the
         # diagnostics (a 100k-point trajectory must not stall the loop)
         self._traj_intake = (time.perf_counter() - start, len(msg))
