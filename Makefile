@@ -23,7 +23,7 @@ test: build
 	$(PY) -m pytest -q -p no:cacheprovider test
 
 bench: build
-	$(PY) -m crawler_sim.cli bench --out bench_out
+	$(PY) -m benchmarks.solvers --out bench_out
 
 venv: $(STAMP)
 

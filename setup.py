@@ -31,7 +31,6 @@ setup(
         # the other); the launch file, and the RViz and Foxglove layouts of the markers
         (os.path.join('share', package_name, 'config', 'ros'), glob('config/ros/*.yaml')),
         (os.path.join('share', package_name, 'config', 'scenes'), glob('config/scenes/*.yaml')),
-        (os.path.join('share', package_name, 'config', 'bench'), glob('config/bench/*.yaml')),
         (os.path.join('share', package_name, 'config', 'viz'), glob('config/viz/*')),
         (os.path.join('share', package_name, 'launch'), glob('launch/*.launch.py')),
         # `crawler-sim` on PATH after `source install/setup.bash` (colcon puts <prefix>/bin on

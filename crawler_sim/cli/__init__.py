@@ -1,12 +1,13 @@
-"""``crawler-sim``: the command line (simulate, bench, stress, replay, info, plot, recover; sweep,
-optimize and export live in `sweep_commands`).
+"""``crawler-sim``: the command line (simulate, replay, info, plot, recover; sweep, optimize and
+export live in `sweep_commands`). The benchmarks are not user commands: they run from a source
+checkout (``python -m benchmarks.solvers``, see benchmarks/).
 
 Exit codes: 0 success; 1 the work failed (solver failure, unreadable or damaged bag, write
-error, replay mismatch, failed stress run); 2 bad input (usage, missing file, invalid scene or
-YAML); 130 interrupted. Every error is one line on stderr, ``crawler-sim: error: ...``
+error, replay mismatch); 2 bad input (usage, missing file, invalid scene or YAML); 130
+interrupted. Every error is one line on stderr, ``crawler-sim: error: ...``
 (``--debug`` shows the traceback instead). Progress goes to stderr, results to stdout.
 
-Heavy modules (the bag, matplotlib, the benchmark) are imported inside the subcommands, so
+Heavy modules (the bag, matplotlib) are imported inside the subcommands, so
 ``crawler-sim --help`` does not need ROS or matplotlib.
 
 Module size: about 650 lines, over the ~400 guide: one argparse tree and one short function
@@ -118,21 +119,6 @@ class _Progress:
         self.elapsed = time.perf_counter() - self.start
         if self.tty:
             print('\r\033[K', end='', file=sys.stderr, flush=True)
-
-
-def _progress_callback(*args: Any, **kwargs: Any) -> None:
-    """Progress hook handed to the benchmark and stress runs: prints what it is given.
-
-    Accepts a message, ``(done, total)`` or ``(done, total, label)``.
-    """
-    if len(args) >= 2 and all(isinstance(a, (int, float)) for a in args[:2]):
-        done, total = args[0], args[1]
-        label = ' '.join(str(a) for a in args[2:])
-        pct = f' {100.0 * done / total:3.0f}%' if total else ''
-        _info(f'[{done}/{total}]{pct} {label}'.rstrip())
-    else:
-        parts = [str(a) for a in args] + [f'{k}={v}' for k, v in kwargs.items()]
-        _info(' '.join(parts))
 
 
 def _finite_or_none(x: float) -> float | None:
@@ -313,62 +299,6 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 # ------------------------------------------------------------------------------- bench, stress
 
-def _result_ok(result: Any) -> bool:
-    """Whether a benchmark or stress result reports success (True when it does not say)."""
-    if isinstance(result, bool):
-        return result
-    if isinstance(result, dict):
-        if 'ok' in result:
-            return bool(result['ok'])
-        return not result.get('failures')
-    ok = getattr(result, 'ok', None)
-    if ok is not None:
-        return bool(ok() if callable(ok) else ok)
-    return not getattr(result, 'failures', None)
-
-
-def _show_result(result: Any) -> None:
-    if result is None or isinstance(result, bool):
-        return
-    if isinstance(result, dict):
-        print(json.dumps(result, indent=2, default=str))
-    else:
-        print(result)
-
-
-def _finish(result: Any, what: str) -> int:
-    """Exit code of a benchmark or stress run, with one error line when it failed."""
-    if _result_ok(result):
-        return EXIT_OK
-    failures = result.get('failures') if isinstance(result, dict) else None
-    count = f'{len(failures)} failures' if failures else 'it failed'
-    first = f', first: {failures[0]}' if failures else ''
-    _say_error(f'{what}: {count}{first}')
-    return EXIT_FAILURE
-
-
-def _cmd_bench(args: argparse.Namespace) -> int:
-    from ..bench import run_bench
-
-    result = run_bench(args.out, scenes=args.scenes, quick=args.quick,
-                       progress=_progress_callback)
-    markdown = result.get('markdown') if isinstance(result, dict) else None
-    if markdown and Path(markdown).is_file():
-        print(Path(markdown).read_text(encoding='utf-8'))
-    else:
-        _show_result(result)
-    _info(f'results in {args.out}')
-    return _finish(result, 'bench')
-
-
-def _cmd_stress(args: argparse.Namespace) -> int:
-    from ..bench import run_stress
-
-    result = run_stress(seconds=args.seconds, seed=args.seed, progress=_progress_callback)
-    _show_result(result)
-    return _finish(result, 'stress')
-
-
 # ------------------------------------------------------------------------------- replay
 
 def _replay_node(run: Any, method: str | None) -> tuple[Any, Any, str]:
@@ -492,7 +422,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
     path = _existing(args.bag, 'bag')
     from ..bag import info
 
-    _show_result(info(path))
+    print(info(path))
     return EXIT_OK
 
 
@@ -564,24 +494,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--rate', type=_positive, default=50.0, metavar='HZ',
                    help='with --as-node: gait_node\'s rate [Hz] (default 50)')
 
-    p = add('bench', _cmd_bench, 'benchmark the solvers on the bench scenes',
-            'Run every solver on the bench scenes (config/bench/) and write tables and plots.')
-    p.add_argument('--out', default='bench_out', metavar='DIR',
-                   help='output directory (default: bench_out)')
-    p.add_argument('--quick', action='store_true', help='fewer scenes and shorter runs')
-    p.add_argument('--scenes', nargs='+', metavar='NAME', help='only these bench scenes')
-
-    p = add('stress', _cmd_stress, 'randomised robustness run of the solvers',
-            'Simulate random crawlers and gaits for a while and check every run with verify.')
-    p.add_argument('--seconds', type=_positive, default=30.0, metavar='S',
-                   help='wall time budget [s] (default: 30)')
-    p.add_argument('--seed', type=_non_negative_int, default=0, metavar='N',
-                   help='random seed (default: 0)')
-
     p = add('replay', _cmd_replay, 're-simulate a recorded run and compare',
-            'Re-simulate a recorded run from its scene and recorded commands with the core and '
-            'report the largest difference from the recorded states. Exit 0 when within the '
-            'tolerance, 1 on a mismatch.')
+            'Re-run a recorded run with the core: a sim_node bag through the node\'s engine with '
+            'its recorded inputs (commands, trajectories, parameter changes, resets), an offline '
+            'bag from its scene; report the largest difference from the recorded states. Exit 0 '
+            'when within the tolerance, 1 on a mismatch.')
     p.add_argument('bag', metavar='BAG', help='bag directory or MCAP file')
     p.add_argument('--method', choices=METHODS, help='solver (default: the recorded one)')
     p.add_argument('--tol', type=_positive, default=REPLAY_TOL, metavar='TOL',

@@ -1,7 +1,7 @@
 """The simulator's core: model, gaits, solvers, stepper, trajectory, verify (no ROS import).
 
 Nothing under ``crawler_sim.core`` imports rclpy, message packages or anything from
-``crawler_sim.ros``, ``crawler_sim.bag``, ``crawler_sim.bench`` or ``crawler_sim.cli``
+``crawler_sim.ros``, ``crawler_sim.bag``, ``benchmarks.solvers`` or ``crawler_sim.cli``
 (test/core/test_layers.py enforces it); those layers import the core, never the other way.
 """
 from . import gaits

@@ -27,51 +27,9 @@ import time
 
 import numpy as np
 
+from crawler_sim.ros.workspace import executable, share, workspace_env
+
 DEADLINE_CONNECT = 60.0     # wall s for discovery
-
-
-def _executable(name: str) -> Path:
-    from ament_index_python.packages import PackageNotFoundError, get_package_prefix
-    try:
-        prefix = Path(get_package_prefix('crawler_sim'))
-    except PackageNotFoundError:
-        raise SystemExit('crawler_sim is not in the ament index (AMENT_PREFIX_PATH): run '
-                         '`make build` or `colcon build` and source install/setup.bash') from None
-    path = prefix / 'lib' / 'crawler_sim' / name
-    if not os.access(path, os.X_OK):
-        raise SystemExit(f'{path} is missing: rebuild with colcon')
-    return path
-
-
-def _workspace_env(env: dict[str, str]) -> dict[str, str]:
-    """``env`` plus the PYTHONPATH entries ``source install/setup.bash`` would add for this
-    package (its colcon ``.dsv`` hooks; a --symlink-install also points into build/)."""
-    from ament_index_python.packages import get_package_prefix
-    prefix = Path(get_package_prefix('crawler_sim'))
-    entries: list[str] = []
-    todo = [prefix / 'share' / 'crawler_sim' / 'package.dsv']
-    while todo:
-        dsv = todo.pop(0)
-        if not dsv.is_file():
-            continue
-        for line in dsv.read_text().splitlines():
-            kind, _, rest = line.partition(';')
-            if kind == 'source' and rest.endswith('.dsv'):
-                todo.append((prefix / rest).resolve())
-            elif kind.startswith('prepend') and rest.startswith('PYTHONPATH;'):
-                value = rest.split(';', 1)[1]
-                path = value if os.path.isabs(value) else str(prefix / value)
-                if path not in entries:
-                    entries.append(path)
-    old = [p for p in env.get('PYTHONPATH', '').split(os.pathsep) if p]
-    out = dict(env)
-    out['PYTHONPATH'] = os.pathsep.join(entries + [p for p in old if p not in entries])
-    return out
-
-
-def _share() -> Path:
-    from ament_index_python.packages import get_package_share_directory
-    return Path(get_package_share_directory('crawler_sim'))
 
 
 class _Child:
@@ -79,7 +37,7 @@ class _Child:
         self.name = name
         self.log = log
         self._file = open(log, 'w')
-        self.popen = subprocess.Popen([str(_executable(name)), '--ros-args', *args], env=env,
+        self.popen = subprocess.Popen([str(executable(name)), '--ros-args', *args], env=env,
                                       stdout=self._file, stderr=subprocess.STDOUT)
 
     def stop(self, timeout: float = 10.0) -> int:
@@ -105,13 +63,13 @@ def main(argv: list[str] | None = None) -> int:
 
     domain = os.environ.get('ROS_DOMAIN_ID', '0')      # the user's: never overridden
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    env = _workspace_env(dict(os.environ))
+    env = workspace_env(dict(os.environ))
     name = time.strftime('crawl_%Y%m%d-%H%M%S')
     runs = args.runs.resolve()
     runs.mkdir(parents=True, exist_ok=True)
     bag = runs / name
     png = runs / f'{name}.png'
-    sim_args = ['--params-file', str(_share() / 'config' / 'ros' / 'crawler_sim.yaml'),
+    sim_args = ['--params-file', str(share() / 'config' / 'ros' / 'crawler_sim.yaml'),
                 '-p', 'real_time_factor:=0.0',
                 '-p', 'start_paused:=true', '-p', 'diagnostics_period:=0.2',
                 '-p', 'record:=true', '-p', f'record_dir:={runs}', '-p', f'record_name:={name}']

@@ -11,7 +11,7 @@ import pytest
 from crawler_sim.bag import (BagError, BagWarning, BagWriter, info, load, plot, record_arrays,
                              recover)
 from crawler_sim.bag import schema as bag_schema
-from crawler_sim.bag.synthetic import synthetic_arrays
+from test.support.synthetic import synthetic_arrays
 
 
 def one_line_error(func, *args, match: str) -> BagError:

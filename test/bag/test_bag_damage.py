@@ -30,7 +30,7 @@ from numpy.testing import assert_array_equal
 import pytest
 
 from crawler_sim.bag import BagWarning, info, load, record_arrays, recover
-from crawler_sim.bag.synthetic import synthetic_arrays
+from test.support.synthetic import synthetic_arrays
 
 STEPS, P = 1302, 3
 STATE_TOPICS = ('/body_states', '/joint_states', '/contact_states')

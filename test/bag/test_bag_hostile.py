@@ -21,8 +21,8 @@ from numpy.testing import assert_array_equal
 import pytest
 
 from crawler_sim.bag import BagError, BagWarning, BagWriter, info, load, record_arrays, recover
-from crawler_sim.bag import crafted
-from crawler_sim.bag.synthetic import synthetic_arrays
+from test.support import crafted
+from test.support.synthetic import synthetic_arrays
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -8,7 +8,7 @@ import pytest
 
 from crawler_sim.bag import BagWarning, info, plot, record_arrays
 from crawler_sim.bag.plot import stick_intervals
-from crawler_sim.bag.synthetic import synthetic_arrays
+from test.support.synthetic import synthetic_arrays
 
 N = 120
 

@@ -21,7 +21,7 @@ import yaml
 
 from crawler_sim.bag import BagError, BagWarning, load, record_arrays, recover
 from crawler_sim.bag.recover import default_destination
-from crawler_sim.bag.synthetic import synthetic_arrays
+from test.support.synthetic import synthetic_arrays
 
 REPO = Path(__file__).resolve().parents[2]
 STEPS, FLUSH_EVERY, SEED = 1000, 300, 5
@@ -30,7 +30,7 @@ TOPICS_PER_STEP = 4          # body_states, joint_states, contact_states, odom
 RECORDER_SCRIPT = """
 import sys, time
 from crawler_sim.bag import Recorder
-from crawler_sim.bag.synthetic import synthetic_arrays
+from test.support.synthetic import synthetic_arrays
 path, n, every, seed = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
 a = synthetic_arrays(n, 3, seed=seed)
 rec = Recorder(path, masses=a['masses'], scene={'p': 3}, flush_interval=1e9)

@@ -28,7 +28,7 @@ def test_rows_at_ns_finds_each_recorded_stamp_and_marks_the_others():
 
 def test_run_t_ns_holds_the_recorded_stamps(tmp_path):
     from crawler_sim.bag import record_arrays
-    from crawler_sim.bag.synthetic import synthetic_arrays
+    from test.support.synthetic import synthetic_arrays
     a = synthetic_arrays(50, 2, dt=1 / 3)
     a.pop('masses')
     record_arrays(tmp_path / 'r', **a)

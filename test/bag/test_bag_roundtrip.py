@@ -21,7 +21,7 @@ import yaml
 
 from crawler_sim.bag import BagWriter, load, record_arrays, to_ns
 from crawler_sim.bag import schema as bag_schema
-from crawler_sim.bag.synthetic import synthetic_arrays
+from test.support.synthetic import synthetic_arrays
 
 N, P = 250, 3
 CMD_EVERY = 50

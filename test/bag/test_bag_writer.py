@@ -13,7 +13,7 @@ from numpy.testing import assert_array_equal
 import pytest
 
 from crawler_sim.bag import BagError, BagWarning, BagWriter, Recorder, load, record_arrays
-from crawler_sim.bag.synthetic import synthetic_arrays
+from test.support.synthetic import synthetic_arrays
 
 JOINT_STATE = 'sensor_msgs/msg/JointState'
 

@@ -252,50 +252,21 @@ def test_a_file_that_is_not_a_bag_is_one_error_line_and_exit_1(capsys, tmp_path,
     assert_one_error_line(proc, 'notes.mcap')
 
 
-# --- bench and stress (their module is stubbed: the CLI only forwards and reports) -------------
-
-@pytest.fixture
-def fake_bench(monkeypatch):
-    calls = {}
-    module = types.ModuleType('crawler_sim.bench')
-
-    def run_bench(out_dir, scenes=None, quick=False, progress=None):
-        calls['bench'] = (out_dir, scenes, quick)
-        progress(1, 2, 'scallop_2body exact')
-        return {'ok': True, 'table': 'bench table'}
-
-    def run_stress(seconds, seed, progress=None):
-        calls['stress'] = (seconds, seed)
-        progress('trial 1')
-        return {'ok': False, 'failures': ['seed 3: verify failed']}
-
-    module.run_bench, module.run_stress = run_bench, run_stress
-    monkeypatch.setitem(sys.modules, 'crawler_sim.bench', module)
-    return calls
-
-
-def test_bench_forwards_its_options_and_shows_progress(fake_bench, capsys, tmp_path):
-    proc = run_inprocess(capsys, 'bench', '--out', str(tmp_path), '--quick', '--scenes', 'a', 'b')
-    assert proc.returncode == 0
-    assert fake_bench['bench'] == (str(tmp_path), ['a', 'b'], True)
-    assert '[1/2]  50% scallop_2body exact' in proc.stderr
-    assert 'bench table' in proc.stdout
-
-
-def test_a_failed_stress_run_exits_1(fake_bench, capsys):
-    proc = run_inprocess(capsys, 'stress', '--seconds', '2', '--seed', '7')
+def test_a_missing_part_of_the_package_is_one_error_line(monkeypatch, capsys, tmp_path):
+    bag = tmp_path / 'run.mcap'
+    bag.write_bytes(b'not a bag')
+    monkeypatch.setitem(sys.modules, 'crawler_sim.bag', None)
+    proc = run_inprocess(capsys, 'info', str(bag))
     assert proc.returncode == 1
-    assert fake_bench['stress'] == (2.0, 7)
-    assert 'trial 1' in proc.stderr
-    assert 'seed 3: verify failed' in proc.stdout
-    assert_one_error_line(proc, 'stress: 1 failures, first: seed 3: verify failed')
+    assert_one_error_line(proc, 'crawler_sim.bag')
 
 
-def test_a_missing_part_of_the_package_is_one_error_line(monkeypatch, capsys):
-    monkeypatch.setitem(sys.modules, 'crawler_sim.bench', None)
-    proc = run_inprocess(capsys, 'bench', '--quick')
-    assert proc.returncode == 1
-    assert_one_error_line(proc, 'crawler_sim.bench')
+def test_the_benchmarks_are_not_user_commands():
+    """They need the source tree (scenes, oracles): ``python -m benchmarks.solvers``."""
+    from crawler_sim.cli import build_parser
+    commands = build_parser()._subparsers._group_actions[0].choices
+    assert 'bench' not in commands and 'stress' not in commands
+    assert {'simulate', 'replay', 'info', 'plot', 'recover', 'sweep', 'optimize'} <= set(commands)
 
 
 # --- bags: record, info, plot, replay, recover -------------------------------------------------
@@ -354,7 +325,7 @@ def test_replay_of_a_node_recording_reproduces_its_ticks_bit_for_bit(tmp_path, c
     from rclpy.parameter import Parameter
     from std_msgs.msg import Float64MultiArray
 
-    from conftest import next_domain_id
+    from test.support.ros import next_domain_id
     from crawler_sim.ros.sim_node import SimNode
 
     context = Context()

@@ -256,8 +256,7 @@ def test_a_reference_evaluated_in_any_time_order_equals_a_fresh_one_at_each_time
 # The compiled actuator against the pure-Python model it replaced (test/core/actuator_oracle.py),
 # bit for bit: every float compared with == and by the sign of zeros.
 
-sys.path.insert(0, os.path.dirname(__file__))
-import actuator_oracle as oracle  # noqa: E402
+from test.support import actuator_oracle as oracle  # noqa: E402
 
 
 def _bits(x: float) -> tuple[float, float]:

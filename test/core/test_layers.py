@@ -13,15 +13,14 @@ import pytest
 
 PKG = Path(__file__).resolve().parents[2] / 'crawler_sim'
 
-# Allowed imports between layers: cli/ros/bench/sweep -> bag -> core. A layer may always
-# import itself.
+# Allowed imports between layers: cli/ros/sweep -> bag -> core. A layer may always import
+# itself.
 ALLOWED = {
     'core': {'core'},
     'bag': {'bag', 'core'},
-    'bench': {'bench', 'bag', 'core'},
     'ros': {'ros', 'bag', 'core'},
     'sweep': {'sweep', 'bag', 'core'},
-    'cli': {'cli', 'bench', 'bag', 'core', 'ros', 'sweep'},
+    'cli': {'cli', 'bag', 'core', 'ros', 'sweep'},
 }
 ROS_MODULES = ('rclpy', 'rosidl_runtime_py', 'builtin_interfaces', 'std_msgs', 'sensor_msgs',
                'nav_msgs', 'geometry_msgs', 'visualization_msgs', 'diagnostic_msgs',
@@ -105,3 +104,21 @@ def test_the_layer_checker_flags_an_upward_import(tmp_path):
     finally:
         fake.unlink()
     assert 'crawler_sim.ros' in names and _layer('crawler_sim.ros') not in ALLOWED['core']
+
+
+def _every_import(path: Path) -> set[str]:
+    """Top-level names of every module ``path`` imports (absolute imports only)."""
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            names |= {a.name.split('.')[0] for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            names.add(node.module.split('.')[0])
+    return names
+
+
+@pytest.mark.parametrize('path', MODULES, ids=lambda p: str(p.relative_to(PKG)))
+def test_the_package_imports_nothing_from_the_tests_or_the_benchmarks(path):
+    """Issue 27: what is installed must work installed: scaffolding lives in test/ and
+    benchmarks/, outside the package."""
+    assert not _every_import(path) & {'test', 'tests', 'benchmarks', 'tools'}

@@ -2,7 +2,7 @@
 events; correct trajectories pass.
 
 The correct trajectories are the exact method's on scenes where it agrees with the independent
-oracle (test/core/oracle.py) to 1e-12 (asserted here too, so a correct trajectory is not taken
+oracle (test/support/oracle.py) to 1e-12 (asserted here too, so a correct trajectory is not taken
 on the solver's word). Corruptions are made by hand: an event removed, an event time shifted, an
 event's new mode flipped, and a trajectory built in closed form from a wrong contact history whose
 samples, reported friction and impulses are all self-consistent (so only the kinematic check
@@ -19,7 +19,7 @@ import pytest
 import crawler_sim as cs
 from crawler_sim import gaits
 from crawler_sim.core.trajectory import Event, Trajectory
-from oracle import Oracle
+from test.support.oracle import Oracle
 
 G = cs.gaits
 
@@ -189,7 +189,7 @@ def test_verify_flags_every_solver_trajectory_the_oracle_contradicts():
     # every trajectory that is off the oracle by more than 1e-7 m must fail verify(tr, gait),
     # and every one within 1e-10 m must pass. (A stalled run has no trajectory to check.) On
     # today's solver: 8 wrong trajectories, all flagged, and 1 right one.
-    import test_fuzz as tf
+    from test.support import fuzz as tf
     cases = [tf.draw_case('custom', s) for s in (100, 101, 102, 1003, 1004)]
     cases += [tf.draw_case('scallop', 1012), tf.draw_case('spline', 2263775)]
     for name, (c, g, T, v0) in tf.ISSUE_SCENES.items():

@@ -20,7 +20,7 @@ import yaml
 from crawler_sim.ros.messages import ns_from_stamp
 from crawler_sim.ros.sim import PARAMETERS, SimNode
 from crawler_sim.ros.args import ArgsError as ParamsFileError, check_params_files
-from test_node import cmd, Harness, ros, ticks  # noqa: F401 (ros is a fixture)
+from test.support.ros import cmd, Harness, ticks  # noqa: F401
 
 REPO = Path(__file__).resolve().parents[2]
 G = 9.81

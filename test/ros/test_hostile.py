@@ -3,7 +3,7 @@ trajectories, a huge trajectory, the 2e8 stamp, bad parameters. The node's own l
 thread (as in ``main``); the floods come over DDS from an observer node. Floors: 0 crashes,
 0 non-finite outputs, every bad parameter set refused with the old value kept, and the node
 still takes a valid command afterwards. Speed under flood is a benchmark figure
-(tools/node_bench.py), not asserted here.
+(benchmarks/node.py), not asserted here.
 """
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from crawler_sim.ros.messages import ns_from_stamp
-from test_node import Harness  # noqa: F401
+from test.support.ros import Harness
 
 N_COMMANDS = 1500
 N_TRAJECTORIES = 150

@@ -29,7 +29,6 @@ from std_srvs.srv import SetBool, Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
-from conftest import next_domain_id
 from crawler_sim import Stepper
 import crawler_sim.bag
 from crawler_sim.ros import messages as M
@@ -40,112 +39,8 @@ from crawler_sim.ros.gait_node import GaitNode
 from crawler_sim.core.gaits import Cubic
 from crawler_sim.ros.messages import CONTACT_COLOURS, ns_from_stamp
 from crawler_sim.ros.sim_node import SimConfig, SimNode
-from ros_helpers import Spinning  # noqa: E402
-
-DEADLINE = 10.0   # wall s for any single wait (discovery, a service call)
-#: the scene of most tests here: three 1 kg bodies, 3 N of friction each, two 0.1 m linkages
-THREE_BODY = {'masses': [1.0, 1.0, 1.0], 'friction': [3.0], 'friction_backward': [3.0],
-              'initial_lengths': [0.1, 0.1], 'publish_clock': False}
-
-
-class Harness(Spinning):
-    """One context, one executor, the node under test and an observer node."""
-
-    deadline = DEADLINE
-
-    def __init__(self) -> None:
-        self.ctx = Context()
-        # discovery OFF: this context's participant talks only to itself (over DDS), so parallel
-        # test sessions on the host cannot interfere whatever their domain ids
-        saved = os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE')
-        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'OFF'
-        try:
-            rclpy.init(context=self.ctx, domain_id=next_domain_id())
-        finally:
-            os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = saved or 'LOCALHOST'
-        self.ex = SingleThreadedExecutor(context=self.ctx)
-        self.obs = self.client_node = Node('observer', context=self.ctx)
-        self.ex.add_node(self.obs)
-        self.nodes: list[SimNode] = []
-        self.others: list[Node] = []
-        self.received: dict[str, list] = {}
-
-    def sim(self, seed: bool = False, **params: Any) -> SimNode:
-        """A SimNode; unless ``seed``, on the three-body scene these tests were written for
-        (the defaults are the seed's two bodies, tested in test_defaults.py)."""
-        if not seed:
-            params = {**THREE_BODY, **params}
-        node = SimNode(context=self.ctx, parameter_overrides=[
-            Parameter(k, value=v) for k, v in params.items()])
-        self.ex.add_node(node)
-        self.nodes.append(node)
-        return node
-
-    def listen(self, msg_type, topic: str, qos=100) -> list:
-        box = self.received.setdefault(topic + str(id(qos)), [])
-        sub = self.obs.create_subscription(msg_type, topic, box.append, qos)
-        self.until(lambda: sub.get_publisher_count() > 0, f'a publisher on {topic}')
-        return box
-
-    def publisher(self, msg_type, topic: str):
-        pub = self.obs.create_publisher(msg_type, topic, 10)
-        self.until(lambda: pub.get_subscription_count() > 0, f'a subscriber on {topic}')
-        return pub
-
-
-    def send(self, pub, msg, node: SimNode, counter: str, before: int | None = None) -> None:
-        """Publish and wait until the node counted it under ``counter``. The node's loop takes
-        commands at every tick; here, without a loop, they are taken as they arrive."""
-        start = node.counters[counter] if before is None else before
-        pub.publish(msg)
-        self.until(lambda: node.take_inputs() >= 0 and node.counters[counter] > start,
-                   f'{counter} to increase')
-
-    def close(self) -> None:
-        for node in self.nodes:
-            node.stop()
-        self.ex.shutdown()
-        for node in self.nodes:
-            node.close()
-            node.destroy_node()
-        for node in self.others:
-            node.destroy_node()
-        self.obs.destroy_node()
-        rclpy.shutdown(context=self.ctx)
-
-
-@pytest.fixture
-def ros():
-    h = Harness()
-    yield h
-    h.close()
-
-
-def cmd(*values: float) -> Float64MultiArray:
-    return Float64MultiArray(data=[float(v) for v in values])
-
-
-def ticks(node: SimNode, n: int) -> None:
-    for _ in range(n):
-        node.tick()
-
-
-def point(t: float, pos, vel=None, acc=None) -> JointTrajectoryPoint:
-    pt = JointTrajectoryPoint(positions=[float(x) for x in pos])
-    if vel is not None:
-        pt.velocities = [float(x) for x in vel]
-    if acc is not None:
-        pt.accelerations = [float(x) for x in acc]
-    sec = math.floor(t)
-    pt.time_from_start = Duration(sec=sec, nanosec=round((t - sec) * 1e9))
-    return pt
-
-
-def trajectory(names, points, stamp_ns: int = 0) -> JointTrajectory:
-    msg = JointTrajectory(joint_names=list(names), points=list(points))
-    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
-    return msg
-
+from test.support.ros import (DEADLINE, THREE_BODY, Harness, cmd, next_domain_id,  # noqa: F401
+                              point, ticks, trajectory)
 
 # --------------------------------------------------------------------------- outputs
 

@@ -35,97 +35,8 @@ from crawler_sim.core.actuator import Actuator
 from crawler_sim.core.gaits import Cubic
 from crawler_sim.ros.messages import ns_from_stamp
 from crawler_sim.ros.sim_node import PARAMETERS, SimConfig
-from ros_helpers import Spinning  # noqa: E402
-
-DEADLINE = 20.0
-
-
-@pytest.fixture
-def ament_env(installed_env, monkeypatch):
-    """This process sees the temporary install first in the ament index, as `ros2 run` would."""
-    monkeypatch.setenv('AMENT_PREFIX_PATH', installed_env['AMENT_PREFIX_PATH'])
-    return installed_env
-
-
-def executable(name: str) -> Path:
-    """What `ros2 run crawler_sim <name>` runs: <prefix>/lib/crawler_sim/<name>."""
-    found = [p for p in (Path(get_package_prefix('crawler_sim')) / 'lib' / 'crawler_sim').iterdir()
-             if p.name == name and os.access(p, os.X_OK)]
-    assert len(found) == 1, f'{name} not found exactly once'
-    return found[0]
-
-
-class Proc:
-    """A child process with its output in files (no pipe can fill up and block it)."""
-
-    def __init__(self, tmp: Path, env: dict, name: str, *ros_args: str) -> None:
-        stem, k = name, 0
-        while (tmp / f'{stem}.out').exists():     # several processes of one executable
-            k += 1
-            stem = f'{name}_{k}'
-        self.out = open(tmp / f'{stem}.out', 'w+')
-        self.err = open(tmp / f'{stem}.err', 'w+')
-        self.popen = subprocess.Popen([str(executable(name)), '--ros-args', *ros_args],
-                                      env=env, stdout=self.out, stderr=self.err)
-
-    def stop(self, sig: int = signal.SIGINT, timeout: float = 10.0) -> tuple[int, str]:
-        if self.popen.poll() is None:
-            self.popen.send_signal(sig)
-        try:
-            code = self.popen.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            self.popen.kill()
-            self.popen.wait()
-            raise AssertionError(f'process did not exit within {timeout} s of signal {sig}')
-        self.err.seek(0)
-        return code, self.err.read()
-
-    def kill(self) -> None:
-        if self.popen.poll() is None:
-            self.popen.kill()
-            self.popen.wait()
-
-
-class Peer(Spinning):
-    """The test's own node, in the session domain with host-wide discovery."""
-
-    deadline = DEADLINE
-
-    def __init__(self) -> None:
-        self.ctx = Context()
-        rclpy.init(context=self.ctx, domain_id=int(os.environ['ROS_DOMAIN_ID']))
-        self.node = self.client_node = Node('test_peer', context=self.ctx)
-        self.ex = SingleThreadedExecutor(context=self.ctx)
-        self.ex.add_node(self.node)
-
-
-    def close(self) -> None:
-        self.ex.shutdown()
-        self.node.destroy_node()
-        rclpy.shutdown(context=self.ctx)
-
-
-@pytest.fixture
-def peer():
-    p = Peer()
-    yield p
-    p.close()
-
-
-#: the three-body scene of the offline-match test (friction forces given in N)
-THREE_BODY = {'masses': [1.0, 1.0, 1.0], 'friction': [3.0], 'friction_backward': [3.0]}
-
-
-def config_file(name: str = 'crawler_sim.yaml') -> Path:
-    return Path(get_package_share_directory('crawler_sim')) / 'config' / 'ros' / name
-
-
-def sim_args(method: str, *extra: str, three_body: bool = True) -> list[str]:
-    scene = [a for k, v in THREE_BODY.items() for a in ('-p', f'{k}:={v}')] if three_body else []
-    return ['--params-file', str(config_file()), *scene, '-p', f'method:={method}',
-            '-p', 'real_time_factor:=0.0', '-p', 'start_paused:=true',
-            '-p', 'diagnostics_period:=0.2', *extra]
-
+from test.support.ros import (PROCESS_DEADLINE, PROCESS_THREE_BODY, Peer, Proc,  # noqa: F401
+                              config_file, diagnostics_values, executable, sim_args)
 
 def test_the_package_is_registered_in_the_ament_index_with_its_executables(ament_env,
                                                                          colcon_install):
@@ -145,10 +56,6 @@ def test_the_package_is_registered_in_the_ament_index_with_its_executables(ament
     proc = subprocess.run([str(tool), '--help'], env=ament_env, capture_output=True, text=True,
                           timeout=60)
     assert proc.returncode == 0 and 'simulate' in proc.stdout, proc.stderr
-
-
-def diagnostics_values(msg: DiagnosticArray) -> dict[str, str]:
-    return {kv.key: kv.value for kv in msg.status[0].values}
 
 
 @pytest.mark.parametrize('method', ['exact', 'implicit'])
@@ -210,7 +117,7 @@ def test_the_sim_process_matches_the_offline_solution_and_runs_faster_than_real_
         sim.kill()
 
     assert code == 0 and 'Traceback' not in err, err
-    # speed is a benchmark figure (tools/node_bench.py), not a test assertion
+    # speed is a benchmark figure (benchmarks/node.py), not a test assertion
     print(f'\n{method}: 10 sim s in {t_ten - t_start:.2f} wall s')
 
     assert not bad_param.results[0].successful
@@ -224,7 +131,7 @@ def test_the_sim_process_matches_the_offline_solution_and_runs_faster_than_real_
     assert len(schedule) == 3
     assert [v for _, v in sorted(schedule.items())] == [[0.15, 0.12], [0.06, 0.16], [0.12, 0.07]]
     values = {k: v[0] for k, v in PARAMETERS.items()}
-    values.update(THREE_BODY, method=method)
+    values.update(PROCESS_THREE_BODY, method=method)
     cfg = SimConfig.from_values(values)
     dt_ns = cfg.dt_ns
     act = Actuator(cfg.initial_lengths, dt_ns / 1e9, cfg.limits)
@@ -279,7 +186,7 @@ def test_sim_node_exits_cleanly_on_a_signal_and_closes_its_bag(ament_env, peer, 
 def test_invalid_parameters_at_start_give_one_line_and_exit_code_1(ament_env, tmp_path):
     sim = Proc(tmp_path, ament_env, 'sim_node', '-p', 'friction:=[1.0, 2.0, 3.0]')
     try:
-        code = sim.popen.wait(timeout=DEADLINE)
+        code = sim.popen.wait(timeout=PROCESS_DEADLINE)
     finally:
         sim.kill()
     sim.err.seek(0)
@@ -293,7 +200,7 @@ def test_a_scene_file_as_params_file_gives_one_clear_line_and_exit_code_2(ament_
     scene = config_file().parents[1] / 'scenes' / 'scallop_2body.yaml'
     sim = Proc(tmp_path, ament_env, 'sim_node', '--params-file', str(scene))
     try:
-        code = sim.popen.wait(timeout=DEADLINE)
+        code = sim.popen.wait(timeout=PROCESS_DEADLINE)
     finally:
         sim.kill()
     sim.err.seek(0)
@@ -364,7 +271,7 @@ def test_the_demo_crawls_the_same_every_time_in_the_users_domain(ament_env, tmp_
 
 def _run_to_exit(proc: Proc) -> tuple[int, str]:
     try:
-        code = proc.popen.wait(timeout=DEADLINE)
+        code = proc.popen.wait(timeout=PROCESS_DEADLINE)
     finally:
         proc.kill()
     proc.err.seek(0)

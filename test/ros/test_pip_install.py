@@ -19,7 +19,7 @@ import pytest
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from test_node_process import Peer
+from test.support.ros import Peer
 
 REPO = Path(__file__).resolve().parents[2]
 

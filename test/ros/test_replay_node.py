@@ -30,8 +30,7 @@ from crawler_sim.bag import BagWriter, load
 from crawler_sim.ros.messages import diagnostics_msg, ns_from_stamp, stamp_from_ns
 from crawler_sim.ros.replay_node import publish_period_ns, shift_stamps
 
-from test_node_process import (  # noqa: F401 (fixtures)
-    ament_env, DEADLINE, diagnostics_values, peer, Proc)
+from test.support.ros import PROCESS_DEADLINE as DEADLINE, Proc, diagnostics_values
 
 RATE = 5.0
 # (log time [s], topic, payload): commands and body states at known, uneven log times

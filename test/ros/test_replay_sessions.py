@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import pytest
 
-from conftest import next_domain_id
+from test.support.ros import next_domain_id
 from crawler_sim import bag
 from crawler_sim.cli import _replay
-from sessions import run_session  # noqa: E402
+from test.support.sessions import run_session
 
 
 @pytest.mark.parametrize('seed', range(6))

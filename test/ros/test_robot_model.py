@@ -28,7 +28,7 @@ from crawler_sim.ros.messages import ns_from_stamp
 from crawler_sim.ros.sim import model
 from crawler_sim.ros.sim.model import robot_description
 from crawler_sim.ros.sim.node import SimNode
-from test_node import cmd, Harness, ros, ticks  # noqa: F401 (ros is a fixture)
+from test.support.ros import cmd, Harness, ticks
 
 #: what a late joiner such as RViz's RobotModel display (description topic) subscribes with
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
@@ -286,7 +286,6 @@ def test_the_model_is_recorded_with_the_run_and_again_when_p_changes(tmp_path):
     from mcap_ros2.decoder import DecoderFactory
     from crawler_sim.ros.sim_node import SimNode
     from rclpy.parameter import Parameter
-    from test_node import Harness
     h = Harness()
     try:
         sim = SimNode(context=h.ctx, parameter_overrides=[

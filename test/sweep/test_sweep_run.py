@@ -6,7 +6,6 @@ import sys
 import pandas as pd
 import pytest
 
-from dask_helpers import dask_client  # noqa: F401 (fixture)
 
 from crawler_sim.sweep import runner, spec_from_dict, sweep
 from crawler_sim.sweep.metrics import scene_figures
@@ -93,7 +92,7 @@ def test_a_dask_sweep_resumes_from_a_local_checkpoint(serial, dask_client, tmp_p
 
 
 def test_the_benchmark_compares_local_and_a_local_dask_cluster_and_finds_them_identical():
-    from crawler_sim.sweep import bench
+    from benchmarks import sweep as bench
     res = bench.run(scenes=12, repeat=1, workers=2, chunk_size=4, log=lambda message: None)
     assert res['bit_identical'] and res['scene_errors'] == 0
     assert len(res['local_s']) == len(res['dask_s']) == 1

@@ -15,7 +15,6 @@ import yaml
 import crawler_sim as cs
 from crawler_sim import cli
 from crawler_sim.core.scene import load_scene, scene_to_dict
-from dask_helpers import dask_client  # noqa: F401 (fixture)
 
 from crawler_sim.sweep.tables import read_table, trajectory_frames, write_table
 
@@ -125,7 +124,7 @@ def gait_node_gait(params_file: Path):
     from rclpy.context import Context
 
     from crawler_sim.ros.gait_node import GaitNode
-    from conftest import next_domain_id
+    from test.support.ros import next_domain_id
 
     ctx = Context()
     rclpy.init(args=['--ros-args', '--params-file', str(params_file)], context=ctx,

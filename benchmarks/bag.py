@@ -1,0 +1,244 @@
+"""Bag benchmarks (print figures).
+
+    python -m benchmarks.bag [--steps 360000] [--dir /tmp/bag_hour]
+    python -m benchmarks.bag --hostile --kill [--kills 30]
+
+Default: writes a synthetic bag with the node's topics (p = 3, one state per 10 ms of sim time:
+one hour = 360,000 steps, about 1.4 million messages) once, then times ``load`` five times (wall
+and CPU, median and best) and checks the arrays against the written ones. Floor (issue 5): 2 s.
+
+``--hostile``: for each crafted file of :mod:`crawler_sim.bag.crafted` (1 MB) and for a real
+recording, ``load``/``info``/``recover`` in a fresh process each: peak traced allocation
+(tracemalloc, after a warm-up call) and peak RSS growth, against the file size. Floor (issue
+11): under 4x the file size.
+
+``--kill``: a recorder process writes one state per 10 ms of wall time (sim time = wall time
+since it created the bag) and is killed with SIGKILL at a uniformly random moment in the first
+3 s (so a third of the kills fall in the first second); the loss is the kill time minus the last
+state on disk. Floor (issue 11): <= 1 s at any moment.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from pathlib import Path
+import random
+import shutil
+import signal
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+import warnings
+
+import numpy as np
+
+from crawler_sim.bag import load, record_arrays
+
+
+def write_hour(out: Path, steps: int) -> dict:
+    """Write the synthetic bag; returns the arrays written."""
+    shutil.rmtree(out, ignore_errors=True)
+    p = 3
+    rng = np.random.default_rng(1)
+    t = np.arange(steps) * 0.01
+    arrays = {'t': t, 'x': np.cumsum(rng.normal(size=(steps, p)) * 1e-3, axis=0),
+              'v': rng.normal(size=(steps, p)), 'friction': rng.normal(size=(steps, p)),
+              'contact': rng.integers(-1, 2, size=(steps, p)).astype(np.int8),
+              'lengths': rng.normal(size=(steps, p - 1)), 'rates': rng.normal(size=(steps, p - 1)),
+              'linkage_force': rng.normal(size=(steps, p - 1))}
+    w = record_arrays(out, **arrays, commands=(t[::500], arrays['lengths'][::500]),
+                      scene={'p': p, 'masses': [1.0] * p}, masses=[1.0] * p)
+    arrays['messages'] = w.message_count
+    return arrays
+
+
+# ---------------------------------------------------------------- --kill
+
+def child_record(record_dir: str) -> None:
+    """The recorder that --kill kills: one state per 10 ms, sim time = wall time since t0."""
+    from crawler_sim.bag import Recorder
+    rec = Recorder.create(record_dir, 'run', masses=[1.0, 1.0], scene={'masses': [1.0, 1.0]})
+    t0 = time.monotonic()
+    print('created', repr(t0), flush=True)
+    while True:
+        t = time.monotonic() - t0
+        rec.record_state(t, [t, t + 0.1], [1.0, 1.0], [0.0, 0.0], [1, 1], [0.1], [0.0], [0.0])
+        print(repr(t), flush=True)          # recorded (returned from the writer)
+        time.sleep(0.01)
+
+
+def kill_once(where: Path, delay: float) -> tuple[float, float]:
+    """SIGKILL the recorder ``delay`` s after it created its bag.
+
+    Returns (loss of the run, loss of recorded states) [s]: the kill time, and the last state
+    the recorder had written, minus the last state on disk. They differ when the machine
+    starves the recorder (states not produced are not lost by the bag).
+    """
+    from crawler_sim.bag import load
+    env = dict(os.environ)
+    env.pop('AMENT_PREFIX_PATH', None)
+    proc = subprocess.Popen([sys.executable, '-m', 'benchmarks.bag', '--child',
+                             str(where)], stdout=subprocess.PIPE, text=True, env=env)
+    try:
+        t0 = float(proc.stdout.readline().split()[1])
+        time.sleep(max(0.0, t0 + delay - time.monotonic()))
+        proc.send_signal(signal.SIGKILL)
+        t_kill = time.monotonic() - t0          # CLOCK_MONOTONIC is system-wide on Linux
+    finally:
+        proc.kill()
+        proc.wait()
+    printed = [float(line) for line in proc.stdout.read().split()]   # all written before the kill
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore')
+        run = load(where / 'run')
+    on_disk = float(run.t[-1]) if len(run) else 0.0
+    return t_kill - on_disk, (printed[-1] if printed else 0.0) - on_disk
+
+
+def bench_kill(kills: int, seed: int) -> dict:
+    rng = random.Random(seed)
+    losses, recorded, first = [], [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in range(kills):
+            delay = rng.uniform(0.0, 3.0)
+            loss, lost_recorded = kill_once(Path(tmp) / f'k{k}', delay)
+            losses.append(loss)
+            recorded.append(lost_recorded)
+            if delay < 1.0:
+                first.append(loss)
+    return {'kills': kills, 'median_s': statistics.median(losses), 'worst_s': max(losses),
+            'over_1s': sum(x > 1.0 for x in losses), 'first_second_kills': len(first),
+            'first_second_worst_s': max(first) if first else None,
+            'recorded_median_s': statistics.median(recorded), 'recorded_worst_s': max(recorded),
+            'recorded_over_1s': sum(x > 1.0 for x in recorded)}
+
+
+# ---------------------------------------------------------------- --hostile
+
+def child_measure(func_name: str, path: str) -> None:
+    """Print JSON: peak traced bytes and RSS growth of one call, after a warm-up call."""
+    import resource
+    import tracemalloc
+    from crawler_sim import bag
+    func = {'load': bag.load, 'info': bag.info, 'recover': bag.recover}[func_name]
+
+    def call(k: int):
+        args = (path,) if func_name != 'recover' else (path, f'{path}.recovered{k}')
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter('ignore')
+                out = func(*args)
+            return 'ok' + (f' ({len(out)} states)' if func_name == 'load' else '')
+        except bag.BagError as exc:
+            return f'BagError: {str(exc)[-90:]}'
+    from rclpy.serialization import deserialize_message  # noqa: F401 - imported up front
+    rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    t = time.perf_counter()
+    result = call(0)              # first call: RSS growth (includes lazily imported modules)
+    wall = time.perf_counter() - t
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 - rss0
+    tracemalloc.start()
+    call(1)                       # second call: traced allocations only
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    print(json.dumps({'peak': peak, 'rss': rss, 'wall': wall, 'result': result}))
+
+
+def bench_hostile() -> list[dict]:
+    from crawler_sim.bag import record_arrays
+    from test.support import crafted
+    from test.support.synthetic import synthetic_arrays
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        files = {name: build(Path(tmp) / f'{name}.mcap') for name, build in crafted.FILES.items()}
+        a = synthetic_arrays(20_000, 2, seed=7)
+        masses = a.pop('masses')
+        record_arrays(Path(tmp) / 'real', **a, masses=masses)
+        files['real recording (20k states)'] = Path(tmp) / 'real' / 'real_0.mcap'
+        for name, path in files.items():
+            for func in ('load', 'info', 'recover'):
+                out = subprocess.run([sys.executable, '-m', 'benchmarks.bag',
+                                      '--measure', func, str(path)], capture_output=True,
+                                     text=True, timeout=600)
+                if out.returncode != 0:
+                    rows.append({'file': name, 'func': func, 'error': out.stderr[-300:]})
+                    continue
+                row = json.loads(out.stdout.strip().splitlines()[-1])
+                row.update(file=name, func=func, size=path.stat().st_size)
+                rows.append(row)
+    return rows
+
+
+def print_hostile(rows: list[dict]) -> None:
+    print(f'{"file":28s} {"call":8s} {"size MB":>8s} {"peak MB":>8s} {"x size":>7s} '
+          f'{"maxRSS+":>8s} {"wall s":>7s}  result')
+    for r in rows:
+        if 'error' in r:
+            print(f'{r["file"]:28s} {r["func"]:8s} CRASH {r["error"]}')
+            continue
+        print(f'{r["file"]:28s} {r["func"]:8s} {r["size"] / 1e6:8.2f} {r["peak"] / 1e6:8.2f} '
+              f'{r["peak"] / r["size"]:7.2f} {r["rss"] / 1e6:8.2f} {r["wall"]:7.2f}  '
+              f'{r["result"]}')
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument('--steps', type=int, default=360_000, help='states (100 Hz: 360000 = 1 h)')
+    ap.add_argument('--dir', default='/tmp/crawler_sim_bag_hour', help='where to write the bag')
+    ap.add_argument('--hostile', action='store_true', help='memory on crafted files')
+    ap.add_argument('--kill', action='store_true', help='SIGKILL loss of a recording')
+    ap.add_argument('--kills', type=int, default=30, help='kills for --kill')
+    ap.add_argument('--seed', type=int, default=1)
+    ap.add_argument('--child', help=argparse.SUPPRESS)
+    ap.add_argument('--measure', nargs=2, help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.child:
+        child_record(args.child)
+        return 0
+    if args.measure:
+        child_measure(*args.measure)
+        return 0
+    if args.hostile or args.kill:
+        ok = True
+        if args.hostile:
+            rows = bench_hostile()
+            print_hostile(rows)
+            worst = max((r['peak'] / r['size'] for r in rows if 'error' not in r), default=0)
+            crashed = sum('error' in r for r in rows)
+            print(f'hostile: worst peak {worst:.2f}x the file size, {crashed} crashes; floor 4x')
+            ok = ok and worst < 4 and not crashed
+        if args.kill:
+            res = bench_kill(args.kills, args.seed)
+            print(f'SIGKILL at random moments in the first 3 s ({res["kills"]} kills, '
+                  f'{res["first_second_kills"]} in the first second): loss median '
+                  f'{res["median_s"]:.3f} s, worst {res["worst_s"]:.3f} s (first second: '
+                  f'{res["first_second_worst_s"] or 0:.3f} s), {res["over_1s"]} over 1 s; '
+                  'floor 1 s')
+            print(f'  of the states the recorder had written: loss median '
+                  f'{res["recorded_median_s"]:.3f} s, worst {res["recorded_worst_s"]:.3f} s, '
+                  f'{res["recorded_over_1s"]} over 1 s (the rest: the recorder starved of CPU)')
+            ok = ok and res['over_1s'] == 0
+        return 0 if ok else 1
+    out = Path(args.dir)
+    t0 = time.perf_counter()
+    ref = write_hour(out, args.steps)
+    print(f'wrote {ref["messages"]} messages ({args.steps} states) in '
+          f'{time.perf_counter() - t0:.1f} s to {out}')
+    wall, cpu = [], []
+    for _ in range(5):
+        w0, c0 = time.perf_counter(), time.process_time()
+        run = load(out)
+        wall.append(time.perf_counter() - w0)
+        cpu.append(time.process_time() - c0)
+    same = all(np.array_equal(getattr(run, k), ref[k])
+               for k in ('x', 'v', 'friction', 'contact', 'lengths', 'linkage_force'))
+    print(f'load: median wall {statistics.median(wall):.3f} s (best {min(wall):.3f} s), '
+          f'median CPU {statistics.median(cpu):.3f} s; arrays identical: {same}; floor 2 s')
+    return 0 if same else 1
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

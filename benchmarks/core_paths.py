@@ -1,0 +1,171 @@
+"""Every path of the core, measured side by side (issue 23 floors).
+
+* exact, cost per event of each gait family against the Fourier gait's, p = 2 and p = 3 (the
+  same run of this script; ratios);
+* implicit and penalty with their default output (every step): steps per second, p = 2 and 3,
+  on Scallop and bang-bang (PiecewiseParabolic.stroke) gaits, and the README's example;
+* first use: a fresh interpreter's first ``simulate`` of each gait kind and method.
+
+Each timing is the median of ``--repeats`` runs in this process.
+
+    .venv/bin/python -m benchmarks.core_paths [--repeats 5] [--quick]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import statistics
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+import crawler_sim as cs
+
+G = cs.gaits
+
+
+def _median(fn, repeats: int) -> float:
+    out = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        out.append(time.perf_counter() - t0)
+    return statistics.median(out)
+
+
+def families(p: int) -> dict:
+    """One gait per family for p bodies (period 1 s, lengths around 1 m)."""
+    n = p - 1
+    w = 2 * math.pi
+    phase = -0.9 * np.arange(n)
+    sc = G.Scallop(1.0, 0.25, 1.0, 0.2, phase, n_links=n)
+    fns = (lambda t: 1.0 + 0.25 * np.sin(w * t + phase),
+           lambda t: 0.25 * w * np.cos(w * t + phase),
+           lambda t: -0.25 * w * w * np.sin(w * t + phase))
+    if n == 1:
+        fns = (lambda t: 1.0 + 0.25 * math.sin(w * t), lambda t: 0.25 * w * math.cos(w * t),
+               lambda t: -0.25 * w * w * math.sin(w * t))
+    tk = np.linspace(0.0, 1.0, 17)
+    y = 1.0 + 0.25 * np.sin(w * tk[:, None] + phase)
+    y[-1] = y[0]
+    starts = np.arange(200) * 0.005
+    pieces, l, v, a = [], np.full(n, 1.0), np.zeros(n), np.zeros(n)
+    rng = np.random.default_rng(1)
+    for t0 in starts:
+        jerk = rng.uniform(-80, 80, n) - 40 * (l - 1.0) - 10 * v
+        pieces.append(G.Cubic(t0, l, v, a, jerk))
+        l, v, a = G.cubic_values(l, v, a, jerk, 0.005)
+    return {
+        'Fourier': G.Fourier(np.ones(n), (np.zeros((n, 2)), np.tile([0.25, 0.05], (n, 1))), 1.0),
+        'Sinusoid': G.Sinusoid(1.0, 0.25, 1.0, phase, n_links=n),
+        'Scallop': sc,
+        'PiecewiseParabolic': G.PiecewiseParabolic.stroke(1.0, 0.25, 1.0, 0.3, n_links=n),
+        'Spline': G.Spline(tk, y, periodic=True),
+        'PiecewiseCubic': G.PiecewiseCubic(starts, pieces),
+        'Custom': G.Custom(*fns),
+        'Custom jerk_bound': G.Custom(*fns, jerk_bound=0.25 * w ** 3),
+        'Custom breakpoints': G.Custom(*fns, breakpoints=[0.25, 0.75]),
+        'Custom period': G.Custom(*fns, period=1.0),
+    }
+
+
+def exact_per_event(p: int, repeats: int, periods: float) -> list[dict]:
+    rng = np.random.default_rng(p)
+    m = rng.uniform(0.5, 2.0, p)
+    crawler = cs.Crawler(m, rng.uniform(0.5, 2.0, p) * m)
+    rows = []
+    for name, gait in families(p).items():
+        T = 1.0 if name != 'PiecewiseCubic' else 0.999
+        t_end = periods * T if name != 'PiecewiseCubic' else 0.999
+        tr = cs.simulate(crawler, gait, t_end, t_eval=[0.0, t_end], periodic_skip=False)
+        n_ev = max(len(tr.events), 1)
+        t = _median(lambda: cs.simulate(crawler, gait, t_end, t_eval=[0.0, t_end],
+                                        periodic_skip=False), repeats)
+        rows.append({'p': p, 'gait': name, 'events': n_ev, 'time_s': t,
+                     'us_per_event': 1e6 * t / n_ev})
+    base = next(r for r in rows if r['gait'] == 'Fourier')['us_per_event']
+    for r in rows:
+        r['ratio_vs_fourier'] = r['us_per_event'] / base
+    return rows
+
+
+def stepping(repeats: int, t_end: float) -> list[dict]:
+    rows = []
+    for p in (2, 3):
+        n = p - 1
+        crawler = cs.Crawler(np.linspace(1.0, 1.5, p), np.linspace(1.0, 2.0, p))
+        for gname, gait in (('Scallop', G.Scallop(1.0, 0.25, 1.0, 0.2, n_links=n)),
+                            ('bang-bang', G.PiecewiseParabolic.stroke(1.0, 0.25, 1.0, 0.3,
+                                                                      n_links=n))):
+            for method, kw in (('implicit', {}), ('penalty', {'penalty': 1e5})):
+                dt = 1e-4
+                t = _median(lambda: cs.simulate(crawler, gait, t_end, method, dt=dt, **kw),
+                            repeats)
+                rows.append({'p': p, 'gait': gname, 'method': method, 'dt': dt,
+                             'steps': round(t_end / dt), 'time_s': t,
+                             'steps_per_s': t_end / dt / t})
+    return rows
+
+
+def readme_example(repeats: int) -> float:
+    crawler = cs.Crawler([1.0, 2.0], [0.5, 1.0])
+    gait = G.Scallop(1.0, 0.3, 1.0, 0.2)
+    return _median(lambda: cs.simulate(crawler, gait, 20.0, method='implicit', dt=1e-4),
+                   repeats)
+
+
+_FIRST = '''
+import time; t0 = time.perf_counter()
+import math, crawler_sim as cs
+G = cs.gaits
+w = 2 * math.pi
+gaits = {{'Fourier': G.Fourier(1.0, ([0.0], [0.3]), 1.0), 'Scallop': G.Scallop(1.0, 0.3, 1.0, 0.2),
+          'PiecewiseParabolic': G.PiecewiseParabolic.stroke(1.0, 0.3, 1.0, 0.3),
+          'Custom': G.Custom(lambda t: 1 + 0.3 * math.sin(w * t), lambda t: 0.3 * w * math.cos(w * t),
+                             lambda t: -0.3 * w * w * math.sin(w * t))}}
+kw = {{'implicit': {{}}, 'penalty': {{'penalty': 1e5}}, 'exact': {{}}}}['{method}']
+cs.simulate(cs.Crawler([1, 1], [0.5, 1]), gaits['{gait}'], 2.0, '{method}', **kw)
+print(time.perf_counter() - t0)
+'''
+
+
+def first_use() -> list[dict]:
+    rows = []
+    for gait in ('Fourier', 'Scallop', 'PiecewiseParabolic', 'Custom'):
+        for method in ('exact', 'implicit', 'penalty'):
+            out = subprocess.run([sys.executable, '-c', _FIRST.format(gait=gait, method=method)],
+                                 capture_output=True, text=True, check=True)
+            rows.append({'gait': gait, 'method': method, 'first_simulate_s':
+                         float(out.stdout.strip().splitlines()[-1])})
+    return rows
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument('--repeats', type=int, default=5)
+    ap.add_argument('--quick', action='store_true', help='fewer periods and steps')
+    args = ap.parse_args()
+    periods = 5.0 if args.quick else 20.0
+    report = {'exact': exact_per_event(2, args.repeats, periods)
+              + exact_per_event(3, args.repeats, periods),
+              'stepping': stepping(args.repeats, 2.0 if args.quick else 20.0),
+              'readme_implicit_example_s': readme_example(args.repeats),
+              'first_use': first_use()}
+    for r in report['exact']:
+        print(f"exact p={r['p']} {r['gait']:20s} {r['events']:6d} events "
+              f"{r['us_per_event']:8.2f} us/event  x{r['ratio_vs_fourier']:.2f} vs Fourier")
+    for r in report['stepping']:
+        print(f"{r['method']:8s} p={r['p']} {r['gait']:10s} {r['steps_per_s']:.3g} steps/s "
+              f"(default output, every step; {r['steps']} steps in {r['time_s']:.3f} s)")
+    print(f"README example simulate(..., 20.0, method='implicit', dt=1e-4): "
+          f"{report['readme_implicit_example_s']:.3f} s")
+    for r in report['first_use']:
+        print(f"first use {r['gait']:20s} {r['method']:8s} {r['first_simulate_s']:.2f} s")
+    print(json.dumps(report))
+
+
+if __name__ == '__main__':
+    main()

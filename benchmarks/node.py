@@ -1,0 +1,257 @@
+"""Benchmark of the colcon-installed sim_node (prints figures; not a test).
+
+    nice python -m benchmarks.node [--seconds 12] [--repeats 3] [--method exact]
+                                    [--only flat,realtime,flood,huge]
+
+(with the environment of ``make``: AMENT_PREFIX_PATH=install/crawler_sim:.venv, or a sourced
+workspace). The seed's two-body default, integration at 1 kHz, every output at 100 Hz with a
+subscriber (this process, taking raw bytes), the crawler moving: gait_node preloads its stroke
+as one trajectory, so it costs no CPU during the run. Scenarios (issue 11 and 12 floors):
+
+- ``flat``: real_time_factor 0: speed-up over real time (sim s per wall s, from the sim_time of
+  successive /diagnostics and their arrival times). Floor >= 20x. Also the node's CPU per
+  simulated second: on a machine with fewer free cores than busy processes (this one, the
+  subscribers and gait_node all run flat out) the speed-up follows the share of a core the node
+  gets, this figure does not.
+- ``realtime``: real_time_factor 1: CPU of the sim_node process in % of one core (from /proc,
+  after a warm-up) and tick lateness p99 (per diagnostics period: median period and worst).
+  Floors <= 10 % and < 1 ms.
+- ``flood``: real time while this process sends 1,000 invalid commands/s and 100 invalid
+  trajectories/s: real-time factor and p99. Floors >= 0.95 and < 5 ms.
+- ``huge``: real time; one valid 100k-point trajectory is sent: its intake time (parse and
+  checks, reported by the node) and the real-time factor and p99 afterwards. Floor < 100 ms.
+- ``record`` (not in the default list): alternated pairs of ``realtime`` runs without and with
+  recording every output to a bag; the median extra CPU (issue 5's floor: at most 10 %).
+
+Each scenario runs ``--repeats`` times; the medians are printed, with a baseline measured in
+this process: the core engine alone (actuator + exact solver, no ROS) flat out on the same
+command stream, so the node's overhead reads as the ratio of the two speed-ups.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+from pathlib import Path
+import signal
+import statistics
+import subprocess
+import sys
+import time
+
+
+from crawler_sim.ros.workspace import executable, share, workspace_env
+
+WARMUP = 3.0
+GAIT_SECONDS = 600.0     # the preloaded stroke (30,000 points) outlasts any run
+
+
+def cpu_seconds(pid: int) -> float:
+    """utime + stime of a process [s]."""
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def start(name: str, env: dict, *args: str) -> subprocess.Popen:
+    return subprocess.Popen([str(executable(name)), '--ros-args', *args], env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+
+def stop(*procs: subprocess.Popen) -> None:
+    for p in procs:
+        if p.poll() is None:
+            p.send_signal(signal.SIGINT)
+    for p in procs:
+        try:
+            p.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            p.kill()
+
+
+def engine_baseline(seconds: float = 3.0) -> float:
+    """Speed-up of the core engine alone (no ROS) on the default two-body crawler driven by the
+    default stroke, sampled at 50 Hz (sim s per wall s)."""
+    from crawler_sim.core import gaits
+    from crawler_sim.core.plant import Engine
+    from crawler_sim.ros.sim.params import PARAMETERS, SimConfig
+    cfg = SimConfig.from_values({k: v[0] for k, v in PARAMETERS.items()})
+    gait = gaits.Scallop(0.1, 0.02, 2.0, 0.2, [0.0], n_links=1)
+    engine = Engine(cfg.engine_config())
+    n = round(seconds * 1000)
+    t0 = time.perf_counter()
+    for k in range(n):
+        if k % 20 == 0:
+            engine.command(gait.length(k / 1000).tolist())
+        engine.tick()
+    return seconds / (time.perf_counter() - t0)
+
+
+def _huge_trajectory(n: int = 100_000):
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+    msg = JointTrajectory(joint_names=['linkage_0'])
+    for k in range(n):
+        pt = JointTrajectoryPoint(positions=[0.1 + 0.02 * math.sin(4 * math.pi * k / 1000)])
+        pt.time_from_start.sec, pt.time_from_start.nanosec = divmod((k + 1) * 1_000_000,
+                                                                    1_000_000_000)
+        msg.points.append(pt)
+    return msg
+
+
+def run(scenario: str, seconds: float, method: str, env: dict,
+        extra: tuple[str, ...] = ()) -> dict:
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
+    from nav_msgs.msg import Odometry
+    from rclpy.node import Node
+    from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64MultiArray, Int8MultiArray
+    from std_srvs.srv import SetBool
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+    from visualization_msgs.msg import MarkerArray
+
+    fast = scenario == 'flat'
+    sim = start('sim_node', env, '--params-file',
+                str(share() / 'config' / 'ros' / 'crawler_sim.yaml'),
+                '-p', f'method:={method}', '-p', f'real_time_factor:={0.0 if fast else 1.0}',
+                '-p', 'start_paused:=true', '-p', 'diagnostics_period:=1.0', *extra)
+    gait = start('gait_node', env, '-p', 'use_sim_time:=true', '-p', 'mode:=trajectory',
+                 '-p', 'preload:=true', '-p', f'duration:={GAIT_SECONDS}', '-p', 'rate:=50.0')
+    procs = [sim, gait]
+    rclpy.init()
+    node = Node('node_bench')
+    diags: list[dict] = []
+    node.create_subscription(DiagnosticArray, '/diagnostics', lambda m: diags.append(
+        {**{kv.key: kv.value for kv in m.status[0].values}, 'received': time.monotonic()}), 100)
+    for typ, topic in ((JointState, 'body_states'), (JointState, 'joint_states'),
+                       (Int8MultiArray, 'contact_states'), (JointState, 'contacts'),
+                       (Odometry, 'odom'), (MarkerArray, 'markers'), (Clock, '/clock')):
+        node.create_subscription(typ, topic, lambda m: None, 10, raw=True)
+    pause = node.create_client(SetBool, '/crawler_sim/pause')
+    cmd_pub = node.create_publisher(Float64MultiArray, 'linkage_cmd', 10)
+    traj_pub = node.create_publisher(JointTrajectory, 'linkage_trajectory', 10)
+    bad_cmd = Float64MultiArray(data=[0.1, 0.1])              # wrong size
+    bad_traj = JointTrajectory(joint_names=['linkage_0'])      # stamped far in the future
+    bad_traj.header.stamp.sec = 200_000_000
+    bad_traj.points = [JointTrajectoryPoint(positions=[0.1]) for _ in range(2)]
+    bad_traj.points[1].time_from_start.nanosec = 1
+    huge = _huge_trajectory() if scenario == 'huge' else None
+    try:
+        end = time.monotonic() + 60
+        while not (diags and pause.service_is_ready()
+                   and int(diags[-1].get('trajectories_accepted', 0)) >= 1):
+            if time.monotonic() > end:
+                raise RuntimeError('sim_node and gait_node did not come up within 60 s')
+            rclpy.spin_once(node, timeout_sec=0.05)
+        future = pause.call_async(SetBool.Request(data=False))
+        while not future.done():
+            rclpy.spin_once(node, timeout_sec=0.05)
+        t0 = time.monotonic()
+        n_diag0 = len(diags)
+        cpu0 = w0 = d0 = None
+        sent = 0
+        while time.monotonic() - t0 < seconds:
+            now = time.monotonic()
+            if cpu0 is None and now - t0 >= WARMUP:
+                cpu0, w0, d0 = cpu_seconds(sim.pid), now, len(diags)
+                if huge is not None:
+                    traj_pub.publish(huge)
+            if scenario == 'flood' and cpu0 is not None:
+                due = int((now - w0) * 1000)          # 1,000 commands/s, 100 trajectories/s
+                while sent < due:
+                    cmd_pub.publish(bad_cmd)
+                    if sent % 10 == 0:
+                        traj_pub.publish(bad_traj)
+                    sent += 1
+                rclpy.spin_once(node, timeout_sec=0.0)
+                time.sleep(0.002)
+            else:
+                rclpy.spin_once(node, timeout_sec=0.05)
+        cpu = (cpu_seconds(sim.pid) - cpu0) / (time.monotonic() - w0)
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+        stop(*reversed(procs))
+    steady = diags[max(d0 + 1, n_diag0 + 1):]
+    out = {'scenario': scenario, 'cpu_percent': 100 * cpu, 'sent': sent}
+    if steady:
+        p99 = [float(d['tick_lateness_p99_ms']) for d in steady]
+        last = steady[-1]
+        out.update(p99_median_ms=statistics.median(p99), p99_worst_ms=max(p99),
+                   rtf=statistics.median(float(d['real_time_factor']) for d in steady),
+                   events=int(last['solver_events']),
+                   rejected=int(last['commands_rejected']) + int(last['trajectories_rejected']),
+                   intake_ms=float(last['last_trajectory_intake_ms']),
+                   traj_accepted=int(last['trajectories_accepted']))
+    if fast and len(steady) > 1:
+        first, last = steady[0], steady[-1]
+        out['speedup'] = ((float(last['sim_time']) - float(first['sim_time']))
+                          / (last['received'] - first['received']))
+        # the node's own cost, whatever share of a core it got on a busy machine
+        out['cpu_ms_per_sim_s'] = 1e3 * cpu / out['speedup']
+    return out
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--seconds', type=float, default=12.0, help='wall seconds per run')
+    parser.add_argument('--repeats', type=int, default=3, help='runs per scenario (median)')
+    parser.add_argument('--method', default='exact', help='exact | implicit | penalty')
+    parser.add_argument('--only', default='flat,realtime,flood,huge',
+                        help='comma-separated scenarios')
+    args = parser.parse_args()
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    env = workspace_env(dict(os.environ))
+    # the nodes run this checkout's crawler_sim (the one the baseline imports), not the one the
+    # colcon install's build/ links to: a worktree measures its own code
+    here = str(Path(__file__).resolve().parents[1])
+    env['PYTHONPATH'] = os.pathsep.join([here, env.get('PYTHONPATH', '')]).rstrip(os.pathsep)
+    base = statistics.median(engine_baseline() for _ in range(3))
+    print(f'sim_node benchmark: two-body default, method {args.method}, 1 kHz integration, '
+          f'every output at 100 Hz with a subscriber, {args.seconds:g} s per run, median of '
+          f'{args.repeats}, {os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}')
+    print(f'  baseline (this process): core engine alone flat out {base:.1f}x real time')
+    for scenario in args.only.split(','):
+        if scenario == 'record':
+            import tempfile
+            extra = []
+            with tempfile.TemporaryDirectory() as tmp:
+                for k in range(args.repeats):
+                    base = run('realtime', args.seconds, args.method, env)
+                    rec = run('realtime', args.seconds, args.method, env, extra=(
+                        '-p', 'record:=true', '-p', f'record_dir:={tmp}',
+                        '-p', f'record_name:=bag{k}'))
+                    extra.append(rec['cpu_percent'] / base['cpu_percent'] - 1.0)
+            print(f'  record   | recording every output adds {100 * statistics.median(extra):.1f} '
+                  f'% to the node\'s CPU time (median of {len(extra)} alternated pairs: '
+                  f'{", ".join(f"{100 * e:+.1f}" for e in extra)} %; floor 10 %)', flush=True)
+            continue
+        runs = [run(scenario, args.seconds, args.method, env) for _ in range(args.repeats)]
+
+        def med(key: str) -> float:
+            vals = [r[key] for r in runs if key in r]
+            return statistics.median(vals) if vals else float('nan')
+        parts = [f'{scenario:8s}', f'CPU {med("cpu_percent"):5.1f} % of one core']
+        if scenario == 'flat':
+            parts.append(f'speed-up {med("speedup"):.2f}x (engine alone {base:.1f}x: '
+                         f'ratio {med("speedup") / base:.2f}; floor 20x)')
+            parts.append(f'node CPU {med("cpu_ms_per_sim_s"):.1f} ms per sim s (a whole core '
+                         f'would give {1e3 / med("cpu_ms_per_sim_s"):.0f}x)')
+        else:
+            parts.append(f'real-time factor {med("rtf"):.3f}, tick lateness p99 '
+                         f'{med("p99_median_ms"):.3f} ms (worst period '
+                         f'{max(r.get("p99_worst_ms", math.nan) for r in runs):.3f} ms)')
+        if scenario == 'flood':
+            parts.append(f'{med("sent"):.0f} bad commands sent, {med("rejected"):.0f} rejections'
+                         ' counted')
+        if scenario == 'huge':
+            parts.append(f'100k-point trajectory intake {med("intake_ms"):.1f} ms '
+                         f'(accepted in {sum(r.get("traj_accepted", 0) >= 2 for r in runs)}'
+                         f'/{len(runs)} runs)')
+        print('  ' + ' | '.join(parts), flush=True)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
