@@ -239,6 +239,11 @@ class GaitNode(Node):
         self.get_logger().info(f'playing {what} on {self.gait.n_links} linkage(s), {topic} at '
                                f'{self._rate} Hz ({"preloaded" if self._preload else self.mode})')
 
+    @property
+    def t0_ns(self) -> int | None:
+        """The ROS time [ns] the gait's t = 0 is at (None before the first timer tick)."""
+        return self._t0_ns
+
     def _ask_sim(self, v: dict) -> int:
         """The number of linkages of the running sim_node (and a check of the gait against its
         length limits); ValueError when it does not answer within ``wait_for_sim``."""

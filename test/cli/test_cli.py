@@ -23,9 +23,8 @@ FIGURES = ('displacement', 'mean speed', 'stick fraction', 'events', 'dissipated
 PNG_MAGIC = b'\x89PNG\r\n\x1a\n'
 
 HELP = {  # subcommand -> what its --help must mention
-    'simulate': ('SCENE.yaml', '--method', '--t-end', '--dt', '--out', '--plot', '--json'),
-    'bench': ('--out', '--quick', '--scenes'),
-    'stress': ('--seconds', '--seed'),
+    'simulate': ('SCENE.yaml', '--method', '--t-end', '--dt', '--out', '--plot', '--json',
+                 '--penalty', '--as-node'),
     'replay': ('BAG', '--method', '--tol'),
     'info': ('BAG',),
     'plot': ('BAG', '--output'),
@@ -319,33 +318,26 @@ def test_recover_salvages_a_truncated_recording(offline_bag, capsys, tmp_path):
 
 
 def test_replay_of_a_node_recording_reproduces_its_ticks_bit_for_bit(tmp_path, capsys, ros_env):
-    """Record with the real node (ticks driven directly), then replay the bag with the core."""
-    rclpy = pytest.importorskip('rclpy')
-    from rclpy.context import Context
-    from rclpy.parameter import Parameter
+    """Record with the real node (ticks driven directly, commands over DDS), then replay the
+    bag with the core."""
+    pytest.importorskip('rclpy')
     from std_msgs.msg import Float64MultiArray
 
-    from test.support.ros import next_domain_id
-    from crawler_sim.ros.sim_node import SimNode
+    from test.support.ros import Harness
 
-    context = Context()
-    rclpy.init(context=context, domain_id=next_domain_id())
+    h = Harness()
     try:
-        node = SimNode(context=context, parameter_overrides=[
-            Parameter('record', value=True), Parameter('record_dir', value=str(tmp_path)),
-            Parameter('record_name', value='node_run'),
-            Parameter('masses', value=[1.0, 0.5, 1.0]), Parameter('friction', value=[3.0]),
-            Parameter('friction_backward', value=[5.0])])
+        node = h.sim(seed=True, record=True, record_dir=str(tmp_path), record_name='node_run',
+                     masses=[1.0, 0.5, 1.0], friction=[3.0], friction_backward=[5.0])
+        pub = h.publisher(Float64MultiArray, 'linkage_cmd')
         commands = {0: [0.15, 0.1], 300: [0.08, 0.14], 700: [0.12, 0.12]}
         for k in range(1000):
             if k in commands:
-                node._on_command(Float64MultiArray(data=commands[k]))
+                h.send(pub, Float64MultiArray(data=commands[k]), node, 'commands_accepted')
             node.tick()
         final = node.state
-        node.close()
-        node.destroy_node()
     finally:
-        rclpy.try_shutdown(context=context)
+        h.close()
     proc = run_inprocess(capsys, 'replay', str(tmp_path / 'node_run'))
     assert proc.returncode == 0, proc.stderr
     # ticks driven directly (no run loop, so no sample at t = 0): one sample per publish tick

@@ -42,7 +42,7 @@ def test_a_one_length_command_drives_it_and_two_lengths_are_rejected(ros):
     sim = ros.sim(seed=True)
     pub = ros.publisher(Float64MultiArray, 'linkage_cmd')
     ros.send(pub, cmd(0.15, 0.12), sim, 'commands_rejected')
-    assert 'expected 1 lengths' in sim._last_rejection
+    assert 'expected 1 lengths' in sim.last_rejection
     ros.send(pub, cmd(0.15), sim, 'commands_accepted')
     ticks(sim, 2000)
     # after 2 s the actuator (5 Hz bandwidth) has reached the target: x_1 - x_0 = 0.15 m

@@ -100,7 +100,7 @@ def test_floods_huge_trajectories_and_bad_parameters_crash_nothing(live):
     for k, bad in enumerate(BAD_TRAJECTORIES):
         ros.send(traj_pub, bad, sim, 'trajectories_rejected')
         if k == 0:      # issue 11 point 1: refused for its stamp, the loop goes on
-            assert 'ahead of the sim time' in sim._rejections.last
+            assert 'ahead of the sim time' in sim.last_rejection
     for bad in BAD_COMMANDS:
         ros.send(cmd_pub, Float64MultiArray(data=bad), sim, 'commands_rejected')
     for k in range(N_COMMANDS):

@@ -40,7 +40,7 @@ from crawler_sim.core.gaits import Cubic
 from crawler_sim.ros.messages import CONTACT_COLOURS, ns_from_stamp
 from crawler_sim.ros.sim_node import SimConfig, SimNode
 from test.support.ros import (DEADLINE, THREE_BODY, Harness, cmd, next_domain_id,  # noqa: F401
-                              point, ticks, trajectory)
+                              param_values, point, ticks, trajectory)
 
 # --------------------------------------------------------------------------- outputs
 
@@ -148,7 +148,7 @@ def test_commands_are_taken_by_the_tick_never_by_the_executor(ros):
     assert sim.counters['commands_accepted'] == 1
     ros.until(lambda: applied, 'the applied command')
     assert ns_from_stamp(applied[0].header.stamp) == 3_000_000
-    assert sim._engine.actuator.target == [0.15, 0.12]
+    assert sim.engine.actuator.target == [0.15, 0.12]
 
 
 @pytest.mark.parametrize('last', ['command', 'trajectory'])
@@ -166,7 +166,7 @@ def test_of_a_command_and_a_trajectory_in_one_tick_the_later_arrival_wins(ros, l
         ros.until(lambda: time.monotonic() > end, '0.1 s')
     sim.tick()
     assert sim.counters['commands_accepted'] == sim.counters['trajectories_accepted'] == 1
-    following = sim._engine.actuator.trajectory is not None
+    following = sim.engine.actuator.trajectory is not None
     assert following == (last == 'trajectory')
 
 
@@ -189,7 +189,7 @@ def test_a_rejected_command_is_counted_named_and_leaves_the_previous_target(ros,
     assert sim.sim_time_ns == t_before + 2000 * 1_000_000
     np.testing.assert_allclose(sim.state.lengths, [0.14, 0.11], atol=1e-9)
     assert sim.counters['commands_accepted'] == 1
-    assert problem in sim._last_rejection
+    assert problem in sim.last_rejection
     status = sim.diagnostics().status[0]
     values = {kv.key: kv.value for kv in status.values}
     assert values['commands_rejected'] == '1'
@@ -236,7 +236,7 @@ def test_an_invalid_trajectory_is_rejected_with_the_reason(ros, names, points, p
     sim = ros.sim()
     pub = ros.publisher(JointTrajectory, 'linkage_trajectory')
     ros.send(pub, trajectory(names, points), sim, 'trajectories_rejected')
-    assert problem in sim._last_rejection
+    assert problem in sim.last_rejection
     ticks(sim, 100)
     assert sim.state.lengths.tolist() == [0.1, 0.1]
 
@@ -247,7 +247,7 @@ def test_a_stamped_trajectory_that_already_ended_is_rejected(ros):
     ticks(sim, 2000)
     msg = trajectory(['linkage_0', 'linkage_1'], [point(0.5, [0.2, 0.2])], stamp_ns=1_000_000_000)
     ros.send(pub, msg, sim, 'trajectories_rejected')
-    assert 'ends at 1.5 s' in sim._last_rejection
+    assert 'ends at 1.5 s' in sim.last_rejection
 
 
 # --------------------------------------------------------------------------- parameters
@@ -279,7 +279,7 @@ def test_an_invalid_parameter_is_rejected_with_a_reason_and_changes_nothing(ros,
     assert problem in results[0].reason
     ticks(sim, 2000)
     assert sim.config.values == before
-    assert SimConfig.from_values(sim._param_values()).values == before
+    assert SimConfig.from_values(param_values(sim)).values == before
     np.testing.assert_allclose(sim.state.lengths, [0.14, 0.11], atol=1e-9)
 
 
@@ -374,19 +374,21 @@ def test_the_same_commands_at_the_same_ticks_give_bit_identical_states_and_match
     schedule = {0: [0.15, 0.12], 700: [0.06, 0.2], 1500: [0.12, 0.08]}
 
     def drive(node: SimNode) -> list[np.ndarray]:
+        pub = ros.publisher(Float64MultiArray, 'linkage_cmd')
         out = []
         for k in range(2500):
-            if k in schedule:
-                node._on_command(cmd(*schedule[k]))
+            if k in schedule:         # over DDS, taken before the tick k (as the loop does)
+                ros.send(pub, cmd(*schedule[k]), node, 'commands_accepted')
             node.tick()
             out.append(node.state.x.copy())
+        ros.obs.destroy_publisher(pub)
         return out
 
     a = drive(ros.sim(method=method))
     b = drive(ros.sim(method=method))
     np.testing.assert_array_equal(np.array(a), np.array(b))
     # offline: the same actuator pieces fed to the core's Stepper
-    cfg = SimConfig.from_values(ros.nodes[0]._param_values())
+    cfg = SimConfig.from_values(param_values(ros.nodes[0]))
     act = Actuator(cfg.initial_lengths, cfg.dt_ns * 1e-9, cfg.limits)
     st = Stepper(cfg.crawler, Cubic(0.0, list(cfg.initial_lengths), 0.0, 0.0, 0.0), method,
                  t0=0.0, x0=0.0, v0=0.0, dt=cfg.dt_ns * 1e-9, penalty=cfg.penalty_n)
@@ -402,7 +404,7 @@ def test_the_same_commands_at_the_same_ticks_give_bit_identical_states_and_match
 def test_at_rest_the_stepper_gets_constant_pieces(ros, monkeypatch):
     sim = ros.sim()
     pieces = []
-    stepper = sim._engine.stepper
+    stepper = sim.engine.stepper
     advance = stepper.advance
     monkeypatch.setattr(stepper, 'advance', lambda t1, g: (pieces.append(g), advance(t1, g)))
     ticks(sim, 20)
@@ -467,7 +469,8 @@ def test_recording_writes_outputs_and_applied_commands_at_sim_time(ros, monkeypa
     bag = FakeBag.instances[0]
     assert bag.path == str(tmp_path / 'b1') and bag.scene['masses'] == [1.0, 1.0, 1.0]
     ticks(sim, 3)
-    sim._on_command(cmd(0.15, 0.12))
+    ros.send(ros.publisher(Float64MultiArray, 'linkage_cmd'), cmd(0.15, 0.12), sim,
+             'commands_accepted')
     ticks(sim, 17)
     topics = {(r[0], r[2]) for r in bag.rows}
     assert ('/linkage_cmd', 3_000_000) in topics
@@ -504,15 +507,15 @@ def test_gait_node_plays_its_gait_on_sim_time(ros, mode, tolerance):
     ros.ex.add_node(gait)
     ros.others.append(gait)
     counter = 'commands_accepted' if mode == 'command' else 'trajectories_accepted'
-    ros.until(lambda: gait._pub.get_subscription_count() > 0, 'gait_node to connect')
+    ros.until(lambda: gait.count_subscribers('linkage_cmd' if gait.mode == 'command' else 'linkage_trajectory') > 0, 'gait_node to connect')
     errors = []
     for k in range(4000):
         sim.tick()
         if k % 10 == 9:                        # let /clock reach the gait node, and it answer
             for _ in range(4):
                 ros.ex.spin_once(timeout_sec=0.0)
-        if k >= 2000 and gait._t0_ns is not None:
-            t = (sim.sim_time_ns - gait._t0_ns) / 1e9
+        if k >= 2000 and gait.t0_ns is not None:
+            t = (sim.sim_time_ns - gait.t0_ns) / 1e9
             errors.append(np.max(np.abs(sim.state.lengths - gait.gait.length(t))))
     assert sim.counters[counter] > (100 if mode == 'command' else 3)
     assert sim.counters['commands_rejected'] == sim.counters['trajectories_rejected'] == 0
@@ -643,7 +646,8 @@ def test_published_and_recorded_outputs_are_the_same_bytes_in_a_namespace(ros, t
              'contact_states': Int8MultiArray, 'odom': Odometry, 'markers': MarkerArray}
     boxes = {name: ros.listen(typ, f'/robot1/{name}') for name, typ in types.items()}
     ticks(sim, 5)
-    sim._on_command(cmd(0.16, 0.05))
+    ros.send(ros.publisher(Float64MultiArray, '/robot1/linkage_cmd'), cmd(0.16, 0.05), sim,
+             'commands_accepted')
     ticks(sim, 300)
     ros.until(lambda: all(len(b) >= 30 for b in boxes.values()), 'the outputs of 0.3 s')
     sim.close()
@@ -671,9 +675,9 @@ def test_two_sims_with_one_name_are_reported_not_silent(ros):
 
 
 def node_values_of(sim):
-    from crawler_sim.ros.sim.diagnostics import node_values
-    with sim._lock:
-        return node_values(sim)[0]
+    """The node's figures as its /diagnostics report them."""
+    return {kv.key: int(kv.value) if kv.key == 'same_name_nodes' else kv.value
+            for kv in sim.diagnostics().status[0].values}
 
 
 def test_get_parameters_over_the_full_list_returns_every_value(ros):

@@ -19,7 +19,7 @@ from nav_msgs.msg import Odometry
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
-from std_msgs.msg import String
+from std_msgs.msg import Float64MultiArray, String
 import yourdfpy
 
 from crawler_sim.bag.msgs import body_names, linkage_names
@@ -134,7 +134,8 @@ def test_forward_kinematics_of_the_urdf_puts_the_bodies_where_the_node_says(ros)
     od = ros.listen(Odometry, 'odom')
     box = latest_description(ros)
     ticks(sim, 5)
-    sim._on_command(cmd(0.16, 0.05))
+    ros.send(ros.publisher(Float64MultiArray, 'linkage_cmd'), cmd(0.16, 0.05), sim,
+             'commands_accepted')
     ticks(sim, 295)                       # crawling: unequal lengths, bodies away from 0
     t_ns = sim.sim_time_ns                # 0.3 s: a publish tick
 

@@ -218,3 +218,9 @@ def sim_args(method: str, *extra: str, three_body: bool = True) -> list[str]:
 def diagnostics_values(msg: DiagnosticArray) -> dict[str, str]:
     return {kv.key: kv.value for kv in msg.status[0].values}
 
+
+
+def param_values(node) -> dict[str, Any]:
+    """sim_node's parameter values by name (rclpy's public get_parameter)."""
+    from crawler_sim.ros.sim_node import PARAMETERS
+    return {name: node.get_parameter(name).value for name in PARAMETERS}

@@ -6,7 +6,7 @@ and method, recording on; then, between runs of ticks, random actions: commands 
 trajectories (stamped 0 or absolute; positions only, with velocities, with accelerations;
 empty) published on the node's topics, rejected commands, parameter changes (p, friction,
 method, actuator limits, tick and publish rates), pauses and resumes through the ``~/pause``
-handler, resets through ``~/reset``, and reads of the state between publish ticks (an
+service, resets through ``~/reset``, and reads of the state between publish ticks (an
 integration cut off the grid). ``run_session`` returns the bag's path.
 
     PYTHONPATH=. python test/ros/sessions.py   # see benchmarks/replay_sessions.py for the floor
@@ -119,9 +119,9 @@ def run_session(seed: int, record_dir: Path, domain_id: int, actions: int = 25) 
             if not node.paused:
                 for _ in range(n_ticks):
                     node.tick()
-            _act(rng, str(rng.choice(ACTIONS)), node, ex, cmd_pub, traj_pub)
+            _act(rng, str(rng.choice(ACTIONS)), node, ex, peer, cmd_pub, traj_pub)
         if node.paused:
-            node._on_pause(SetBool.Request(data=False), SetBool.Response())
+            _call(ex, peer, SetBool, '/crawler_sim/pause', SetBool.Request(data=False))
         for _ in range(200):
             node.tick()
         return Path(node.bag_path)
@@ -150,7 +150,18 @@ def _deliver(ex, node: SimNode, pub, msg, counters: tuple[str, ...]) -> None:
           and sum(node.counters[c] for c in counters) > before)
 
 
-def _act(rng, action: str, node: SimNode, ex, cmd_pub, traj_pub) -> None:
+def _call(ex, peer: Node, srv_type, name: str, request):
+    """Call the node's service over DDS (the executor spins both nodes)."""
+    client = peer.create_client(srv_type, name)
+    _wait(ex, client.service_is_ready)
+    future = client.call_async(request)
+    ex.spin_until_future_complete(future, timeout_sec=10.0)
+    assert future.done(), f'no answer from {name}'
+    peer.destroy_client(client)
+    return future.result()
+
+
+def _act(rng, action: str, node: SimNode, ex, peer: Node, cmd_pub, traj_pub) -> None:
     cfg = node.config
     n, lo, hi = cfg.n_links, cfg.min_length, cfg.max_length
     if action == 'command':
@@ -176,8 +187,8 @@ def _act(rng, action: str, node: SimNode, ex, cmd_pub, traj_pub) -> None:
         result = node.set_parameters_atomically(_parameters(rng, node))
         assert result.successful, result.reason
     elif action == 'pause':
-        node._on_pause(SetBool.Request(data=not node.paused), SetBool.Response())
+        _call(ex, peer, SetBool, '/crawler_sim/pause', SetBool.Request(data=not node.paused))
     elif action == 'reset':
-        node._on_reset(Trigger.Request(), Trigger.Response())
+        _call(ex, peer, Trigger, '/crawler_sim/reset', Trigger.Request())
     elif action == 'peek':
         _ = node.state                # integrates up to now, between publish ticks

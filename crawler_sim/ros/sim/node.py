@@ -152,21 +152,22 @@ class SimNode(Node):
             self.recorder.open(self._cfg.record_dir, self._cfg.record_name, scene, topics)
             self._record_description()
 
-    # ------------------------------------------------------------------ compatibility
+    # ------------------------------------------------------------------ read-only views
     @property
     def bag_path(self) -> str:
+        """Where the bag is ('' when not recording)."""
         return self.recorder.path
 
     @property
-    def _bag(self):
-        return self.recorder.bag
+    def engine(self) -> Engine:
+        """The plant's engine (read it; every input goes through the node's topics,
+        parameters and services)."""
+        return self._engine
 
     @property
-    def _recording_error(self) -> str:
-        return self.recorder.error
-
-    @property
-    def _last_rejection(self) -> str:
+    def last_rejection(self) -> str:
+        """Why the latest rejected input was rejected ('' if none): the diagnostics'
+        ``last_rejection``."""
         return self._rejections.last
 
     # ------------------------------------------------------------------ configuration
