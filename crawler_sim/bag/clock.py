@@ -1,44 +1,15 @@
-"""Time conversion: the only place that turns seconds into integer nanoseconds and back.
-
-MCAP and rosbag2 stamp every message with an unsigned 64-bit count of nanoseconds. The
-simulator works in float seconds of *sim time*; :func:`to_ns` is the one conversion point
-(round half to even, for scalars and arrays alike), and :func:`to_seconds` is its inverse up to
-0.5 ns.
+"""Times of a recording: MCAP and rosbag2 stamp every message with an unsigned 64-bit count of
+nanoseconds. The conversions live in ``crawler_sim.core.simtime`` (re-exported here); this
+module matches a re-simulation's float sample times with recorded stamps (:func:`rows_at_ns`).
 """
 from __future__ import annotations
-
-from typing import overload
 
 import numpy as np
 from numpy.typing import NDArray
 
-NS_PER_S = 1_000_000_000
+from crawler_sim.core.simtime import NS_PER_S, split_ns, to_ns, to_seconds
 
-
-@overload
-def to_ns(t: float) -> int: ...
-
-
-@overload
-def to_ns(t: NDArray[np.floating]) -> NDArray[np.int64]: ...
-
-
-def to_ns(t):
-    """Sim time ``t`` [s] as integer nanoseconds [ns], rounded to nearest (ties to even).
-
-    A float (or numpy scalar) gives a Python ``int``; an array gives an ``int64`` array.
-    """
-    if isinstance(t, np.ndarray):
-        return np.rint(np.asarray(t, dtype=np.float64) * 1e9).astype(np.int64)
-    return int(round(float(t) * 1e9))
-
-
-def to_seconds(t_ns: NDArray[np.integer] | int) -> NDArray[np.float64] | float:
-    """Integer nanoseconds [ns] as float seconds [s]."""
-    if isinstance(t_ns, np.ndarray):
-        return t_ns.astype(np.float64) / 1e9
-    return int(t_ns) / 1e9
-
+__all__ = ['NS_PER_S', 'to_ns', 'to_seconds', 'rows_at_ns', 'stamp']
 
 def rows_at_ns(t: NDArray[np.floating], t_ns: NDArray[np.integer]) -> NDArray[np.int64]:
     """Row of ``t`` [s] (sorted, e.g. a simulation's sample times) recorded as each stamp of
@@ -64,6 +35,5 @@ def rows_at_ns(t: NDArray[np.floating], t_ns: NDArray[np.integer]) -> NDArray[np
     return np.where(ok, idx, -1).astype(np.int64)
 
 
-def stamp(t_ns: int) -> tuple[int, int]:
-    """``(sec, nanosec)`` of a ``builtin_interfaces/Time`` for ``t_ns`` [ns] >= 0."""
-    return divmod(int(t_ns), NS_PER_S)
+#: ``(sec, nanosec)`` of a ``builtin_interfaces/Time`` for ``t_ns`` [ns] >= 0
+stamp = split_ns

@@ -22,6 +22,7 @@ from .errors import BagError
 from .mcapfile import Batch, scan
 from .reader import bag_files
 from .topics import LINKAGE_CMD, normalize_namespace
+from crawler_sim.core.simtime import to_seconds
 
 __all__ = ['RecordedInputs', 'load_inputs', 'PLANT_INPUTS_SUFFIX', 'TRAJECTORY_SUFFIX']
 
@@ -89,10 +90,10 @@ def _from_journal(path, journal: list[tuple[int, bytes]],
             kind = entry['kind']
             seq = int(entry.get('seq', 0))
         except (ValueError, KeyError, TypeError, UnicodeDecodeError) as exc:
-            raise BagError(f'{path}: plant_inputs message at t = {t_ns / 1e9} s cannot be read '
+            raise BagError(f'{path}: plant_inputs message at t = {to_seconds(t_ns)} s cannot be read '
                            f'({exc})') from None
         if kind not in KINDS:
-            raise BagError(f'{path}: plant_inputs message at t = {t_ns / 1e9} s has kind '
+            raise BagError(f'{path}: plant_inputs message at t = {to_seconds(t_ns)} s has kind '
                            f'{kind!r} (expected one of {", ".join(KINDS)})')
         entries.append((t_ns, seq, kind, entry))
     entries.sort(key=lambda e: (e[0], e[1]))
@@ -106,12 +107,12 @@ def _from_journal(path, journal: list[tuple[int, bytes]],
             payload = entry['values']
         elif kind == 'trajectory':
             if entry.get('points', 0) < 0:
-                raise BagError(f'{path}: the trajectory applied at t = {t_ns / 1e9} s was not '
+                raise BagError(f'{path}: the trajectory applied at t = {to_seconds(t_ns)} s was not '
                                'recorded (given in Python, not as a message)')
             while k < len(trajectories) and trajectories[k][0] < t_ns:
                 k += 1              # a message without a journal entry: not applied
             if k >= len(trajectories) or trajectories[k][0] != t_ns:
-                raise BagError(f'{path}: the trajectory applied at t = {t_ns / 1e9} s is '
+                raise BagError(f'{path}: the trajectory applied at t = {to_seconds(t_ns)} s is '
                                'missing from linkage_trajectory')
             payload = _trajectory(path, *trajectories[k])
             k += 1
@@ -123,7 +124,7 @@ def _trajectory(path, t_ns: int, data: bytes):
     try:
         return trajarrays.parse(data)
     except trajarrays.TrajectoryFormatError as exc:
-        raise BagError(f'{path}: linkage_trajectory at t = {t_ns / 1e9} s cannot be read '
+        raise BagError(f'{path}: linkage_trajectory at t = {to_seconds(t_ns)} s cannot be read '
                        f'({exc})') from None
 
 

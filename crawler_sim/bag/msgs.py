@@ -17,6 +17,7 @@ import numpy as np
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, Int8MultiArray, Int32MultiArray, String
 import yaml
+from crawler_sim.core.simtime import from_stamp, split_ns
 
 ODOM_FRAME = 'odom'
 BASE_FRAME = 'base_link'
@@ -24,13 +25,13 @@ BASE_FRAME = 'base_link'
 
 def stamp_from_ns(t_ns: int) -> Time:
     """Sim time in integer nanoseconds to ``builtin_interfaces/Time`` (the one conversion)."""
-    sec, nanosec = divmod(int(t_ns), 1_000_000_000)
+    sec, nanosec = split_ns(t_ns)
     return Time(sec=sec, nanosec=nanosec)
 
 
 def ns_from_stamp(stamp: Time) -> int:
     """Inverse of :func:`stamp_from_ns`."""
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
+    return from_stamp(stamp.sec, stamp.nanosec)
 
 
 @lru_cache(maxsize=None)

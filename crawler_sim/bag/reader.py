@@ -99,7 +99,7 @@ class Run:
         True when the file was incomplete and only its readable part was loaded.
     t_ns : ndarray, shape (N,), int64
         The same stamps as recorded, in integer nanoseconds: compare times in this base (``t``
-        is ``t_ns / 1e9`` and may differ from the simulated float time by up to 0.5 ns, see
+        is ``to_seconds(t_ns)`` and may differ from the simulated float time by up to 0.5 ns, see
         :func:`crawler_sim.bag.clock.rows_at_ns`).
     present : ndarray, shape (N, p), bool
         True where body j existed at state i. All True unless the number of bodies changed

@@ -23,6 +23,7 @@ import struct
 import numpy as np
 
 from crawler_sim.core.plant.inputs import MAX_TRAJECTORY_POINTS, TrajectoryArrays, check_head
+from crawler_sim.core.simtime import from_stamp
 
 __all__ = ['TrajectoryArrays', 'parse', 'from_message', 'MAX_TRAJECTORY_POINTS',
            'TrajectoryFormatError']
@@ -94,7 +95,7 @@ def parse(data: bytes, n_links: int | None = None) -> TrajectoryArrays:
     if n_pts > MAX_TRAJECTORY_POINTS:
         raise TrajectoryFormatError(f'{n_pts} points: at most {MAX_TRAJECTORY_POINTS} per '
                                     'trajectory (split it, or send it again as it runs)')
-    stamp_ns = sec * 1_000_000_000 + nanosec
+    stamp_ns = from_stamp(sec, nanosec)
     if n_links is not None:
         reason = check_head(names, _first_sizes(buf, off) if n_pts else (0, 0, 0, 0), n_pts,
                             n_links)
@@ -199,7 +200,7 @@ def _one_point(buf: memoryview, fields: list[int], sizes: tuple[int, ...]):
         sec, nsec = struct.unpack_from('<iI', buf, fields[8])
     except struct.error:          # runs past the end of the message
         return None
-    return [sec * 1_000_000_000 + nsec] + out
+    return [from_stamp(sec, nsec)] + out
 
 
 def _read_blocks(buf: memoryview, start: int, n_blocks: int, block: int,
@@ -223,8 +224,8 @@ def _read_blocks(buf: memoryview, start: int, n_blocks: int, block: int,
             col = (start + rel[2 * j + 1] - base8) // 8
             got.append(f64[:, col:col + n].copy() if n else None)
         dur = rel[8] // 4
-        tfs = u32[:, dur].view('<i4').astype(np.int64) * 1_000_000_000 \
-            + u32[:, dur + 1].astype(np.int64)
+        tfs = from_stamp(u32[:, dur].view('<i4').astype(np.int64),
+                         u32[:, dur + 1].astype(np.int64))
         out.append([tfs] + got)
     return out
 
@@ -232,9 +233,9 @@ def _read_blocks(buf: memoryview, start: int, n_blocks: int, block: int,
 def from_message(msg) -> TrajectoryArrays:
     """A JointTrajectory message object as :class:`TrajectoryArrays` (the slow path; tests)."""
     pts = list(msg.points)
-    stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+    stamp_ns = from_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
     names = list(msg.joint_names)
-    tfs = np.array([pt.time_from_start.sec * 1_000_000_000 + pt.time_from_start.nanosec
+    tfs = np.array([from_stamp(pt.time_from_start.sec, pt.time_from_start.nanosec)
                     for pt in pts], dtype=np.int64)
     first = pts[0] if pts else None
     sizes = tuple(len(getattr(first, f)) if first is not None else 0

@@ -337,6 +337,7 @@ def _replay_scene(run: Any, method: str | None) -> tuple[Any, Any, str]:
     import numpy as np
 
     from ..core.scene import scene_from_dict
+    from ..core.simtime import to_ns
 
     keys = ('name', 'description', 'crawler', 'gait', 'run', 'bench')   # not the recorder's
     scene = scene_from_dict({k: v for k, v in run.scene.items() if k in keys})
@@ -346,7 +347,7 @@ def _replay_scene(run: Any, method: str | None) -> tuple[Any, Any, str]:
     tr = _as_node(scene, as_node) if as_node else scene.simulate()
     # compare in the recorded ns base: every stamp a sample of the run (also a truncated bag)
     from ..bag.clock import rows_at_ns
-    rows = rows_at_ns(tr.t, getattr(run, 't_ns', np.rint(t * 1e9).astype(np.int64)))
+    rows = rows_at_ns(tr.t, getattr(run, 't_ns', to_ns(t)))
     what = f'the scene {scene.name!r}' + (' as sim_node runs it' if as_node else '')
     if rows.size and np.all(rows >= 0):
         return tr.x[rows], tr.v[rows], what

@@ -28,6 +28,7 @@ import time
 import numpy as np
 
 from crawler_sim.ros.workspace import executable, share, workspace_env
+from crawler_sim.core.simtime import from_stamp, to_ns, to_seconds
 
 DEADLINE_CONNECT = 60.0     # wall s for discovery
 
@@ -120,7 +121,7 @@ def _drive(duration: float, children: list[_Child]) -> tuple[float, dict[str, st
                 diag.update({kv.key: kv.value for kv in status.values})
 
     def on_clock(msg: Clock) -> None:
-        sim_ns[0] = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
+        sim_ns[0] = from_stamp(msg.clock.sec, msg.clock.nanosec)
 
     node.create_subscription(DiagnosticArray, '/diagnostics', on_diag, 10)
     node.create_subscription(Clock, '/clock', on_clock, qos_profile_sensor_data)
@@ -150,7 +151,7 @@ def _drive(duration: float, children: list[_Child]) -> tuple[float, dict[str, st
         set_paused(False)
         start = time.monotonic()
         last_print = 0.0
-        end_ns = round(duration * 1e9)
+        end_ns = to_ns(duration)
 
         tty = sys.stdout.isatty()
         cr = '\r' if tty else ''
@@ -160,14 +161,14 @@ def _drive(duration: float, children: list[_Child]) -> tuple[float, dict[str, st
             now = time.monotonic()
             if now - last_print > (0.5 if tty else 5.0):
                 last_print = now
-                print(f'{cr}  sim time {sim_ns[0] / 1e9:6.2f} s / {duration:g} s',
+                print(f'{cr}  sim time {to_seconds(sim_ns[0]):6.2f} s / {duration:g} s',
                       end='' if tty else '\n', flush=True)
             return sim_ns[0] >= end_ns
 
         spin_until(done, f'{duration:g} simulated seconds', 60.0 + 20.0 * duration)
         wall = time.monotonic() - start
         set_paused(True)
-        print(f'{cr}  sim time {sim_ns[0] / 1e9:6.2f} s / {duration:g} s')
+        print(f'{cr}  sim time {to_seconds(sim_ns[0]):6.2f} s / {duration:g} s')
         final = dict(diag)
         spin_until(lambda: diag.get('paused') == 'true', 'the final diagnostics', 10.0)
         final = dict(diag)

@@ -50,6 +50,7 @@ from crawler_sim.core import gaits
 from crawler_sim.core.plant.config import MAX_BODIES
 from crawler_sim.core.plant.streams import MODES, Stream, trajectory_points
 from crawler_sim.ros.messages import float64_array_msg, linkage_names, stamp_from_ns
+from crawler_sim.core.simtime import to_seconds
 
 __all__ = ['GaitNode', 'GaitSettings', 'PARAMETERS', 'make_gait', 'main']
 
@@ -285,7 +286,7 @@ class GaitNode(Node):
         now = self.get_clock().now().nanoseconds
         if self._t0_ns is None:
             self._t0_ns = now
-        t = (now - self._t0_ns) / 1e9
+        t = to_seconds(now - self._t0_ns)
         if self._duration and t > self._duration:
             return
         if self.mode == 'command':
@@ -322,7 +323,7 @@ class GaitNode(Node):
         """The next ``horizon`` seconds of the gait from ROS time ``now_ns``, stamped
         absolutely (``streams.trajectory_points``)."""
         tfs, pos, vel, acc = trajectory_points(
-            self.gait, (now_ns - self._t0_ns) / 1e9,
+            self.gait, to_seconds(now_ns - self._t0_ns),
             self._horizon if horizon is None else horizon, self._rate, self._duration)
         msg = JointTrajectory()
         msg.header.stamp = stamp_from_ns(now_ns)

@@ -25,6 +25,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from ..bag.msgs import (BASE_FRAME, ODOM_FRAME, body_names, body_states, centre_of_mass,
                         contact_states, event_msg, float64_array_msg, joint_state, joint_states,
                         linkage_names, ns_from_stamp, odometry, stamp_from_ns)
+from crawler_sim.core.simtime import split_ns
 
 __all__ = ['stamp_from_ns', 'ns_from_stamp', 'linkage_names', 'body_names', 'joint_states_msg',
            'body_states_msg', 'contact_states_msg', 'contacts_stamped_msg', 'odom_msg',
@@ -159,7 +160,7 @@ _CDR_LE = b'\x00\x01\x00\x00'
 def clock_cdr(t_ns: int) -> bytes:
     """``/clock`` already serialised (what ``serialize_message(clock_msg(t_ns))`` returns):
     a publisher sends bytes without converting a Python message."""
-    sec, nanosec = divmod(int(t_ns), 1_000_000_000)
+    sec, nanosec = split_ns(t_ns)
     return _CLOCK_CDR.pack(_CDR_LE, sec, nanosec)
 
 
@@ -292,7 +293,7 @@ class OutputEncoder:
             if masses is not None:
                 m = np.asarray(masses, dtype=np.float64)
                 self._masses_of, self._masses = masses, (m, float(m.sum()))
-        return self._encode(('odom',), _ODOM, (divmod(t_ns, 1_000_000_000), (com_x,), (com_v,)),
+        return self._encode(('odom',), _ODOM, (split_ns(t_ns), (com_x,), (com_v,)),
                             lambda: odom_msg(_source(state), masses, t_ns))
 
     def markers(self, state, t_ns: int, masses=None) -> bytes:
@@ -301,7 +302,7 @@ class OutputEncoder:
         if type(contact) is not list:
             contact = contact.tolist()
         p = len(xs)
-        stamp = divmod(t_ns, 1_000_000_000)
+        stamp = split_ns(t_ns)
         values: list = []
         for i in range(p):
             values += (stamp, (xs[i],), CONTACT_COLOURS.get(int(contact[i]), _LINK_COLOUR))
@@ -311,7 +312,7 @@ class OutputEncoder:
                             lambda: markers_msg(_source(state), t_ns))
 
     def _joints(self, kind: str, t_ns: int, position, velocity, effort, build) -> bytes:
-        values = (divmod(t_ns, 1_000_000_000), _floats(position), _floats(velocity),
+        values = (split_ns(t_ns), _floats(position), _floats(velocity),
                   _floats(effort))
         return self._encode((kind, len(values[1])), _JOINTS, values, build)
 

@@ -88,6 +88,7 @@ from crawler_sim.bag.mcapfile import Batch, scan
 from crawler_sim.bag.schema import message_class, parse_qos_yaml
 from crawler_sim.bag.topics import SCENE, split_topic
 from crawler_sim.ros.messages import ns_from_stamp, stamp_from_ns
+from crawler_sim.core.simtime import NS_PER_S, to_ns, to_seconds
 
 __all__ = ['ReplayError', 'ReplayNode', 'Recording', 'Track', 'read_bag', 'publish_period_ns',
            'shift_stamps', 'main']
@@ -96,7 +97,7 @@ NODE_NAME = 'replay_node'
 QUEUE_DEPTH = 100          # publisher history: bursts at a high rate are not dropped
 MAX_WAIT_SLICE = 0.1       # s: longest single wait, so parameter services stay responsive
 ACK_TIMEOUT = 2.0          # s to wait at the end for reliable subscribers to acknowledge
-SINGLE_TIME_PERIOD_NS = 1_000_000_000   # loop period P [ns] of a bag with one log time to play
+SINGLE_TIME_PERIOD_NS = NS_PER_S   # loop period P [ns] of a bag with one log time to play
 
 
 class ReplayError(ValueError):
@@ -309,7 +310,7 @@ def shift_stamps(msg: Any, offset_ns: int) -> Any:
                 except ValueError:
                     continue            # not a number: not sim_node's figure, left as is
                 # the format sim_node writes it in (messages.diagnostics_msg)
-                item.value = f'{t_s + offset_ns / 1e9:.6g}'
+                item.value = f'{t_s + to_seconds(offset_ns):.6g}'
     return msg
 
 
@@ -348,10 +349,10 @@ class ReplayNode(Node):
 
         log = self.get_logger()
         self.rec = read_bag(path, topics, warn=log.warning)
-        self.begin_ns = self.rec.start_ns + round(offset * 1e9)
+        self.begin_ns = self.rec.start_ns + to_ns(offset)
         self.first = bisect_left(self.rec.log_times, self.begin_ns)
         if self.first == len(self.rec.log_times):
-            duration = (self.rec.end_ns - self.rec.start_ns) / 1e9
+            duration = to_seconds(self.rec.end_ns - self.rec.start_ns)
             raise ReplayError(f'{path}: start_offset {offset} s is past the last message to '
                               f'play (the bag lasts {duration:.3f} s)')
         played = self.rec.log_times[self.first:]
@@ -400,7 +401,7 @@ class ReplayNode(Node):
             loop_pass += 1
             # a pass shorter than MAX_WAIT_SLICE of wall time (one batch at a high rate) is
             # stretched to it, so that a loop is never a hot loop; sim time is unaffected
-            self._t0 += max(0.0, MAX_WAIT_SLICE - self.loop_ns / 1e9 / self.rate)
+            self._t0 += max(0.0, MAX_WAIT_SLICE - to_seconds(self.loop_ns) / self.rate)
         deadline = Duration(seconds=ACK_TIMEOUT)
         for pub in self.all_publishers():     # let reliable subscribers get the last messages
             pub.wait_for_all_acked(deadline)
@@ -425,7 +426,7 @@ class ReplayNode(Node):
                     while self.paused:
                         executor.spin_once(timeout_sec=MAX_WAIT_SLICE)
                     self._t0 += time.monotonic() - paused_at
-                left = (self._t0 + (t_ns + offset_ns - self.begin_ns) / 1e9 / rate
+                left = (self._t0 + to_seconds(t_ns + offset_ns - self.begin_ns) / rate
                         - time.monotonic())
                 if left <= 0.0:
                     break

@@ -45,6 +45,7 @@ from ..core.plant import PlantConfig
 from ..core.plant.streams import Stream, simulate_as_node
 from ..core.scene import Scene, scene_to_dict
 from .metrics import run_figures, scene_figures
+from crawler_sim.core.simtime import to_seconds
 
 __all__ = ['FAMILIES', 'OBJECTIVES', 'SCORES', 'STREAM', 'PENALTY', 'Family', 'Objective',
            'OptimizeResult', 'optimize', 'family', 'gait_node_params', 'sim_node_params',
@@ -179,7 +180,7 @@ class Objective:
         if plant.values['method'] == 'exact':      # dt: the sample grid, plus every event
             tr = simulate_as_node(plant, gait, stream, t_end, dt=t_end / n)
         else:                                      # the node's step, sampled on the grid
-            tr = simulate_as_node(plant, gait, stream, t_end, dt=plant.dt_ns * 1e-9,
+            tr = simulate_as_node(plant, gait, stream, t_end, dt=plant.to_seconds(dt_ns),
                                   t_eval=np.linspace(0.0, t_end, n + 1))
         return run_figures(tr, T, self.periods)
 

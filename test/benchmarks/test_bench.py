@@ -139,10 +139,12 @@ def test_compare_subcommand_prints_the_command_and_the_floors(capsys, monkeypatc
             'cold_start': {'import': 0.1, 'first_exact': 0.1, 'first_implicit': 0.1,
                            'second_implicit': 0.01, 'repeats': 1}}
     monkeypatch.setattr(compare, 'run_compare', lambda **kw: dict(fake))
-    assert runner.main(['compare', '--quick']) == 0
+    assert runner.main(['compare', '--quick']) == 0        # --quick: floors shown, not judged
     text = capsys.readouterr().out
     assert compare.COMMAND in text
-    assert 'floor FAIL: implicit >= 1e7 steps/s' in text     # 10 steps/s is below the floor
+    assert 'floor not judged (--quick): implicit >= 1e7 steps/s' in text
+    assert runner.main(['compare']) == 1                   # 10 steps/s is below the floor
+    assert 'floor FAIL: implicit >= 1e7 steps/s' in capsys.readouterr().out
 
 
 # ------------------------------------------------------------------ error measures

@@ -286,13 +286,6 @@ def test_the_stress_fuzz_check_runs_the_differential_fuzz_and_reports_its_figure
         assert text.startswith('0/'), (fam, res.problems)
 
 
-def test_the_stress_fuzz_check_says_what_it_needs_without_the_source_tree(monkeypatch, tmp_path):
-    monkeypatch.setattr(stress, 'FUZZ_DIR', tmp_path)
-    res = stress.check_fuzz(1)
-    assert not res.ok
-    assert 'needs the source tree' in res.problems[0]
-
-
 def test_the_penalty_audit_allows_its_force_rounding_and_no_more():
     # stress seed 13, random scene 2741: masses ~1e-3 kg, frictions ~1e-2 N, n = 1e8. The
     # penalty method computes a force as n v; v's rounding (~eps v_max) times n accumulates to

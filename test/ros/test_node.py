@@ -389,9 +389,9 @@ def test_the_same_commands_at_the_same_ticks_give_bit_identical_states_and_match
     np.testing.assert_array_equal(np.array(a), np.array(b))
     # offline: the same actuator pieces fed to the core's Stepper
     cfg = SimConfig.from_values(param_values(ros.nodes[0]))
-    act = Actuator(cfg.initial_lengths, cfg.dt_ns * 1e-9, cfg.limits)
+    act = Actuator(cfg.initial_lengths, cfg.dt_ns / 1e9, cfg.limits)
     st = Stepper(cfg.crawler, Cubic(0.0, list(cfg.initial_lengths), 0.0, 0.0, 0.0), method,
-                 t0=0.0, x0=0.0, v0=0.0, dt=cfg.dt_ns * 1e-9, penalty=cfg.penalty_n)
+                 t0=0.0, x0=0.0, v0=0.0, dt=cfg.dt_ns / 1e9, penalty=cfg.penalty_n)
     for k in range(2500):
         if k in schedule:
             act.set_target(schedule[k])

@@ -435,7 +435,7 @@ class OracleEngine:
             raise ValueError('the oracle engine has no crawler (integrate=False only)')
         self.cfg = cfg
         self.t_ns = t_ns
-        self.actuator = Actuator(list(cfg.initial_lengths), cfg.dt_ns * 1e-9, cfg.limits)
+        self.actuator = Actuator(list(cfg.initial_lengths), cfg.dt_ns / 1e9, cfg.limits)
         self._starts: list[float] = []
         self._pieces: list[Cubic] = []
         self._log_starts: list[float] = []

@@ -20,6 +20,7 @@ from ..actuator import ActuatorLimits
 from ..model import Crawler
 from ..scene import LIMITS, crawler_from_mapping
 from ..stepper import METHODS
+from ..simtime import NS_PER_S
 from .engine import EngineConfig
 
 __all__ = ['PARAMETERS', 'PlantConfig', 'MAX_BODIES', 'as_float']
@@ -212,7 +213,7 @@ class PlantConfig:
         for name in ('masses', 'mu', 'mu_backward', 'friction', 'friction_backward', 'penalty',
                      'initial_lengths'):
             v[name] = _as_list(name, v[name], MAX_BODIES)
-        return cls(v, crawler, tuple(lengths), limits, max(1, round(1e9 / rate)),
+        return cls(v, crawler, tuple(lengths), limits, max(1, round(NS_PER_S / rate)),
                    max(1, round(rate / pub)))
 
     @classmethod

@@ -33,6 +33,7 @@ from ..model import Crawler
 from ..stepper import Stepper
 from ..trajectory import Event, State
 from .inputs import PreparedTrajectory
+from ..simtime import to_seconds
 
 __all__ = ['Engine', 'EngineConfig', 'Journal']
 
@@ -152,9 +153,9 @@ class Engine:
         """(Re)start at rest in the initial configuration at sim time ``t_ns``."""
         self.cfg = cfg
         self.t_ns = t_ns
-        dt = cfg.dt_ns * 1e-9
+        dt = to_seconds(cfg.dt_ns)
         self.actuator = Actuator(list(cfg.initial_lengths), dt, cfg.limits)
-        t = t_ns / 1e9
+        t = to_seconds(t_ns)
         rest = Cubic(t, list(cfg.initial_lengths), 0.0, 0.0, 0.0)
         self.stepper = Stepper(cfg.crawler, rest, cfg.method, t0=t, x0=cfg.initial_position,
                                v0=0.0, dt=dt, penalty=cfg.penalty)
@@ -170,13 +171,13 @@ class Engine:
         """New crawler, method or step from the current state on (bodies keep x and v)."""
         self.sync()
         st = self.stepper.state
-        t = self.t_ns / 1e9
-        self.actuator.configure(dt=cfg.dt_ns * 1e-9, limits=cfg.limits)
+        t = to_seconds(self.t_ns)
+        self.actuator.configure(dt=to_seconds(cfg.dt_ns), limits=cfg.limits)
         ls, vs, as_ = zip(*self.actuator.state())
         here = Cubic(t, list(ls), list(vs), list(as_), 0.0)
         self._events.extend(self.stepper.pop_events())
         self.stepper = Stepper(cfg.crawler, here, cfg.method, t0=t, x0=float(st.x[0]),
-                               v0=float(st.v[0]), dt=cfg.dt_ns * 1e-9, penalty=cfg.penalty)
+                               v0=float(st.v[0]), dt=to_seconds(cfg.dt_ns), penalty=cfg.penalty)
         self.stepper.pop_events()
         self.cfg = cfg
 
@@ -184,7 +185,7 @@ class Engine:
     @property
     def t(self) -> float:
         """Sim time [s] at the current tick boundary."""
-        return self.t_ns / 1e9
+        return to_seconds(self.t_ns)
 
     def tick(self) -> bool:
         """One tick of the actuator; integrates (syncs) on the publish grid.
@@ -193,9 +194,9 @@ class Engine:
         """
         t0_ns = self.t_ns
         t1_ns = t0_ns + self.cfg.dt_ns
-        t0 = t0_ns / 1e9
+        t0 = to_seconds(t0_ns)
         self._starts.append(t0)
-        self._pieces.append(self.actuator.step(t0, t1_ns / 1e9))
+        self._pieces.append(self.actuator.step(t0, to_seconds(t1_ns)))
         self.t_ns = t1_ns
         if (t1_ns // self.cfg.dt_ns) % self.cfg.publish_every == 0:
             self.sync()
@@ -331,7 +332,7 @@ class Engine:
             # replay must cut here too
             self._note('sync', None)
         runs = self._drain()
-        t1 = self.t_ns / 1e9
+        t1 = to_seconds(self.t_ns)
         try:
             if self.stepper.method != 'exact':
                 # time stepping: one call per tick keeps its steps on the tick grid
@@ -356,7 +357,7 @@ class Engine:
         self.failures.append(f'{self.stepper.method} solver failed before t = {t1} s: {exc}')
         st = self.stepper.state
         self.stepper = Stepper(self.cfg.crawler, gait, 'implicit', t0=float(st.t),
-                               x0=float(st.x[0]), v0=float(st.v[0]), dt=self.cfg.dt_ns * 1e-9)
+                               x0=float(st.x[0]), v0=float(st.v[0]), dt=to_seconds(self.cfg.dt_ns))
         self.stepper.advance(t1, gait)
 
     def _contain(self, exc: Exception) -> None:
@@ -364,7 +365,7 @@ class Engine:
         fallback could not absorb leaves the plant at rest in its initial configuration at the
         current sim time, reported in ``failures``; the engine never raises out of a tick.
         Deterministic, so a replay of the journal repeats it."""
-        self.failures.append(f'integration failed before t = {self.t_ns / 1e9} s '
+        self.failures.append(f'integration failed before t = {to_seconds(self.t_ns)} s '
                              f'({type(exc).__name__}: {exc}); the crawler starts again at rest')
         self._build(self.cfg, self.t_ns)
 

@@ -26,6 +26,7 @@ from typing import Sequence
 import numpy as np
 
 from ..actuator import TrajectoryReference
+from ..simtime import to_seconds
 
 #: the most points one trajectory may hold (1,000,000: 48 MB of positions, velocities and
 #: accelerations for one linkage, parsed in a few tens of ms); gait_node and the offline streams
@@ -102,7 +103,7 @@ class PreparedTrajectory:
         offset = self.stamp_ns - t_ns if self.stamp_ns else 0
         rel_ns = self.tfs_ns + offset
         keep = rel_ns >= 0
-        return keep, rel_ns[keep] / 1e9
+        return keep, to_seconds(rel_ns[keep])
 
     def reference(self, t_ns: int, state: Sequence[Sequence[float]], lo: float = -math.inf,
                   hi: float = math.inf) -> TrajectoryReference:
@@ -121,7 +122,7 @@ class PreparedTrajectory:
         keep, times = self.times(t_ns)
         vel = self.velocities[keep] if self.velocities is not None else None
         acc = self.accelerations[keep] if self.accelerations is not None else None
-        ref = TrajectoryReference.from_arrays(t_ns / 1e9, state, times, self.positions[keep],
+        ref = TrajectoryReference.from_arrays(to_seconds(t_ns), state, times, self.positions[keep],
                                               vel, acc)
         out = ref.outside(lo, hi)
         if out is not None:
@@ -188,22 +189,22 @@ def check_trajectory(tr: TrajectoryArrays, n_links: int, lo: float, hi: float, t
         return None, PreparedTrajectory(tr.stamp_ns, empty, np.zeros((0, n_links)), None, None)
     tfs = tr.tfs_ns
     if tfs[0] < 0:
-        return f'time_from_start of point #0 is negative ({tfs[0] / 1e9} s)', None
+        return f'time_from_start of point #0 is negative ({to_seconds(int(tfs[0]))} s)', None
     steps = np.diff(tfs)
     if n > 1 and not np.all(steps > 0):
         k = int(np.argmin(steps > 0)) + 1
         return (f'time_from_start not strictly increasing at point {k} '
-                f'({tfs[k - 1] / 1e9} -> {tfs[k] / 1e9} s)'), None
+                f'({to_seconds(int(tfs[k - 1]))} -> {to_seconds(int(tfs[k]))} s)'), None
     if tr.stamp_ns:
         lead = tr.stamp_ns - t_ns
-        if lead > max_lead_s * 1e9:
-            return (f'stamp {tr.stamp_ns / 1e9:.9g} s is {lead / 1e9:.6g} s ahead of the sim time '
-                    f'{t_ns / 1e9:.9g} s (at most max_trajectory_lead = {max_lead_s:g} s; '
+        if to_seconds(lead) > max_lead_s:
+            return (f'stamp {to_seconds(tr.stamp_ns):.9g} s is {to_seconds(lead):.6g} s ahead of the sim time '
+                    f'{to_seconds(t_ns):.9g} s (at most max_trajectory_lead = {max_lead_s:g} s; '
                     'a wall-clock stamp on a node running on sim time? stamp 0 = start now)'), None
         end_ns = tr.stamp_ns + int(tfs[-1])
         if end_ns < t_ns:
-            return (f'trajectory with start time {tr.stamp_ns / 1e9} s ends at {end_ns / 1e9}'
-                    f' s, before the current sim time {t_ns / 1e9} s'), None
+            return (f'trajectory with start time {to_seconds(tr.stamp_ns)} s ends at {to_seconds(end_ns)}'
+                    f' s, before the current sim time {to_seconds(t_ns)} s'), None
     order = [names.index(name) for name in known]
     pos = tr.positions[:, order]
     bad = ~(np.isfinite(pos) & (pos >= lo) & (pos <= hi))

@@ -23,6 +23,7 @@ import numpy as np
 from .config import PARAMETERS, PlantConfig
 from .engine import Engine
 from .inputs import TrajectoryArrays, check_trajectory
+from ..simtime import to_seconds
 
 __all__ = ['Input', 'Snapshots', 'replay', 'KINDS']
 
@@ -154,7 +155,7 @@ def _apply(engine: Engine, item: Input, method: str | None, snaps: Snapshots) ->
     elif kind == 'sync':
         engine.sync()
     else:
-        raise ValueError(f'unknown plant input {kind!r} at t = {item.t_ns / 1e9} s '
+        raise ValueError(f'unknown plant input {kind!r} at t = {to_seconds(item.t_ns)} s '
                          f'(expected one of {", ".join(KINDS)})')
 
 
@@ -165,6 +166,6 @@ def _prepared(engine: Engine, tr: TrajectoryArrays):
     reason, prepared = check_trajectory(tr, n_links, -math.inf, math.inf, engine.t_ns,
                                         math.inf)
     if reason is not None:
-        raise ValueError(f'recorded trajectory at t = {engine.t_ns / 1e9} s cannot be applied: '
+        raise ValueError(f'recorded trajectory at t = {to_seconds(engine.t_ns)} s cannot be applied: '
                          f'{reason}')
     return prepared

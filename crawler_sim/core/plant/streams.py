@@ -34,6 +34,7 @@ from ..trajectory import Trajectory
 from .config import PlantConfig
 from .engine import Engine
 from .inputs import MAX_TRAJECTORY_POINTS, PreparedTrajectory
+from ..simtime import to_ns, to_seconds
 
 __all__ = ['Stream', 'MODES', 'trajectory_points', 'actuator_output', 'simulate_as_node']
 
@@ -83,7 +84,7 @@ class Stream:
     def period_ns(self) -> int:
         """ROS time between two messages [ns] (preload: one message)."""
         every = 1.0 / self.rate if self.mode == 'command' else self.horizon / 4
-        return max(1, round(every * 1e9))
+        return max(1, to_ns(every))
 
 
 def trajectory_points(gait: Gait, t_gait: float, horizon: float, rate: float,
@@ -112,7 +113,7 @@ def trajectory_points(gait: Gait, t_gait: float, horizon: float, rate: float,
     last = float(tau[-1]) if len(tau) else 0.0
     zeros = np.zeros((1, gait.n_links))
     times = np.append(tau, last + step)
-    tfs = np.array([round(t * 1e9) for t in times], dtype=np.int64)
+    tfs = np.array([to_ns(t) for t in times], dtype=np.int64)
     return (tfs, np.vstack([l, end[None, :]]), np.vstack([ld, zeros]),
             np.vstack([ldd, zeros]))
 
@@ -135,24 +136,24 @@ def actuator_output(plant: PlantConfig, gait: Gait, stream: Stream, t_end: float
     cfg = plant.engine_config()
     engine = Engine(cfg, 0, integrate=False)
     dt_ns = cfg.dt_ns
-    end_ns = max(dt_ns, round(t_end * 1e9))
+    end_ns = max(dt_ns, to_ns(t_end))
     end_ns = -(-end_ns // dt_ns) * dt_ns            # whole ticks
     if stream.preload:
         engine.trajectory(_prepared(gait, 0.0, 0, stream.duration, stream))
         _run_to(engine, end_ns)
         return engine.actuator_output()
     period = stream.period_ns
-    delay = round(stream.latency * 1e9) if stream.mode == 'command' else 0
+    delay = to_ns(stream.latency) if stream.mode == 'command' else 0
     k = 0
     while True:
         send_ns = k * period                    # ROS time the message is for
-        if stream.duration and send_ns / 1e9 > stream.duration:
+        if stream.duration and to_seconds(send_ns) > stream.duration:
             break
         at_ns = -(-(send_ns + delay) // dt_ns) * dt_ns    # the tick boundary it lands on
         if at_ns >= end_ns:
             break
         _run_to(engine, at_ns)
-        t = send_ns / 1e9
+        t = to_seconds(send_ns)
         if stream.mode == 'command':
             engine.command(np.asarray(gait.length(t), dtype=float).tolist())
         else:

@@ -13,6 +13,7 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticArray
 
 from crawler_sim.ros import messages as M
+from crawler_sim.core.simtime import to_seconds
 
 __all__ = ['Diagnostics', 'COUNTERS', 'node_values']
 
@@ -51,13 +52,13 @@ class Diagnostics:
         t_prev, wall_prev, c_prev = self._prev
         c = dict(self.counters)
         if not final:
-            self._rtf = (t_ns - t_prev) / 1e9 / max(wall_now - wall_prev, 1e-9)
+            self._rtf = to_seconds(t_ns - t_prev) / max(wall_now - wall_prev, 1e-9)
         rtf = self._rtf
         late = sorted(self.lateness)
         self.lateness = []
         self._prev = (t_ns, wall_now, c)
         p99 = late[min(len(late) - 1, int(0.99 * len(late)))] * 1e3 if late else 0.0
-        out = {'sim_time': t_ns / 1e9, 'real_time_factor': rtf,
+        out = {'sim_time': to_seconds(t_ns), 'real_time_factor': rtf,
                'tick_lateness_p99_ms': p99,
                'tick_lateness_max_ms': late[-1] * 1e3 if late else 0.0}
         out.update(values)

@@ -19,6 +19,7 @@ wait for a message; the bag flushes itself on a wall timer in its own thread (cr
 from __future__ import annotations
 
 import time
+from crawler_sim.core.simtime import to_seconds
 
 __all__ = ['run', 'warm_up', 'MAX_LAG', 'PAUSED_REPUBLISH']
 
@@ -108,7 +109,7 @@ def _loop(node) -> None:
                     node._tick(to_grid=True)
             continue
         if rtf > 0.0:
-            period = cfg.dt_ns * 1e-9 / rtf
+            period = to_seconds(cfg.dt_ns) / rtf
             deadline = anchor_wall + (counters['ticks'] - anchor_tick) * period
             if t < deadline:
                 if counters['ticks'] % cfg.publish_every == 0:

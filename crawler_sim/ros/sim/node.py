@@ -57,6 +57,7 @@ from .diagnostics import COUNTERS, Diagnostics, node_values
 from .outputs import Outputs
 from .params import PARAMETERS, SimConfig, declare_all
 from .recording import applied_trajectory, Recorder
+from crawler_sim.core.simtime import from_stamp, to_ns, to_seconds
 
 __all__ = ['SimNode', 'LoopTakenGroup', 'NODE_NAME']
 
@@ -319,7 +320,7 @@ class SimNode(Node):
         with self._lock:
             self.reset()
             response.success = True
-            response.message = f'reset to the initial state at t = {self._t_ns / 1e9:.9f} s'
+            response.message = f'reset to the initial state at t = {to_seconds(self._t_ns):.9f} s'
         return response
 
     def _on_pause(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
@@ -331,7 +332,7 @@ class SimNode(Node):
             self._anchor_needed = True
             response.success = True
             response.message = (f'{"paused" if self.paused else "running"} at '
-                                f't = {self._t_ns / 1e9:.9f} s')
+                                f't = {to_seconds(self._t_ns):.9f} s')
             self._log.info(response.message)
         return response
 
@@ -348,7 +349,7 @@ class SimNode(Node):
                 return response
             self._tick(to_grid=True)
             response.success = True
-            response.message = f'stepped to t = {self._t_ns / 1e9:.9f} s'
+            response.message = f'stepped to t = {to_seconds(self._t_ns):.9f} s'
         return response
 
     def republish(self) -> None:
@@ -373,7 +374,7 @@ class SimNode(Node):
             self._sync_outputs(cfg)
             self.outputs.refresh()
             self.counters['resets'] += 1
-            self._log.info(f'reset to rest at t = {self._t_ns / 1e9:.9f} s')
+            self._log.info(f'reset to rest at t = {to_seconds(self._t_ns):.9f} s')
             self._publish_outputs()
 
     # ------------------------------------------------------------------ the tick
@@ -418,7 +419,7 @@ class SimNode(Node):
             self._tick_inner(to_grid)
         except Exception as exc:      # noqa: BLE001 - the node must keep running
             self.counters['tick_failures'] += 1
-            self._solver_error = (f'tick at t = {self._t_ns / 1e9:.9f} s failed '
+            self._solver_error = (f'tick at t = {to_seconds(self._t_ns):.9f} s failed '
                                   f'({type(exc).__name__}: {exc}); reset to rest')
             self._log.error(self._solver_error, throttle_duration_sec=1.0)
             try:
@@ -460,7 +461,7 @@ class SimNode(Node):
                 for ev in events:
                     self.recorder.write('events', 'std_msgs/msg/Int32MultiArray',
                                         M.event_msg(ev.body, ev.old, ev.new),
-                                        round(ev.time * 1e9))
+                                        to_ns(ev.time))
         self._publish_outputs()
 
     def _apply_command(self, t_ns: int) -> None:
@@ -574,10 +575,10 @@ class SimNode(Node):
             self._clock_target_ns = start
             self._engine.reset(self._cfg.engine_config(), t_ns=start)
         self._log.warning(f'/clock is published by {owner}: this node follows it (sim time from '
-                          f'{self._t_ns / 1e9:.9f} s) and publishes no /clock of its own')
+                          f'{to_seconds(self._t_ns):.9f} s) and publishes no /clock of its own')
 
     def _on_clock(self, msg: Clock) -> None:
-        t_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
+        t_ns = from_stamp(msg.clock.sec, msg.clock.nanosec)
         if self._clock_target_ns is None:
             self._clock_heard.append(t_ns)       # still choosing
         else:

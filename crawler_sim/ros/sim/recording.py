@@ -16,6 +16,7 @@ when it was restored or moved. At close the node logs where the bag is, only if 
 from __future__ import annotations
 
 from typing import Any, Callable
+from crawler_sim.core.simtime import split_ns
 
 __all__ = ['Recorder', 'applied_trajectory']
 
@@ -26,7 +27,7 @@ def applied_trajectory(raw: bytes, stamp_ns: int, t_ns: int) -> bytes:
     is absolute."""
     if stamp_ns:
         return raw
-    sec, nanosec = divmod(t_ns, 1_000_000_000)
+    sec, nanosec = split_ns(t_ns)
     return (raw[:4] + sec.to_bytes(4, 'little', signed=True) + nanosec.to_bytes(4, 'little')
             + raw[12:])
 
