@@ -23,7 +23,7 @@ def compiled_core() -> list[Extension]:
 setup(
     name=package_name,
     version='0.1.0',
-    packages=find_packages(exclude=['test', 'test.*']),
+    packages=find_packages(exclude=['test', 'test.*', 'benchmarks', 'benchmarks.*']),
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -38,15 +38,23 @@ setup(
         ('bin', ['scripts/crawler-sim']),
         (os.path.join('share', package_name, 'config', 'sweeps'), glob('config/sweeps/*.yaml')),
     ],
-    install_requires=['setuptools'],
+    # What the package imports (checked by test/core/test_packaging.py). ROS 2 itself (rclpy and
+    # the message packages) comes from a Jazzy install, or from the ros-jazzy-* wheels: the
+    # `ros` extra. colcon reads package.xml instead.
+    install_requires=['numpy>=1.26', 'scipy>=1.11', 'PyYAML>=6', 'mcap>=1.6,<2',
+                      'zstandard>=0.19', 'lz4>=4', 'matplotlib>=3.8', 'rosbags>=0.11.9'],
+    extras_require={
+        'ros': ['ros-jazzy-rclpy[fastrtps]>=7.1,<8', 'ros-jazzy-common-interfaces>=5.3,<6'],
+        'sweep': ['pandas>=2.2', 'pyarrow>=15', 'dask[distributed]>=2024.1'],
+        'test': ['pytest>=8', 'hypothesis>=6.100', 'mcap-ros2-support>=0.6,<1',
+                 'yourdfpy>=0.0.60', 'ruff>=0.6'],
+    },
     ext_modules=compiled_core(),
     zip_safe=False,
     maintainer='crawler_sim developers',
     maintainer_email='dev@crawler-sim.invalid',
     description='Exact simulation of friction-based crawling locomotion as a ROS 2 node.',
     license='Apache-2.0',
-    tests_require=['pytest'],
-    extras_require={'test': ['pytest', 'hypothesis', 'rosbags', 'yourdfpy']},
     entry_points={
         'console_scripts': [
             'sim_node = crawler_sim.ros.sim_node:main',

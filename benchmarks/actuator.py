@@ -22,9 +22,7 @@ produced the same pieces bit for bit. Reproduce with::
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 import statistics
-import sys
 import time
 
 import numpy as np

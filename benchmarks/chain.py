@@ -30,9 +30,9 @@ import time
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
-
 from crawler_sim.ros.workspace import executable, workspace_env
+
+REPO = Path(__file__).resolve().parents[1]
 
 SCENES = ('config/scenes/scallop_2body.yaml', 'config/scenes/wave_3body.yaml',
           'config/scenes/slope_climb.yaml')

@@ -21,7 +21,6 @@ import subprocess
 import sys
 import time
 
-import numpy as np
 from scipy.integrate import solve_ivp
 
 import crawler_sim as cs

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import math
-from pathlib import Path
 import statistics
 import sys
 import time

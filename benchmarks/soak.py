@@ -25,7 +25,6 @@ import os
 from pathlib import Path
 import signal
 import subprocess
-import sys
 import time
 
 import numpy as np

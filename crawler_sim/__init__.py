@@ -3,7 +3,8 @@
 Layers (docs/ARCHITECTURE.md), dependencies pointing one way, cli/ros/bench -> bag -> core:
 
 - ``crawler_sim.core``: model, gaits, solvers, stepper, trajectory, verify; no ROS import.
-- ``crawler_sim.bag``: rosbag2-compatible MCAP recording, loading, recovery (message classes, no node).
+- ``crawler_sim.bag``: rosbag2-compatible MCAP recording, loading, recovery (message classes, no
+  node).
 - ``crawler_sim.ros``: the nodes (sim_node, gait_node, replay_node), their messages and the demo.
 - ``benchmarks.solvers``: work-precision benchmark and stress suite.
 - ``crawler_sim.cli``: the ``crawler-sim`` command.

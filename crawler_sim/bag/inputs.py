@@ -64,7 +64,9 @@ def load_inputs(path: os.PathLike | str, namespace: str = '') -> RecordedInputs:
     decoded, or when the journal names more trajectories than were recorded.
     """
     ns = normalize_namespace(namespace)
-    journal_topic = lambda t: t.startswith(ns + '/') and t.endswith('/' + PLANT_INPUTS_SUFFIX)
+
+    def journal_topic(t: str) -> bool:
+        return t.startswith(ns + '/') and t.endswith('/' + PLANT_INPUTS_SUFFIX)
     traj = f'{ns}/{TRAJECTORY_SUFFIX}'
     cmd = LINKAGE_CMD.name(ns)
     raw = _raw(Path(path), lambda t: journal_topic(t) or t in (traj, cmd))
@@ -90,7 +92,8 @@ def _from_journal(path, journal: list[tuple[int, bytes]],
             kind = entry['kind']
             seq = int(entry.get('seq', 0))
         except (ValueError, KeyError, TypeError, UnicodeDecodeError) as exc:
-            raise BagError(f'{path}: plant_inputs message at t = {to_seconds(t_ns)} s cannot be read '
+            raise BagError(f'{path}: plant_inputs message at t = {to_seconds(t_ns)} s cannot be '
+                           'read '
                            f'({exc})') from None
         if kind not in KINDS:
             raise BagError(f'{path}: plant_inputs message at t = {to_seconds(t_ns)} s has kind '
@@ -107,7 +110,8 @@ def _from_journal(path, journal: list[tuple[int, bytes]],
             payload = entry['values']
         elif kind == 'trajectory':
             if entry.get('points', 0) < 0:
-                raise BagError(f'{path}: the trajectory applied at t = {to_seconds(t_ns)} s was not '
+                raise BagError(f'{path}: the trajectory applied at t = {to_seconds(t_ns)} s was '
+                               'not '
                                'recorded (given in Python, not as a message)')
             while k < len(trajectories) and trajectories[k][0] < t_ns:
                 k += 1              # a message without a journal entry: not applied

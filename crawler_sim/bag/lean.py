@@ -1,4 +1,5 @@
-"""``LeanWriter``: ``mcap.writer.Writer`` with a faster message path and definitions outside chunks.
+"""``LeanWriter``: ``mcap.writer.Writer`` with a faster message path and definitions outside
+chunks.
 
 Split from :mod:`crawler_sim.bag.writer` (which uses it) to keep modules short.
 """

@@ -3,11 +3,15 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .errors import BagError
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 from .reader import Run, load
 
 
@@ -25,7 +29,7 @@ def stick_intervals(t: NDArray[np.float64], stuck: NDArray[np.bool_]) -> list[tu
     return [(float(t[b]), float(t_end[e] - t[b])) for b, e in zip(begins, ends)]
 
 
-def figure(run: Run):
+def figure(run: Run) -> Figure:
     """A matplotlib Figure (Agg canvas, no pyplot state) of ``run``."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure

@@ -473,7 +473,8 @@ def build_parser() -> argparse.ArgumentParser:
         return p
 
     p = add('simulate', _cmd_simulate, 'run a scene offline and print its figures',
-            'Simulate SCENE.yaml (see config/scenes/*.yaml) and print displacement, mean speed, stick '
+            'Simulate SCENE.yaml (see config/scenes/*.yaml) and print displacement, mean speed, '
+            'stick '
             'fraction per body, events, dissipated energy, actuator work, cost of transport, '
             'the verify check and the wall time.')
     p.add_argument('scene', metavar='SCENE.yaml', help='scene file (top-level key "scene:")')

@@ -457,6 +457,7 @@ class Actuator(Servo):
 
     def run(self, t0_ns: int, dt_ns: int, n: int) -> Pieces:
         """``n`` ticks of ``dt_ns`` [ns] from sim time ``t0_ns`` [ns] with no input in between:
-        the pieces, bit for bit, of ``step(to_seconds(t0_ns), to_seconds(t1_ns))`` for each tick (t1_ns =
+        the pieces, bit for bit, of ``step(to_seconds(t0_ns), to_seconds(t1_ns))`` for each tick
+        (t1_ns =
         t0_ns + dt_ns, the engine's time base), as arrays; the state advances to the end."""
         return Pieces(*self._run(t0_ns, dt_ns, n))

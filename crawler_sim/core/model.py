@@ -214,7 +214,8 @@ def offsets(lengths: NDArray[np.float64]) -> NDArray[np.float64]:
     return out
 
 
-def kinematics(masses: NDArray[np.float64], l: NDArray, ld: NDArray, ldd: NDArray):
+def kinematics(masses: NDArray[np.float64], l: NDArray, ld: NDArray, ldd: NDArray
+               ) -> tuple[NDArray, NDArray, NDArray]:
     """Offsets of the bodies from the centre of mass and their first two derivatives.
 
     Returns ``(e, e', e'')``, each of shape (..., p): x_i = X + e_i with X the centre of mass.

@@ -57,6 +57,7 @@ def split_ns(t_ns: int) -> tuple[int, int]:
     return divmod(int(t_ns), NS_PER_S)
 
 
-def from_stamp(sec, nanosec):
+def from_stamp(sec: int | NDArray[np.int64], nanosec: int | NDArray[np.int64]
+               ) -> int | NDArray[np.int64]:
     """Nanoseconds [ns] of a (sec, nanosec) stamp (ints, or int64 arrays of them)."""
     return sec * NS_PER_S + nanosec

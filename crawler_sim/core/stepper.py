@@ -117,7 +117,7 @@ class Stepper:
         return self._solver.gait
 
     @property
-    def solver(self):
+    def solver(self) -> object:
         """The method's solver object (segments, steps, counters)."""
         return self._solver
 

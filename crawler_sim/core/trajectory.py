@@ -96,7 +96,7 @@ class EventLog(Sequence):
                     for ev in tpl:
                         yield Event(ev.time + rep * T, ev.body, ev.old, ev.new)
 
-    def compact(self, limit: int = 1_000_000):
+    def compact(self, limit: int = 1_000_000) -> list[Event] | EventLog:
         """A plain list when it holds at most ``limit`` events, else this log itself."""
         if len(self) > limit:
             return self
@@ -265,7 +265,8 @@ class Trajectory:
 
     @property
     def cost_of_transport(self) -> float:
-        """Positive actuator work / (M g |displacement|), dimensionless (inf if it did not move)."""
+        """Positive actuator work / (M g |displacement|), dimensionless (inf if it did not
+        move)."""
         c = self.crawler
         d = abs(self.displacement)
         denom = c.total_mass * c.gravity * d

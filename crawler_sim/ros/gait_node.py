@@ -38,7 +38,6 @@ import math
 import sys
 from typing import Any
 
-import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
 import rclpy
 from rclpy.executors import ExternalShutdownException

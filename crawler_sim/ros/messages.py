@@ -357,7 +357,7 @@ class _Packer:
         self._tail = template[pos:] if pos < len(template) else None
 
     @classmethod
-    def of(cls, encoder, values):
+    def of(cls, encoder: Any, values: Sequence) -> Any:
         """A packer for ``encoder`` that gives its bytes for ``values`` (the first message of
         the shape), else ``encoder``."""
         try:

@@ -180,7 +180,7 @@ class Objective:
         if plant.values['method'] == 'exact':      # dt: the sample grid, plus every event
             tr = simulate_as_node(plant, gait, stream, t_end, dt=t_end / n)
         else:                                      # the node's step, sampled on the grid
-            tr = simulate_as_node(plant, gait, stream, t_end, dt=plant.to_seconds(dt_ns),
+            tr = simulate_as_node(plant, gait, stream, t_end, dt=to_seconds(plant.dt_ns),
                                   t_eval=np.linspace(0.0, t_end, n + 1))
         return run_figures(tr, T, self.periods)
 

@@ -10,7 +10,6 @@ from pathlib import Path
 import warnings
 
 import numpy as np
-import pytest
 
 from crawler_sim.bag import BagWarning, load
 from crawler_sim.bag.clock import rows_at_ns, to_ns

@@ -7,7 +7,6 @@ import os
 from pathlib import Path
 import subprocess
 import sys
-import types
 
 import numpy as np
 import pytest

@@ -171,7 +171,6 @@ def test_a_recorded_run_is_read_topic_by_topic_by_rosbags_mcap_ros2_and_load(
     from mcap_ros2.decoder import DecoderFactory
     from rosbags.highlevel import AnyReader
     from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
-    import os
     # the writer takes message definitions from the installed packages or rosbags' typestore:
     # recording must work without the ament index
     monkeypatch.delenv('AMENT_PREFIX_PATH', raising=False)

@@ -3,22 +3,15 @@ to the context), real DDS, ticks called directly."""
 from __future__ import annotations
 
 import math
-import os
 import threading
 import time
 from types import SimpleNamespace
-from typing import Any
 
-from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from mcap.reader import make_reader
 from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
-import rclpy
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data
 from rclpy.serialization import deserialize_message, serialize_message
@@ -26,7 +19,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, Int8MultiArray
 from std_srvs.srv import SetBool, Trigger
-from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
 
 from crawler_sim import Stepper
@@ -666,7 +659,7 @@ def test_published_and_recorded_outputs_are_the_same_bytes_in_a_namespace(ros, t
 def test_two_sims_with_one_name_are_reported_not_silent(ros):
     """Issue 25: two sim_nodes in one namespace interleave body_states and share one
     diagnostics name. Each now counts the other and says so (WARN, naming the remedy)."""
-    a, b = ros.sim(), ros.sim()
+    a, _ = ros.sim(), ros.sim()
     ros.until(lambda: node_values_of(a)['same_name_nodes'] >= 1, 'the graph to show both')
     status = a.diagnostics().status[0]
     assert status.level == DiagnosticStatus.WARN

@@ -421,25 +421,25 @@ def prox_implicit(oracle: Oracle, t_end: float, dt: float, x0: float = 0.0,
 
 # ------------------------------------------------------------------- the two-body reference
 #An independent event-driven reference for two-body crawlers (the bench's error figures).
-# 
+#
 # Written from the model (MODEL.md s. 2 for p = 2), not from the exact solver, and deliberately
 # simple: the centre of mass X, V moves in one of two kinds of mode,
-# 
+#
 # - both bodies sliding with signs s_0, s_1: V' = (F_ext + R_0 + R_1) / M with the sliding
 #   forces R_i = -f+_i (s_i > 0) or +f-_i (s_i < 0), so V and X are polynomials in t;
 # - body j stuck (v_j = V + c_j l' = 0, c_0 = -m_1 / M, c_1 = m_0 / M): V = -c_j l'(t) and the
 #   ground holds it with R_j = -M c_j l'' - F_ext - R_k, admissible while -f+_j <= R_j <= f-_j;
-# 
+#
 # and it changes mode where a sliding velocity or a stuck body's force reaches its bound. Event
 # times: the event functions are sampled on a uniform grid (``scan``, 1e-5 s: far below the gait's
 # time scales here), the first sign change is bracketed and refined by ``scipy.optimize.brentq``
 # to a few ulps. No Taylor bounds, no look-ahead rules, no periodic skip: nothing shared with
 # ``exact.py`` but the model. A stick that lasts less than one scan step would be missed; on the
 # bench's smooth Fourier scenes events are 0.05 s apart or more.
-# 
+#
 # The implicit method with Richardson extrapolation (the bench's first reference) is limited to
 # about 1e-10 m on these scenes by its rounding after 1e6-1e7 steps; this one reaches 1e-13.
-# 
+#
 
 
 

@@ -47,7 +47,7 @@ BOMBS = [   # (where the bomb is, the spec's lines after the base scene)
     ('sweep.grid.crawler.masses', f'  grid: {{crawler.masses: [[1.0, 1.0], {laughs()}]}}\n'),
     ('sweep.random.params.gait.type.choice',
      f'  random: {{n: 3, seed: 0, params: {{gait.type: {{choice: {laughs()}}}}}}}\n'),
-    ('sweep.base.run.x', f'  grid: {{gait.asymmetry: [0.3]}}\n'),    # the bomb is in the base
+    ('sweep.base.run.x', '  grid: {gait.asymmetry: [0.3]}\n'),    # the bomb is in the base
     ('sweep.description', f'  description: {merges()}\n'),
 ]
 

@@ -21,8 +21,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['Gait', 'Custom', 'Sinusoid', 'Fourier', 'Scallop', 'PiecewiseParabolic', 'Spline',
-           'Cubic', 'PiecewiseCubic']
+__all__ = ['Gait', 'BuiltinGait', 'CLOSURE_RTOL']
 
 Triple = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
 
@@ -122,7 +121,7 @@ class Gait:
     n_links: int
     period: float | None = None
 
-    def compiled(self):
+    def compiled(self) -> object:
         """The gait's compiled form (``solvers._gait.CompiledGait``), built once per gait."""
         cg = self.__dict__.get('_compiled')
         if cg is None:

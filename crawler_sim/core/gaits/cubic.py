@@ -1,4 +1,5 @@
-"""Constant-jerk pieces: `cubic_values`, `Cubic` and `PiecewiseCubic` (the node's actuator output)."""
+"""Constant-jerk pieces: `cubic_values`, `Cubic` and `PiecewiseCubic` (the node's actuator
+output)."""
 from __future__ import annotations
 
 import math
@@ -10,7 +11,8 @@ from numpy.typing import ArrayLike, NDArray
 from .base import BuiltinGait, _per_link
 
 
-def cubic_values(l0, v0, a0, jerk, d):
+def cubic_values(l0: ArrayLike, v0: ArrayLike, a0: ArrayLike, jerk: ArrayLike, d: ArrayLike
+                 ) -> tuple:
     """(l, l', l'') of a constant-jerk piece d [s] after its start, for floats or arrays.
 
     The expression of the compiled TABLE kind (``solvers._gait``) written for the actuator,

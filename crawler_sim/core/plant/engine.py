@@ -27,7 +27,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from ..actuator import Actuator, ActuatorLimits, Pieces
+from ..actuator import Actuator, ActuatorLimits, Pieces, TrajectoryReference
 from ..gaits import Cubic, Gait, PiecewiseCubic
 from ..model import Crawler
 from ..stepper import Stepper
@@ -94,7 +94,7 @@ class Engine:
             self.actuator.set_trajectory(self.check_trajectory(prepared))
         self._note('trajectory', prepared)
 
-    def check_trajectory(self, prepared: PreparedTrajectory):
+    def check_trajectory(self, prepared: PreparedTrajectory) -> TrajectoryReference:
         """The reference ``trajectory(prepared)`` would follow from the current tick boundary
         (ValueError as there, nothing changed); kept with ``prepared``, so applying it in the
         same tick builds it once (a node checks a trajectory when it arrives)."""

@@ -33,7 +33,8 @@ from ..simtime import to_seconds
 #: keep to it too
 MAX_TRAJECTORY_POINTS = 1_000_000
 
-__all__ = ['MAX_TRAJECTORY_POINTS', 'linkage_names', 'check_command', 'TrajectoryArrays', 'PreparedTrajectory',
+__all__ = ['MAX_TRAJECTORY_POINTS', 'linkage_names', 'check_command', 'TrajectoryArrays',
+           'PreparedTrajectory',
            'check_head', 'check_trajectory']
 
 
@@ -162,9 +163,9 @@ def check_head(names: Sequence[str], sizes: Sequence[int], n_points: int, n_link
     if sizes[0] != n_links:
         return (f'mismatch between joint_names size ({n_links}) and positions ({sizes[0]}) '
                 'at point #0')
-    for field, size in (('velocities', sizes[1]), ('accelerations', sizes[2])):
+    for what, size in (('velocities', sizes[1]), ('accelerations', sizes[2])):
         if size not in (0, n_links):
-            return (f'mismatch between joint_names size ({n_links}) and {field} ({size}) '
+            return (f'mismatch between joint_names size ({n_links}) and {what} ({size}) '
                     'at point #0')
     if sizes[3]:
         return 'trajectories with effort fields are not supported'
@@ -198,12 +199,14 @@ def check_trajectory(tr: TrajectoryArrays, n_links: int, lo: float, hi: float, t
     if tr.stamp_ns:
         lead = tr.stamp_ns - t_ns
         if to_seconds(lead) > max_lead_s:
-            return (f'stamp {to_seconds(tr.stamp_ns):.9g} s is {to_seconds(lead):.6g} s ahead of the sim time '
+            return (f'stamp {to_seconds(tr.stamp_ns):.9g} s is {to_seconds(lead):.6g} s ahead of '
+                    'the sim time '
                     f'{to_seconds(t_ns):.9g} s (at most max_trajectory_lead = {max_lead_s:g} s; '
                     'a wall-clock stamp on a node running on sim time? stamp 0 = start now)'), None
         end_ns = tr.stamp_ns + int(tfs[-1])
         if end_ns < t_ns:
-            return (f'trajectory with start time {to_seconds(tr.stamp_ns)} s ends at {to_seconds(end_ns)}'
+            return (f'trajectory with start time {to_seconds(tr.stamp_ns)} s ends at '
+                    f'{to_seconds(end_ns)}'
                     f' s, before the current sim time {to_seconds(t_ns)} s'), None
     order = [names.index(name) for name in known]
     pos = tr.positions[:, order]
@@ -215,10 +218,10 @@ def check_trajectory(tr: TrajectoryArrays, n_links: int, lo: float, hi: float, t
     vel = tr.velocities[:, order] if tr.velocities is not None else None
     acc = tr.accelerations[:, order] if (tr.accelerations is not None and vel is not None) \
         else None
-    for field, arr in (('velocities', tr.velocities), ('accelerations', tr.accelerations)):
+    for what, arr in (('velocities', tr.velocities), ('accelerations', tr.accelerations)):
         if arr is not None and not np.all(np.isfinite(arr)):
             k = int(np.argwhere(~np.isfinite(arr))[0][0])
-            return f'non-finite {field} at point #{k}', None
+            return f'non-finite {what} at point #{k}', None
     if vel is not None and np.any(vel[-1] != 0.0):
         return 'velocity of the last trajectory point is not zero', None
     prepared = PreparedTrajectory(tr.stamp_ns, tfs, pos, vel, acc)

@@ -166,6 +166,7 @@ def _prepared(engine: Engine, tr: TrajectoryArrays):
     reason, prepared = check_trajectory(tr, n_links, -math.inf, math.inf, engine.t_ns,
                                         math.inf)
     if reason is not None:
-        raise ValueError(f'recorded trajectory at t = {to_seconds(engine.t_ns)} s cannot be applied: '
+        raise ValueError(f'recorded trajectory at t = {to_seconds(engine.t_ns)} s cannot be '
+                         'applied: '
                          f'{reason}')
     return prepared

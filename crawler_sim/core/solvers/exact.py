@@ -286,7 +286,7 @@ class ExactSolver:
         return np.linspace(0.0, t_end, max(n, 2))
 
     def simulate(self, t_end: float, times: NDArray | None, include_events: bool,
-                 dt: float | None = None):
+                 dt: float | None = None) -> tuple:
         """(times, outputs, info) of a whole run on [t, t_end] (``stepper.simulate``): the
         closed forms at the times, the event times added to the default ones."""
         self.advance(t_end)

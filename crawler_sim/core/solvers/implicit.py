@@ -186,7 +186,7 @@ class TimeStepper:
         return step_times(t_end, self.dt)
 
     def simulate(self, t_end: float, times: NDArray | None, include_events: bool,
-                 dt: float | None = None):
+                 dt: float | None = None) -> tuple:
         """(times, outputs, info) of a whole run on [t, t_end] (``stepper.simulate``)."""
         times = self.default_times(t_end) if times is None else times
         return times, self.run(times), self.info(times)

@@ -4,7 +4,8 @@ Each friction law is replaced by the derivative of its Moreau-Yosida envelope,
 R_i = -clip(n_i v_i, -f_minus_i, f_plus_i), giving an ODE with a Lipschitz right side whose
 stiffness grows like n / M. It is integrated by backward Euler on the centre-of-mass velocity,
 
-    M (V_{k+1} - V_k) / h = F_ext - sum_i clip(n_i (V_{k+1} + e_i'(t_{k+1})), -f_minus_i, f_plus_i),
+    M (V_{k+1} - V_k) / h = F_ext
+                            - sum_i clip(n_i (V_{k+1} + e_i'(t_{k+1})), -f_minus_i, f_plus_i),
 
 a strictly monotone piecewise-linear equation in V_{k+1} solved exactly (sorted breakpoints), so
 the scheme is stable for any h and any n (n = 1e12 included).

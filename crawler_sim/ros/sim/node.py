@@ -40,6 +40,7 @@ import threading
 import time
 from typing import Any
 
+from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import CallbackGroup
 from rclpy.node import Node
@@ -51,6 +52,7 @@ from std_srvs.srv import SetBool, Trigger
 from trajectory_msgs.msg import JointTrajectory
 
 from crawler_sim.core.plant import Engine
+from crawler_sim.core.trajectory import State
 from crawler_sim.ros import messages as M
 from . import intake, loop
 from .diagnostics import COUNTERS, Diagnostics, node_values
@@ -393,7 +395,7 @@ class SimNode(Node):
         return self._t_ns
 
     @property
-    def state(self):
+    def state(self) -> State:
         """The core ``State`` now."""
         return self._engine.state
 
@@ -502,7 +504,8 @@ class SimNode(Node):
         self.outputs.publish(row, self._t_ns, self._cfg.crawler.masses,
                              self.recorder.write if self.recorder.on else None)
 
-    def diagnostics(self, wall_now: float | None = None, final: bool = False):
+    def diagnostics(self, wall_now: float | None = None, final: bool = False
+                    ) -> DiagnosticArray:
         """Build the /diagnostics message (figures since the previous call; ``final``: the
         last one, at shutdown)."""
         with self._lock:

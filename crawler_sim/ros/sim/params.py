@@ -12,12 +12,15 @@ The plant's values are validated by ``PlantConfig.from_values`` (the one reader,
 """
 from __future__ import annotations
 
-from typing import Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping
 
 from crawler_sim.bag.naming import check_record_name
 from crawler_sim.core.plant import config as plant
 from crawler_sim.core.plant.config import PlantConfig
 from crawler_sim.core.stepper import METHODS
+
+if TYPE_CHECKING:
+    from rcl_interfaces.msg import ParameterDescriptor
 
 __all__ = ['PARAMETERS', 'OUTPUTS', 'SimConfig', 'descriptor', 'declare_all']
 
@@ -58,7 +61,7 @@ OUTPUTS = ('joint_states', 'body_states', 'contact_states', 'contacts_stamped', 
            'markers', 'diagnostics')
 
 
-def descriptor(name: str):
+def descriptor(name: str) -> ParameterDescriptor:
     """The ParameterDescriptor of parameter ``name`` (description, range, read-only).
 
     Numbers and lists of numbers are dynamically typed: values as people type them are taken

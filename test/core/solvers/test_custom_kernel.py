@@ -10,8 +10,6 @@ count checks.
 from __future__ import annotations
 
 import math
-import os
-import sys
 
 import numpy as np
 import pytest

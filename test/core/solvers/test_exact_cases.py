@@ -12,8 +12,6 @@ References, independent of the solver under test:
 from __future__ import annotations
 
 import math
-import os
-import sys
 
 import numpy as np
 import pytest

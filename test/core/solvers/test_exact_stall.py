@@ -27,8 +27,6 @@
   zero by the mode counts its start value as noise too.
 """
 import math
-from pathlib import Path
-import runpy
 
 import numpy as np
 import pytest
@@ -97,7 +95,6 @@ def test_a_link_whose_velocity_is_a_few_ulps_splits_its_stuck_pair_instead_of_st
     (-0.05, 1.0); the oracle gives the same. Advanced in 0.1 s syncs, as a node would (one
     advance over the whole second is correct but slow: the global jerk estimate makes the
     search step tiny on the near-zero tail, a known cost of gaits without local bounds)."""
-    import sys
     from test.support.oracle import Oracle
     from crawler_sim import Crawler
     from crawler_sim.core.solvers.exact import ExactSolver
@@ -126,7 +123,6 @@ def test_a_velocity_that_touches_zero_is_a_stick():
     # stress seed 11, random scene 224 (p = 12, a Sinusoid): body 1 slides backward, its
     # velocity touches zero at t = 0.13224 s and it sticks until 0.13404 s (the independent
     # oracle of test/support/oracle.py agrees on the positions)
-    import sys
     from test.support.oracle import Oracle
     from benchmarks.solvers import stress
     import crawler_sim as cs

@@ -22,7 +22,6 @@ examples per family without the example database, so CI is deterministic; shrink
 """
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest
@@ -31,7 +30,6 @@ from hypothesis import HealthCheck, Phase, given, settings, strategies as st
 import crawler_sim as cs
 from test.support.fuzz import (FAMILIES, ISSUE_SCENES, N_EXAMPLES, TOL, Case,  # noqa: F401
                                check_case, draw_case, oracle_h, sample_times)
-from test.support.oracle import Oracle
 
 G = cs.gaits
 _QUICK = settings(max_examples=N_EXAMPLES, derandomize=True, database=None, deadline=None,

@@ -1,0 +1,89 @@
+"""What the package declares against what it imports (issue 27: ``pip install .`` installed
+none of the dependencies), and the rosdep keys of package.xml (issue 12).
+
+- every third-party module the package imports is brought by ``install_requires`` or an extra
+  (``ros`` for ROS 2, ``sweep`` for the tables and Dask), and nothing is declared that nothing
+  imports (``mcap-ros2-support`` was);
+- package.xml names only rosdep keys that exist for the bag dependencies: checked by hand against
+  ros/rosdistro rosdep/python.yaml: ``mcap-ros2-support`` (pip; pulls mcap, zstandard, lz4) and
+  ``python3-rosbags-pip`` exist; ``python3-mcap``, ``python3-mcap-ros2-support`` and
+  ``python3-rosbags`` do not. mcap has no key of its own, so mcap-ros2-support stays there for it.
+"""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+import re
+import sys
+import xml.etree.ElementTree as ET
+
+REPO = Path(__file__).resolve().parents[1]
+NOT_IN_ROSDISTRO = {'python3-mcap', 'python3-mcap-ros2-support', 'python3-rosbags'}
+#: import name -> distribution name, where they differ
+DISTRIBUTION = {'yaml': 'PyYAML', 'distributed': 'dask'}
+#: modules that come with ROS 2 (a Jazzy install, or the `ros` extra's wheels)
+ROS = {'rclpy', 'rcl_interfaces', 'ament_index_python', 'builtin_interfaces', 'std_msgs',
+       'std_srvs', 'sensor_msgs', 'geometry_msgs', 'nav_msgs', 'trajectory_msgs',
+       'visualization_msgs', 'diagnostic_msgs', 'rosgraph_msgs', 'rosidl_parser'}
+#: modules only the sweep extra brings (imported by crawler_sim.sweep and its CLI commands)
+SWEEP = {'pandas', 'pyarrow', 'distributed'}
+
+
+def imported() -> set[str]:
+    names = set()
+    for path in (REPO / 'crawler_sim').rglob('*.py'):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                names |= {a.name.split('.')[0] for a in node.names}
+            elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+                names.add(node.module.split('.')[0])
+    return {n for n in names if n not in sys.stdlib_module_names and n != 'crawler_sim'}
+
+
+def setup_kwargs() -> dict:
+    """install_requires and extras_require of setup.py, read from its source."""
+    tree = ast.parse((REPO / 'setup.py').read_text())
+    call = next(n for n in ast.walk(tree) if isinstance(n, ast.Call)
+                and getattr(n.func, 'id', '') == 'setup')
+    return {kw.arg: ast.literal_eval(kw.value) for kw in call.keywords
+            if kw.arg in ('install_requires', 'extras_require')}
+
+
+def _name(requirement: str) -> str:
+    return re.split(r'[<>=\[ ;]', requirement, maxsplit=1)[0].lower()
+
+
+def test_install_requires_brings_what_the_package_imports_and_nothing_else():
+    kw = setup_kwargs()
+    core = {_name(r) for r in kw['install_requires']}
+    sweep = {_name(r) for r in kw['extras_require']['sweep']}
+    ros = {_name(r) for r in kw['extras_require']['ros']}
+    needed = {DISTRIBUTION.get(m, m).lower() for m in imported() - ROS - SWEEP}
+    assert needed == core, (needed ^ core)
+    assert {DISTRIBUTION.get(m, m).lower() for m in SWEEP} == sweep
+    assert ros == {'ros-jazzy-rclpy', 'ros-jazzy-common-interfaces'}
+    assert imported() & ROS            # the ROS modules the extra brings are really imported
+
+
+def test_mcap_ros2_support_is_a_test_dependency_only():
+    assert 'mcap_ros2' not in imported()
+    kw = setup_kwargs()
+    assert 'mcap-ros2-support' not in {_name(r) for r in kw['install_requires']}
+    assert 'mcap-ros2-support' in {_name(r) for r in kw['extras_require']['test']}
+
+
+def depends() -> set[str]:
+    root = ET.parse(REPO / 'package.xml').getroot()
+    tags = ('depend', 'exec_depend', 'test_depend', 'build_depend')
+    return {el.text.strip() for tag in tags for el in root.iter(tag)}
+
+
+def test_no_bag_dependency_uses_a_key_missing_from_rosdistro():
+    assert not depends() & NOT_IN_ROSDISTRO
+
+
+def test_the_bag_libraries_are_declared_with_their_rosdistro_keys():
+    assert {'mcap-ros2-support', 'python3-rosbags-pip'} <= depends()
+    requirements = (REPO / 'requirements.txt').read_text()
+    for pip_name in ('mcap', 'rosbags'):
+        assert any(_name(line) == pip_name for line in requirements.splitlines()), pip_name
