@@ -21,13 +21,13 @@ from . import trajarrays
 from .errors import BagError
 from .mcapfile import Batch, scan
 from .reader import bag_files
-from .topics import LINKAGE_CMD, normalize_namespace
+from .topics import LINKAGE_CMD, LINKAGE_TRAJECTORY, PLANT_INPUTS, normalize_namespace
 from crawler_sim.core.simtime import to_seconds
 
 __all__ = ['RecordedInputs', 'load_inputs', 'PLANT_INPUTS_SUFFIX', 'TRAJECTORY_SUFFIX']
 
-PLANT_INPUTS_SUFFIX = 'plant_inputs'          # <node>/plant_inputs, the node's ~/plant_inputs
-TRAJECTORY_SUFFIX = 'linkage_trajectory'
+PLANT_INPUTS_SUFFIX = PLANT_INPUTS.leaf        # <node>/plant_inputs, the node's ~/plant_inputs
+TRAJECTORY_SUFFIX = LINKAGE_TRAJECTORY.suffix
 
 
 class RecordedInputs(NamedTuple):

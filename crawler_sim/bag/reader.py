@@ -28,11 +28,11 @@ from .clock import NS_PER_S, to_seconds
 from .errors import BagError
 from .mcapfile import Batch, Scan, scan
 from .schema import message_class
-from .topics import (BODY_STATES, CONTACT_STATES, EVENTS, JOINT_STATES, LINKAGE_CMD,
-                     SCENE, SCENE_METADATA, normalize_namespace, split_topic)
+from .topics import (APPLIED_COMMAND, BODY_STATES, CONTACT_STATES, EVENTS, JOINT_STATES,
+                     LINKAGE_CMD, SCENE, SCENE_METADATA, normalize_namespace, split_topic)
 
 _JOINT_FIELDS = ('header.stamp.sec', 'header.stamp.nanosec', 'position', 'velocity', 'effort')
-_APPLIED = 'applied_command'
+_APPLIED = APPLIED_COMMAND.leaf     # <node>/applied_command, whatever the node's name
 _FILE_NUMBER = re.compile(r'_(\d+)\.mcap$')
 _MAX_METADATA = 16 << 20       # bytes; rosbag2 writes a few KiB
 #: ``Run.contact`` of a body that did not exist at that state (a bag whose number of bodies
@@ -238,11 +238,12 @@ class _TopicData:
         return np.concatenate(self.log_times) if self.log_times else np.zeros(0, np.int64)
 
 
+#: fields read from each type of the topics :func:`load` reads
 _FIELDS = {
-    'sensor_msgs/msg/JointState': _JOINT_FIELDS,
-    'std_msgs/msg/Int8MultiArray': ('data',),
-    'std_msgs/msg/Float64MultiArray': ('data',),
-    'std_msgs/msg/Int32MultiArray': ('data',),
+    BODY_STATES.type: _JOINT_FIELDS,         # and joint_states, applied_command
+    CONTACT_STATES.type: ('data',),
+    LINKAGE_CMD.type: ('data',),
+    EVENTS.type: ('data',),
 }
 
 

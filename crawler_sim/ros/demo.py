@@ -27,6 +27,7 @@ import time
 
 import numpy as np
 
+from crawler_sim.bag import topics as T
 from crawler_sim.ros.workspace import executable, share, workspace_env
 from crawler_sim.core.simtime import from_stamp, to_ns, to_seconds
 
@@ -123,8 +124,8 @@ def _drive(duration: float, children: list[_Child]) -> tuple[float, dict[str, st
     def on_clock(msg: Clock) -> None:
         sim_ns[0] = from_stamp(msg.clock.sec, msg.clock.nanosec)
 
-    node.create_subscription(DiagnosticArray, '/diagnostics', on_diag, 10)
-    node.create_subscription(Clock, '/clock', on_clock, qos_profile_sensor_data)
+    node.create_subscription(DiagnosticArray, T.DIAGNOSTICS.node_name, on_diag, 10)
+    node.create_subscription(Clock, T.CLOCK.node_name, on_clock, qos_profile_sensor_data)
     pause = node.create_client(SetBool, '/crawler_sim/pause')
 
     def spin_until(cond, what: str, timeout: float) -> None:

@@ -45,6 +45,7 @@ from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from crawler_sim.bag import topics as T
 from crawler_sim.core import gaits
 from crawler_sim.core.plant.config import MAX_BODIES
 from crawler_sim.core.plant.streams import MODES, Stream, trajectory_points
@@ -221,9 +222,10 @@ class GaitNode(Node):
         self._duration = settings.stream.duration
         self._preload = settings.stream.preload
         if self.mode == 'command':
-            self._pub = self.create_publisher(Float64MultiArray, 'linkage_cmd', 10)
+            self._pub = self.create_publisher(Float64MultiArray, T.LINKAGE_CMD.node_name, 10)
         else:
-            self._pub = self.create_publisher(JointTrajectory, 'linkage_trajectory', 10)
+            self._pub = self.create_publisher(JointTrajectory, T.LINKAGE_TRAJECTORY.node_name,
+                                              10)
         self._t0_ns: int | None = None
         self._next_ns = 0
         self.sent = 0
@@ -233,7 +235,7 @@ class GaitNode(Node):
                 0.05, self._on_preload, clock=Clock(clock_type=ClockType.STEADY_TIME))
         else:
             self.create_timer(1.0 / self._rate, self._on_timer)
-        topic = 'linkage_cmd' if self.mode == 'command' else 'linkage_trajectory'
+        topic = (T.LINKAGE_CMD if self.mode == 'command' else T.LINKAGE_TRAJECTORY).node_name
         v = settings.values
         what = v['gait_file'] or {k: v[k] for k in _GAIT_PARAMETERS}
         self.get_logger().info(f'playing {what} on {self.gait.n_links} linkage(s), {topic} at '

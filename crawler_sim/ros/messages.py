@@ -25,13 +25,14 @@ from visualization_msgs.msg import Marker, MarkerArray
 from ..bag.msgs import (BASE_FRAME, ODOM_FRAME, body_names, body_states, centre_of_mass,
                         contact_states, event_msg, float64_array_msg, joint_state, joint_states,
                         linkage_names, ns_from_stamp, odometry, stamp_from_ns)
+from crawler_sim.bag import topics as T
 from crawler_sim.core.simtime import split_ns
 
 __all__ = ['stamp_from_ns', 'ns_from_stamp', 'linkage_names', 'body_names', 'joint_states_msg',
            'body_states_msg', 'contact_states_msg', 'contacts_stamped_msg', 'odom_msg',
            'markers_msg',
            'diagnostics_msg', 'clock_msg', 'clock_cdr', 'applied_command_msg',
-           'float64_array_msg', 'event_msg', 'centre_of_mass', 'OutputEncoder', 'OUTPUT_TYPES',
+           'float64_array_msg', 'event_msg', 'centre_of_mass', 'OutputEncoder', 'ENCODED',
            'CONTACT_COLOURS',
            'ODOM_FRAME', 'BASE_FRAME']
 
@@ -201,17 +202,8 @@ class Row:
                        + self.lengths + self.rates))
 
 
-#: ROS type of each output of the node (and of the inputs it records)
-OUTPUT_TYPES = {
-    'joint_states': 'sensor_msgs/msg/JointState',
-    'body_states': 'sensor_msgs/msg/JointState',
-    'contact_states': 'std_msgs/msg/Int8MultiArray',
-    'odom': 'nav_msgs/msg/Odometry',
-    'markers': 'visualization_msgs/msg/MarkerArray',
-    'applied_command': 'sensor_msgs/msg/JointState',
-    'linkage_cmd': 'std_msgs/msg/Float64MultiArray',
-    'contacts_stamped': 'sensor_msgs/msg/JointState',
-}
+#: the topic (and so the ROS type) of each kind of message :class:`OutputEncoder` makes
+ENCODED = {**T.OUTPUTS, 'applied_command': T.APPLIED_COMMAND, 'linkage_cmd': T.LINKAGE_CMD}
 _STAMP = ('header.stamp.sec', 'header.stamp.nanosec')
 _JOINTS = (_STAMP, ('position',), ('velocity',), ('effort',))
 _ODOM = (_STAMP, ('pose.pose.position.x',), ('twist.twist.linear.x',))
@@ -320,7 +312,7 @@ class OutputEncoder:
         encoder = self._encoders.get(key, _MISSING)
         if encoder is _MISSING:                   # first message of this shape: the template
             try:
-                encoder = self._encoder_class(build(), OUTPUT_TYPES[key[0]], groups)
+                encoder = self._encoder_class(build(), ENCODED[key[0]].type, groups)
             except self._layout_error:
                 encoder = None                    # this shape always goes through the builder
             else:

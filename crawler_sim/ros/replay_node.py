@@ -86,6 +86,7 @@ from std_srvs.srv import SetBool
 from crawler_sim.bag import BagError, bag_files
 from crawler_sim.bag.mcapfile import Batch, scan
 from crawler_sim.bag.schema import message_class, parse_qos_yaml
+from crawler_sim.bag import topics as T
 from crawler_sim.bag.topics import SCENE, split_topic
 from crawler_sim.ros.messages import ns_from_stamp, stamp_from_ns
 from crawler_sim.core.simtime import NS_PER_S, to_ns, to_seconds
@@ -363,7 +364,7 @@ class ReplayNode(Node):
         self._t0: float | None = None     # wall time [s] of the start point of pass 0
         self.pubs = {name: self.create_publisher(t.cls, name, t.qos)
                      for name, t in self.rec.tracks.items()}
-        self.clock_pub = (self.create_publisher(Clock, '/clock', 10)
+        self.clock_pub = (self.create_publisher(Clock, T.CLOCK.node_name, 10)
                           if self.get_parameter('publish_clock').value else None)
         self.create_service(SetBool, '~/pause', self._on_pause)
         log.info(f'playing {len(self.rec.log_times) - self.first} messages on '

@@ -561,7 +561,7 @@ def test_output_bytes_equal_serialize_message_of_the_builders(p):
         st, t_ns = random_state(rng, p), int(rng.integers(0, 2**31 * 10**9))
         for name, build in builders.items():
             ref = serialize_message(build(st, t_ns))
-            assert enc.encode(name, st, t_ns, masses) == zero_padding(ref, M.OUTPUT_TYPES[name])
+            assert enc.encode(name, st, t_ns, masses) == zero_padding(ref, M.ENCODED[name].type)
         lengths = st.lengths.tolist()
         assert enc.applied_command(lengths, t_ns) == zero_padding(
             serialize_message(M.applied_command_msg(t_ns, lengths)), 'sensor_msgs/msg/JointState')
@@ -590,7 +590,7 @@ def test_a_row_of_a_state_encodes_the_bytes_of_the_state(p):
         assert row.finite() == all(np.isfinite(a).all() for a in (
             st.x, st.v, st.friction, st.linkage_force, st.lengths, st.rates))
         for name, build in builders.items():
-            ref = zero_padding(serialize_message(build(st, t_ns)), M.OUTPUT_TYPES[name])
+            ref = zero_padding(serialize_message(build(st, t_ns)), M.ENCODED[name].type)
             assert from_rows.encode(name, row, t_ns, masses) == ref, name
             assert from_states.encode(name, st, t_ns, masses) == ref, name
     assert from_rows.slow == 0 and from_rows.fast == 5 * 6

@@ -16,12 +16,13 @@ from sensor_msgs.msg import JointState
 import yaml
 
 from crawler_sim.ros import messages as M
-from crawler_sim.ros.sim.outputs import TOPICS
+from crawler_sim.bag import topics as T
+from crawler_sim.ros.sim.outputs import CLASSES
 
 VIZ = Path(__file__).resolve().parents[2] / 'config' / 'viz'
 #: topic -> message class, as the node's default (root namespace) publishes them
-PUBLISHED = {('/' + topic).replace('//', '/'): cls for cls, topic in TOPICS.values()}
-PUBLISHED['/crawler_sim/applied_command'] = JointState       # '~/applied_command'
+PUBLISHED = {T.OUTPUTS[name].name(): cls for name, cls in CLASSES.items()}
+PUBLISHED[T.APPLIED_COMMAND.name()] = JointState       # '~/applied_command'
 
 
 def _displays(node):
@@ -41,7 +42,7 @@ def test_the_rviz_config_shows_the_node_markers_in_its_fixed_frame():
     markers = [d for d in _displays(cfg) if d['Class'] == 'rviz_default_plugins/MarkerArray']
     assert len(markers) == 1
     topic = markers[0]['Topic']['Value']
-    assert PUBLISHED.get(topic) is TOPICS['markers'][0], topic
+    assert PUBLISHED.get(topic) is CLASSES['markers'], topic
     # the namespaces it enables are those the node's markers carry
     msg = M.markers_msg(_two_body_state(), 0)
     assert set(markers[0]['Namespaces']) == {m.ns for m in msg.markers}

@@ -51,6 +51,7 @@ from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import SetBool, Trigger
 from trajectory_msgs.msg import JointTrajectory
 
+from crawler_sim.bag import topics as T
 from crawler_sim.core.plant import Engine
 from crawler_sim.core.trajectory import State
 from crawler_sim.ros import messages as M
@@ -58,7 +59,7 @@ from . import intake, loop
 from .diagnostics import COUNTERS, Diagnostics, node_values
 from .outputs import Outputs
 from .params import PARAMETERS, SimConfig, declare_all
-from .recording import applied_trajectory, Recorder
+from .recording import applied_trajectory, SessionBag
 from crawler_sim.core.simtime import from_stamp, to_ns, to_seconds
 
 __all__ = ['SimNode', 'LoopTakenGroup', 'NODE_NAME']
@@ -103,12 +104,13 @@ class SimNode(Node):
         self._rejections = intake.RejectionLog(self.counters, self._log.warning)
         self._diag = Diagnostics(self.counters, f'{self.get_fully_qualified_name()}: simulation')
         self.outputs = Outputs(self)
-        self._applied_pub = self.create_publisher(JointState, '~/applied_command', 10)
+        self._applied_pub = self.create_publisher(JointState, T.APPLIED_COMMAND.node_name, 10)
         self.outputs.sync(self._cfg)
         group = LoopTakenGroup()
-        self._cmd_sub = self.create_subscription(Float64MultiArray, 'linkage_cmd',
+        self._cmd_sub = self.create_subscription(Float64MultiArray, T.LINKAGE_CMD.node_name,
                                                  self._on_command, 10, callback_group=group)
-        self._traj_sub = self.create_subscription(JointTrajectory, 'linkage_trajectory',
+        self._traj_sub = self.create_subscription(JointTrajectory,
+                                                  T.LINKAGE_TRAJECTORY.node_name,
                                                   self._on_trajectory, 10, callback_group=group,
                                                   raw=True)
         self._takes = [(sub.handle.take_message, sub.msg_type, sub.raw, handler)
@@ -131,7 +133,7 @@ class SimNode(Node):
         self._clock_heard: list[int] = []
         self._follow_sub = None
         self._stop = False        # set by stop() (signals); run() returns at the next tick
-        self.recorder = Recorder(self._absolute_topic, self._log)
+        self.recorder = SessionBag(self._absolute_topic, self._log)
         self._journal_seq = 0
         self._same_name_logged = False
         # the one owner of the plant: every input goes through it and into its journal
@@ -144,15 +146,11 @@ class SimNode(Node):
             scene['crawler'] = self._cfg.crawler.to_dict()
             # every topic the run records, so the bag holds their schemas and channels from its
             # first millisecond (a run killed before its first chunk is still readable)
-            recorded = {**self.outputs.topics(), 'linkage_cmd': M.OUTPUT_TYPES['linkage_cmd'],
-                        '~/applied_command': M.OUTPUT_TYPES['applied_command'],
-                        'linkage_trajectory': 'trajectory_msgs/msg/JointTrajectory',
-                        '~/plant_inputs': 'std_msgs/msg/String',
-                        'robot_description': 'std_msgs/msg/String',
-                        'events': 'std_msgs/msg/Int32MultiArray',
-                        '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray'}
-            topics = {self._absolute_topic(name): type_ for name, type_ in recorded.items()}
-            self.recorder.open(self._cfg.record_dir, self._cfg.record_name, scene, topics)
+            recorded = [*self.outputs.topics(), T.LINKAGE_CMD, T.APPLIED_COMMAND,
+                        T.LINKAGE_TRAJECTORY, T.PLANT_INPUTS, T.ROBOT_DESCRIPTION, T.EVENTS,
+                        T.DIAGNOSTICS]
+            self.recorder.open(self._cfg.record_dir, self._cfg.record_name, scene,
+                               dict.fromkeys(recorded))
             self._record_description()
 
     # ------------------------------------------------------------------ read-only views
@@ -215,7 +213,7 @@ class SimNode(Node):
 
     def _record_description(self) -> None:
         if self.recorder.on and self.outputs.description:
-            self.recorder.write('robot_description', 'std_msgs/msg/String',
+            self.recorder.write(T.ROBOT_DESCRIPTION,
                                 String(data=self.outputs.description), self._t_ns)
 
     def _drop_pending(self) -> None:
@@ -241,12 +239,11 @@ class SimNode(Node):
             entry['points'] = 0 if payload is None else len(payload.tfs_ns)
             raw = getattr(payload, 'raw', None)
             if raw is not None:
-                rec.write('linkage_trajectory', 'trajectory_msgs/msg/JointTrajectory',
+                rec.write(T.LINKAGE_TRAJECTORY,
                           applied_trajectory(raw, payload.stamp_ns, t_ns), t_ns)
             else:
                 entry['points'] = -1          # not recorded (a trajectory given in Python)
-        rec.write('~/plant_inputs', 'std_msgs/msg/String', String(data=json.dumps(entry)),
-                  t_ns)
+        rec.write(T.PLANT_INPUTS, String(data=json.dumps(entry)), t_ns)
 
     # ------------------------------------------------------------------ inputs
     def take_inputs(self) -> int:
@@ -285,7 +282,7 @@ class SimNode(Node):
         cfg = self._cfg
         reason = intake.check_command(data, cfg.n_links, cfg.min_length, cfg.max_length)
         if reason is not None:
-            self._rejections.note('commands', 'linkage_cmd', reason)
+            self._rejections.note('commands', T.LINKAGE_CMD.suffix, reason)
             return
         if all(math.isnan(x) for x in data):
             self.counters['commands_no_value'] += 1
@@ -311,7 +308,7 @@ class SimNode(Node):
         # diagnostics (a 100k-point trajectory must not stall the loop)
         self._traj_intake = (time.perf_counter() - start, len(msg))
         if reason is not None:
-            self._rejections.note('trajectories', 'linkage_trajectory', reason)
+            self._rejections.note('trajectories', T.LINKAGE_TRAJECTORY.suffix, reason)
             return
         self.counters['trajectories_accepted'] += 1
         self._pending_traj = prepared
@@ -461,7 +458,7 @@ class SimNode(Node):
             self.counters['solver_events'] += len(events)
             if self.recorder.on:
                 for ev in events:
-                    self.recorder.write('events', 'std_msgs/msg/Int32MultiArray',
+                    self.recorder.write(T.EVENTS,
                                         M.event_msg(ev.body, ev.old, ev.new),
                                         to_ns(ev.time))
         self._publish_outputs()
@@ -475,17 +472,15 @@ class SimNode(Node):
         data = self.outputs.encoder.applied_command(cmd, t_ns)
         self._applied_pub.publish(data)
         if recording:
-            self.recorder.write('linkage_cmd', M.OUTPUT_TYPES['linkage_cmd'],
-                                self.outputs.encoder.linkage_cmd(cmd), t_ns)
-            self.recorder.write('~/applied_command', M.OUTPUT_TYPES['applied_command'], data,
-                                t_ns)
+            self.recorder.write(T.LINKAGE_CMD, self.outputs.encoder.linkage_cmd(cmd), t_ns)
+            self.recorder.write(T.APPLIED_COMMAND, data, t_ns)
 
     def _apply_trajectory(self, t_ns: int) -> None:
         tr, self._pending_traj = self._pending_traj, None
         try:
             self._engine.trajectory(tr)
         except ValueError as exc:       # e.g. times that round together at this sim time
-            self._rejections.note('trajectories', 'linkage_trajectory', str(exc))
+            self._rejections.note('trajectories', T.LINKAGE_TRAJECTORY.suffix, str(exc))
 
     # ------------------------------------------------------------------ outputs
     def _publish_outputs(self) -> None:
@@ -521,8 +516,7 @@ class SimNode(Node):
         pub = self.outputs.pubs.get('diagnostics')
         if pub is not None:
             pub.publish(msg)
-            self.recorder.write('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', msg,
-                                self._t_ns)
+            self.recorder.write(T.DIAGNOSTICS, msg, self._t_ns)
 
     def _absolute_topic(self, topic: str) -> str:
         """The recorded name of ``topic``: ``~/x`` and relative names resolved as ROS does."""
@@ -536,7 +530,7 @@ class SimNode(Node):
         """Close the bag (idempotent); call before destroy_node."""
         with self._lock:
             if self.recorder.on:
-                self.recorder.write('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray',
+                self.recorder.write(T.DIAGNOSTICS,
                                     self.diagnostics(final=True), self._t_ns)
             self.recorder.close()
 
@@ -553,13 +547,13 @@ class SimNode(Node):
         if not self._cfg.publish_clock:
             return
         heard = self._clock_heard
-        sub = self.create_subscription(Clock, '/clock', self._on_clock, 10)
+        sub = self.create_subscription(Clock, T.CLOCK.node_name, self._on_clock, 10)
         mine = self.get_fully_qualified_name()
         end = time.monotonic() + wait
         while time.monotonic() < end and not heard:
             time.sleep(0.02)
         others = sorted(f'{info.node_namespace.rstrip("/")}/{info.node_name}'
-                        for info in self.get_publishers_info_by_topic('/clock'))
+                        for info in self.get_publishers_info_by_topic(T.CLOCK.node_name))
         others = [fqn for fqn in others if fqn != mine]
         if not heard and not (others and others[0] < mine):
             self.destroy_subscription(sub)

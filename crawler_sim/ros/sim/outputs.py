@@ -23,27 +23,23 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Int8MultiArray, String
 from visualization_msgs.msg import MarkerArray
 
+from crawler_sim.bag import topics as T
 from crawler_sim.ros import messages as M
 from .model import robot_description
 from .params import OUTPUTS
 
-__all__ = ['Outputs', 'TOPICS', 'COUNT_PERIOD', 'DESCRIPTION_TOPIC', 'DESCRIPTION_QOS']
+__all__ = ['Outputs', 'CLASSES', 'COUNT_PERIOD', 'DESCRIPTION_QOS']
 
-#: output name -> (message class, topic)
-TOPICS: dict[str, tuple[type, str]] = {
-    'joint_states': (JointState, 'joint_states'),
-    'body_states': (JointState, 'body_states'),
-    'contact_states': (Int8MultiArray, 'contact_states'),
-    'contacts_stamped': (JointState, 'contacts'),
-    'odom': (Odometry, 'odom'),
-    'markers': (MarkerArray, 'markers'),
-    'diagnostics': (DiagnosticArray, '/diagnostics'),
+#: message class of each output (its topic and type: ``crawler_sim.bag.topics.OUTPUTS``)
+CLASSES: dict[str, type] = {
+    'joint_states': JointState, 'body_states': JointState, 'contact_states': Int8MultiArray,
+    'contacts_stamped': JointState, 'odom': Odometry, 'markers': MarkerArray,
+    'diagnostics': DiagnosticArray,
 }
 COUNT_PERIOD = 16       # publish ticks between two reads of the subscriber counts
-#: the robot model's topic (relative: it lives in the robot's namespace, as
-#: robot_state_publisher's does) and its QoS: reliable, transient local, depth 1 (the latest
-#: description only, kept for late subscribers)
-DESCRIPTION_TOPIC = 'robot_description'
+#: the robot model's QoS (its topic is relative: it lives in the robot's namespace, as
+#: robot_state_publisher's does): reliable, transient local, depth 1 (the latest description
+#: only, kept for late subscribers)
 DESCRIPTION_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
@@ -62,7 +58,7 @@ class Outputs:
         self._grid: list[tuple] = []
         self._takers: list[tuple] = []
         self._countdown = 0
-        self.description_pub = node.create_publisher(String, DESCRIPTION_TOPIC,
+        self.description_pub = node.create_publisher(String, T.ROBOT_DESCRIPTION.node_name,
                                                       DESCRIPTION_QOS)
         self._model_key: tuple | None = None     # what the published description was made of
         #: the URDF last published on ``robot_description`` ('' before the first sync)
@@ -77,20 +73,20 @@ class Outputs:
         for name in OUTPUTS:
             on = bool(getattr(cfg, 'publish_' + name))
             if on and name not in self.pubs:
-                msg_type, topic = TOPICS[name]
-                self.pubs[name] = node.create_publisher(msg_type, topic, 10)
+                self.pubs[name] = node.create_publisher(CLASSES[name],
+                                                        T.OUTPUTS[name].node_name, 10)
             elif not on and name in self.pubs:
                 node.destroy_publisher(self.pubs.pop(name))
         enc = self.encoder
         # publish_raw of the pybind handle: rclpy's Publisher.publish adds a type check and a
         # `with handle` guard (about 5 us) per message; the handles live as long as the node
-        self._grid = [(name, TOPICS[name][1], self.pubs[name], getattr(enc, name),
+        self._grid = [(name, T.OUTPUTS[name], self.pubs[name], getattr(enc, name),
                        self.pubs[name].handle.publish_raw)
                       for name in OUTPUTS[:-1] if name in self.pubs]
         self._countdown = 0
         own_clock = cfg.publish_clock and not self.following_clock
         if own_clock and self.clock_pub is None:
-            self.clock_pub = node.create_publisher(Clock, '/clock', 10)
+            self.clock_pub = node.create_publisher(Clock, T.CLOCK.node_name, 10)
             self._clock_raw = self.clock_pub.handle.publish_raw
         elif not own_clock and self.clock_pub is not None:
             node.destroy_publisher(self.clock_pub)
@@ -113,14 +109,14 @@ class Outputs:
         self._model_key = key
         return True
 
-    def topics(self) -> dict[str, str]:
-        """``{topic: type}`` of the grid outputs this node publishes (as given, unresolved)."""
-        return {topic: M.OUTPUT_TYPES[name] for name, topic, *_ in self._grid}
+    def topics(self) -> list[T.Topic]:
+        """The grid outputs this node publishes."""
+        return [topic for _name, topic, *_ in self._grid]
 
     def publish(self, state: Any, t_ns: int, masses, record=None) -> None:
         """Publish /clock and every output taken by someone at sim time ``t_ns``; ``state`` is
         a core ``State`` or its :class:`crawler_sim.ros.messages.Row` (or a callable returning
-        one, called only if someone takes an output); ``record`` (topic, type, bytes, t_ns) gets
+        one, called only if someone takes an output); ``record`` (Topic, bytes, t_ns) gets
         each output before it is published, so what a subscriber has seen is in the bag."""
         if self.clock_pub is not None:
             self._clock_raw(M.clock_cdr(t_ns))
@@ -135,11 +131,10 @@ class Outputs:
         if not takers:
             return
         st = state() if callable(state) else state
-        types = M.OUTPUT_TYPES
-        for name, topic, _pub, encode, publish_raw in takers:
+        for _name, topic, _pub, encode, publish_raw in takers:
             data = encode(st, t_ns, masses)
             if record is not None:
-                record(topic, types[name], data, t_ns)
+                record(topic, data, t_ns)
             publish_raw(data)
 
     def refresh(self) -> None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, Mapping
 
+from crawler_sim.bag import topics
 from crawler_sim.bag.naming import check_record_name
 from crawler_sim.core.plant import config as plant
 from crawler_sim.core.plant.config import PlantConfig
@@ -57,8 +58,7 @@ PARAMETERS: dict[str, tuple[Any, str, tuple[float, float] | None, bool]] = {
     **NODE_PARAMETERS}
 
 #: the outputs in publishing order (diagnostics last: it is not on the publish grid)
-OUTPUTS = ('joint_states', 'body_states', 'contact_states', 'contacts_stamped', 'odom',
-           'markers', 'diagnostics')
+OUTPUTS = tuple(topics.OUTPUTS)
 
 
 def descriptor(name: str) -> ParameterDescriptor:

@@ -15,10 +15,12 @@ when it was restored or moved. At close the node logs where the bag is, only if 
 """
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any, Callable, Iterable
+
+from crawler_sim.bag.topics import Topic
 from crawler_sim.core.simtime import split_ns
 
-__all__ = ['Recorder', 'applied_trajectory']
+__all__ = ['SessionBag', 'applied_trajectory']
 
 
 def applied_trajectory(raw: bytes, stamp_ns: int, t_ns: int) -> bytes:
@@ -32,13 +34,15 @@ def applied_trajectory(raw: bytes, stamp_ns: int, t_ns: int) -> bytes:
             + raw[12:])
 
 
-class Recorder:
-    """The node's bag. ``write`` records one message; errors close the bag."""
+class SessionBag:
+    """The bag of one sim_node session: ``write`` records one message on one of the topics of
+    :mod:`crawler_sim.bag.topics`; errors close the bag (the run goes on). Offline runs record
+    through :class:`crawler_sim.bag.Recorder` instead."""
 
     def __init__(self, resolve: Callable[[str], str], log) -> None:
         self._resolve = resolve
         self._log = log
-        self._names: dict[str, str] = {}
+        self._names: dict[Topic, str] = {}
         self.bag = None
         self.path = ''
         self.error = ''
@@ -48,12 +52,14 @@ class Recorder:
         return self.bag is not None
 
     def open(self, record_dir: str, record_name: str, scene: dict[str, Any],
-             topics: dict[str, str] | None = None) -> None:
-        """Start recording; on failure set ``error`` and stay off."""
+             topics: Iterable[Topic] = ()) -> None:
+        """Start recording (with a channel for each of ``topics`` from the first moment); on
+        failure set ``error`` and stay off."""
         path = f'{record_dir}/{record_name or "<default name>"}'
         try:
             from crawler_sim.bag import BagWriter
-            self.bag = BagWriter.create(record_dir, record_name, scene=scene, topics=topics)
+            self.bag = BagWriter.create(record_dir, record_name, scene=scene, topics={
+                self._name(t): t.type for t in topics})
             # set after creation (not a create() argument): stand-in writers keep working
             self.bag.on_error = self._bag_problem
             path = self.path = str(self.bag.path)
@@ -72,15 +78,19 @@ class Recorder:
             self.path = str(bag.path)
         self._log.error(f'recording: {message}')
 
-    def write(self, topic: str, type_name: str, msg: Any, t_ns: int) -> None:
+    def _name(self, topic: Topic) -> str:
+        name = self._names.get(topic)
+        if name is None:
+            name = self._names[topic] = self._resolve(topic.node_name)
+        return name
+
+    def write(self, topic: Topic, msg: Any, t_ns: int) -> None:
+        """Record ``msg`` (a message or its CDR bytes) on ``topic`` at sim time ``t_ns``."""
         bag = self.bag
         if bag is None:
             return
-        name = self._names.get(topic)
-        if name is None:
-            name = self._names[topic] = self._resolve(topic)
         try:
-            bag.write(name, type_name, msg, t_ns)
+            bag.write(self._name(topic), topic.type, msg, t_ns)
             error = getattr(bag, 'error', None)
             if error:
                 if getattr(bag, 'on_error', None) == self._bag_problem:
