@@ -1,4 +1,5 @@
-"""``plot``: positions, velocities, friction forces and stick bands of a recorded run."""
+"""The one figure of a run (recorded or offline): positions, velocities, friction forces,
+linkage lengths and stick bands."""
 from __future__ import annotations
 
 import os
@@ -12,6 +13,8 @@ from .errors import BagError
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
+
+    from crawler_sim.core.trajectory import Trajectory
 from .reader import Run, load
 
 
@@ -29,57 +32,83 @@ def stick_intervals(t: NDArray[np.float64], stuck: NDArray[np.bool_]) -> list[tu
     return [(float(t[b]), float(t_end[e] - t[b])) for b, e in zip(begins, ends)]
 
 
-def figure(run: Run) -> Figure:
-    """A matplotlib Figure (Agg canvas, no pyplot state) of ``run``."""
+#: the panels of :func:`figure`, top to bottom (their y labels)
+PANELS = ('position x [m]', 'velocity v [m/s]', 'friction [N]', 'linkage length [m]',
+          'stuck (contact = 0)')
+
+
+def figure(run: Run | Trajectory, title: str | None = None) -> Figure:
+    """A matplotlib Figure (Agg canvas, no pyplot state) of a run: a recorded one (a loaded
+    bag, :class:`Run`) or an offline one (:class:`crawler_sim.Trajectory`): they name their
+    arrays alike. Panels (:data:`PANELS`): positions, velocities and friction forces per body,
+    linkage lengths, and the stick bands of each body (shaded where contact == 0). ``title``
+    defaults to the bag's name, p, the number of states and the duration."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(10, 9), layout='constrained')
+    t = np.asarray(run.t)
+    p = run.x.shape[1]
+    fig = Figure(figsize=(10, 11), layout='constrained')
     FigureCanvasAgg(fig)
-    axes = fig.subplots(4, 1, sharex=True, height_ratios=[3, 3, 3, 1.2 + 0.2 * run.p])
-    colours = [f'C{i % 10}' for i in range(run.p)]
-    names = run.bodies if len(run.bodies) == run.p else tuple(f'body_{i}' for i in range(run.p))
-    for ax, values, label in ((axes[0], run.x, 'position x [m]'),
-                              (axes[1], run.v, 'velocity v [m/s]'),
-                              (axes[2], run.friction, 'friction [N]')):
-        for i in range(run.p):
-            ax.plot(run.t, values[:, i], color=colours[i], lw=1.0, label=names[i])
+    axes = fig.subplots(5, 1, sharex=True, height_ratios=[3, 3, 3, 2, 1.2 + 0.2 * p])
+    colours = [f'C{i % 10}' for i in range(p)]
+    bodies = tuple(getattr(run, 'bodies', ()))
+    names = bodies if len(bodies) == p else tuple(f'body_{i}' for i in range(p))
+    for ax, values, label in zip(axes, (run.x, run.v, run.friction), PANELS):
+        for i in range(p):
+            ax.plot(t, values[:, i], color=colours[i], lw=1.0, label=names[i])
         ax.set_ylabel(label)
         ax.grid(True, alpha=0.3)
-    axes[0].legend(loc='best', fontsize='small', ncols=min(run.p, 6))
+    axes[0].legend(loc='best', fontsize='small', ncols=min(p, 6))
     ax = axes[3]
-    if run.contact.shape[1] == run.p:
-        for i in range(run.p):
-            bars = stick_intervals(run.t, run.contact[:, i] == 0)
+    lengths = np.asarray(run.lengths)
+    for j in range(lengths.shape[1] if lengths.ndim == 2 else 0):
+        ax.plot(t, lengths[:, j], lw=1.0, label=f'linkage_{j}')
+    if lengths.ndim == 2 and lengths.shape[1]:
+        ax.legend(loc='best', fontsize='small', ncols=min(lengths.shape[1], 6))
+    ax.set_ylabel(PANELS[3])
+    ax.grid(True, alpha=0.3)
+    ax = axes[4]
+    if run.contact.shape[1] == p:
+        for i in range(p):
+            bars = stick_intervals(t, run.contact[:, i] == 0)
             ax.broken_barh(bars, (i - 0.4, 0.8), facecolors=colours[i], alpha=0.6)
     else:
         ax.text(0.5, 0.5, 'no contact states recorded', transform=ax.transAxes, ha='center')
-    ax.set_yticks(range(run.p), names)
-    ax.set_ylim(-0.6, run.p - 0.4)
+    ax.set_yticks(range(p), names)
+    ax.set_ylim(-0.6, p - 0.4)
     ax.invert_yaxis()
-    ax.set_ylabel('stuck (contact = 0)')
+    ax.set_ylabel(PANELS[4])
     ax.set_xlabel('sim time t [s]')
     ax.grid(True, axis='x', alpha=0.3)
-    title = f'{Path(run.path).name}: p = {run.p}, {len(run)} states, {run.duration:.3f} s'
-    if run.truncated:
-        title += ' (incomplete recording)'
+    if title is None:
+        duration = float(t[-1] - t[0]) if len(t) else 0.0
+        title = f'{Path(getattr(run, "path", "run")).name}: p = {p}, {len(t)} states, ' \
+                f'{duration:.3f} s'
+        if getattr(run, 'truncated', False):
+            title += ' (incomplete recording)'
     fig.suptitle(title)
     return fig
+
+
+def save(fig: Figure, out_png: os.PathLike | str, dpi: int = 120) -> Path:
+    """Write ``fig`` to ``out_png``; :class:`BagError` naming the file if it cannot."""
+    out = Path(out_png)
+    try:
+        fig.savefig(out, dpi=dpi)
+    except OSError as exc:
+        raise BagError(f'cannot write {out}: {exc.strerror or exc}') from None
+    return out
 
 
 def plot(path: os.PathLike | str, out_png: os.PathLike | str, *,
          namespace: str | None = None, dpi: int = 120) -> Path:
     """Plot the run in bag ``path`` to ``out_png`` and return that path.
 
-    Panels: x, v and friction per body, and stick bands (shaded where contact == 0).
+    The panels of :func:`figure`.
     Raises :class:`BagError` for unreadable bags or a bag without states.
     """
     run = load(path, namespace=namespace)
     if len(run) == 0:
         raise BagError(f'{path}: no states to plot')
-    out = Path(out_png)
-    try:
-        figure(run).savefig(out, dpi=dpi)
-    except OSError as exc:
-        raise BagError(f'cannot write {out}: {exc.strerror or exc}') from None
-    return out
+    return save(figure(run), out_png, dpi)

@@ -202,35 +202,6 @@ def _record(out: Path, scene: Any, tr: Any, as_node: dict | None = None) -> None
         raise BagError(f'{out}: {writer.error}')
 
 
-def plot_trajectory(tr: Any, png: Path, title: str = '') -> None:
-    """Body positions, contact states and linkage lengths against time, written to ``png``."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-
-    fig, (ax_x, ax_c, ax_l) = plt.subplots(3, 1, sharex=True, figsize=(8, 7),
-                                           gridspec_kw={'height_ratios': [3, 1, 2]})
-    p = tr.x.shape[1]
-    for i in range(p):
-        ax_x.plot(tr.t, tr.x[:, i], lw=1, label=f'body_{i}')
-        ax_c.step(tr.t, tr.state[:, i] + 0.08 * (i - (p - 1) / 2), where='post', lw=1)
-    ax_x.plot(tr.t, tr.com, 'k--', lw=1, label='centre of mass')
-    ax_x.set_ylabel('x [m]')
-    ax_x.legend(loc='best', fontsize='small')
-    ax_c.set_yticks([-1, 0, 1], ['back', 'stick', 'fwd'])
-    ax_c.set_ylabel('contact')
-    for j in range(tr.lengths.shape[1]):
-        ax_l.plot(tr.t, tr.lengths[:, j], lw=1, label=f'linkage_{j}')
-    ax_l.set_ylabel('length [m]')
-    ax_l.set_xlabel('t [s]')
-    ax_l.legend(loc='best', fontsize='small')
-    if title:
-        ax_x.set_title(title)
-    fig.tight_layout()
-    fig.savefig(png, dpi=110)
-    plt.close(fig)
-
-
 def _as_node(scene: Any, as_node: dict) -> Any:
     """The scene's run as sim_node runs it when gait_node plays the scene's gait with
     ``as_node`` (``mode``: preload, trajectory or command; ``rate`` [Hz]): the node's actuator
@@ -284,11 +255,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             _record(Path(args.out), scene, tr, as_node)
         figures['bag'] = str(args.out)
     if args.plot:
-        if args.out:
-            from ..bag import plot
-            plot(args.out, args.plot)
-        else:
-            plot_trajectory(tr, Path(args.plot), f'{scene.name} ({r.method})')
+        from ..bag.plot import figure, save
+        save(figure(tr, f'{scene.name} ({r.method}): p = {tr.x.shape[1]}, {len(tr.t)} states'),
+             args.plot)
         figures['plot'] = str(args.plot)
     if args.json:
         print(json.dumps(figures, indent=2))
@@ -457,7 +426,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``crawler-sim`` (every subcommand has --help)."""
     parser = _Parser(
         prog=PROG, description='Simulate friction-based crawling robots; record, inspect, '
-        'plot, replay and recover runs; benchmark the solvers.',
+        'plot, replay and recover runs; sweep and optimise gaits.',
         epilog='exit codes: 0 ok, 1 the work failed (solver, bag, replay mismatch), '
         '2 bad input (usage, missing file, invalid scene), 130 interrupted',
         formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -510,8 +479,9 @@ def build_parser() -> argparse.ArgumentParser:
             'of a bag.')
     p.add_argument('bag', metavar='BAG', help='bag directory or MCAP file')
 
-    p = add('plot', _cmd_plot, 'plot a recorded run', 'Plot body positions, contact states and '
-            'linkage lengths of a recorded run.')
+    p = add('plot', _cmd_plot, 'plot a recorded run', 'Plot a recorded run: body positions, '
+            'velocities and friction forces, linkage lengths, and when each body is stuck '
+            '(the figure `simulate --plot` draws).')
     p.add_argument('bag', metavar='BAG', help='bag directory or MCAP file')
     p.add_argument('-o', '--output', required=True, metavar='PNG', help='image file to write')
 

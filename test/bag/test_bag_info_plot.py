@@ -64,3 +64,26 @@ def test_stick_intervals_cover_each_run_of_zero_contact_until_the_next_sample():
     assert stick_intervals(t, stuck) == [(0.0, 2.0), (3.0, 1.0), (5.0, 0.0)]
     assert stick_intervals(t, np.zeros(6, bool)) == []
     assert stick_intervals(t[:0], stuck[:0]) == []
+
+
+def _drawn(fig) -> list[tuple[str, int, int]]:
+    """(y label, lines, shaded bands) of each panel."""
+    return [(ax.get_ylabel(), len(ax.lines), len(ax.collections)) for ax in fig.axes]
+
+
+def test_one_figure_for_an_offline_run_and_its_recording(tmp_path):
+    """issue 27: `simulate --plot` and `plot` of the recorded run drew different figures. Now
+    both draw bag.plot.figure: the same panels with the same curves and stick bands."""
+    from crawler_sim import Crawler, gaits, simulate
+    from crawler_sim.bag import load, record_trajectory
+    from crawler_sim.bag.plot import PANELS, figure
+
+    run = simulate(Crawler(masses=[0.5, 1.0, 0.8], mu=0.3),
+                   gaits.Sinusoid(mean=[0.1, 0.1], amplitude=[0.02, 0.02], frequency=2.0), 2.0,
+                   t_eval=np.linspace(0.0, 2.0, 201))
+    record_trajectory(tmp_path / 'bag', run).close()
+    offline, recorded = _drawn(figure(run, 'offline')), _drawn(figure(load(tmp_path / 'bag')))
+    assert offline == recorded
+    assert [label for label, _, _ in offline] == list(PANELS)
+    # three bodies on x, v, friction; two linkages; one band collection per body
+    assert [n for _, n, _ in offline] == [3, 3, 3, 2, 0] and offline[4][2] == 3
