@@ -479,7 +479,7 @@ def _analytic_positions(gait: RampCosine, t: np.ndarray) -> np.ndarray:
 def _history_check(res: CheckResult, tr: Trajectory, initial, events, t_end: float,
                    max_mismatch: float, label: str) -> float:
     ev = metrics.canonical_events(tr.events, t_end)
-    mis = metrics.history_mismatch(tr.state[0].tolist(), ev, initial, events, t_end)
+    mis = metrics.history_mismatch(tr.contact[0].tolist(), ev, initial, events, t_end)
     res.figures[f'mismatch_{label}'] = mis
     if not mis <= max_mismatch:
         shown = [tuple(round(x, 12) for x in e) for e in ev[:8]]
@@ -561,7 +561,7 @@ def check_close_events(theta: float = 1e-3, periods: int = 2, *, fine_dt: float 
     if 0.5 * theta ** 2 < 1e-11:
         # The forward slide peaks at A theta^2 / 2, within ~1e-13 relative of rounding: finding
         # it or not are both right, anything else (or a wrong position) is not.
-        mis = metrics.history_mismatch(tr.state[0].tolist(), ev, [-1, 0], expected, t_end)
+        mis = metrics.history_mismatch(tr.contact[0].tolist(), ev, [-1, 0], expected, t_end)
         res.figures['mismatch'] = mis
         if not mis <= periods * 2 * theta / w * (1 + 1e-6):
             res.fail(f'history differs from the analytic one for {mis:.2e} s (more than the '

@@ -157,7 +157,7 @@ def reference_run(scene: BenchScene, lad: Ladders) -> Reference:
     tr = _simulate(scene, 'exact', grid, **params)
     elapsed = time.perf_counter() - t0
     X = tr.com
-    return Reference(grid, X, tr.state[0].tolist(),
+    return Reference(grid, X, tr.contact[0].tolist(),
                      metrics.canonical_events(tr.events, scene.t_end), elapsed, params,
                      verify(tr).worst, float(X[-1] - X[0]))
 
@@ -185,7 +185,7 @@ def _core_run(scene: BenchScene, ref: Reference, lad: Ladders, series: str, meth
     if not np.all(np.isfinite(tr.x)):
         rec.status, rec.message = 'failed', 'non-finite positions'
         return rec
-    _score(rec, ref, X, tr.state[0].tolist(), tr.events, scene.t_end)
+    _score(rec, ref, X, tr.contact[0].tolist(), tr.events, scene.t_end)
     rec.verify_worst = float(verify(tr).worst)
     rec.info = {k: v for k, v in tr.info.items() if isinstance(v, (int, float, str))}
     return rec

@@ -249,13 +249,13 @@ def record_trajectory(path: os.PathLike | str, trajectory: Any, *,
                       scene: Mapping[str, Any] | None = None, **options: Any) -> BagWriter:
     """Write a ``crawler_sim.Trajectory`` with :func:`record_arrays`.
 
-    Contact comes from ``trajectory.state``, events from ``trajectory.events`` and masses from
+    Contact comes from ``trajectory.contact``, events from ``trajectory.events`` and masses from
     ``trajectory.crawler``.
     """
     masses = getattr(getattr(trajectory, 'crawler', None), 'masses', None)
     return record_arrays(
         path, t=trajectory.t, x=trajectory.x, v=trajectory.v, friction=trajectory.friction,
-        contact=trajectory.state, lengths=trajectory.lengths, rates=trajectory.rates,
+        contact=trajectory.contact, lengths=trajectory.lengths, rates=trajectory.rates,
         linkage_force=trajectory.linkage_force, commands=commands,
         events=getattr(trajectory, 'events', None), scene=scene,
         masses=options.pop('masses', masses), **options)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import bisect
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
@@ -137,7 +138,8 @@ class Trajectory:
     t : (N,) s
     x, v : (N, p) body positions [m] and velocities [m/s]
     friction : (N, p) force the ground exerts on each body [N] (opposes its sliding)
-    state : (N, p) int8, +1 sliding forward, 0 stuck, -1 sliding backward
+    contact : (N, p) int8, +1 sliding forward, 0 stuck, -1 sliding backward (the names are
+        those of a loaded bag, :class:`crawler_sim.bag.Run`, and of :class:`State`)
     linkage_force : (N, p-1) force linkage j exerts on body j+1 [N] (positive pushes apart)
     impulse : (N, p) integrated friction force since t[0] [N s] (the seed's k_i with sign flipped)
     lengths, rates : (N, p-1) linkage lengths [m] and rates [m/s]
@@ -152,7 +154,7 @@ class Trajectory:
     x: NDArray[np.float64]
     v: NDArray[np.float64]
     friction: NDArray[np.float64]
-    state: NDArray[np.int8]
+    contact: NDArray[np.int8]
     linkage_force: NDArray[np.float64]
     impulse: NDArray[np.float64]
     lengths: NDArray[np.float64]
@@ -162,6 +164,13 @@ class Trajectory:
     crawler: Crawler
     method: str
     info: dict = field(default_factory=dict)
+
+    @property
+    def state(self) -> NDArray[np.int8]:
+        """Deprecated name of :attr:`contact` (before 0.4)."""
+        warnings.warn('Trajectory.state is now Trajectory.contact (the name a loaded bag and '
+                      'State use)', DeprecationWarning, stacklevel=2)
+        return self.contact
 
     @property
     def com(self) -> NDArray[np.float64]:
@@ -201,7 +210,7 @@ class Trajectory:
     def stick_fraction(self) -> NDArray[np.float64]:
         """Fraction of the run each body spends stuck, shape (p,), from the exact event times."""
         t0, t1 = float(self.t[0]), float(self.t[-1])
-        state = self.state[0].astype(int).copy()
+        state = self.contact[0].astype(int).copy()
         last = np.full(state.size, t0)
         stuck = np.zeros(state.size)
 

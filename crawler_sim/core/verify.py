@@ -119,11 +119,11 @@ def verify(trajectory: Trajectory, gait=None, *, substeps: int = 16) -> VerifyRe
     # its Coulomb force (-f_plus forward, +f_minus backward), even where its velocity is zero
     # (the instant it starts or stops)
     free = (fp == 0) & (fm == 0)
-    coulomb = np.where(tr.state > 0, -fp, fm)
-    wrong_force = (tr.state != 0) & ~free & (np.abs(R - coulomb) > 1e-9 * f_max)
-    contact_bad = int(np.sum(((tr.state > 0) & (v < -tiny)) | ((tr.state < 0) & (v > tiny))
+    coulomb = np.where(tr.contact > 0, -fp, fm)
+    wrong_force = (tr.contact != 0) & ~free & (np.abs(R - coulomb) > 1e-9 * f_max)
+    contact_bad = int(np.sum(((tr.contact > 0) & (v < -tiny)) | ((tr.contact < 0) & (v > tiny))
                              | wrong_force))
-    stuck_v = float(np.abs(np.where(tr.state == 0, v, 0.0)).max())
+    stuck_v = float(np.abs(np.where(tr.contact == 0, v, 0.0)).max())
     rel = np.maximum.reduce([np.abs(mom) / mom_scale, excess.max(axis=1) / f_max,
                              gap.max(axis=1) / (f_max * v_max)])
     t_worst = float(tr.t[int(np.argmax(rel))])
@@ -173,7 +173,7 @@ def _kinematic(tr: Trajectory, gait, n_sub: int) -> dict:
     breaks = np.asarray(gait.breakpoints(float(t[0]), float(t[-1])), float) \
         if hasattr(gait, 'breakpoints') else np.empty(0)
     cuts = np.union1d(np.union1d(t, ev_t), breaks)
-    state = tr.state[0].astype(int).copy()
+    state = tr.contact[0].astype(int).copy()
     modes, k_ev = [], 0
     for ta in cuts[:-1]:
         while k_ev < len(events) and events[k_ev].time <= ta:

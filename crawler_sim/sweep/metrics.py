@@ -72,7 +72,7 @@ def window_speed(t: np.ndarray, com: np.ndarray, start: float, end: float) -> fl
 
 def _stuck_time(tr: Trajectory, a: float, b: float) -> np.ndarray:
     """Time each body spends stuck in [a, b] [s], shape (p,), from the exact event times."""
-    state = tr.state[0].astype(int).copy()
+    state = tr.contact[0].astype(int).copy()
     last = np.full(state.size, float(tr.t[0]))
     stuck = np.zeros(state.size)
     for ev in tr.events:

@@ -68,7 +68,7 @@ def _events(t, body, old, new) -> pd.DataFrame:
 
 def trajectory_frames(tr: Trajectory) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(samples, events) of a simulated run (see the module doc for the columns)."""
-    samples = _samples(tr.t, tr.x, tr.v, tr.friction, tr.state, tr.lengths, tr.rates,
+    samples = _samples(tr.t, tr.x, tr.v, tr.friction, tr.contact, tr.lengths, tr.rates,
                        tr.linkage_force, tr.crawler.masses)
     ev = tr.events
     events = _events([e.time for e in ev], [e.body for e in ev], [e.old for e in ev],

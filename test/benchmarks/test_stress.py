@@ -169,7 +169,7 @@ def test_time_steppers_do_not_report_a_moving_frictionless_body_as_stuck_at_the_
     for method in ('implicit', 'penalty'):
         tr = simulate(crawler, gait, 1.0, method, dt=0.01, penalty=1e8, t_eval=[0.0, 0.5])
         assert tr.v[0, 1] > 0.0
-        assert tr.state[0, 1] == 1, f'{method}: state at t = 0 is {tr.state[0].tolist()}'
+        assert tr.contact[0, 1] == 1, f'{method}: state at t = 0 is {tr.contact[0].tolist()}'
         assert verify(tr).ok(1e-8)
 
 

@@ -66,7 +66,7 @@ def test_a_slide_phase_has_exactly_quadratic_com_and_stops_at_the_hand_computed_
     np.testing.assert_allclose(tr.com[before], X_hand[before], rtol=0, atol=1e-14)
     np.testing.assert_allclose(tr.com_velocity[before], (V0 + A * t)[before], rtol=0, atol=1e-14)
     # both slide in direction s with the full friction force
-    assert np.all(tr.state[before] == s)
+    assert np.all(tr.contact[before] == s)
     np.testing.assert_array_equal(tr.friction[before], np.broadcast_to(-s * f_s, (before.sum(), 2)))
 
     ev0 = _events_of(tr, 0)
@@ -76,7 +76,7 @@ def test_a_slide_phase_has_exactly_quadratic_com_and_stops_at_the_hand_computed_
     assert not _events_of(tr, 1)
 
     assert np.all(tr.v[after, 0] == 0.0)
-    assert np.all(tr.state[after, 0] == 0)
+    assert np.all(tr.contact[after, 0] == 0)
     np.testing.assert_allclose(tr.x[after, 0], k['x0_final'], rtol=0, atol=1e-14)
     # body 1 moves at exactly l' (body 0 anchored) and keeps sliding
     np.testing.assert_allclose(tr.v[after, 1], k['c'] + k['a'] * t[after], rtol=0, atol=1e-14)
@@ -109,7 +109,7 @@ def test_a_body_below_its_friction_bound_stays_exactly_still(case, x0):
     assert np.all(tr.x[:, 0] == tr.x[0, 0]), np.ptp(tr.x[:, 0])
     assert tr.x[0, 0] == pytest.approx(x0, abs=1e-15)
     assert np.all(tr.v[:, 0] == 0.0)
-    assert np.all(tr.state[:, 0] == 0)
+    assert np.all(tr.contact[:, 0] == 0)
     assert not _events_of(tr, 0)
     f0 = crawler.friction[0]
     assert np.all(np.abs(tr.friction[:, 0]) < f0)
@@ -121,7 +121,7 @@ def test_implicit_method_gives_an_anchored_body_exactly_zero_velocity(case):
     crawler, gait = ANCHOR_CASES[case]
     tr = cs.simulate(crawler, gait, 2.0, 'implicit', dt=1e-3)
     assert np.all(tr.v[:, 0] == 0.0)
-    assert np.all(tr.state[:, 0] == 0)
+    assert np.all(tr.contact[:, 0] == 0)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -185,7 +185,7 @@ def test_a_crawler_at_rest_on_a_slope_is_flagged_indeterminate_and_its_friction_
     tr = cs.simulate(crawler, gait, 1.0, method, dt=1e-2 if method == 'implicit' else None)
     M = 3.0
     assert np.all(tr.indeterminate)
-    assert np.all(tr.state == 0)
+    assert np.all(tr.contact == 0)
     assert np.all(tr.v == 0.0)
     assert np.all(tr.x == tr.x[0])
     # A time-stepping method only knows the force over a step, so its first sample (t = 0, before
@@ -249,7 +249,7 @@ def test_a_rigid_crawler_on_a_too_steep_slope_slides_down_at_the_computed_rate(m
         # backward Euler on a constant acceleration: V is exact, X(t_k) = A t_k (t_k + h) / 2
         np.testing.assert_allclose(tr.com_velocity, A * t, rtol=0, atol=1e-12)
         np.testing.assert_allclose(tr.com - tr.com[0], 0.5 * A * t * (t + 1e-3), atol=1e-12)
-    assert np.all(tr.state[1:] == -1)
+    assert np.all(tr.contact[1:] == -1)
 
 
 # Direction-dependent friction, quasi-static, exact: m = (0.1, 0.1), f_plus = 0.2, f_minus = 0.5,
@@ -298,7 +298,7 @@ def test_too_steep_a_slope_makes_the_same_crawler_slide_down_at_the_computed_rat
     tr = cs.simulate(crawler, gaits.Sinusoid(0.1, 0.01, 1.0), 3.0, t_eval=t)
     assert np.all(np.diff(tr.com_velocity) <= 1e-15)        # M V' <= -M g sin a + sum f_minus < 0
     late = t >= 1.0    # by then V << -max|e_i'| = -0.01 pi: every body slides backward
-    assert np.all(tr.state[late] == -1)
+    assert np.all(tr.contact[late] == -1)
     np.testing.assert_allclose(np.diff(tr.com_velocity[late]), A_down * np.diff(t[late]),
                                rtol=1e-11)
 
@@ -334,7 +334,7 @@ def test_a_body_whose_initial_velocity_is_exactly_zero_starts_stuck_without_a_sp
     v0 = -A * w
     assert v0 + gaits.Sinusoid(0.1, A, 1.0)(0.0)[1][0] == 0.0
     tr = cs.simulate(cs.Crawler([0.5, 1.0], [1.0, 100.0]), gaits.Sinusoid(0.1, A, 1.0), 1.0, v0=v0)
-    assert tr.state[0, 1] == 0
+    assert tr.contact[0, 1] == 0
     assert tr.v[0, 1] == 0.0
     assert not _events_of(tr, 1), _events_of(tr, 1)
 
@@ -356,7 +356,7 @@ def test_a_grazing_zero_velocity_neither_stalls_nor_moves_the_anchored_body():
     l = tr.lengths[:, 0]
     np.testing.assert_allclose(tr.x[:, 0], tr.x[0, 0] - (l - l[0]), rtol=0, atol=1e-15)
     interior = (t % 1.0 > 1e-6) & (t % 1.0 < 1 - 1e-6)
-    assert np.all(tr.state[interior, 0] == -1)
+    assert np.all(tr.contact[interior, 0] == -1)
     assert cs.verify(tr).ok(1e-12)
 
 

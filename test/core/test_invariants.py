@@ -172,7 +172,7 @@ def test_a_rigid_link_behaves_as_one_merged_body(rigid, slope):
         np.testing.assert_allclose(a.friction[:, 0] + a.friction[:, 1], b.friction[:, 0],
                                    rtol=0, atol=1e-10)
         np.testing.assert_allclose(a.friction[:, 2], b.friction[:, 1], rtol=0, atol=1e-10)
-        stuck_pair = b.state[:, 0] == 0
+        stuck_pair = b.contact[:, 0] == 0
     else:
         g3 = gaits.Sinusoid([0.1, L], [A, 0.0], freq, [0.4, 0.0])
         c2 = cs.Crawler([m[0], m[1] + m[2]], [fp[0], fp[1] + fp[2]], [fm[0], fm[1] + fm[2]],
@@ -185,7 +185,7 @@ def test_a_rigid_link_behaves_as_one_merged_body(rigid, slope):
         np.testing.assert_allclose(a.v[:, :2], b.v, rtol=0, atol=1e-12)
         np.testing.assert_allclose(a.friction[:, 1] + a.friction[:, 2], b.friction[:, 1],
                                    rtol=0, atol=1e-10)
-        stuck_pair = b.state[:, 1] == 0
+        stuck_pair = b.contact[:, 1] == 0
     # the two rigidly linked bodies stuck together: only their total is determined
     assert stuck_pair.any()
     assert np.all(a.indeterminate[stuck_pair])
@@ -206,7 +206,7 @@ def test_scaling_all_masses_and_frictions_changes_nothing_but_the_forces(p, k):
     b = cs.simulate(ck, gait, 2.5, t_eval=t, v0=0.03)
     np.testing.assert_allclose(b.x, a.x, rtol=0, atol=1e-12)
     np.testing.assert_allclose(b.v, a.v, rtol=0, atol=1e-12)
-    np.testing.assert_array_equal(b.state, a.state)
+    np.testing.assert_array_equal(b.contact, a.contact)
     np.testing.assert_allclose(b.friction / k, a.friction, rtol=0, atol=1e-10)
     np.testing.assert_allclose(b.linkage_force / k, a.linkage_force, rtol=0, atol=1e-10)
     assert [e.body for e in a.events] == [e.body for e in b.events]
@@ -262,7 +262,7 @@ def test_skipping_repeated_gait_periods_gives_the_same_run_as_integrating_them(p
     b = cs.simulate(c, gait, 20.0, t_eval=t, periodic_skip=False)
     np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-11)
     np.testing.assert_allclose(a.v, b.v, rtol=0, atol=1e-11)
-    np.testing.assert_array_equal(a.state, b.state)
+    np.testing.assert_array_equal(a.contact, b.contact)
     assert len(a.events) == len(b.events)
     np.testing.assert_allclose([e.time for e in a.events], [e.time for e in b.events], atol=1e-11)
     assert a.info['skipped_periods'] > 0 and b.info['skipped_periods'] == 0

@@ -226,7 +226,7 @@ def test_verify_detects_a_friction_force_beyond_its_bound_and_a_broken_momentum_
     moving = np.abs(tr.v) > 1e-3
     creep = tr.state.copy()
     creep[moving] = 0
-    assert cs.verify(replace(tr, state=creep)).stuck_velocity >= 1e-3
+    assert cs.verify(replace(tr, contact=creep)).stuck_velocity >= 1e-3
 
 
 # ----------------------------------------------------------------------------------------------
@@ -387,4 +387,4 @@ def test_a_penalty_given_per_body_equal_to_a_scalar_gives_the_same_run():
     assert stuck.sum() > 10
     f_k = max(crawler.friction[k], crawler.friction_backward[k])
     assert np.all(np.abs(c.v[stuck, k]) <= f_k / 2e5 * (1 + 1e-12))
-    assert np.max(np.abs(a.v[a.state[:, k] == 0, k])) > 10 * f_k / 2e5
+    assert np.max(np.abs(a.v[a.contact[:, k] == 0, k])) > 10 * f_k / 2e5

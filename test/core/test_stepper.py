@@ -312,7 +312,7 @@ def test_the_stepper_state_reports_the_same_forces_as_the_trajectory():
     np.testing.assert_allclose(s.x, tr.x[-1], atol=1e-12)
     np.testing.assert_allclose(s.friction, tr.friction[-1], atol=1e-10)
     np.testing.assert_allclose(s.linkage_force, tr.linkage_force[-1], atol=1e-10)
-    np.testing.assert_array_equal(s.contact, tr.state[-1])
+    np.testing.assert_array_equal(s.contact, tr.contact[-1])
 
 
 # ----------------------------------------------------------------------------------------------

@@ -141,7 +141,7 @@ def _closed_form_all_sliding(crawler, gait, T, n=201):
     X = -e[0, 0] + V[0] * t + 0.5 * a * t * t
     x, v = X[:, None] + e, V[:, None] + ed
     fr = np.tile(-F, (n, 1))
-    return Trajectory(t=t, x=x, v=v, friction=fr, state=np.tile(state0, (n, 1)).astype(np.int8),
+    return Trajectory(t=t, x=x, v=v, friction=fr, contact=np.tile(state0, (n, 1)).astype(np.int8),
                       linkage_force=np.zeros((n, 1)), impulse=fr * t[:, None], lengths=l,
                       rates=ld, events=[], indeterminate=np.zeros(n, bool), crawler=crawler,
                       method='fake')
@@ -248,7 +248,7 @@ def test_a_flipped_contact_state_of_a_body_at_rest_is_flagged():
     g = gaits.Sinusoid(1.0, 0.1, 1.0)
     tr = cs.simulate(c, g, 2.0, t_eval=np.linspace(0, 2, 41))
     assert cs.verify(tr, g).ok()
-    stuck = np.nonzero((tr.state[:, 1] == 0) & (tr.v[:, 1] == 0.0))[0]
+    stuck = np.nonzero((tr.contact[:, 1] == 0) & (tr.v[:, 1] == 0.0))[0]
     assert stuck.size > 5
     bad = replace(tr, state=tr.state.copy())
     bad.state[stuck[3], 1] = 1

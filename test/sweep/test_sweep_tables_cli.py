@@ -83,7 +83,7 @@ def test_export_writes_a_bags_samples_and_events_that_match_the_run(traj, tmp_pa
     assert len(samples) == len(traj) and len(events) == len(traj.events)
     np.testing.assert_allclose(samples.index.to_numpy(), traj.t, rtol=0, atol=1e-9)  # ns stamps
     np.testing.assert_array_equal(samples['x_1'].to_numpy(), traj.x[:, 1])
-    np.testing.assert_array_equal(samples['contact_0'].to_numpy(), traj.state[:, 0])
+    np.testing.assert_array_equal(samples['contact_0'].to_numpy(), traj.contact[:, 0])
 
 
 def test_export_of_a_missing_bag_is_a_usage_error(tmp_path, capsys):

@@ -232,6 +232,6 @@ def test_random_scenes_streamed_give_the_one_shot_run(p, seed, kind):
         for key, col in (('x', tr.x), ('v', tr.v), ('friction', tr.friction),
                          ('impulse', tr.impulse), ('linkage_force', tr.linkage_force)):
             np.testing.assert_array_equal(row[key], col[k], err_msg=key)
-        np.testing.assert_array_equal(row['contact'], tr.state[k])
+        np.testing.assert_array_equal(row['contact'], tr.contact[k])
     assert [(e.body, e.old, e.new) for e in s.events] == [(e.body, e.old, e.new)
                                                           for e in tr.events]
