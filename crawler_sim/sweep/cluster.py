@@ -21,7 +21,7 @@ import pandas as pd
 from .runner import run_chunk
 from .spec import SweepSpec
 
-__all__ = ['run_on_client', 'connect']
+__all__ = ['run_on_client', 'connect', 'check_workers']
 
 
 def connect(address: str) -> Any:
@@ -35,16 +35,47 @@ def connect(address: str) -> Any:
         raise OSError(f'cannot reach the Dask scheduler at {address}: {exc}') from None
 
 
+def check_workers(client: Any) -> None:
+    """Raise RuntimeError naming every worker of ``client`` (and its scheduler) that cannot
+    import ``crawler_sim`` or has another version than this process, and how to fix it.
+
+    Without this check such a worker fails to unpickle the first task and Dask reports it as
+    ``FutureCancelledError ... already forgotten``. The probe is the builtin ``eval`` of an
+    import expression: a builtin unpickles on any worker, a function of crawler_sim would not.
+    """
+    from crawler_sim import __version__
+
+    probe = "__import__('crawler_sim').__version__"
+    found = client.run(eval, probe, on_error='return')
+    try:        # the scheduler unpickles task graphs too
+        found['the scheduler'] = client.run_on_scheduler(eval, probe)
+    except Exception as exc:
+        found['the scheduler'] = exc
+    bad = []
+    for worker, got in sorted(found.items()):
+        if isinstance(got, BaseException):
+            bad.append(f'{worker}: cannot import crawler_sim ({type(got).__name__}: {got})')
+        elif got != __version__:
+            bad.append(f'{worker}: crawler_sim {got}')
+    if bad:
+        raise RuntimeError(f'Dask workers not ready for crawler_sim {__version__} (this '
+                           f'process): {"; ".join(bad)}. Install the same crawler_sim on every '
+                           'worker and the scheduler (pip install ".[sweep]" from this checkout, '
+                           'or put it on their PYTHONPATH) and restart them.')
+
+
 def run_on_client(client: Any, spec: SweepSpec, todo: Iterable[int],
                   on_done: Callable[[int, pd.DataFrame], None], *,
                   window: int | None = None) -> None:
     """Run chunks ``todo`` of ``spec`` on ``client``; ``on_done(index, frame)`` as each ends.
 
     At most ``window`` tasks are in flight (default: twice the cluster's worker threads, at
-    least 4); ``todo`` is consumed lazily.
+    least 4); ``todo`` is consumed lazily. Workers that cannot run crawler_sim are named
+    before any task is sent (:func:`check_workers`).
     """
     from distributed import as_completed
 
+    check_workers(client)
     data = client.scatter(spec.to_dict(), broadcast=True)
     run_id = uuid.uuid4().hex[:12]      # keys unique per call, readable on the dashboard
     todo = iter(todo)

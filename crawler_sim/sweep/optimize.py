@@ -240,6 +240,9 @@ class OptimizeResult:
 def _mapper(client: Any, workers: int) -> tuple[Callable, Callable[[], None]]:
     """A map(func, iterable) for the evaluations and a function that releases it."""
     if client is not None:
+        from .cluster import check_workers
+        check_workers(client)
+
         def dask_map(func: Callable, xs: Iterable) -> list:
             futures = client.map(func.evaluate, [list(map(float, x)) for x in xs], pure=False)
             return client.gather(futures)

@@ -4,6 +4,7 @@ The fixture is made available to the sweep tests by test/sweep/conftest.py.
 """
 from __future__ import annotations
 
+import contextlib
 import os
 from pathlib import Path
 import shutil
@@ -27,13 +28,18 @@ def _wait_for(path: Path, procs: list, timeout: float = 90.0) -> None:
         time.sleep(0.2)
 
 
-@pytest.fixture(scope='module')
-def dask_client(tmp_path_factory):
-    """A real Dask scheduler and two one-thread workers as separate processes on localhost."""
-    distributed = pytest.importorskip('distributed')
-    tmp = tmp_path_factory.mktemp('dask')
+@contextlib.contextmanager
+def local_cluster(tmp: Path, workers: int = 2, *, importable: bool = True):
+    """A real Dask scheduler and ``workers`` one-thread workers as separate processes on
+    localhost, and a Client to them. ``importable`` False: the workers' PYTHONPATH lacks this
+    checkout (the scheduler keeps it) (they cannot import crawler_sim, as on a cluster where it is not installed)."""
+    import distributed
+
     sched_file = tmp / 'scheduler.json'
-    env = dict(os.environ, PYTHONPATH=str(REPO), DASK_DISTRIBUTED__WORKER__DAEMON='False')
+    env = dict(os.environ, DASK_DISTRIBUTED__WORKER__DAEMON='False', PYTHONPATH=str(REPO))
+    worker_env = dict(env)
+    if not importable:
+        del worker_env['PYTHONPATH']
     dask_bin = shutil.which('dask', path=str(Path(sys.executable).parent)) or 'dask'
     procs = [subprocess.Popen([dask_bin, 'scheduler', '--host', '127.0.0.1', '--port', '0',
                                '--no-dashboard', '--scheduler-file', str(sched_file)],
@@ -41,14 +47,14 @@ def dask_client(tmp_path_factory):
                               stderr=subprocess.DEVNULL)]
     try:
         _wait_for(sched_file, procs)
-        for k in range(2):
+        for k in range(workers):
             procs.append(subprocess.Popen(
                 [dask_bin, 'worker', '--scheduler-file', str(sched_file), '--nthreads', '1',
                  '--nworkers', '1', '--no-dashboard', '--name', f'w{k}',
                  '--local-directory', str(tmp / f'w{k}')],
-                env=env, cwd=tmp, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+                env=worker_env, cwd=tmp, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
         client = distributed.Client(scheduler_file=str(sched_file), timeout='60s')
-        client.wait_for_workers(2, timeout=90)
+        client.wait_for_workers(workers, timeout=90)
         yield client
         client.close()
     finally:
@@ -59,3 +65,11 @@ def dask_client(tmp_path_factory):
                 p.wait(timeout=20)
             except subprocess.TimeoutExpired:
                 p.kill()
+
+
+@pytest.fixture(scope='module')
+def dask_client(tmp_path_factory):
+    """A real Dask scheduler and two one-thread workers as separate processes on localhost."""
+    pytest.importorskip('distributed')
+    with local_cluster(tmp_path_factory.mktemp('dask')) as client:
+        yield client
