@@ -576,7 +576,7 @@ def check_close_events(theta: float = 1e-3, periods: int = 2, *, fine_dt: float 
     if fine_dt:
         im = simulate(crawler, gait, t_end, 'implicit', dt=fine_dt, t_eval=grid, v0=v0)
         mis = metrics.history_mismatch(
-            im.state[0].tolist(), metrics.canonical_events(im.events, t_end), [-1, 0],
+            im.contact[0].tolist(), metrics.canonical_events(im.events, t_end), [-1, 0],
             expected, t_end)
         res.figures['implicit_mismatch'] = mis
         if not mis <= 4 * fine_dt * (len(expected) + 1):
@@ -602,7 +602,7 @@ def check_history_against_fine(name: str = 'wave_3body', periods: float = 1.0,
     for d in divs:
         im = simulate(sc.crawler, sc.gait, t_end, 'implicit', dt=T / d, t_eval=[0.0, t_end])
         ev = metrics.canonical_events(im.events, t_end)
-        mis.append(metrics.history_mismatch(im.state[0].tolist(), ev, ex.state[0].tolist(),
+        mis.append(metrics.history_mismatch(im.contact[0].tolist(), ev, ex.contact[0].tolist(),
                                             ref_ev, t_end))
     res.figures.update(mismatch=mis, transitions=len(ref_ev))
     bound = 8 * (T / divs[-1]) * (len(ref_ev) + 1)

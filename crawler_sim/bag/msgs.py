@@ -11,6 +11,8 @@ from array import array
 from functools import lru_cache
 from typing import Any, Sequence
 
+from numpy.typing import ArrayLike
+
 from builtin_interfaces.msg import Time
 from nav_msgs.msg import Odometry
 import numpy as np
@@ -54,7 +56,8 @@ def _f64(values: np.ndarray | Sequence[float]) -> array:
     return array('d', values)
 
 
-def joint_state(t_ns: int, names: Sequence[str], position, velocity, effort) -> JointState:
+def joint_state(t_ns: int, names: Sequence[str], position: ArrayLike, velocity: ArrayLike,
+                effort: ArrayLike) -> JointState:
     """A JointState stamped ``t_ns`` [ns]; all arrays have ``len(names)`` entries."""
     msg = JointState()
     msg.header.stamp = stamp_from_ns(t_ns)
@@ -68,19 +71,20 @@ def joint_state(t_ns: int, names: Sequence[str], position, velocity, effort) -> 
 # Array-level builders: the node (from a core ``State``) and offline recording (from arrays)
 # both go through these, so online and offline bags hold the same messages.
 
-def body_states(t_ns: int, x, v, friction) -> JointState:
+def body_states(t_ns: int, x: ArrayLike, v: ArrayLike, friction: ArrayLike) -> JointState:
     """``body_states``: names body_i, position x_i [m], velocity v_i [m/s], effort = friction
     force the ground exerts on body i [N]."""
     return joint_state(t_ns, body_names(len(x)), x, v, friction)
 
 
-def joint_states(t_ns: int, lengths, rates, linkage_force) -> JointState:
+def joint_states(t_ns: int, lengths: ArrayLike, rates: ArrayLike,
+                 linkage_force: ArrayLike) -> JointState:
     """``joint_states``: names linkage_j, position l_j [m], velocity l_j' [m/s], effort = linkage
     force [N] (positive pushes the bodies apart)."""
     return joint_state(t_ns, linkage_names(len(lengths)), lengths, rates, linkage_force)
 
 
-def contact_states(contact) -> Int8MultiArray:
+def contact_states(contact: ArrayLike) -> Int8MultiArray:
     """``contact_states``: +1 sliding forward, 0 stuck, -1 sliding backward, per body (no stamp:
     Int8MultiArray has no header; it is published in the same tick as ``body_states``)."""
     msg = Int8MultiArray()
@@ -88,7 +92,7 @@ def contact_states(contact) -> Int8MultiArray:
     return msg
 
 
-def centre_of_mass(x, v, masses) -> tuple[float, float]:
+def centre_of_mass(x: ArrayLike, v: ArrayLike, masses: ArrayLike) -> tuple[float, float]:
     """Centre of mass position X = sum m_i x_i / M [m] and velocity V [m/s]."""
     m = np.asarray(masses, dtype=np.float64)
     total = float(m.sum())
@@ -96,7 +100,7 @@ def centre_of_mass(x, v, masses) -> tuple[float, float]:
             float(m @ np.asarray(v, dtype=np.float64)) / total)
 
 
-def odometry(t_ns: int, x, v, masses) -> Odometry:
+def odometry(t_ns: int, x: ArrayLike, v: ArrayLike, masses: ArrayLike) -> Odometry:
     """``odom``: centre of mass X = sum m_i x_i / M and V along x, frame ``odom``, child
     ``base_link``. The line is the odom x axis (along the incline); orientation is identity."""
     msg = Odometry()

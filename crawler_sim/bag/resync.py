@@ -108,7 +108,8 @@ def _fields_fit(buf, opcode: int, a: int, b: int) -> bool:
     return opcode in SUMMARY_OPS
 
 
-def record_end(buf, pos: int, size: int, channels: Collection[int] = ()) -> int | None:
+def record_end(buf: bytes | bytearray | memoryview, pos: int, size: int,
+               channels: Collection[int] = ()) -> int | None:
     """End of the record at ``pos`` if it lies inside ``size`` bytes and fits the spec (a
     message or message index of a channel in ``channels``, unless that is empty)."""
     if pos + RECORD_PREFIX > size:
@@ -153,7 +154,8 @@ def _restart_at(buf, pos: int, size: int, channels: Collection[int]) -> bool:
     return True
 
 
-def next_record(buf, start: int, size: int, channels: Collection[int] = ()) -> int | None:
+def next_record(buf: bytes | bytearray | memoryview, start: int, size: int,
+                channels: Collection[int] = ()) -> int | None:
     """First position ``>= start`` where an intact record (see the module doc) begins, or None.
 
     ``buf`` is the whole file (bytes or mmap) of ``size`` bytes; ``channels`` the channel ids

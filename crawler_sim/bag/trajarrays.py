@@ -19,6 +19,7 @@ JointTrajectoryPoint[] points; a point is float64[] positions, velocities, accel
 from __future__ import annotations
 
 import struct
+from typing import Any
 
 import numpy as np
 
@@ -230,7 +231,7 @@ def _read_blocks(buf: memoryview, start: int, n_blocks: int, block: int,
     return out
 
 
-def from_message(msg) -> TrajectoryArrays:
+def from_message(msg: Any) -> TrajectoryArrays:
     """A JointTrajectory message object as :class:`TrajectoryArrays` (the slow path; tests)."""
     pts = list(msg.points)
     stamp_ns = from_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)

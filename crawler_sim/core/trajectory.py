@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import bisect
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -50,7 +50,7 @@ class EventLog(Sequence):
         self._tail().append(ev)
         self._ends[-1] += 1
 
-    def extend(self, evs) -> None:
+    def extend(self, evs: Iterable[Event]) -> None:
         evs = list(evs)
         self._tail().extend(evs)
         self._ends[-1] += len(evs)

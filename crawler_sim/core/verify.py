@@ -25,11 +25,15 @@ state, and checked on a sub-grid of every piece between events:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .model import kinematics
 from .trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from .gaits import Gait
 
 __all__ = ['VerifyReport', 'verify']
 
@@ -89,7 +93,8 @@ class VerifyReport:
 SLIVER = 1e-12     # [s] a piece this short beside a breakpoint is not checked (see _kinematic)
 
 
-def verify(trajectory: Trajectory, gait=None, *, substeps: int = 16) -> VerifyReport:
+def verify(trajectory: Trajectory, gait: Gait | None = None, *,
+           substeps: int = 16) -> VerifyReport:
     """Measure how well ``trajectory`` satisfies the momentum balance and the friction law.
 
     ``gait`` (the one the trajectory was simulated with; default ``trajectory.info['gait']`` when

@@ -12,7 +12,10 @@ without a word, is reported in one line naming the argument (``main`` exits with
 from __future__ import annotations
 
 import difflib
-from typing import Iterable, Sequence
+from typing import TYPE_CHECKING, Iterable, Sequence
+
+if TYPE_CHECKING:
+    from rclpy.node import Node
 
 __all__ = ['ArgsError', 'check_args', 'check_params_files', 'unknown_parameters']
 
@@ -120,7 +123,7 @@ def _rcl_reason(text: str) -> str:
     return f'invalid ROS arguments: {reason}'
 
 
-def unknown_parameters(node, argv: Sequence[str]) -> list[str]:
+def unknown_parameters(node: Node, argv: Sequence[str]) -> list[str]:
     """One message per parameter given to ``node`` (``-p`` or a ``--params-file`` section for
     its name) that it does not declare, with the nearest declared name. Names given to every
     node (a ``/**`` section) and rclpy's own are not reported."""

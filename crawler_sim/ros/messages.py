@@ -26,6 +26,7 @@ from ..bag.msgs import (BASE_FRAME, ODOM_FRAME, body_names, body_states, centre_
                         contact_states, event_msg, float64_array_msg, joint_state, joint_states,
                         linkage_names, ns_from_stamp, odometry, stamp_from_ns)
 from crawler_sim.bag import topics as T
+from crawler_sim.core.trajectory import State
 from crawler_sim.core.simtime import split_ns
 
 __all__ = ['stamp_from_ns', 'ns_from_stamp', 'linkage_names', 'body_names', 'joint_states_msg',
@@ -44,17 +45,17 @@ BODY_SIZE = 0.04       # marker cube edge [m]
 LINK_WIDTH = 0.008     # marker line width [m]
 
 
-def joint_states_msg(state, t_ns: int) -> JointState:
+def joint_states_msg(state: State, t_ns: int) -> JointState:
     """``joint_states`` from a core ``State``."""
     return joint_states(t_ns, state.lengths, state.rates, state.linkage_force)
 
 
-def body_states_msg(state, t_ns: int) -> JointState:
+def body_states_msg(state: State, t_ns: int) -> JointState:
     """``body_states`` from a core ``State``."""
     return body_states(t_ns, state.x, state.v, state.friction)
 
 
-def contacts_stamped_msg(state, t_ns: int) -> JointState:
+def contacts_stamped_msg(state: State, t_ns: int) -> JointState:
     """``contacts``: the stamped alternative to ``contact_states`` within common_interfaces.
 
     One entry per body (name ``body_i``): position = contact state (+1 sliding forward, 0
@@ -64,12 +65,12 @@ def contacts_stamped_msg(state, t_ns: int) -> JointState:
                        state.v, state.friction)
 
 
-def contact_states_msg(state) -> Int8MultiArray:
+def contact_states_msg(state: State) -> Int8MultiArray:
     """``contact_states`` from a core ``State``."""
     return contact_states(state.contact)
 
 
-def odom_msg(state, masses: np.ndarray, t_ns: int) -> Odometry:
+def odom_msg(state: State, masses: np.ndarray, t_ns: int) -> Odometry:
     """``odom`` from a core ``State``."""
     return odometry(t_ns, state.x, state.v, masses)
 
@@ -78,7 +79,7 @@ def _colour(rgba: tuple[float, float, float, float]) -> ColorRGBA:
     return ColorRGBA(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
 
 
-def markers_msg(state, t_ns: int, *, frame_id: str = ODOM_FRAME) -> MarkerArray:
+def markers_msg(state: State, t_ns: int, *, frame_id: str = ODOM_FRAME) -> MarkerArray:
     """``markers``: one CUBE per body (ns ``bodies``, id i) coloured by contact state (see
     :data:`CONTACT_COLOURS`), one LINE_STRIP per linkage (ns ``linkages``, id j) from body j to
     body j+1, slightly above the boxes' centres."""
@@ -182,7 +183,7 @@ class Row:
     __slots__ = ('x', 'v', 'friction', 'contact', 'linkage_force', 'lengths', 'rates',
                  'x_array', 'v_array', 'source')
 
-    def __init__(self, state) -> None:
+    def __init__(self, state: State) -> None:
         self.source = state
         self.x_array, self.v_array = state.x, state.v
         self.x = _floats(state.x)
@@ -234,21 +235,25 @@ class OutputEncoder:
         self.fast = 0
         self.slow = 0
 
-    def encode(self, name: str, state, t_ns: int, masses=None) -> bytes:
+    def encode(self, name: str, state: State | Row, t_ns: int,
+               masses: Sequence[float] | None = None) -> bytes:
         """CDR bytes of output ``name`` (``joint_states``, ``body_states``, ``contact_states``,
         ``odom``, ``markers``) of core ``State`` at sim time ``t_ns`` [ns]; ``odom`` needs the
         body ``masses`` [kg]."""
         return getattr(self, name)(state, t_ns, masses)
 
-    def joint_states(self, state, t_ns: int, masses=None) -> bytes:
+    def joint_states(self, state: State | Row, t_ns: int,
+                     masses: Sequence[float] | None = None) -> bytes:
         return self._joints('joint_states', t_ns, state.lengths, state.rates,
                             state.linkage_force, lambda: joint_states_msg(_source(state), t_ns))
 
-    def body_states(self, state, t_ns: int, masses=None) -> bytes:
+    def body_states(self, state: State | Row, t_ns: int,
+                    masses: Sequence[float] | None = None) -> bytes:
         return self._joints('body_states', t_ns, state.x, state.v, state.friction,
                             lambda: body_states_msg(_source(state), t_ns))
 
-    def contacts_stamped(self, state, t_ns: int, masses=None) -> bytes:
+    def contacts_stamped(self, state: State | Row, t_ns: int,
+                         masses: Sequence[float] | None = None) -> bytes:
         contact = state.contact
         if type(contact) is not list:
             contact = np.asarray(contact, dtype=float)
@@ -267,14 +272,16 @@ class OutputEncoder:
         return self._encode(('linkage_cmd', len(values)), (('data',),), (values,),
                             lambda: float64_array_msg(values))
 
-    def contact_states(self, state, t_ns: int = 0, masses=None) -> bytes:
+    def contact_states(self, state: State | Row, t_ns: int = 0,
+                       masses: Sequence[float] | None = None) -> bytes:
         contact = state.contact
         if type(contact) is not list:
             contact = np.asarray(contact, dtype=np.int8).tolist()
         return self._encode(('contact_states', len(contact)), (('data',),), (contact,),
                             lambda: contact_states_msg(_source(state)))
 
-    def odom(self, state, t_ns: int, masses=None) -> bytes:
+    def odom(self, state: State | Row, t_ns: int,
+             masses: Sequence[float] | None = None) -> bytes:
         x, v = getattr(state, 'x_array', state.x), getattr(state, 'v_array', state.v)
         if masses is self._masses_of:         # centre_of_mass's arithmetic, masses converted once
             m, total = self._masses
@@ -288,7 +295,8 @@ class OutputEncoder:
         return self._encode(('odom',), _ODOM, (split_ns(t_ns), (com_x,), (com_v,)),
                             lambda: odom_msg(_source(state), masses, t_ns))
 
-    def markers(self, state, t_ns: int, masses=None) -> bytes:
+    def markers(self, state: State | Row, t_ns: int,
+                masses: Sequence[float] | None = None) -> bytes:
         xs = _floats(state.x)
         contact = state.contact
         if type(contact) is not list:

@@ -224,7 +224,7 @@ def test_verify_detects_a_friction_force_beyond_its_bound_and_a_broken_momentum_
     bad_k = replace(tr, impulse=tr.impulse * 1.01)
     assert not cs.verify(bad_k).ok(1e-6)
     moving = np.abs(tr.v) > 1e-3
-    creep = tr.state.copy()
+    creep = tr.contact.copy()
     creep[moving] = 0
     assert cs.verify(replace(tr, contact=creep)).stuck_velocity >= 1e-3
 
@@ -383,7 +383,7 @@ def test_a_penalty_given_per_body_equal_to_a_scalar_gives_the_same_run():
     n = np.full(3, 200.0)
     n[k] = 2e5
     c = cs.simulate(crawler, gait, 0.5, 'penalty', dt=1e-3, penalty=n)
-    stuck = c.state[:, k] == 0
+    stuck = c.contact[:, k] == 0
     assert stuck.sum() > 10
     f_k = max(crawler.friction[k], crawler.friction_backward[k])
     assert np.all(np.abs(c.v[stuck, k]) <= f_k / 2e5 * (1 + 1e-12))

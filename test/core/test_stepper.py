@@ -212,7 +212,7 @@ def test_stick_fraction_matches_the_fraction_of_fine_samples_in_the_stuck_state(
     coarse = cs.simulate(crawler, gait, 3.0)
     N = 30001
     fine = cs.simulate(crawler, gait, 3.0, t_eval=np.linspace(0.0, 3.0, N))
-    frac = np.mean(fine.state == 0, axis=0)
+    frac = np.mean(fine.contact == 0, axis=0)
     n_ev = np.bincount([e.body for e in coarse.events], minlength=3)
     # each state change can misplace at most one sample
     np.testing.assert_array_less(np.abs(frac - coarse.stick_fraction), (n_ev + 2) / (N - 1))

@@ -250,7 +250,7 @@ def test_a_flipped_contact_state_of_a_body_at_rest_is_flagged():
     assert cs.verify(tr, g).ok()
     stuck = np.nonzero((tr.contact[:, 1] == 0) & (tr.v[:, 1] == 0.0))[0]
     assert stuck.size > 5
-    bad = replace(tr, state=tr.state.copy())
-    bad.state[stuck[3], 1] = 1
+    bad = replace(tr, contact=tr.contact.copy())
+    bad.contact[stuck[3], 1] = 1
     rep = cs.verify(bad, g)
     assert rep.contact == 1 and not rep.ok()

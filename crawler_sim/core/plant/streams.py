@@ -24,6 +24,7 @@ Units: s, ns, m, m/s, m/s^2, Hz.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 import math
 
 import numpy as np
@@ -168,7 +169,7 @@ def _run_to(engine: Engine, t_ns: int) -> None:
 
 
 def simulate_as_node(plant: PlantConfig, gait: Gait, stream: Stream, t_end: float,
-                     **kwargs) -> Trajectory:
+                     **kwargs: Any) -> Trajectory:
     """``simulate`` of the plant's crawler driven by :func:`actuator_output` (the plant's
     method and initial position; ``kwargs`` go to ``simulate``: ``dt``, ``t_eval``, ...)."""
     out = actuator_output(plant, gait, stream, t_end)

@@ -30,11 +30,12 @@ proof).
 from __future__ import annotations
 
 import math
+from typing import Any, Sequence
 import weakref
 from functools import partial
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from ..gaits import Gait
 from ..model import Crawler
@@ -51,7 +52,7 @@ _new_event = partial(tuple.__new__, Event)
 _EPS = np.finfo(float).eps
 
 
-def check_finite_gait(vals, t) -> None:
+def check_finite_gait(vals: Sequence[ArrayLike], t: float) -> None:
     """Raise ValueError naming the quantity and time if a gait value (l, l', l'') is not finite."""
     if all(np.isfinite(v).all() for v in vals):
         return
@@ -260,8 +261,9 @@ class ExactSolver:
 
     # ------------------------------------------------------------- solver contract
     @classmethod
-    def options(cls, *, tol=1e-13, max_step=None, keep_history=False, periodic_skip=True,
-                **_ignored) -> dict:
+    def options(cls, *, tol: float = 1e-13, max_step: float | None = None,
+                keep_history: bool = False, periodic_skip: bool = True,
+                **_ignored: Any) -> dict:
         """The constructor's keyword arguments from ``Stepper``'s (validated)."""
         from ..gaits import _positive
         return {'tol': _positive('tol', tol, 's'),
@@ -296,7 +298,7 @@ class ExactSolver:
                 times = np.union1d(times, [e.time for e in self.events if 0 < e.time < t_end])
         return times, self.sample(times), self.info(times)
 
-    def info(self, times) -> dict:
+    def info(self, times: NDArray[np.float64]) -> dict:
         return {'segments': self.n_segments, 'skipped_periods': self.n_skipped_periods}
 
     # ---------------------------------------------------------------- output

@@ -18,6 +18,7 @@ once (plain Moreau-Jean steps).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -174,7 +175,8 @@ class TimeStepper:
 
     # ------------------------------------------------------------------ solver contract
     @classmethod
-    def options(cls, *, dt=None, penalty=None, **_ignored) -> dict:
+    def options(cls, *, dt: float | None = None, penalty: float | None = None,
+                **_ignored: Any) -> dict:
         from ..gaits import _positive
         return {'dt': 1e-3 if dt is None else _positive('dt', dt, 's')}
 
@@ -191,7 +193,7 @@ class TimeStepper:
         times = self.default_times(t_end) if times is None else times
         return times, self.run(times), self.info(times)
 
-    def info(self, times) -> dict:
+    def info(self, times: NDArray[np.float64]) -> dict:
         return {'steps': self.n_steps, 'dt': self.dt}
 
 

@@ -15,6 +15,8 @@ sup_{[0,t]} |V^n - V| <= sqrt(2 t / M * sum_i max(f_plus_i, f_minus_i)^2 / n_i).
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -59,12 +61,13 @@ class PenaltySolver(TimeStepper):
         super().__init__(crawler, gait, dt=dt, t0=t0, x0=x0, v0=v0, penalty=self.n)
 
     @classmethod
-    def options(cls, *, dt=None, penalty=None, **_ignored) -> dict:
+    def options(cls, *, dt: float | None = None, penalty: float | None = None,
+                **_ignored: Any) -> dict:
         out = super().options(dt=dt)
         out['penalty'] = penalty
         return out
 
-    def info(self, times) -> dict:
+    def info(self, times: NDArray[np.float64]) -> dict:
         out = super().info(times)
         out['penalty'] = self.n.tolist()
         out['error_bound'] = penalty_bound(self.crawler, self.n, times)

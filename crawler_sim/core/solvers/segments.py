@@ -190,7 +190,7 @@ class SegmentList(Sequence):
         self._ends.append(len(self) + n)
         self._table = self._rows = self._starts = None
 
-    def append(self, item) -> None:
+    def append(self, item: Segment | PeriodicBlock) -> None:
         """One ``Segment`` or ``PeriodicBlock``."""
         self._add(item, 1)
 

@@ -8,12 +8,15 @@ rejected inputs, a recording or solver failure), else OK.
 from __future__ import annotations
 
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from diagnostic_msgs.msg import DiagnosticArray
 
 from crawler_sim.ros import messages as M
 from crawler_sim.core.simtime import to_seconds
+
+if TYPE_CHECKING:
+    from .node import SimNode
 
 __all__ = ['Diagnostics', 'COUNTERS', 'node_values']
 
@@ -101,7 +104,7 @@ def _count(query) -> int:
         return -1
 
 
-def node_values(node) -> tuple[dict[str, Any], list[str]]:
+def node_values(node: SimNode) -> tuple[dict[str, Any], list[str]]:
     """The figures of a SimNode for its report (call under its lock), and extra warnings."""
     rec = node.recorder
     cfg = node._cfg

@@ -19,7 +19,12 @@ wait for a message; the bag flushes itself on a wall timer in its own thread (cr
 from __future__ import annotations
 
 import time
+from typing import TYPE_CHECKING
+
 from crawler_sim.core.simtime import to_seconds
+
+if TYPE_CHECKING:
+    from .node import SimNode
 
 __all__ = ['run', 'warm_up', 'MAX_LAG', 'PAUSED_REPUBLISH']
 
@@ -27,7 +32,7 @@ MAX_LAG = 0.5            # wall s of lag after which the real-time loop re-ancho
 PAUSED_REPUBLISH = 0.5   # wall s between two republications of the state while paused
 
 
-def warm_up(node) -> None:
+def warm_up(node: SimNode) -> None:
     """Run once what the first ticks would compile, import or build cold (the solver's first
     call, the encoders' templates) on a scratch engine, so that cold start stays out of the
     real-time loop; ``main`` calls it before the loop starts. The node's state is unchanged."""
@@ -45,7 +50,7 @@ def warm_up(node) -> None:
         enc.fast = enc.slow = 0
 
 
-def run(node) -> None:
+def run(node: SimNode) -> None:
     """Tick ``node`` until it is stopped or its context shuts down."""
     try:
         _loop(node)

@@ -13,7 +13,7 @@ and again whenever the model changes (number of bodies, masses, linkage limits).
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
@@ -27,6 +27,11 @@ from crawler_sim.bag import topics as T
 from crawler_sim.ros import messages as M
 from .model import robot_description
 from .params import OUTPUTS
+
+if TYPE_CHECKING:
+    from rclpy.node import Node
+
+    from .params import SimConfig
 
 __all__ = ['Outputs', 'CLASSES', 'COUNT_PERIOD', 'DESCRIPTION_QOS']
 
@@ -47,7 +52,7 @@ DESCRIPTION_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
 class Outputs:
     """The node's output publishers (created and destroyed as ``publish_*`` change)."""
 
-    def __init__(self, node) -> None:
+    def __init__(self, node: Node) -> None:
         self._node = node
         self.pubs: dict[str, Any] = {}
         self.clock_pub = None
@@ -64,7 +69,7 @@ class Outputs:
         #: the URDF last published on ``robot_description`` ('' before the first sync)
         self.description = ''
 
-    def sync(self, cfg) -> bool:
+    def sync(self, cfg: SimConfig) -> bool:
         """Create the publishers of switched-on outputs, destroy those switched off; publish
         ``robot_description`` if the model of ``cfg`` differs from the one last published.
         Return whether it did (:attr:`description` is then the new URDF, e.g. to record)."""
@@ -113,7 +118,8 @@ class Outputs:
         """The grid outputs this node publishes."""
         return [topic for _name, topic, *_ in self._grid]
 
-    def publish(self, state: Any, t_ns: int, masses, record=None) -> None:
+    def publish(self, state: Any, t_ns: int, masses: Sequence[float],
+                record: Callable[[T.Topic, bytes, int], None] | None = None) -> None:
         """Publish /clock and every output taken by someone at sim time ``t_ns``; ``state`` is
         a core ``State`` or its :class:`crawler_sim.ros.messages.Row` (or a callable returning
         one, called only if someone takes an output); ``record`` (Topic, bytes, t_ns) gets

@@ -22,6 +22,7 @@ from crawler_sim.core.stepper import METHODS
 
 if TYPE_CHECKING:
     from rcl_interfaces.msg import ParameterDescriptor
+    from rclpy.node import Node
 
 __all__ = ['PARAMETERS', 'OUTPUTS', 'SimConfig', 'descriptor', 'declare_all']
 
@@ -81,7 +82,7 @@ def descriptor(name: str) -> ParameterDescriptor:
     return d
 
 
-def declare_all(node) -> dict[str, Any]:
+def declare_all(node: Node) -> dict[str, Any]:
     """Declare every parameter on ``node`` with a value (``friction`` is the empty list, "from
     mu": a parameter declared without a value empties a whole GetParameters reply in rclpy);
     return the values (overrides applied)."""

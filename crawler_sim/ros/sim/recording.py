@@ -39,7 +39,7 @@ class SessionBag:
     :mod:`crawler_sim.bag.topics`; errors close the bag (the run goes on). Offline runs record
     through :class:`crawler_sim.bag.Recorder` instead."""
 
-    def __init__(self, resolve: Callable[[str], str], log) -> None:
+    def __init__(self, resolve: Callable[[str], str], log: Any) -> None:
         self._resolve = resolve
         self._log = log
         self._names: dict[Topic, str] = {}
