@@ -11,7 +11,9 @@ Public API
 ``check_record_name(name)``
     ``ValueError`` naming ``record_name`` unless ``name`` is one folder of ``[A-Za-z0-9._-]``.
 ``record_arrays(path, *, t, x, v, friction, contact, lengths, rates, linkage_force, ...)``
-    Offline run -> bag with the same topics and types as the node.
+    Offline run -> bag with the node's state topics (body_states, joint_states,
+    contact_states, odom), commands, events and scene, with the same types; the node records
+    more (markers, diagnostics, its inputs' journal, ...): :mod:`crawler_sim.bag.topics`.
 ``load(path, *, namespace=None) -> Run``
     Bag directory or .mcap -> numpy arrays (every intact chunk of a damaged file; bodies that
     did not exist at a state, when p changed mid-run: ``Run.present`` False, ``NO_BODY``).

@@ -1,6 +1,7 @@
 """``Recorder`` (one crawler's topics on top of :class:`BagWriter`) and ``record_arrays``.
 
-The node and offline runs record the same topics with the same types (see
+An offline run records the node's state topics, commands, events and scene with the same
+types (the node records more; see
 :mod:`crawler_sim.bag.topics`), so :func:`crawler_sim.bag.load` reads either kind of bag.
 """
 from __future__ import annotations
