@@ -76,7 +76,7 @@ _U16 = struct.Struct('<H')
 _CHUNK_HEAD = struct.Struct('<QQQII')   # start, end, uncompressed size, crc, compression length
 CHUNK_FLOOR = (1 << 20) + (1 << 17)   # bytes a chunk may always decompress to: 1 MiB chunks
                                       # (mcap's and our writer's default) plus their last message
-                                      # (our writer stores a larger chunk uncompressed, lean.py)
+                                      # (a larger chunk is stored uncompressed: mcapwriter.py)
 CHUNK_FACTOR = 2             # ... or this many times the file size
 
 
