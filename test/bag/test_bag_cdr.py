@@ -180,3 +180,26 @@ def test_the_encoder_refuses_what_it_cannot_template():
     enc = Encoder(proto, 'sensor_msgs/msg/JointState', [('position',)])
     with pytest.raises(struct.error):
         enc.encode([1.0, 2.0])                   # one length short: never silently wrong
+    with pytest.raises(TypeError):
+        enc.encode([1.0, 2.0, 3.0], [4.0])       # a group too many: never silently ignored
+    with pytest.raises(LayoutError, match='order of their bytes'):
+        Encoder(proto, 'sensor_msgs/msg/JointState', [('velocity',), ('position',)])
+
+
+def test_the_encoder_packs_float32_and_int32_fields_between_constant_strings():
+    """Marker: strings (ns, frame, text, mesh resource) between the changing numbers, float32
+    colours, an int32 id; the bytes are serialize_message's, padding aside."""
+    from visualization_msgs.msg import Marker
+    proto = Marker(ns='bodies', id=3, type=Marker.CUBE, text='a', mesh_resource='m')
+    proto.header.frame_id = 'odom'
+    groups = [('header.stamp.sec', 'header.stamp.nanosec'), ('id',), ('pose.position.x',),
+              ('color.r', 'color.g', 'color.b', 'color.a')]
+    enc = Encoder(proto, 'visualization_msgs/msg/Marker', groups)
+    msg = Marker(ns='bodies', id=-7, type=Marker.CUBE, text='a', mesh_resource='m')
+    msg.header.frame_id = 'odom'
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 12, 999_999_999
+    msg.pose.position.x = -1e-300
+    msg.color.r, msg.color.g, msg.color.b, msg.color.a = 0.1, 0.2, 0.3, 1.0
+    data = enc.encode((12, 999_999_999), (-7,), (-1e-300,), (0.1, 0.2, 0.3, 1.0))
+    assert data == zero_padding(serialize_message(msg), 'visualization_msgs/msg/Marker')
+    assert deserialize_message(data, Marker) == deserialize_message(serialize_message(msg), Marker)
