@@ -21,7 +21,8 @@ Padding bytes are ignored: Fast CDR leaves them uninitialised.
 prototype with ``serialize_message``, walks it with the same :func:`layout`, and then makes each
 message with one ``struct.pack`` of the whole message, the numbers packed between the
 prototype's constant bytes (a few microseconds instead of the Python-to-C conversion of the
-whole message).
+whole message). :func:`set_fields` returns given CDR bytes with some numeric fields set to new
+values, walking the message only as far as those fields.
 
 :class:`Trimmer` cuts Fast CDR's surplus tail off a serialisation. All of them share the layout
 walker and its alignment rules, and one table of struct codes.
@@ -31,7 +32,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import re
 import struct
-from typing import Any, Sequence
+from typing import Any, Collection, Mapping, Sequence
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
@@ -79,11 +80,16 @@ class Layout:
     end: int = 0            # bytes the content really takes (<= length, see Trimmer)
 
 
+class _Enough(Exception):
+    """Internal: every field a partial walk looks for has been found."""
+
+
 class _Walker:
-    def __init__(self, data: bytes) -> None:
+    def __init__(self, data: bytes, only: frozenset[str] = frozenset()) -> None:
         self.data = data
         self.pos = ENCAPSULATION
         self.layout = Layout(len(data), fixed=[0, 1])
+        self.only = only
 
     def align(self, size: int) -> None:
         rel = self.pos - ENCAPSULATION
@@ -113,6 +119,8 @@ class _Walker:
             self.align(min(size, 8))
         start = self.take(size * n)
         self.layout.fields[path] = (start, n, dtype)
+        if self.only and self.only <= self.layout.fields.keys():
+            raise _Enough
 
     def element(self, path: str, type_str: str) -> None:
         if type_str in _PRIMITIVE:
@@ -150,13 +158,24 @@ class _Walker:
             self.element(f'{path}.{name}' if path else name, sub)
 
 
-def layout(data: bytes, type_name: str) -> Layout:
-    """Layout of the CDR message ``data`` (with its encapsulation header) of ``type_name``."""
+def layout(data: bytes, type_name: str, *, only: Collection[str] = ()) -> Layout:
+    """Layout of the CDR message ``data`` (with its encapsulation header) of ``type_name``.
+
+    With ``only`` (dotted paths of numeric fields) the walk stops once those are found: the
+    layout then describes the message up to them (``end`` is where the walk stopped), and a
+    path that is not found is a :class:`LayoutError`.
+    """
     if len(data) < ENCAPSULATION or data[:2] != b'\x00\x01':
         raise LayoutError('not little-endian plain CDR')
-    walker = _Walker(data)
-    walker.message('', type_name)
+    walker = _Walker(data, frozenset(only))
+    try:
+        walker.message('', type_name)
+    except _Enough:
+        pass
     walker.layout.end = walker.pos
+    missing = sorted(walker.only - walker.layout.fields.keys())
+    if missing:
+        raise LayoutError(f'{", ".join(missing)}: not numeric fields of {type_name}')
     return walker.layout
 
 
@@ -488,6 +507,22 @@ def _group_format(lay: Layout, group: Sequence[str]) -> tuple[str, int, int]:
     if start is None:
         raise LayoutError('an empty group')
     return fmt, start, end
+
+
+def set_fields(data: bytes, type_name: str, values: Mapping[str, Any]) -> bytes:
+    """CDR ``data`` of ``type_name`` with the numeric fields ``values`` (``{dotted path: number
+    or flat sequence}``, e.g. ``{'header.stamp.sec': 12}``) set; the rest of the bytes as they
+    were. The message is walked only up to the last of those fields, so setting the stamp of a
+    trajectory of a million points costs as little as of an empty one. :class:`LayoutError`
+    if a path is not a numeric field of ``data``; ``struct.error`` for a wrong count of
+    values."""
+    lay = layout(data, type_name, only=values.keys())
+    out = bytearray(data)
+    for path, value in values.items():
+        fmt, start, _ = _group_format(lay, (path,))
+        flat = list(value) if isinstance(value, (Sequence, np.ndarray)) else [value]
+        struct.pack_into('<' + fmt, out, start, *flat)
+    return bytes(out)
 
 
 def _flat(msg: Any, group: Sequence[str]) -> list:
