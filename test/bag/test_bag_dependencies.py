@@ -1,7 +1,7 @@
 """The bag layer uses its libraries (mcap, rosbags, zstandard, lz4) through their public API only:
 no name-mangled attribute, no private attribute of an object that is not ours, no private
 module or name imported, no class of a library subclassed (reaching into its state is what a
-subclass of ``mcap.writer.Writer`` did)."""
+subclass of ``mcap.writer.Writer`` did). And MCAP files are read in one place, the scanner."""
 from __future__ import annotations
 
 import ast
@@ -124,3 +124,19 @@ def test_the_checks_catch_what_the_former_writer_subclass_did():
                                         'lean.py:7 _Writer__statistics']
     assert private_imports(sample) == ['lean.py: from mcap._chunk_builder',
                                        'lean.py: class LeanWriter(Writer)']
+
+
+READING = re.compile(r'\\x89MCAP|ReadDataStream|StreamReader\(|make_reader\(|SeekingReader\(')
+
+
+def mcap_readers(root: Path) -> set[str]:
+    """Modules under ``root`` that read MCAP structure themselves (magic bytes, mcap's
+    record streams or readers)."""
+    return {str(path.relative_to(root)) for path in root.rglob('*.py')
+            if READING.search(path.read_text())}
+
+
+def test_one_record_walk_the_scanner_reads_every_mcap_file():
+    """recover, load, info and the replay node read files through mcapfile.scan (the search
+    after damage, resync.py, is part of it); the writer writes, it reads nothing back."""
+    assert mcap_readers(BAG.parent) == {'bag/mcapfile.py', 'bag/resync.py'}
