@@ -38,7 +38,7 @@ setup(
         ('bin', ['scripts/crawler-sim']),
         (os.path.join('share', package_name, 'config', 'sweeps'), glob('config/sweeps/*.yaml')),
     ],
-    # What the package imports (checked by test/core/test_packaging.py). ROS 2 itself (rclpy and
+    # What the package imports (checked by test/test_packaging.py). ROS 2 itself (rclpy and
     # the message packages) comes from a Jazzy install, or from the ros-jazzy-* wheels: the
     # `ros` extra. colcon reads package.xml instead.
     install_requires=['numpy>=1.26', 'scipy>=1.11', 'PyYAML>=6', 'mcap>=1.6,<2',

@@ -2,6 +2,8 @@
 
     python -m benchmarks.bag [--steps 360000] [--dir /tmp/bag_hour]
     python -m benchmarks.bag --hostile --kill [--kills 30]
+    python -m benchmarks.bag --writer [--messages 200000]
+    python -m benchmarks.bag --encode [--bodies 3]
 
 Default: writes a synthetic bag with the node's topics (p = 3, one state per 10 ms of sim time:
 one hour = 360,000 steps, about 1.4 million messages) once, then times ``load`` five times (wall
@@ -16,6 +18,16 @@ recording, ``load``/``info``/``recover`` in a fresh process each: peak traced al
 since it created the bag) and is killed with SIGKILL at a uniformly random moment in the first
 3 s (so a third of the kills fall in the first second); the loss is the kill time minus the last
 state on disk. Floor (issue 11): <= 1 s at any moment.
+
+``--writer``: us per recorded message of the MCAP writers, in one process, alternating:
+``mcap.writer.Writer.add_message`` against :class:`crawler_sim.bag.mcapwriter.McapWriter`
+(the same messages: 150 bytes of noise on 5 channels, 1 MiB zstd chunks, into memory; finish
+included). The figure the McapWriter module doc quotes; no floor.
+
+``--encode``: us per message of each output of the node (p bodies, a new state each message):
+:class:`crawler_sim.ros.messages.OutputEncoder` (the one CDR encoder,
+:class:`crawler_sim.bag.cdr.Encoder`) against building the message and
+``serialize_message``, which is what it replaces; no floor.
 """
 from __future__ import annotations
 
@@ -116,6 +128,89 @@ def bench_kill(kills: int, seed: int) -> dict:
             'recorded_over_1s': sum(x > 1.0 for x in recorded)}
 
 
+# ---------------------------------------------------------------- --writer
+
+def writer_us_per_message(make, messages: int, size: int = 150, channels: int = 5) -> float:
+    """us per message of ``make(stream)``'s add_message (and finish) for ``messages``
+    messages of ``size`` bytes, round robin over ``channels`` channels, 10 ms apart."""
+    import io
+    rng = np.random.default_rng(1)
+    payloads = [rng.integers(0, 256, size=size, dtype=np.uint8).tobytes() for _ in range(64)]
+    w = make(io.BytesIO())
+    w.start(profile='ros2', library='benchmark')
+    sid = w.register_schema('a/msg/B', 'ros2msg', b'float64 x')
+    ids = [w.register_channel(f'/t{k}', 'cdr', sid, {}) for k in range(channels)]
+    t0 = time.perf_counter()
+    for i in range(messages):
+        t = i * 10_000_000
+        w.add_message(ids[i % channels], t, payloads[i & 63], t)
+    w.finish()
+    return (time.perf_counter() - t0) / messages * 1e6
+
+
+def bench_writer(messages: int, rounds: int = 3) -> dict[str, float]:
+    """Median us per message of each writer over ``rounds`` alternated runs."""
+    from mcap.writer import CompressionType, Writer
+    from crawler_sim.bag.mcapwriter import McapWriter
+    makers = {'mcap.writer.Writer': lambda out: Writer(out, compression=CompressionType.ZSTD),
+              'McapWriter': lambda out: McapWriter(out)}
+    times: dict[str, list[float]] = {name: [] for name in makers}
+    for _ in range(rounds):
+        for name, make in makers.items():
+            times[name].append(writer_us_per_message(make, messages))
+    return {name: statistics.median(t) for name, t in times.items()}
+
+
+# ---------------------------------------------------------------- --encode
+
+def bench_encode(bodies: int, states: int = 200, rounds: int = 5) -> dict[str, tuple[float, float]]:
+    """``{output: (us per message with OutputEncoder, with builder + serialize_message)}``,
+    medians over ``rounds`` alternated runs of ``states`` random states."""
+    from types import SimpleNamespace
+    from rclpy.serialization import serialize_message
+    from crawler_sim.ros import messages as M
+    rng = np.random.default_rng(1)
+    p = bodies
+    masses = np.ones(p)
+    rows = [M.Row(SimpleNamespace(
+        x=rng.normal(size=p), v=rng.normal(size=p), friction=rng.normal(size=p),
+        lengths=rng.normal(size=p - 1), rates=rng.normal(size=p - 1),
+        linkage_force=rng.normal(size=p - 1),
+        contact=rng.integers(-1, 2, size=p).astype(np.int8))) for _ in range(states)]
+    builders = {'joint_states': lambda s, t: M.joint_states_msg(s, t),
+                'body_states': lambda s, t: M.body_states_msg(s, t),
+                'contact_states': lambda s, t: M.contact_states_msg(s),
+                'contacts_stamped': lambda s, t: M.contacts_stamped_msg(s, t),
+                'odom': lambda s, t: M.odom_msg(s, masses, t),
+                'markers': lambda s, t: M.markers_msg(s, t)}
+    enc = M.OutputEncoder()
+    fast: dict[str, list[float]] = {name: [] for name in builders}
+    slow: dict[str, list[float]] = {name: [] for name in builders}
+    fast['clock'], slow['clock'] = [], []
+    for _ in range(rounds):
+        for name, build in builders.items():
+            encode = getattr(enc, name)
+            t0 = time.perf_counter()
+            for i, row in enumerate(rows):
+                encode(row, i * 10_000_000, masses)
+            fast[name].append((time.perf_counter() - t0) / states * 1e6)
+            t0 = time.perf_counter()
+            for i, row in enumerate(rows):
+                serialize_message(build(row.source, i * 10_000_000))
+            slow[name].append((time.perf_counter() - t0) / states * 1e6)
+        t0 = time.perf_counter()
+        for i in range(states):
+            M.clock_cdr(i * 10_000_000)
+        fast['clock'].append((time.perf_counter() - t0) / states * 1e6)
+        t0 = time.perf_counter()
+        for i in range(states):
+            serialize_message(M.clock_msg(i * 10_000_000))
+        slow['clock'].append((time.perf_counter() - t0) / states * 1e6)
+    assert enc.slow == 0
+    return {name: (statistics.median(fast[name]), statistics.median(slow[name]))
+            for name in fast}
+
+
 # ---------------------------------------------------------------- --hostile
 
 def child_measure(func_name: str, path: str) -> None:
@@ -191,6 +286,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument('--hostile', action='store_true', help='memory on crafted files')
     ap.add_argument('--kill', action='store_true', help='SIGKILL loss of a recording')
     ap.add_argument('--kills', type=int, default=30, help='kills for --kill')
+    ap.add_argument('--writer', action='store_true',
+                    help='us per message: mcap.writer.Writer against McapWriter')
+    ap.add_argument('--messages', type=int, default=200_000, help='messages for --writer')
+    ap.add_argument('--encode', action='store_true',
+                    help='us per output message: OutputEncoder against serialize_message')
+    ap.add_argument('--bodies', type=int, default=3, help='bodies for --encode')
     ap.add_argument('--seed', type=int, default=1)
     ap.add_argument('--child', help=argparse.SUPPRESS)
     ap.add_argument('--measure', nargs=2, help=argparse.SUPPRESS)
@@ -200,6 +301,16 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.measure:
         child_measure(*args.measure)
+        return 0
+    if args.encode:
+        print(f'{"output":18s} {"OutputEncoder":>14s} {"serialize_message":>18s}  '
+              f'(us per message, p = {args.bodies}, median of 5)')
+        for name, (fast, slow) in bench_encode(args.bodies).items():
+            print(f'{name:18s} {fast:14.2f} {slow:18.2f}')
+        return 0
+    if args.writer:
+        for name, us in bench_writer(args.messages).items():
+            print(f'{name:20s} {us:6.2f} us per message ({args.messages} messages, median of 3)')
         return 0
     if args.hostile or args.kill:
         ok = True

@@ -34,9 +34,11 @@ stops there), messages of one channel in a chunk may not overlap (an index point
 at one big message would be copied many times), and only regular files are opened (a FIFO
 named ``*.mcap`` would block forever).
 
-Length: over 400 lines because the two strategies share the record parsing, the damage
-bookkeeping and the bounds that keep hostile files harmless; splitting them would spread those
-checks over modules (the search for the next record after damage is in :mod:`.resync`).
+This is the package's one reader of MCAP records: ``load``, ``info``, ``recover`` and the replay
+node all go through :func:`scan` (and :func:`check_magic`, its first check on its own). The two
+strategies live together with what they share: the record parsing, the damage bookkeeping and
+the bounds that keep hostile files harmless; the search for the next record after damage is in
+:mod:`.resync`.
 """
 from __future__ import annotations
 
@@ -76,7 +78,7 @@ _U16 = struct.Struct('<H')
 _CHUNK_HEAD = struct.Struct('<QQQII')   # start, end, uncompressed size, crc, compression length
 CHUNK_FLOOR = (1 << 20) + (1 << 17)   # bytes a chunk may always decompress to: 1 MiB chunks
                                       # (mcap's and our writer's default) plus their last message
-                                      # (our writer stores a larger chunk uncompressed, lean.py)
+                                      # (a larger chunk is stored uncompressed: mcapwriter.py)
 CHUNK_FACTOR = 2             # ... or this many times the file size
 
 
@@ -118,6 +120,20 @@ def open_regular(path: Path) -> tuple[int, int]:
                 if stat.S_ISFIFO(info.st_mode) else 'not a regular file')
         raise BagError(f'{path}: is {kind}, expected an .mcap file')
     return fd, info.st_size
+
+
+def check_magic(path: Path) -> None:
+    """BagError unless ``path`` is a regular file that starts with the MCAP magic bytes (what
+    :func:`scan` checks first, without reading further)."""
+    fd, _ = open_regular(path)
+    try:
+        head = os.read(fd, len(MAGIC))
+    except OSError as exc:
+        raise BagError(f'{path}: cannot read ({exc.strerror or exc})') from None
+    finally:
+        os.close(fd)
+    if head != MAGIC:
+        raise BagError(f'{path}: not an MCAP file (bad magic bytes)')
 
 
 class _Corrupt(Exception):

@@ -26,7 +26,7 @@ from mcap.records import Channel, Schema
 import numpy as np
 
 from .errors import BagError
-from .mcapfile import Batch, Scan, open_regular, scan
+from .mcapfile import Batch, Scan, check_magic, scan
 from .reader import bag_files
 from .writer import ROSBAG2_METADATA, BagWriter
 
@@ -101,7 +101,7 @@ def recover(src: os.PathLike | str, dst: os.PathLike | str | None = None) -> Rec
     files = bag_files(src_path)
     dst_path = Path(dst) if dst is not None else default_destination(src_path)
     for file in files:
-        _check_magic(file)
+        check_magic(file)            # before the destination is made
     # small chunks: the per-chunk state (buffer, message index lists) stays well under the size
     # of even a 1 MB source file; no flush thread (a recovery is written in one go)
     writer = BagWriter(dst_path, chunk_size=RECOVER_CHUNK, flush_interval=None)
@@ -116,18 +116,6 @@ def recover(src: os.PathLike | str, dst: os.PathLike | str | None = None) -> Rec
     if writer.error is not None:
         raise BagError(writer.error)
     return result
-
-
-def _check_magic(file: Path) -> None:
-    fd, _ = open_regular(file)          # BagError for FIFOs and other special files
-    try:
-        head = os.read(fd, 8)
-    except OSError as exc:
-        raise BagError(f'{file}: cannot read ({exc.strerror})') from None
-    finally:
-        os.close(fd)
-    if head != b'\x89MCAP0\r\n':
-        raise BagError(f'{file}: not an MCAP file (bad magic bytes)')
 
 
 class _WriterStopped(Exception):

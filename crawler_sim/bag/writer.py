@@ -49,8 +49,9 @@ Each such event is a line in :attr:`BagWriter.problems` and a call of
 node uses to log it at ERROR level, or a ``RuntimeWarning`` when there is no callback; so is
 the error that stops a recording.
 
-Length: over 400 lines because one class owns the file's whole life (open, crash-safe
-flushing, failure policy, summary and metadata.yaml); the message fast path is in lean.py.
+The MCAP records themselves are written by :class:`crawler_sim.bag.mcapwriter.McapWriter`;
+this module holds the bag around them: one class owns the file's whole life (open, crash-safe
+flushing, failure policy, where the file is, metadata.yaml).
 """
 from __future__ import annotations
 
@@ -65,14 +66,13 @@ import time
 from typing import Any, BinaryIO, Callable, Mapping
 import warnings
 
-from mcap.writer import CompressionType
 import numpy as np
 import yaml
 
 from . import schema as schemas
-from .lean import LeanWriter
 from .cdr import Trimmer
 from .errors import BagError
+from .mcapwriter import McapWriter
 from .naming import claim_directory
 from .topics import SCENE, SCENE_METADATA
 
@@ -278,8 +278,7 @@ class BagWriter:
             self.path.rmdir()
             raise BagError(f'cannot create {self.mcap_path}: {exc.strerror or exc}') from None
         self._fileno = _fileno(self._stream)
-        self._writer = LeanWriter(self._stream, chunk_size=chunk_size,
-                                   compression=CompressionType.ZSTD)
+        self._writer = McapWriter(self._stream, chunk_size=chunk_size, compression='zstd')
         self._last_flush = self._last_check = self._clock()
         self._guard(self._start)
         if scene is not None:
@@ -919,7 +918,5 @@ def _fileno(stream: Any) -> int | None:
     except (AttributeError, io.UnsupportedOperation, ValueError):
         return None
 
-
-_LeanWriter = LeanWriter          # the name the tests know
 
 __all__ = ['BagWriter', 'package_version', 'plain', 'scene_record']

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 from functools import lru_cache
 import math
-import struct
 from typing import Any, Iterable, Mapping, Sequence
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -22,6 +21,7 @@ from std_msgs.msg import ColorRGBA, Int8MultiArray
 from visualization_msgs.msg import Marker, MarkerArray
 
 # The array-level builders live with the bag (offline recording needs them without the node).
+from ..bag.cdr import Encoder, LayoutError
 from ..bag.msgs import (BASE_FRAME, ODOM_FRAME, body_names, body_states, centre_of_mass,
                         contact_states, event_msg, float64_array_msg, joint_state, joint_states,
                         linkage_names, ns_from_stamp, odometry, stamp_from_ns)
@@ -154,16 +154,14 @@ def clock_msg(t_ns: int) -> Clock:
     return Clock(clock=stamp_from_ns(t_ns))
 
 
-#: CDR of rosgraph_msgs/Clock: encapsulation (plain CDR, little-endian), int32 sec, uint32 nanosec
-_CLOCK_CDR = struct.Struct('<4siI')
-_CDR_LE = b'\x00\x01\x00\x00'
+_CLOCK = Encoder(Clock(), 'rosgraph_msgs/msg/Clock', (('clock.sec', 'clock.nanosec'),)).encode
 
 
 def clock_cdr(t_ns: int) -> bytes:
-    """``/clock`` already serialised (what ``serialize_message(clock_msg(t_ns))`` returns):
-    a publisher sends bytes without converting a Python message."""
-    sec, nanosec = split_ns(t_ns)
-    return _CLOCK_CDR.pack(_CDR_LE, sec, nanosec)
+    """``/clock`` at sim time ``t_ns`` [ns] already serialised (what
+    ``serialize_message(clock_msg(t_ns))`` returns): a publisher sends bytes without converting
+    a Python message."""
+    return _CLOCK(split_ns(t_ns))
 
 
 def applied_command_msg(t_ns: int, lengths: Sequence[float]) -> JointState:
@@ -226,7 +224,6 @@ class OutputEncoder:
 
     def __init__(self) -> None:
         from rclpy.serialization import serialize_message
-        from crawler_sim.bag.cdr import Encoder, LayoutError
         self._serialize, self._encoder_class, self._layout_error = (
             serialize_message, Encoder, LayoutError)
         self._encoders: dict[tuple, Any] = {}
@@ -323,78 +320,12 @@ class OutputEncoder:
                 encoder = self._encoder_class(build(), ENCODED[key[0]].type, groups)
             except self._layout_error:
                 encoder = None                    # this shape always goes through the builder
-            else:
-                encoder = _Packer.of(encoder, values)
             self._encoders[key] = encoder
         if encoder is None:
             self.slow += 1
             return self._serialize(build())
         self.fast += 1
         return encoder.encode(*values)
-
-
-class _Packer:
-    """A template :class:`crawler_sim.bag.cdr.Encoder` as ONE ``struct.Struct`` spanning the
-    whole message: the bytes between the changing groups are ``s`` fields packed from constant
-    bytes, so a message is one ``pack`` call (no copy of the template, one pack per group and
-    conversion to bytes each time). :meth:`of` keeps the Encoder itself wherever the two
-    would not give the same bytes."""
-
-    __slots__ = ('_struct', '_consts', '_tail')
-
-    def __init__(self, template: bytes, spans: list[tuple[int, int, str]]) -> None:
-        fmt, consts, pos = '<', [], 0
-        for start, end, group_fmt in spans:
-            if start < pos:
-                raise ValueError('groups overlap or are out of order')
-            fmt += (f'{start - pos}s' if start > pos else '') + group_fmt
-            consts.append(template[pos:start] if start > pos else None)
-            pos = end
-        if pos < len(template):
-            fmt += f'{len(template) - pos}s'
-        self._struct = struct.Struct(fmt)
-        self._consts = tuple(consts)
-        self._tail = template[pos:] if pos < len(template) else None
-
-    @classmethod
-    def of(cls, encoder: Any, values: Sequence) -> Any:
-        """A packer for ``encoder`` that gives its bytes for ``values`` (the first message of
-        the shape), else ``encoder``."""
-        try:
-            from crawler_sim.bag.cdr import layout
-            fields = layout(encoder.template, encoder.type_name).fields
-            spans = []
-            for group in encoder.groups:
-                group_fmt, start, end = '', None, None
-                for path in group:
-                    offset, n, dtype = fields[path]
-                    start = offset if start is None else start
-                    if end is not None and offset != end:
-                        raise ValueError(f'{path} does not follow its group')
-                    group_fmt += f'{n}{_STRUCT_CODE[dtype]}'
-                    end = offset + n * np.dtype(dtype).itemsize
-                spans.append((start, end, group_fmt))
-            packer = cls(encoder.template, spans)
-            if packer.encode(*values) != encoder.encode(*values):
-                return encoder
-        except (KeyError, ValueError, struct.error, TypeError):
-            return encoder
-        return packer
-
-    def encode(self, *values) -> bytes:
-        args: list = []
-        for const, group in zip(self._consts, values):
-            if const is not None:
-                args.append(const)
-            args += group
-        if self._tail is not None:
-            args.append(self._tail)
-        return self._struct.pack(*args)
-
-
-#: struct code of each numpy dtype string of a CDR layout
-_STRUCT_CODE = {'|u1': 'B', '|i1': 'b', '<i2': 'h', '<u2': 'H', '<i4': 'i', '<u4': 'I',
-                '<f4': 'f', '<i8': 'q', '<u8': 'Q', '<f8': 'd'}
 
 
 def _source(state):

@@ -13,7 +13,8 @@ import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 
 from crawler_sim.bag import schema as bag_schema
-from crawler_sim.bag.cdr import Decoder, Encoder, field_value, layout, LayoutError, zero_padding
+from crawler_sim.bag.cdr import (Decoder, Encoder, field_value, layout, LayoutError, set_fields,
+                                  zero_padding)
 
 JOINT_FIELDS = ('header.stamp.sec', 'header.stamp.nanosec', 'position', 'velocity', 'effort')
 
@@ -180,3 +181,70 @@ def test_the_encoder_refuses_what_it_cannot_template():
     enc = Encoder(proto, 'sensor_msgs/msg/JointState', [('position',)])
     with pytest.raises(struct.error):
         enc.encode([1.0, 2.0])                   # one length short: never silently wrong
+    with pytest.raises(TypeError):
+        enc.encode([1.0, 2.0, 3.0], [4.0])       # a group too many: never silently ignored
+    with pytest.raises(LayoutError, match='order of their bytes'):
+        Encoder(proto, 'sensor_msgs/msg/JointState', [('velocity',), ('position',)])
+
+
+def test_the_encoder_packs_float32_and_int32_fields_between_constant_strings():
+    """Marker: strings (ns, frame, text, mesh resource) between the changing numbers, float32
+    colours, an int32 id; the bytes are serialize_message's, padding aside."""
+    from visualization_msgs.msg import Marker
+    proto = Marker(ns='bodies', id=3, type=Marker.CUBE, text='a', mesh_resource='m')
+    proto.header.frame_id = 'odom'
+    groups = [('header.stamp.sec', 'header.stamp.nanosec'), ('id',), ('pose.position.x',),
+              ('color.r', 'color.g', 'color.b', 'color.a')]
+    enc = Encoder(proto, 'visualization_msgs/msg/Marker', groups)
+    msg = Marker(ns='bodies', id=-7, type=Marker.CUBE, text='a', mesh_resource='m')
+    msg.header.frame_id = 'odom'
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 12, 999_999_999
+    msg.pose.position.x = -1e-300
+    msg.color.r, msg.color.g, msg.color.b, msg.color.a = 0.1, 0.2, 0.3, 1.0
+    data = enc.encode((12, 999_999_999), (-7,), (-1e-300,), (0.1, 0.2, 0.3, 1.0))
+    assert data == zero_padding(serialize_message(msg), 'visualization_msgs/msg/Marker')
+    assert deserialize_message(data, Marker) == deserialize_message(serialize_message(msg), Marker)
+
+
+# --------------------------------------------------------------------------- set_fields
+
+def trajectory(points: int, stamp=(0, 0)):
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+    msg = JointTrajectory(joint_names=['linkage_0', 'linkage_1'])
+    msg.header.frame_id = 'odom'
+    msg.header.stamp.sec, msg.header.stamp.nanosec = stamp
+    for k in range(points):                # empty effort: rclpy's serialisation has a tail
+        msg.points.append(JointTrajectoryPoint(positions=[0.1 * k, 0.2], velocities=[0.0, 1.0]))
+        msg.points[-1].time_from_start.sec, msg.points[-1].time_from_start.nanosec = divmod(
+            10_000_000 * k, 1_000_000_000)
+    return msg
+
+
+@pytest.mark.parametrize('points', [0, 1, 500])
+def test_set_fields_sets_a_stamp_and_keeps_every_other_byte(points):
+    from trajectory_msgs.msg import JointTrajectory
+    raw = serialize_message(trajectory(points))
+    out = set_fields(raw, 'trajectory_msgs/msg/JointTrajectory',
+                     {'header.stamp.sec': -3, 'header.stamp.nanosec': 123_456_789})
+    assert deserialize_message(out, JointTrajectory) == trajectory(points, (-3, 123_456_789))
+    assert len(out) == len(raw) and out[:4] == raw[:4] and out[12:] == raw[12:]
+    assert out[4:12] == struct.pack('<iI', -3, 123_456_789)
+
+
+def test_set_fields_walks_the_message_only_up_to_its_fields():
+    """Only the header is walked: bytes cut right after it are enough, however many points
+    the message claims (a trajectory of minutes costs what an empty one does)."""
+    raw = serialize_message(trajectory(100_000))
+    head = layout(raw, 'trajectory_msgs/msg/JointTrajectory',
+                  only=['header.stamp.sec', 'header.stamp.nanosec'])
+    assert head.end == 12 and set(head.fields) == {'header.stamp.sec', 'header.stamp.nanosec'}
+    cut = set_fields(raw[:12], 'trajectory_msgs/msg/JointTrajectory', {'header.stamp.sec': 9})
+    assert cut == raw[:4] + struct.pack('<i', 9) + raw[8:12]
+
+
+def test_set_fields_refuses_a_field_that_is_not_a_number_of_the_message():
+    raw = serialize_message(trajectory(2))
+    with pytest.raises(LayoutError, match='header.frame_id'):
+        set_fields(raw, 'trajectory_msgs/msg/JointTrajectory', {'header.frame_id': 1})
+    with pytest.raises(struct.error):
+        set_fields(raw, 'trajectory_msgs/msg/JointTrajectory', {'header.stamp.sec': [1, 2]})

@@ -247,17 +247,17 @@ def test_empty_bag_closes_to_a_valid_file_with_the_scene(tmp_path):
     assert len(run) == 0 and run.scene['p'] == 2
 
 
-# --------------------------------------------------------------------------- lean message path
+# --------------------------------------------------------------------------- the MCAP writer
 
-def _mcap_bytes(writer_class, *, lean: bool = True) -> bytes:
-    from mcap.writer import CompressionType
+def _mcap_bytes(make) -> bytes:
+    """The same calls on a writer ``make(stream)``: definitions, metadata, 200 messages in
+    several chunks with log times out of order, a flush in the middle."""
     out = io.BytesIO()
-    w = writer_class(out, chunk_size=700, compression=CompressionType.ZSTD)
-    if not lean:
-        w._lean = None
+    w = make(out)
     w.start(profile='ros2', library='test')
     sid = w.register_schema('a/msg/B', 'ros2msg', b'float64 x')
     channels = [w.register_channel(f'/t{k}', 'cdr', sid, {'k': str(k)}) for k in range(3)]
+    w.add_metadata('m', {'a': 'b'})
     rng = np.random.default_rng(1)
     for i in range(200):                  # several chunks, log times not monotonic
         t = int(rng.integers(0, 10**12)) if i % 17 == 0 else 10**9 + i * 10**6
@@ -269,8 +269,10 @@ def _mcap_bytes(writer_class, *, lean: bool = True) -> bytes:
     return out.getvalue()
 
 
-def _records(data: bytes) -> tuple[list, list, list]:
-    """(schemas, channels, messages) of an MCAP file as plain tuples, read by the mcap library."""
+def _records(data: bytes) -> tuple:
+    """What mcap's own reader finds in a file: schemas, channels, messages (file order),
+    metadata, and the statistics but for the chunk count."""
+    from dataclasses import replace
     from mcap.reader import make_reader
     reader = make_reader(io.BytesIO(data))
     summary = reader.get_summary()
@@ -279,20 +281,51 @@ def _records(data: bytes) -> tuple[list, list, list]:
                       for c in summary.channels.values())
     messages = [(m.channel_id, m.log_time, m.publish_time, m.sequence, m.data)
                 for _, _, m in reader.iter_messages(log_time_order=False)]
-    return schemas, channels, messages
+    metadata = [(m.name, m.metadata) for m in reader.iter_metadata()]
+    return (schemas, channels, messages, metadata,
+            replace(summary.statistics, chunk_count=0))
 
 
-def test_the_lean_writer_holds_the_same_records_as_mcap_with_definitions_outside_chunks():
+def test_our_mcap_writer_holds_what_the_library_writer_holds_with_definitions_outside_chunks():
     from mcap.records import Channel, Chunk, Schema
     from mcap.stream_reader import StreamReader
-    from mcap.writer import Writer
-    from crawler_sim.bag.writer import _LeanWriter
-    lean = _mcap_bytes(_LeanWriter)
-    assert _records(lean) == _records(_mcap_bytes(Writer))
-    assert _mcap_bytes(_LeanWriter, lean=False) == lean       # the add_message fallback path
-    # schemas and channels are top-level records (on disk before any chunk is complete)
-    top = [type(r) for r in StreamReader(io.BytesIO(lean), emit_chunks=True).records]
+    from mcap.writer import CompressionType, Writer
+    from crawler_sim.bag.mcapwriter import McapWriter
+    ours = _mcap_bytes(lambda out: McapWriter(out, chunk_size=700))
+    library = _mcap_bytes(lambda out: Writer(out, chunk_size=700,
+                                             compression=CompressionType.ZSTD))
+    assert _records(ours) == _records(library)
+    # CRCs (chunks, summary) check out; schemas and channels are top-level records, on disk
+    # before any chunk is complete
+    top = [type(r) for r in StreamReader(io.BytesIO(ours), emit_chunks=True,
+                                         validate_crcs=True).records]
     assert top.index(Schema) < top.index(Channel) < top.index(Chunk)
+    assert top.count(Chunk) > 5
+
+
+def test_our_mcap_writer_puts_definitions_on_disk_at_a_flush_before_any_message():
+    """The library writes a chunk only once a message joined it: its definitions stay in
+    memory until then. Ours are on disk at the first flush, readable from a file cut there."""
+    from crawler_sim.bag.mcapwriter import McapWriter
+    out = io.BytesIO()
+    w = McapWriter(out)
+    w.start(profile='ros2', library='test')
+    w.register_channel('/a', 'cdr', w.register_schema('a/msg/B', 'ros2msg', b'float64 x'))
+    w.flush()
+    cut = out.getvalue()
+    from mcap.records import Channel, Schema
+    from mcap.stream_reader import StreamReader
+    found = []
+    with pytest.raises(EndOfFile):                 # no footer: the recording goes on
+        for record in StreamReader(io.BytesIO(cut)).records:
+            found.append(type(record))
+    assert Schema in found and Channel in found
+
+
+def test_the_mcap_writer_refuses_an_unknown_compression():
+    from crawler_sim.bag.mcapwriter import McapWriter
+    with pytest.raises(ValueError, match='compression'):
+        McapWriter(io.BytesIO(), compression='lz4')
 
 
 def test_a_message_larger_than_a_chunk_that_compresses_well_reads_back_intact(tmp_path):

@@ -628,6 +628,11 @@ def test_an_output_without_a_template_goes_through_the_builder(monkeypatch):
     assert enc.slow == 2 and enc.fast == 0
 
 
+@pytest.mark.parametrize('t_ns', [0, 1, 999_999_999, 10**9, 2**31 * 10**9 - 1])
+def test_clock_bytes_equal_serialize_message(t_ns):
+    assert M.clock_cdr(t_ns) == serialize_message(M.clock_msg(t_ns))
+
+
 def test_published_and_recorded_outputs_are_the_same_bytes_in_a_namespace(ros, tmp_path):
     sim = SimNode(context=ros.ctx, namespace='robot1', parameter_overrides=[
         Parameter('record', value=True), Parameter('record_dir', value=str(tmp_path)),

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from typing import Any, Callable, Iterable
 
+from crawler_sim.bag.cdr import LayoutError, set_fields
 from crawler_sim.bag.topics import Topic
 from crawler_sim.core.simtime import split_ns
 
@@ -25,13 +26,18 @@ __all__ = ['SessionBag', 'applied_trajectory']
 
 def applied_trajectory(raw: bytes, stamp_ns: int, t_ns: int) -> bytes:
     """A received JointTrajectory (CDR) as recorded: the same bytes, with stamp 0 ("start at
-    the tick it is applied") replaced by that tick's sim time ``t_ns``, so the recorded stamp
-    is absolute."""
+    the tick it is applied") replaced by that tick's sim time ``t_ns`` [ns], so the recorded
+    stamp is absolute. ``stamp_ns`` [ns] is the stamp the message arrived with. Bytes that are
+    not plain little-endian CDR (the intake checks only the byte order) are recorded as they
+    came: this runs in the loop, which must not fail on a message it accepted."""
     if stamp_ns:
         return raw
     sec, nanosec = split_ns(t_ns)
-    return (raw[:4] + sec.to_bytes(4, 'little', signed=True) + nanosec.to_bytes(4, 'little')
-            + raw[12:])
+    try:
+        return set_fields(raw, 'trajectory_msgs/msg/JointTrajectory',
+                          {'header.stamp.sec': sec, 'header.stamp.nanosec': nanosec})
+    except LayoutError:
+        return raw
 
 
 class SessionBag:
