@@ -154,7 +154,7 @@ def clock_msg(t_ns: int) -> Clock:
     return Clock(clock=stamp_from_ns(t_ns))
 
 
-_CLOCK = Encoder(Clock(), 'rosgraph_msgs/msg/Clock', (('clock.sec', 'clock.nanosec'),)).encode
+_CLOCK = Encoder(Clock(), T.CLOCK.type, (('clock.sec', 'clock.nanosec'),)).encode
 
 
 def clock_cdr(t_ns: int) -> bytes:

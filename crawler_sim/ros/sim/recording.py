@@ -18,7 +18,7 @@ from __future__ import annotations
 from typing import Any, Callable, Iterable
 
 from crawler_sim.bag.cdr import LayoutError, set_fields
-from crawler_sim.bag.topics import Topic
+from crawler_sim.bag.topics import LINKAGE_TRAJECTORY, Topic
 from crawler_sim.core.simtime import split_ns
 
 __all__ = ['SessionBag', 'applied_trajectory']
@@ -34,7 +34,7 @@ def applied_trajectory(raw: bytes, stamp_ns: int, t_ns: int) -> bytes:
         return raw
     sec, nanosec = split_ns(t_ns)
     try:
-        return set_fields(raw, 'trajectory_msgs/msg/JointTrajectory',
+        return set_fields(raw, LINKAGE_TRAJECTORY.type,
                           {'header.stamp.sec': sec, 'header.stamp.nanosec': nanosec})
     except LayoutError:
         return raw
