@@ -80,6 +80,52 @@ def check_args(argv: Sequence[str], executable: str) -> None:
                     f'arguments (after --ros-args: -p name:=value, --params-file FILE, -r ...)')
 
 
+def ros_sections(args: Sequence[str]) -> list[str]:
+    """The arguments inside ``--ros-args`` sections (each ends at ``--`` or at the next
+    ``--ros-args``), in order."""
+    out: list[str] = []
+    inside = False
+    for arg in args:
+        if arg == '--ros-args':
+            inside = True
+        elif arg == '--' and inside:
+            inside = False
+        elif inside:
+            out.append(arg)
+    return out
+
+
+def given_names(args: Sequence[str], name: str, fqn: str) -> list[str]:
+    """Parameter names the arguments give the node called ``name`` (fully qualified ``fqn``):
+    ``-p NAME:=VALUE`` and the ``ros__parameters`` of its sections in ``--params-file`` files
+    (keyed ``name``, ``/name``, ``/ns/name`` or nested ``/ns: {name: ...}``)."""
+    import yaml
+    ros = ros_sections(args)
+    names: list[str] = []
+    for k, arg in enumerate(ros[:-1]):
+        if arg in ('-p', '--param') and ':=' in ros[k + 1]:
+            names.append(ros[k + 1].split(':=', 1)[0])
+    targets = {name, fqn.lstrip('/')}
+
+    def walk(doc: object, path: str) -> None:
+        if not isinstance(doc, dict):
+            return
+        for key, value in doc.items():
+            if key == 'ros__parameters' and isinstance(value, dict):
+                if path in targets:
+                    names.extend(_flat(value))
+            else:
+                walk(value, f'{path}/{str(key).strip("/")}'.strip('/'))
+    for k, arg in enumerate(ros[:-1]):
+        if arg == '--params-file':
+            try:
+                with open(ros[k + 1], encoding='utf-8') as f:
+                    walk(yaml.safe_load(f), '')
+            except (OSError, yaml.YAMLError):
+                pass                    # check_params_files reports it
+    return names
+
+
 def _wildcard_names(args: Sequence[str]) -> set[str]:
     """Parameter names a ``--params-file`` gives every node (under a key with ``*``, e.g.
     ``/**``): one file may serve several nodes, so a name there is not a typo for this one."""
@@ -127,9 +173,10 @@ def unknown_parameters(node: Node, argv: Sequence[str]) -> list[str]:
     """One message per parameter given to ``node`` (``-p`` or a ``--params-file`` section for
     its name) that it does not declare, with the nearest declared name. Names given to every
     node (a ``/**`` section) and rclpy's own are not reported."""
-    # rclpy keeps the overrides it read from the arguments in Node._parameter_overrides and has
-    # no public accessor for them; without it a misspelt name is ignored without a word
-    given: Iterable[str] = getattr(node, '_parameter_overrides', {}).keys()
+    # rclpy has no public accessor for the overrides it read, so they are read from the same
+    # arguments here; without this a misspelt name is ignored without a word
+    given: Iterable[str] = given_names(list(argv), node.get_name(),
+                                       node.get_fully_qualified_name())
     known = set(node.get_parameters_by_prefix(''))
     wild = _wildcard_names(list(argv))
     out = []

@@ -42,6 +42,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
@@ -311,14 +312,14 @@ class GaitNode(Node):
         self._stop_taking_clock()
 
     def _stop_taking_clock(self) -> None:
-        """Destroy the /clock subscription of use_sim_time (preload: nothing reads ROS time
-        after the one trajectory, stamped 0 and sent on a steady timer). Each /clock message
-        is otherwise a Python callback: a quarter of a core next to a flat-out sim_node."""
-        source = getattr(self, '_time_source', None)
-        sub = getattr(source, '_clock_sub', None)
-        if sub is not None:
-            self.destroy_subscription(sub)
-            source._clock_sub = None
+        """Stop following /clock (preload: nothing reads ROS time after the one trajectory,
+        stamped 0 and sent on a steady timer). Each /clock message is otherwise a Python
+        callback: a quarter of a core next to a flat-out sim_node. Setting ``use_sim_time``
+        false is rclpy's public way to drop its /clock subscription."""
+        if self.get_parameter('use_sim_time').value:
+            self.set_parameters([Parameter('use_sim_time', Parameter.Type.BOOL, False)])
+            self.get_logger().info('preload sent: /clock no longer followed '
+                                   '(use_sim_time set to false)')
 
     def trajectory(self, now_ns: int, horizon: float | None = None) -> JointTrajectory:
         """The next ``horizon`` seconds of the gait from ROS time ``now_ns``, stamped
