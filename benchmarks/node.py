@@ -98,7 +98,7 @@ def _huge_trajectory(n: int = 100_000):
 
 
 def run(scenario: str, seconds: float, method: str, env: dict,
-        extra: tuple[str, ...] = ()) -> dict:
+        extra: tuple[str, ...] = (), bodies: int = 2) -> dict:
     import rclpy
     from diagnostic_msgs.msg import DiagnosticArray
     from nav_msgs.msg import Odometry
@@ -114,8 +114,10 @@ def run(scenario: str, seconds: float, method: str, env: dict,
     sim = start('sim_node', env, '--params-file',
                 str(share() / 'config' / 'ros' / 'crawler_sim.yaml'),
                 '-p', f'method:={method}', '-p', f'real_time_factor:={0.0 if fast else 1.0}',
-                '-p', 'start_paused:=true', '-p', 'diagnostics_period:=1.0', *extra)
-    gait = start('gait_node', env, '-p', 'use_sim_time:=true', '-p', 'mode:=trajectory',
+                '-p', 'start_paused:=true', '-p', 'diagnostics_period:=1.0',
+                *(('-p', f'masses:={[1.0] * bodies}') if bodies != 2 else ()), *extra)
+    gait = start('gait_node', env, '-p', f'n_links:={bodies - 1}',
+                 '-p', 'use_sim_time:=true', '-p', 'mode:=trajectory',
                  '-p', 'preload:=true', '-p', f'duration:={GAIT_SECONDS}', '-p', 'rate:=50.0')
     procs = [sim, gait]
     rclpy.init()
@@ -200,6 +202,8 @@ def main() -> int:
     parser.add_argument('--method', default='exact', help='exact | implicit | penalty')
     parser.add_argument('--only', default='flat,realtime,flood,huge',
                         help='comma-separated scenarios')
+    parser.add_argument('--bodies', type=int, default=2,
+                        help='number of bodies p (1 kg each; 2: the seed\'s crawler, 0.5 and 1 kg)')
     args = parser.parse_args()
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     env = workspace_env(dict(os.environ))
@@ -208,7 +212,7 @@ def main() -> int:
     here = str(Path(__file__).resolve().parents[1])
     env['PYTHONPATH'] = os.pathsep.join([here, env.get('PYTHONPATH', '')]).rstrip(os.pathsep)
     base = statistics.median(engine_baseline() for _ in range(3))
-    print(f'sim_node benchmark: two-body default, method {args.method}, 1 kHz integration, '
+    print(f'sim_node benchmark: {args.bodies} bodies, method {args.method}, 1 kHz integration, '
           f'every output at 100 Hz with a subscriber, {args.seconds:g} s per run, median of '
           f'{args.repeats}, {os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}')
     print(f'  baseline (this process): core engine alone flat out {base:.1f}x real time')
@@ -227,7 +231,8 @@ def main() -> int:
                   f'% to the node\'s CPU time (median of {len(extra)} alternated pairs: '
                   f'{", ".join(f"{100 * e:+.1f}" for e in extra)} %; floor 10 %)', flush=True)
             continue
-        runs = [run(scenario, args.seconds, args.method, env) for _ in range(args.repeats)]
+        runs = [run(scenario, args.seconds, args.method, env, bodies=args.bodies)
+                for _ in range(args.repeats)]
 
         def med(key: str) -> float:
             vals = [r[key] for r in runs if key in r]
