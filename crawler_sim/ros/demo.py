@@ -202,8 +202,9 @@ def _summary(bag: Path, png: Path, duration: float, wall: float, diag: dict[str,
     print(f'mean speed: {distance / span * 1000:+.3f} mm/s')
     print('stick fraction per body: '
           + ', '.join(f'body_{i} {f:.1%}' for i, f in enumerate(stick)))
-    print(f'contact events: {n_events} (solver reported {diag.get("solver_events", "?")}), '
-          f'method {diag.get("method", "?")}')
+    print(f'contact events in the first {duration:g} s: {n_events} (the bag holds '
+          f'{len(events)}, all the sim reported until it stopped: '
+          f'{diag.get("solver_events", "?")}), method {diag.get("method", "?")}')
     print(f'bag: {bag}')
     try:
         print(f'plot: {bags.plot(bag, png)}')
