@@ -5,7 +5,8 @@ The exact method's search wants bounds of |l'''| and |l''''| on every interval i
 events. For a gait of user callables they are estimated from a scan of l'':
 
 * a grid of spacing ``T / 1024`` for a periodic gait, ``max_step / 8`` when one is given, else
-  1/256 of the first span scanned, in windows of at most ``WINDOW`` cells;
+  1/256 of what is left of the span being integrated (never finer than the grid so far), in
+  windows of at most ``WINDOW`` cells;
 * refined locally, cell by cell, until the bound of each cell holds inside it by its own
   differences (its first difference plus its |l''''| times its width within ``SAFETY`` times the
   largest first difference of it and its neighbours), so a sharp feature the grid touches is
@@ -92,12 +93,18 @@ class BoundEstimate:
             start = a
         else:
             start = self.hi
-        if math.isinf(self.spacing):
+        cands = [self.period / PER_PERIOD if self.period else None,
+                 self.max_step / 8.0 if self.max_step else None]
+        cands = [c for c in cands if c]
+        if cands:
+            self.spacing = min(cands)
+        else:
+            # 1/FIRST of what is left of the span, never finer than before: the cost of a
+            # run stays independent of its length when the same gait object served a shorter
+            # run first (a grid set by a 1 s run made a 1e6 s rest cost 3 minutes)
             span = (span_hi if math.isfinite(span_hi) else b) - start
-            cands = [self.period / PER_PERIOD if self.period else None,
-                     self.max_step / 8.0 if self.max_step else None]
-            cands = [c for c in cands if c]
-            self.spacing = min(cands) if cands else max(span, 1e-300) / FIRST
+            grid = max(span, 1e-300) / FIRST
+            self.spacing = grid if math.isinf(self.spacing) else max(self.spacing, grid)
         end = start + WINDOW * self.spacing
         end = max(end, b)
         if math.isfinite(span_hi):

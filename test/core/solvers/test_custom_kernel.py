@@ -225,3 +225,28 @@ def test_a_jump_of_l_acceleration_without_breakpoints_is_refused_naming_them():
     ref, _ = Oracle.for_crawler(cs.Crawler([1, 1], [1, 1]), lambda s: pp(np.asarray(s, float)),
                                 [0.5]).solve(1.0, [0.0, 1.0], h=1e-4)
     np.testing.assert_allclose(x, ref, rtol=0, atol=1e-10)
+
+
+def test_a_custom_gait_reused_for_a_longer_run_costs_what_a_fresh_one_does():
+    """The scan grid of a Custom gait without period or max_step is 1/256 of the span; a gait
+    object that served a 1 s run first kept that grid, so a 1e4 s rest then evaluated l''
+    about 2.5 million times (1.3 s; a 1e6 s rest took 3 minutes). Counted in calls of the
+    user's l'', not in seconds: the reused gait needs about as many as a fresh one."""
+    calls = [0]
+
+    def acc(t):
+        calls[0] += 1
+        return np.zeros(1)
+
+    def count(runs):
+        gait = gaits.Custom(lambda t: np.array([0.1]), lambda t: np.zeros(1), acc)
+        crawler = cs.Crawler([0.5, 1.0], [1.5, 2.9])
+        for t_end in runs:
+            calls[0] = 0
+            tr = cs.simulate(crawler, gait, t_end, t_eval=[0.0, t_end])
+            assert (tr.contact[-1] == 0).all()          # a rest: every body stays stuck
+        return calls[0]
+
+    fresh = count([1e4])
+    reused = count([1.0, 1e4])
+    assert reused <= 2 * fresh + 100, (fresh, reused)
