@@ -151,8 +151,7 @@ class Scallop(BuiltinGait):
         # bound tables of ``_bins`` bins per period (each bin bound holds on its closed bin)
         T, nb = self.period, self._bins
         k = np.arange(nb)
-        jerk = self._cauchy(3, k * T / nb, (k + 1) * T / nb)      # (nb, n_links)
-        snap = self._cauchy(4, k * T / nb, (k + 1) * T / nb)
+        jerk, snap = self._cauchy((3, 4), k * T / nb, (k + 1) * T / nb)   # (nb, n_links)
         rows = np.column_stack([self.amplitude, self.phase - math.pi * self.asymmetry,
                                 np.full(self.n_links, self._c), np.full(self.n_links, self._s)])
         return scallop(self.frequency, self.mean, rows, jerk, snap)
@@ -166,8 +165,9 @@ class Scallop(BuiltinGait):
         r = min(self.asymmetry, 1.0 - self.asymmetry)
         return 1024 if r >= 0.03 else 1024 * 2 ** math.ceil(math.log2(0.03 / r))
 
-    def _cauchy(self, n: int, t0, t1) -> NDArray[np.float64]:
-        """Rigorous bound of |d^n l / dt^n| on [t0, t1] by Cauchy's estimate, per linkage.
+    def _cauchy(self, orders: tuple[int, ...], t0, t1) -> list[NDArray[np.float64]]:
+        """Rigorous bounds of |d^n l / dt^n| on [t0, t1] by Cauchy's estimate, per linkage,
+        for each n of ``orders``.
 
         l = mean + amplitude f(x), f(x) = s sin x / (1 - c cos x), x = w t + phase - pi r, is
         analytic off the poles x = 2 pi k (+ pi when c < 0) +- i rho0, cosh rho0 = 1 / |c|. On
@@ -176,27 +176,35 @@ class Scallop(BuiltinGait):
         and |sin u|^2 = sin^2 Re u + sinh^2 Im u give |1 - c cos z| >= 2 |c| (min sin^2(Re z'
         / 2) + sinh^2(max(rho0 - rho, 0) / 2)). Then |f^(n)| <= n! max|f| / rho^n; the best
         of a range of radii is kept. Local: small far from the fast phase of a sharp stroke.
-        ``t0``, ``t1``: floats, or arrays of shape (B,) (then the result is (B, n_links)).
+        ``t0``, ``t1``: floats, or arrays of shape (B,) (then each result is (B, n_links)).
+
+        Every radius at once, as one array (radius, bin, linkage), and the orders from the same
+        lower bound of |1 - c cos z|: a new gait's tables are most of a sweep scene's set-up.
         """
         c, s, w = self._c, self._s, self._w
         amp = np.abs(self.amplitude)
         if abs(c) < 1e-12:        # r = 1/2: a plain cosine stroke
-            return np.broadcast_to(amp * w ** n, np.shape(t0) + amp.shape).copy()
+            return [np.broadcast_to(amp * w ** n, np.shape(t0) + amp.shape).copy()
+                    for n in orders]
         rho0 = math.acosh(1.0 / abs(c))
         t0, t1 = np.asarray(t0, float)[..., None], np.asarray(t1, float)[..., None]
         x0 = w * t0 + self.phase - math.pi * self.asymmetry + (math.pi if c < 0 else 0.0)
         span = w * (t1 - t0)
-        best = np.full(np.broadcast_shapes(x0.shape, span.shape), math.inf)
         radii = np.concatenate([rho0 * np.linspace(0.05, 0.95, 19), [0.25, 0.5, 1.0, 2.0, 3.0]])
-        for rho in radii.tolist():
-            lo = 0.5 * (x0 - rho)                  # Re(z') / 2 ranges over [lo, lo + width]
-            width = 0.5 * (span + 2.0 * rho)
-            contains = np.ceil(lo / math.pi) * math.pi <= lo + width
-            m = np.where(contains, 0.0, np.minimum(np.sin(lo) ** 2, np.sin(lo + width) ** 2))
-            den = 2.0 * abs(c) * (m + math.sinh(max(rho0 - rho, 0.0) / 2.0) ** 2)
-            safe = np.where(den > 0, den, 1.0)
-            bound = np.where(den > 0, math.factorial(n) * s * math.cosh(rho) / safe / rho ** n,
-                             math.inf)
-            best = np.minimum(best, bound)
-        # 1 + 1e-12: the bound is computed in floats
-        return amp * w ** n * best * (1.0 + 1e-12)
+        rho = radii.reshape((-1,) + (1,) * x0.ndim)
+        lo = 0.5 * (x0 - rho)                      # Re(z') / 2 ranges over [lo, lo + width]
+        width = 0.5 * (span + 2.0 * rho)
+        contains = np.ceil(lo / math.pi) * math.pi <= lo + width
+        m = np.where(contains, 0.0, np.minimum(np.sin(lo) ** 2, np.sin(lo + width) ** 2))
+        sinh2 = np.array([math.sinh(max(rho0 - r, 0.0) / 2.0) ** 2 for r in radii.tolist()])
+        den = 2.0 * abs(c) * (m + sinh2.reshape(rho.shape))
+        safe = np.where(den > 0, den, 1.0)
+        out = []
+        for n in orders:
+            # per radius as the formula reads (n! s cosh rho / den / rho^n), then the best
+            scale = np.array([math.factorial(n) * s * math.cosh(r) for r in radii.tolist()])
+            pw = np.array([r ** n for r in radii.tolist()]).reshape(rho.shape)
+            bound = np.where(den > 0, scale.reshape(rho.shape) / safe / pw, math.inf)
+            # 1 + 1e-12: the bound is computed in floats
+            out.append(amp * w ** n * bound.min(axis=0) * (1.0 + 1e-12))
+        return out
