@@ -88,6 +88,10 @@ class Fourier(BuiltinGait):
         return fourier(self.frequency, self.mean, self.cos, self.sin)
 
 
+#: most values of one array of ``Scallop._cauchy`` (8,192 doubles: 64 KiB)
+_BLOCK_VALUES = 8192
+
+
 class Scallop(BuiltinGait):
 
     """A smooth periodic stroke with a fast and a slow phase.
@@ -178,8 +182,8 @@ class Scallop(BuiltinGait):
         of a range of radii is kept. Local: small far from the fast phase of a sharp stroke.
         ``t0``, ``t1``: floats, or arrays of shape (B,) (then each result is (B, n_links)).
 
-        Every radius at once, as one array (radius, bin, linkage), and the orders from the same
-        lower bound of |1 - c cos z|: a new gait's tables are most of a sweep scene's set-up.
+        Many radii at once, as arrays (radius, bin, linkage), and the orders from the same lower
+        bound of |1 - c cos z|: a new gait's tables are most of a sweep scene's set-up.
         """
         c, s, w = self._c, self._s, self._w
         amp = np.abs(self.amplitude)
@@ -191,20 +195,26 @@ class Scallop(BuiltinGait):
         x0 = w * t0 + self.phase - math.pi * self.asymmetry + (math.pi if c < 0 else 0.0)
         span = w * (t1 - t0)
         radii = np.concatenate([rho0 * np.linspace(0.05, 0.95, 19), [0.25, 0.5, 1.0, 2.0, 3.0]])
-        rho = radii.reshape((-1,) + (1,) * x0.ndim)
-        lo = 0.5 * (x0 - rho)                      # Re(z') / 2 ranges over [lo, lo + width]
-        width = 0.5 * (span + 2.0 * rho)
-        contains = np.ceil(lo / math.pi) * math.pi <= lo + width
-        m = np.where(contains, 0.0, np.minimum(np.sin(lo) ** 2, np.sin(lo + width) ** 2))
-        sinh2 = np.array([math.sinh(max(rho0 - r, 0.0) / 2.0) ** 2 for r in radii.tolist()])
-        den = 2.0 * abs(c) * (m + sinh2.reshape(rho.shape))
-        safe = np.where(den > 0, den, 1.0)
-        out = []
-        for n in orders:
-            # per radius as the formula reads (n! s cosh rho / den / rho^n), then the best
-            scale = np.array([math.factorial(n) * s * math.cosh(r) for r in radii.tolist()])
-            pw = np.array([r ** n for r in radii.tolist()]).reshape(rho.shape)
-            bound = np.where(den > 0, scale.reshape(rho.shape) / safe / pw, math.inf)
-            # 1 + 1e-12: the bound is computed in floats
-            out.append(amp * w ** n * bound.min(axis=0) * (1.0 + 1e-12))
-        return out
+        best = [np.full(np.broadcast_shapes(x0.shape, span.shape), math.inf) for _ in orders]
+        # radii in blocks whose arrays stay well under 128 KiB: glibc maps larger ones anew each
+        # time where the trim threshold is fixed (Dask's workers set MALLOC_TRIM_THRESHOLD_),
+        # and the page faults then cost more than the arithmetic
+        block = max(1, _BLOCK_VALUES // max(1, int(np.prod(best[0].shape))))
+        for k0 in range(0, radii.size, block):
+            rs = radii[k0:k0 + block]
+            rho = rs.reshape((-1,) + (1,) * x0.ndim)
+            lo = 0.5 * (x0 - rho)                  # Re(z') / 2 ranges over [lo, lo + width]
+            width = 0.5 * (span + 2.0 * rho)
+            contains = np.ceil(lo / math.pi) * math.pi <= lo + width
+            m = np.where(contains, 0.0, np.minimum(np.sin(lo) ** 2, np.sin(lo + width) ** 2))
+            sinh2 = np.array([math.sinh(max(rho0 - r, 0.0) / 2.0) ** 2 for r in rs.tolist()])
+            den = 2.0 * abs(c) * (m + sinh2.reshape(rho.shape))
+            safe = np.where(den > 0, den, 1.0)
+            for b, n in zip(best, orders):
+                # per radius as the formula reads (n! s cosh rho / den / rho^n), then the best
+                scale = np.array([math.factorial(n) * s * math.cosh(r) for r in rs.tolist()])
+                pw = np.array([r ** n for r in rs.tolist()]).reshape(rho.shape)
+                bound = np.where(den > 0, scale.reshape(rho.shape) / safe / pw, math.inf)
+                np.minimum(b, bound.min(axis=0), out=b)
+        # 1 + 1e-12: the bound is computed in floats
+        return [amp * w ** n * b * (1.0 + 1e-12) for b, n in zip(best, orders)]
