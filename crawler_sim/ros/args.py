@@ -95,60 +95,53 @@ def ros_sections(args: Sequence[str]) -> list[str]:
     return out
 
 
+def _params_file_sections(args: Sequence[str]) -> list[tuple[str, bool, dict]]:
+    """Every ``ros__parameters`` section of the ``--params-file`` files among ``args``: (its
+    key path without slashes at the ends, e.g. 'ns/gait_node'; whether a key on the path
+    holds a ``*``; its parameters). Unreadable files give none (check_params_files reports
+    them)."""
+    import yaml
+    found: list[tuple[str, bool, dict]] = []
+
+    def walk(doc: object, path: str, wild: bool) -> None:
+        if not isinstance(doc, dict):
+            return
+        for key, value in doc.items():
+            if key == 'ros__parameters' and isinstance(value, dict):
+                found.append((path, wild, value))
+            else:
+                walk(value, f'{path}/{str(key).strip("/")}'.strip('/'), wild or '*' in str(key))
+    for k, arg in enumerate(args[:-1]):
+        if arg == '--params-file':
+            try:
+                with open(args[k + 1], encoding='utf-8') as f:
+                    walk(yaml.safe_load(f), '', False)
+            except (OSError, yaml.YAMLError):
+                pass
+    return found
+
+
 def given_names(args: Sequence[str], name: str, fqn: str) -> list[str]:
     """Parameter names the arguments give the node called ``name`` (fully qualified ``fqn``):
     ``-p NAME:=VALUE`` and the ``ros__parameters`` of its sections in ``--params-file`` files
     (keyed ``name``, ``/name``, ``/ns/name`` or nested ``/ns: {name: ...}``)."""
-    import yaml
     ros = ros_sections(args)
     names: list[str] = []
     for k, arg in enumerate(ros[:-1]):
         if arg in ('-p', '--param') and ':=' in ros[k + 1]:
             names.append(ros[k + 1].split(':=', 1)[0])
     targets = {name, fqn.lstrip('/')}
-
-    def walk(doc: object, path: str) -> None:
-        if not isinstance(doc, dict):
-            return
-        for key, value in doc.items():
-            if key == 'ros__parameters' and isinstance(value, dict):
-                if path in targets:
-                    names.extend(_flat(value))
-            else:
-                walk(value, f'{path}/{str(key).strip("/")}'.strip('/'))
-    for k, arg in enumerate(ros[:-1]):
-        if arg == '--params-file':
-            try:
-                with open(ros[k + 1], encoding='utf-8') as f:
-                    walk(yaml.safe_load(f), '')
-            except (OSError, yaml.YAMLError):
-                pass                    # check_params_files reports it
+    for path, _wild, params in _params_file_sections(ros):
+        if path in targets:
+            names.extend(_flat(params))
     return names
 
 
 def _wildcard_names(args: Sequence[str]) -> set[str]:
     """Parameter names a ``--params-file`` gives every node (under a key with ``*``, e.g.
     ``/**``): one file may serve several nodes, so a name there is not a typo for this one."""
-    import yaml
-    names: set[str] = set()
-
-    def walk(doc, wild: bool) -> None:
-        if not isinstance(doc, dict):
-            return
-        for key, value in doc.items():
-            if key == 'ros__parameters' and isinstance(value, dict):
-                if wild:
-                    names.update(_flat(value))
-            else:
-                walk(value, wild or '*' in str(key))
-    for k, arg in enumerate(args[:-1]):
-        if arg == '--params-file':
-            try:
-                with open(args[k + 1], encoding='utf-8') as f:
-                    walk(yaml.safe_load(f), False)
-            except (OSError, yaml.YAMLError):
-                pass                    # check_params_files reports it
-    return names
+    return {n for _path, wild, params in _params_file_sections(args) if wild
+            for n in _flat(params)}
 
 
 def _flat(params: dict, prefix: str = '') -> list[str]:

@@ -3,7 +3,7 @@
 misspelt name is reported whichever way it was given."""
 from __future__ import annotations
 
-from crawler_sim.ros.args import given_names, ros_sections
+from crawler_sim.ros.args import _wildcard_names, given_names, ros_sections
 
 
 def test_only_arguments_inside_ros_args_sections_count():
@@ -29,6 +29,8 @@ def test_a_params_file_gives_the_names_of_this_nodes_sections(tmp_path):
     assert sorted(got) == ['frequncy', 'gait.amplitude', 'mode', 'rate']
     assert sorted(given_names(argv, 'gait_node', '/gait_node')) == ['frequncy',
                                                                       'gait.amplitude']
+    # the wildcard section's names go to every node: not reported as typos of this one
+    assert _wildcard_names(argv) == {'use_sim_time'}
 
 
 def test_an_unreadable_params_file_gives_no_names(tmp_path):

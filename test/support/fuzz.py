@@ -2,27 +2,7 @@
 independent oracle (test/support/oracle.py). The tests (test/core/solvers/test_fuzz.py) and the long
 stress profile (benchmarks/stress) run them.
 
-Differential fuzz of the exact method against the independent oracle (issue 14 part 4).
-
-Each case is drawn from a numpy generator seeded by hypothesis (``draw_case(family, rng)``), so
-the quick profile here and the long profile of ``python -m benchmarks.solvers stress`` (``run_fuzz``) share one
-generator. Scenes: p = 2..8, masses and frictions over four decades, zero and
-direction-dependent friction, slopes, v0 != 0. Gait families: Custom lambdas of ``math``
-functions without a period, with a jerk bound, with breakpoints (a bang-bang stroke), Custom
-lambda copies of Scallops down to asymmetry 0.01 (with and without period=) and of Fourier gaits
-of 3-6 harmonics, every built-in gait (Sinusoid, Fourier, Scallop down to asymmetry 0.02,
-PiecewiseParabolic strokes and random non-periodic bang-bang strokes, Spline clamped and
-periodic, PiecewiseCubic of a few and of hundreds of pieces), and gait switches mid-run through
-``Stepper.advance(t1, gait)`` as the node does (C2 Cubic pieces streamed one by one, the same
-pieces as one PiecewiseCubic, and a Sinusoid continued by Cubic pieces).
-
-Pass: at every sample, positions within 1e-10 m (1e-10 relative beyond 1 m) and velocities within
-1e-10 (relative to 1 + the largest velocity) of the oracle, no exception and no stall, and, for
-``simulate`` runs, ``verify(tr, gait).ok()``.
-
-The quick profile (``make test``) runs ``CRAWLER_SIM_FUZZ_EXAMPLES`` (default 10) derandomised
-examples per family without the example database, so CI is deterministic; shrinking is off
-(the failing case's parameters are printed instead, to rerun with ``check_case``).
+What the cases cover and what passes: the docstring of test/core/solvers/test_fuzz.py.
 """
 from __future__ import annotations
 
