@@ -84,3 +84,12 @@ def test_every_topic_and_field_of_the_foxglove_layout_is_published_by_the_node()
     for k, p in panels.items():
         if k.startswith('RawMessages!'):
             assert p['topicPath'].split('.')[0] in PUBLISHED, p
+
+
+def test_the_output_classes_are_the_types_of_the_topic_table():
+    """outputs.CLASSES (message classes to create publishers) and bag.topics (type names to
+    record) name each output's type twice: they must agree."""
+    for name, cls in CLASSES.items():
+        package = cls.__module__.split('.')[0]
+        assert f'{package}/msg/{cls.__name__}' == T.OUTPUTS[name].type, name
+    assert set(CLASSES) == set(T.OUTPUTS)
