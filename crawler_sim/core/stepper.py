@@ -10,8 +10,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .gaits import Cubic, Gait, PiecewiseCubic, _positive as positive
-from .gaits.cubic import cubic_values
+from .gaits import Gait, _positive as positive
 from .model import Crawler
 from .solvers.exact import ExactSolver
 from .solvers.implicit import ImplicitSolver
@@ -24,7 +23,6 @@ __all__ = ['METHODS', 'Stepper', 'simulate']
 #: options its ``options`` classmethod picks and checks from ``Stepper``'s, and runs a whole
 #: span with ``simulate(t_end, times, include_events, dt)`` -> (times, outputs, info)
 METHODS = {'exact': ExactSolver, 'implicit': ImplicitSolver, 'penalty': PenaltySolver}
-_PIECES = (Cubic, PiecewiseCubic)
 
 
 def _check_method(method: str) -> str:
@@ -49,13 +47,9 @@ def _check_finite(name: str, value) -> float:
 
 def check_gait(gait: Gait, crawler: Crawler, t: float) -> None:
     """Raise ValueError if the gait's shape does not match p or it is not finite at t."""
-    if type(gait) in _PIECES and gait.n_links == crawler.p - 1:
-        # the node's gaits (one check per publish tick): the rows at t in Python floats, the
-        # values gait.at(t) gives; the general check below says what is wrong otherwise
-        pc = gait if type(gait) is Cubic else gait._piece(gait._index(t))
-        d = t - pc.t0
-        if math.isfinite(sum(map(sum, (cubic_values(*row, d) for row in pc._rows)))):
-            return
+    if (isinstance(gait, Gait) and getattr(gait, 'n_links', None) == crawler.p - 1
+            and gait.compiled().finite_at(t)):
+        return          # a built-in gait of the right shape, finite at t (one compiled call)
     if not isinstance(gait, Gait):
         raise ValueError(f'gait must be a crawler_sim.core.gaits.Gait, got {type(gait).__name__}')
     try:

@@ -25,6 +25,8 @@ import numpy as np
 
 from libc.math cimport fabs, floor, isfinite, nextafter, sqrt, INFINITY, NAN
 from cpython.mem cimport PyMem_Calloc, PyMem_Free
+from cpython.buffer cimport (PyObject_GetBuffer, PyBuffer_Release, PyBUF_C_CONTIGUOUS,
+                            PyBUF_FORMAT, PyBUF_WRITABLE)
 from libc.string cimport memcpy
 
 from crawler_sim.core.solvers._gait cimport (CompiledGait, GaitData, FOURIER, CALLBACK,
@@ -32,7 +34,7 @@ from crawler_sim.core.solvers._gait cimport (CompiledGait, GaitData, FOURIER, CA
                                              gait_next_break, gait_is_constant)
 from crawler_sim.core.solvers._inclusion cimport inclusion
 
-__all__ = ['ExactCore', 'closed_form', 'REACHED', 'FULL', 'STALLED', 'NONFINITE', 'NO_STEPS',
+__all__ = ['ExactCore', 'ClosedForm', 'REACHED', 'FULL', 'STALLED', 'NONFINITE', 'NO_STEPS',
            'PERIODIC', 'BOUNDS']
 
 # statuses of ``drive``
@@ -114,6 +116,7 @@ cdef class ExactCore:
     cdef double* last_R
     cdef double* last_K0
     cdef public object last_gait
+    cdef public object closed     # ClosedForm of this crawler (``current``)
     # outputs of one call: segment records and contact changes (``records``, ``events``)
     cdef public long n_seg, n_ev, n_evals, seg_base, ev_base, k_at
     cdef public double bad_time
@@ -172,7 +175,7 @@ cdef class ExactCore:
     cdef double _snap_f[24]
     cdef object _saved_gait
 
-    def __cinit__(self, masses, fp, fm, double fext, grav, W, C, double tol):
+    def __cinit__(self, masses, fp, fm, double fext, grav, W, C, double tol, closed=None):
         cdef int p = len(masses), nl = max(p - 1, 1), nr = 3 * p + 2, n_buf = N_BUF
         cdef Py_ssize_t nd, nb, off
         self.p = p
@@ -272,8 +275,10 @@ cdef class ExactCore:
         PyMem_Free(self._mem)
         PyMem_Free(self._snap)
 
-    def __init__(self, masses, fp, fm, double fext, grav, W, C, double tol):
+    def __init__(self, masses, fp, fm, double fext, grav, W, C, double tol, closed=None):
         cdef int p = self.p, nl = self.nl, i, j
+        self.closed = (closed if closed is not None
+                       else ClosedForm(masses, fp, fm, fext, grav, W, C))
         cdef const double[::1] a
         cdef const double[:, ::1] w
         a = np.ascontiguousarray(masses, dtype=np.float64)
@@ -364,13 +369,16 @@ cdef class ExactCore:
         """Copies of the call's first n segment records: (f (n, 6), ref, contact (n, p),
         group (n, p) bool, R, K0)."""
         p = self.p
-        if n == 0:
-            return (np.empty((0, 6)), np.empty(0, np.int_), np.empty((0, p), np.int8),
-                    np.empty((0, p), bool), np.empty((0, p)), np.empty((0, p)))
-        return (np.array(<double[:n, :6]>self.sf), np.array(<long[:n]>self.sref),
-                np.array(<signed char[:n, :p]>self.scontact),
-                np.array(<unsigned char[:n, :p]>self.sgroup).astype(bool),
-                np.array(<double[:n, :p]>self.sR), np.array(<double[:n, :p]>self.sK0))
+        out = (np.empty((n, 6)), np.empty(n, np.int64), np.empty((n, p), np.int8),
+               np.empty((n, p), bool), np.empty((n, p)), np.empty((n, p)))
+        if n:
+            _copy_into(out[0], self.sf, n * 6 * sizeof(double))
+            _copy_into(out[1], self.sref, n * sizeof(long))
+            _copy_into(out[2], self.scontact, n * p)
+            _copy_into(out[3], self.sgroup, n * p)        # 0 / 1 bytes: valid bools
+            _copy_into(out[4], self.sR, n * p * sizeof(double))
+            _copy_into(out[5], self.sK0, n * p * sizeof(double))
+        return out
 
     def events(self, int n):
         """The call's first n contact changes: (times (n,), rows (n, 3) of body, old, new)."""
@@ -1265,8 +1273,8 @@ cdef class ExactCore:
         cdef double a
         if self.last_valid and self.last_f[1] == self.t and self.last_gait is not None:
             rec = self.last_record()
-            return _row(self, self.last_gait, rec[0], rec[1], rec[2], rec[3], rec[4], rec[5],
-                        self.t)
+            return self.closed.row(self.last_gait, rec[0], rec[1], rec[2], rec[3], rec[4],
+                                   rec[5], self.t)
         # provisional: a zero-length segment at t in the mode the next one would use
         g = &gait.d
         gait_lengths(g, self.t, self.l)
@@ -1290,8 +1298,8 @@ cdef class ExactCore:
         R = np.where(nc > 0, -np.array(<double[:p]>self.fp),
                      np.where(nc < 0, np.array(<double[:p]>self.fm), 0.0))
         f = np.array([self.t, self.t, X, V, a, x_ref])
-        return _row(self, gait, f, r0, nc, np.array(<unsigned char[:p]>self.group).astype(bool),
-                    R, np.array(<double[:p]>self.K), self.t)
+        return self.closed.row(gait, f, r0, nc, np.array(<unsigned char[:p]>self.group), R,
+                               np.array(<double[:p]>self.K), self.t)
 
     # ------------------------------------------------------------------ the rules from Python
     def search_rows(self, CompiledGait gait, double t0, double end, c0, c1, A1, A2,
@@ -1340,132 +1348,247 @@ cdef class ExactCore:
             self.taylor[r] = 1
         return self.proven(nr, h, &a_[0], &b_[0], &c_[0], &d_[0])
 
-    def crawler_arrays(self):
-        p, nl = self.p, self.nl
-        return (np.array(<double[:p, :nl]>self.W), np.array(<double[:p, :nl]>self.C),
-                np.array(<double[:p]>self.m_), np.array(<double[:p]>self.fp),
-                np.array(<double[:p]>self.fm), self.fext, np.array(<double[:p]>self.grav))
 
 
-def _row(ExactCore core, CompiledGait gait, f, int ref, contact, group, R, K0, double t):
-    """One output row of segment (f, ref, contact, group, R, K0) at t (``closed_form``)."""
-    p = core.p
-    l, ld, ldd = gait.values(np.array([t]))
-    W, C, m, fp, fm, fext, grav = core.crawler_arrays()
-    x, v, Rout, K = (np.empty((1, p)) for _ in range(4))
-    lam = np.empty((1, p - 1))
-    state = np.empty((1, p), np.int8)
-    ind = np.empty(1, bool)
-    closed_form(l, ld, ldd, W, C, m, fp, fm, fext, grav, f[[0, 2, 3, 4, 5]][None, :],
-                np.array([ref], np.int_), group[None, :], contact[None, :].astype(np.int8),
-                np.asarray(R, dtype=float)[None, :], np.asarray(K0, dtype=float)[None, :],
-                np.zeros(1, np.int_), np.array([t]), x, v, Rout, K, lam, state, ind)
-    return {'x': x[0], 'v': v[0], 'friction': Rout[0], 'impulse': K[0],
-            'linkage_force': lam[0], 'lengths': l[0], 'rates': ld[0], 'contact': state[0],
-            'indeterminate': bool(ind[0])}
+cdef int _copy_into(object a, const void* src, Py_ssize_t nbytes) except -1:
+    """Copy nbytes from src into the C-contiguous array ``a`` (of at least that size)."""
+    cdef Py_buffer v
+    PyObject_GetBuffer(a, &v, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE)
+    try:
+        if v.len < nbytes:
+            raise ValueError('destination too small')
+        memcpy(v.buf, src, nbytes)
+    finally:
+        PyBuffer_Release(&v)
+    return 0
 
 
-def closed_form(const double[:, ::1] l, const double[:, ::1] ld, const double[:, ::1] ldd,
-                const double[:, ::1] W, const double[:, ::1] C, const double[::1] m,
-                const double[::1] fp, const double[::1] fm, double fext,
-                const double[::1] grav, const double[:, ::1] f, const long[::1] ref_s,
-                group_s, const signed char[:, ::1] contact_s, const double[:, ::1] Rseg,
-                const double[:, ::1] K0_s, const long[::1] owner, const double[::1] tau,
-                double[:, ::1] x, double[:, ::1] v, double[:, ::1] R, double[:, ::1] K,
-                double[:, ::1] lam, signed char[:, ::1] state, indeterminate):
-    """Row k of the outputs (x, v, R = friction, K = impulse, lam = linkage force, state =
-    contact, indeterminate) from the gait values at ``tau[k]`` and the constants of segment
-    ``owner[k]`` (``f`` rows (t0, X0, V0, a, x_ref), ``ref_s``, ``group_s``, ``contact_s``,
-    ``Rseg``, ``K0_s``: ``segments.Records``). Slide: X quadratic in t; stick: the reference
-    body fixed, the group's friction the affine split of what holds it (each member at the
-    same fraction of its interval [-fp_i, fm_i]) and its impulse the integral of that split."""
-    cdef unsigned char[:, ::1] grp = np.ascontiguousarray(group_s).view(np.uint8)
-    cdef unsigned char[::1] ind = np.ascontiguousarray(indeterminate).view(np.uint8)
-    cdef Py_ssize_t n = x.shape[0], k
-    cdef int p = x.shape[1], nl = l.shape[1], i, j, r, sg, n_group, c
-    cdef double M = 0.0, a0, a1, a2, d, X, V, A, sr, sdr, s, sd, f_slide, wg, fm_g, total
-    cdef double theta, imp, q, w, acc
-    cdef double[::1] e = np.empty(p), ep = np.empty(p), epp = np.empty(p)
-    for i in range(p):
-        M += m[i]
-    for k in range(n):
-        sg = owner[k]
+cdef double* _buf(object a, Py_buffer* v, Py_ssize_t itemsize, int ndim,
+                  const char* name) except NULL:
+    """The data of a C-contiguous array ``a`` of ``ndim`` dimensions and items of ``itemsize``
+    bytes, through the buffer protocol (a typed memoryview costs several times more per
+    argument, and ``ClosedForm.evaluate`` takes eleven)."""
+    PyObject_GetBuffer(a, v, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT)
+    if v.itemsize != itemsize or v.ndim != ndim:
+        PyBuffer_Release(v)
+        raise ValueError(f'{name.decode()}: expected a C-contiguous {ndim}-d array of '
+                         f'{itemsize}-byte items')
+    return <double*>v.buf
+
+
+cdef class ClosedForm:
+    """The closed forms of one crawler's state inside a segment (MODEL.md s. 2), its constants
+    kept as C arrays: ``evaluate`` samples many segments at once (``segments.Records``), and
+    ``ExactCore.current`` one row. Units: s, m, m/s, N, N s."""
+
+    cdef readonly int p, nl
+    cdef double M, fext
+    cdef double* mem
+    cdef double* W            # (p, nl) offsets from the centre of mass
+    cdef double* C            # (p, nl) offsets from body 0
+    cdef double* m
+    cdef double* fp
+    cdef double* fm
+    cdef double* grav
+    cdef double* e            # work: e, e', e'' of one row (3 p)
+
+    def __cinit__(self, masses, fp, fm, double fext, grav, W, C):
+        cdef int p = len(masses), nl = p - 1, i, j
+        self.p = p
+        self.nl = nl
+        self.mem = <double*>PyMem_Calloc(2 * p * max(nl, 1) + 7 * p, sizeof(double))
+        if self.mem == NULL:
+            raise MemoryError()
+        self.W = self.mem
+        self.C = self.W + p * max(nl, 1)
+        self.m = self.C + p * max(nl, 1)
+        self.fp = self.m + p
+        self.fm = self.fp + p
+        self.grav = self.fm + p
+        self.e = self.grav + p
+        w, c = np.asarray(W, dtype=float), np.asarray(C, dtype=float)
+        for i, (mi, a, b, g) in enumerate(zip(*(np.asarray(q, dtype=float).tolist()
+                                                for q in (masses, fp, fm, grav)))):
+            self.m[i], self.fp[i], self.fm[i], self.grav[i] = mi, a, b, g
+            for j in range(nl):
+                self.W[i * nl + j] = w[i, j]
+                self.C[i * nl + j] = c[i, j]
+        self.M = 0.0
         for i in range(p):
-            a0 = 0.0
-            a1 = 0.0
-            a2 = 0.0
-            for j in range(nl):
-                a0 += l[k, j] * W[i, j]
-                a1 += ld[k, j] * W[i, j]
-                a2 += ldd[k, j] * W[i, j]
-            e[i] = a0
-            ep[i] = a1
-            epp[i] = a2
-        d = tau[k] - f[sg, 0]
-        r = ref_s[sg]
-        if r < 0:
-            X = f[sg, 1] + d * (f[sg, 2] + 0.5 * f[sg, 3] * d)
-            V = f[sg, 2] + f[sg, 3] * d
+            self.M += self.m[i]
+        self.fext = fext
+
+    def __dealloc__(self):
+        PyMem_Free(self.mem)
+
+    def evaluate(self, l, ld, ldd, f, ref, group, contact, R, K0, owner, tau):
+        """Row k of the outputs from the gait values ``l``, ``ld``, ``ldd`` (n, nl) at
+        ``tau[k]`` (n,) and the constants of segment ``owner[k]`` (int64): ``f`` rows (t0, t1,
+        X0, V0, a, x_ref), ``ref`` (int64), ``group`` (bool or uint8), ``contact`` (int8),
+        ``R``, ``K0`` (``segments.Records``), every array C-contiguous.
+
+        Slide: X quadratic in t; stick: the reference body fixed, the group's friction the
+        affine split of what holds it (each member at the same fraction of its interval
+        [-fp_i, fm_i]) and its impulse the integral of that split.
+
+        Returns (x, v, friction, impulse) (n, p), linkage force (n, p - 1), contact (n, p) int8
+        and indeterminate (n,) bool.
+        """
+        cdef Py_buffer b[11]
+        cdef int nb = 0
+        cdef Py_ssize_t n = len(tau)
+        cdef int p = self.p
+        blk = np.empty((4, n, p))
+        lam = np.empty((n, max(p - 1, 0)))
+        state = np.empty((n, p), np.int8)
+        ind = np.empty(n, bool)
+        cdef double[:, :, ::1] o = blk
+        cdef double[:, ::1] lm = lam
+        cdef signed char[:, ::1] st = state
+        cdef unsigned char[::1] nd = ind.view(np.uint8)
+        cdef double* pl
+        cdef double* pld
+        cdef double* pldd
+        cdef double* pf
+        cdef double* pR
+        cdef double* pK0
+        cdef double* pt
+        cdef long* pref
+        cdef long* pown
+        cdef unsigned char* pg
+        cdef signed char* pc
+        try:
+            pl = _buf(l, &b[0], 8, 2, b'l'); nb += 1
+            pld = _buf(ld, &b[1], 8, 2, b'ld'); nb += 1
+            pldd = _buf(ldd, &b[2], 8, 2, b'ldd'); nb += 1
+            pf = _buf(f, &b[3], 8, 2, b'f'); nb += 1
+            pref = <long*>_buf(ref, &b[4], 8, 1, b'ref'); nb += 1
+            pg = <unsigned char*>_buf(group, &b[5], 1, 2, b'group'); nb += 1
+            pc = <signed char*>_buf(contact, &b[6], 1, 2, b'contact'); nb += 1
+            pR = _buf(R, &b[7], 8, 2, b'R'); nb += 1
+            pK0 = _buf(K0, &b[8], 8, 2, b'K0'); nb += 1
+            pown = <long*>_buf(owner, &b[9], 8, 1, b'owner'); nb += 1
+            pt = _buf(tau, &b[10], 8, 1, b'tau'); nb += 1
+            if b[0].shape[0] < n or b[9].shape[0] < n or (n and b[0].shape[1] != self.nl):
+                raise ValueError('gait values and owner must have one row per time')
+            if n:
+                self._rows(n, pl, pld, pldd, pf, pref, pg, pc, pR, pK0, pown, pt,
+                           &o[0, 0, 0], &o[1, 0, 0], &o[2, 0, 0], &o[3, 0, 0],
+                           &lm[0, 0] if p > 1 else NULL, &st[0, 0], &nd[0])
+        finally:
+            for i in range(nb):
+                PyBuffer_Release(&b[i])
+        return blk[0], blk[1], blk[2], blk[3], lam, state, ind
+
+    cdef void _rows(self, Py_ssize_t n, const double* l, const double* ld, const double* ldd,
+                    const double* f, const long* ref_s, const unsigned char* grp,
+                    const signed char* contact_s, const double* Rseg, const double* K0_s,
+                    const long* owner, const double* tau, double* x, double* v, double* R,
+                    double* K, double* lam, signed char* state, unsigned char* ind) noexcept:
+        cdef int p = self.p, nl = self.nl, i, j, r, n_group, c
+        cdef Py_ssize_t k, sg, kp
+        cdef double a0, a1, a2, d, X, V, A, sr, sdr, s, sd, f_slide, wg, fm_g, total
+        cdef double theta, imp, q, w, acc
+        cdef const double* fs
+        cdef double* e = self.e
+        cdef double* ep = self.e + p
+        cdef double* epp = self.e + 2 * p
+        for k in range(n):
+            sg = owner[k]
+            fs = f + 6 * sg
+            kp = k * p
             for i in range(p):
-                x[k, i] = X + e[i]
-                v[k, i] = V + ep[i]
-            A = f[sg, 3]
-        else:
-            sr = 0.0
-            sdr = 0.0
-            for j in range(nl):
-                sr += l[k, j] * C[r, j]
-                sdr += ld[k, j] * C[r, j]
-            for i in range(p):
-                s = 0.0
-                sd = 0.0
+                a0 = 0.0
+                a1 = 0.0
+                a2 = 0.0
                 for j in range(nl):
-                    s += l[k, j] * C[i, j]
-                    sd += ld[k, j] * C[i, j]
-                x[k, i] = f[sg, 4] + (s - sr)
-                v[k, i] = sd - sdr
-            A = -epp[r]
-            V = -ep[r]
-        f_slide = 0.0
-        n_group = 0
-        for i in range(p):
-            R[k, i] = 0.0 if grp[sg, i] else Rseg[sg, i]
-            f_slide += R[k, i]
-            K[k, i] = K0_s[sg, i] + d * R[k, i]
-            if grp[sg, i]:
-                n_group += 1
-        f_slide += fext
-        if r >= 0:
-            wg = 0.0
-            fm_g = 0.0
-            for i in range(p):
-                if grp[sg, i]:
-                    wg += fp[i] + fm[i]
-                    fm_g += fm[i]
-            if wg > 0.0:
-                total = M * A - f_slide
-                theta = min(max((-total + fm_g) / wg, 0.0), 1.0)
-                imp = M * (V - f[sg, 2]) - f_slide * d
-                q = (-imp + fm_g * d) / wg
+                    a0 += l[k * nl + j] * self.W[i * nl + j]
+                    a1 += ld[k * nl + j] * self.W[i * nl + j]
+                    a2 += ldd[k * nl + j] * self.W[i * nl + j]
+                e[i] = a0
+                ep[i] = a1
+                epp[i] = a2
+            d = tau[k] - fs[0]
+            r = ref_s[sg]
+            if r < 0:
+                X = fs[2] + d * (fs[3] + 0.5 * fs[4] * d)
+                V = fs[3] + fs[4] * d
                 for i in range(p):
-                    if grp[sg, i]:
-                        w = fp[i] + fm[i]
-                        R[k, i] = fm[i] - theta * w
-                        K[k, i] = K0_s[sg, i] + (fm[i] * d - q * w)
+                    x[kp + i] = X + e[i]
+                    v[kp + i] = V + ep[i]
+                A = fs[4]
             else:
+                sr = 0.0
+                sdr = 0.0
+                for j in range(nl):
+                    sr += l[k * nl + j] * self.C[r * nl + j]
+                    sdr += ld[k * nl + j] * self.C[r * nl + j]
                 for i in range(p):
-                    if grp[sg, i]:
-                        K[k, i] = K0_s[sg, i]
-        acc = 0.0
-        for i in range(p - 1):
-            acc += R[k, i] + grav[i] - m[i] * (A + epp[i])
-            lam[k, i] = acc
-        for i in range(p):
-            c = contact_s[sg, i]
-            if fp[i] + fm[i] == 0.0:
-                c = 1 if v[k, i] > 0 else (-1 if v[k, i] < 0 else 0)
-            state[k, i] = c
-        ind[k] = n_group > 1
+                    s = 0.0
+                    sd = 0.0
+                    for j in range(nl):
+                        s += l[k * nl + j] * self.C[i * nl + j]
+                        sd += ld[k * nl + j] * self.C[i * nl + j]
+                    x[kp + i] = fs[5] + (s - sr)
+                    v[kp + i] = sd - sdr
+                A = -epp[r]
+                V = -ep[r]
+            f_slide = 0.0
+            n_group = 0
+            for i in range(p):
+                R[kp + i] = 0.0 if grp[sg * p + i] else Rseg[sg * p + i]
+                f_slide += R[kp + i]
+                K[kp + i] = K0_s[sg * p + i] + d * R[kp + i]
+                if grp[sg * p + i]:
+                    n_group += 1
+            f_slide += self.fext
+            if r >= 0:
+                wg = 0.0
+                fm_g = 0.0
+                for i in range(p):
+                    if grp[sg * p + i]:
+                        wg += self.fp[i] + self.fm[i]
+                        fm_g += self.fm[i]
+                if wg > 0.0:
+                    total = self.M * A - f_slide
+                    theta = min(max((-total + fm_g) / wg, 0.0), 1.0)
+                    imp = self.M * (V - fs[3]) - f_slide * d
+                    q = (-imp + fm_g * d) / wg
+                    for i in range(p):
+                        if grp[sg * p + i]:
+                            w = self.fp[i] + self.fm[i]
+                            R[kp + i] = self.fm[i] - theta * w
+                            K[kp + i] = K0_s[sg * p + i] + (self.fm[i] * d - q * w)
+                else:
+                    for i in range(p):
+                        if grp[sg * p + i]:
+                            K[kp + i] = K0_s[sg * p + i]
+            acc = 0.0
+            for i in range(p - 1):
+                acc += R[kp + i] + self.grav[i] - self.m[i] * (A + epp[i])
+                lam[k * (p - 1) + i] = acc
+            for i in range(p):
+                c = contact_s[sg * p + i]
+                if self.fp[i] + self.fm[i] == 0.0:
+                    c = 1 if v[kp + i] > 0 else (-1 if v[kp + i] < 0 else 0)
+                state[kp + i] = c
+            ind[k] = n_group > 1
+
+    def row(self, CompiledGait gait, f, long ref, contact, group, R, K0, double t):
+        """One output row (a dict, as ``ExactSolver.current`` gives) of the segment (f (6,),
+        ref, contact, group, R, K0) at t [s]."""
+        p = self.p
+        l, ld, ldd = gait.values(np.array([t]))
+        x, v, Rout, K, lam, state, ind = self.evaluate(
+            l, ld, ldd, np.ascontiguousarray(f, dtype=float).reshape(1, 6),
+            np.array([ref], np.int64), np.ascontiguousarray(group, dtype=np.uint8).reshape(1, p),
+            np.ascontiguousarray(contact, dtype=np.int8).reshape(1, p),
+            np.ascontiguousarray(R, dtype=float).reshape(1, p),
+            np.ascontiguousarray(K0, dtype=float).reshape(1, p), np.zeros(1, np.int64),
+            np.array([t]))
+        return {'x': x[0], 'v': v[0], 'friction': Rout[0], 'impulse': K[0],
+                'linkage_force': lam[0], 'lengths': l[0], 'rates': ld[0], 'contact': state[0],
+                'indeterminate': bool(ind[0])}
 
 
 def solve_inclusion(double c, double u_ref, double force, kinks, f_plus, f_minus):

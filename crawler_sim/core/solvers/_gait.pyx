@@ -13,6 +13,7 @@ import threading
 import numpy as np
 
 from libc.math cimport fabs, isfinite, nextafter, INFINITY, NAN
+from cpython.mem cimport PyMem_Malloc, PyMem_Free
 
 __all__ = ['CompiledGait', 'fourier', 'scallop', 'table', 'callback']
 
@@ -100,6 +101,27 @@ cdef class CompiledGait:
             return self._buf[0, 0], self._buf[1, 0], self._buf[2, 0]
         gait_eval(&self.d, t, l, ld, ldd, ld3)
         return l[0], ld[0], ldd[0]
+
+    def finite_at(self, double t) -> bool:
+        """True when l, l' and l'' are finite at t [s]; False for a CALLBACK gait (its
+        values come from Python: the caller checks their shapes and values there)."""
+        cdef int nl = self.d.nl, j
+        cdef double* w
+        if self.d.kind == CALLBACK:
+            return False
+        if nl == 0:
+            return True
+        w = <double*>PyMem_Malloc(4 * nl * sizeof(double))
+        if w == NULL:
+            raise MemoryError()
+        try:
+            gait_eval(&self.d, t, w, w + nl, w + 2 * nl, w + 3 * nl)
+            for j in range(3 * nl):
+                if not isfinite(w[j]):
+                    return False
+            return True
+        finally:
+            PyMem_Free(w)
 
     def jerk(self, double t):
         """l''' at t [m/s^3] (a CALLBACK gait: a difference of its l'')."""

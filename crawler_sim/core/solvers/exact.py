@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import math
 from typing import Any, Sequence
-import weakref
 from functools import partial
 
 import numpy as np
@@ -42,9 +41,9 @@ from ..model import Crawler
 from ..trajectory import Event, EventLog
 from . import _exact
 from .segments import (PeriodicBlock, Records, Segment, SegmentChunk, SegmentList,
-                       evaluate_records, evaluate_rows, offset_matrices)
+                       crawler_constants, evaluate_records, offset_matrices)
 
-__all__ = ['ExactSolver', 'PeriodicBlock', 'Segment', 'evaluate_rows', 'offset_matrices',
+__all__ = ['ExactSolver', 'PeriodicBlock', 'Segment', 'offset_matrices',
            'check_finite_gait']
 
 # an Event from a (time, body, old, new) tuple at C speed
@@ -62,29 +61,6 @@ def check_finite_gait(vals: Sequence[ArrayLike], t: float) -> None:
                 arr, (np.size(t), -1))).any(axis=1))[0][0]]
             raise ValueError(f'gait {name} must be finite, got a non-finite value at t = '
                              f'{float(bad)!r} s')
-
-
-class _Constants:
-    """What the solver derives from a crawler, once per ``Crawler`` (a sweep or a node builds
-    many solvers for one crawler)."""
-
-    def __init__(self, crawler: Crawler) -> None:
-        self.m = crawler.masses
-        self.fp, self.fm = crawler.friction, crawler.friction_backward   # [N]
-        self.fext = float(crawler.external_force)                        # [N]
-        self.grav = crawler.gravity_forces
-        self.C, self.W = offset_matrices(crawler.masses)
-        self.free = (self.fp + self.fm) == 0.0
-
-
-_CONSTANTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
-def _constants(crawler: Crawler) -> _Constants:
-    k = _CONSTANTS.get(crawler)
-    if k is None:
-        k = _CONSTANTS[crawler] = _Constants(crawler)
-    return k
 
 
 class ExactSolver:
@@ -109,8 +85,9 @@ class ExactSolver:
         self.max_step = max_step
         self.keep_segments = keep_segments
         self.periodic_skip = periodic_skip
-        k = self._k = _constants(crawler)
-        self._core = _exact.ExactCore(k.m, k.fp, k.fm, k.fext, k.grav, k.W, k.C, self.tol)
+        k = self._k = crawler_constants(crawler)
+        self._core = _exact.ExactCore(k.m, k.fp, k.fm, k.fext, k.grav, k.W, k.C, self.tol,
+                                      k.closed)
         self.status, self.message = 'ok', ''
         self.reset(t0=t0, x0=x0, v0=v0)
 
@@ -317,12 +294,12 @@ class ExactSolver:
         n_t = times.size
         table, row_of = segs.records()
         idx = np.searchsorted(segs.starts(), times, side='right') - 1
-        np.clip(idx, 0, len(segs) - 1, out=idx)
+        np.maximum(idx, 0, out=idx)      # (searchsorted - 1 is at most the last item)
         owner = row_of[idx]
         local = np.array(times, dtype=float)
         blocks = (owner < 0).nonzero()[0]
         if not blocks.size:       # no skipped period among the sampled times
-            return evaluate_records(self.crawler, table, owner, local, (k.C, k.W))
+            return evaluate_records(self.crawler, table, owner, local)
         shift_x = np.zeros(n_t)
         shift_k = np.zeros((n_t, k.m.size))
         parts, n_rows = [table], table.ref.size
@@ -341,7 +318,7 @@ class ExactSolver:
             local[sel] = np.clip(loc, t_starts[sub], t_ends[sub])
             shift_x[sel] = j * piece.D
             shift_k[sel] = np.multiply.outer(j, piece.dK)
-        out = evaluate_records(self.crawler, Records.concat(parts), owner, local, (k.C, k.W))
+        out = evaluate_records(self.crawler, Records.concat(parts), owner, local)
         out['x'] += shift_x[:, None]
         out['impulse'] += shift_k
         return out

@@ -2,13 +2,15 @@
 
 ``Segment``: one piece between events (every body sliding: X quadratic in t; a body stuck:
 its position fixed and the group's friction what holds it). ``PeriodicBlock``: n repetitions
-of one period of segments, shifted. ``evaluate_rows`` samples many segments at once.
+of one period of segments, shifted. ``evaluate_records`` samples many segments at once, with
+the compiled closed forms of the crawler (``crawler_constants``).
 """
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
 from bisect import bisect_right
+import weakref
 
 import numpy as np
 from numpy.typing import NDArray
@@ -16,8 +18,8 @@ from numpy.typing import NDArray
 from ..gaits import Gait
 from ..model import Crawler
 
-__all__ = ['PeriodicBlock', 'Records', 'Segment', 'SegmentChunk', 'SegmentList',
-           'evaluate_records', 'evaluate_rows', 'offset_matrices']
+__all__ = ['CrawlerConstants', 'PeriodicBlock', 'Records', 'Segment', 'SegmentChunk',
+           'SegmentList', 'crawler_constants', 'evaluate_records', 'offset_matrices']
 
 
 def offset_matrices(masses: NDArray) -> tuple[NDArray, NDArray]:
@@ -27,6 +29,34 @@ def offset_matrices(masses: NDArray) -> tuple[NDArray, NDArray]:
     C = np.tril(np.ones((p, p - 1)), -1)
     W = C - (masses / masses.sum()) @ C
     return C, W
+
+
+class CrawlerConstants:
+    """What the exact method derives from a crawler, once per ``Crawler`` (a sweep or a node
+    builds many solvers for one crawler): masses [kg], friction bounds fp / fm [N], external
+    force [N], gravity forces [N], ``offset_matrices`` C and W, and its compiled closed forms
+    (``_exact.ClosedForm``)."""
+
+    def __init__(self, crawler: Crawler) -> None:
+        from ._exact import ClosedForm
+        self.m = crawler.masses
+        self.fp, self.fm = crawler.friction, crawler.friction_backward
+        self.fext = float(crawler.external_force)
+        self.grav = crawler.gravity_forces
+        self.C, self.W = offset_matrices(crawler.masses)
+        self.free = (self.fp + self.fm) == 0.0
+        self.closed = ClosedForm(self.m, self.fp, self.fm, self.fext, self.grav, self.W, self.C)
+
+
+_CONSTANTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def crawler_constants(crawler: Crawler) -> CrawlerConstants:
+    """The crawler's ``CrawlerConstants`` (built on first use)."""
+    k = _CONSTANTS.get(crawler)
+    if k is None:
+        k = _CONSTANTS[crawler] = CrawlerConstants(crawler)
+    return k
 
 
 @dataclass(slots=True)
@@ -64,14 +94,11 @@ class Segment:
     x_ref: float                  # stick: its fixed position
     group: NDArray[np.bool_]      # stick: bodies stuck with ref
 
-    def evaluate(self, crawler: Crawler, tau: NDArray[np.float64],
-                 mats: tuple[NDArray, NDArray] | None = None) -> dict:
-        """Exact state at the times ``tau`` (shape (N,), inside [t0, t1]); ``mats`` are the
-        crawler's ``offset_matrices`` (computed if not given)."""
-        mats = mats if mats is not None else offset_matrices(crawler.masses)
+    def evaluate(self, crawler: Crawler, tau: NDArray[np.float64]) -> dict:
+        """Exact state at the times ``tau`` [s] (shape (N,), inside [t0, t1])."""
         return evaluate_records(crawler, Records.from_segments([self]),
                                 np.zeros(np.size(tau), dtype=np.int64),
-                                np.asarray(tau, dtype=float).reshape(-1), mats)
+                                np.asarray(tau, dtype=float).reshape(-1))
 
 
 @dataclass(slots=True)
@@ -98,8 +125,8 @@ class SegmentChunk:
 @dataclass(slots=True)
 class Records:
     """Segment constants as arrays, one row per segment (what ``evaluate_records`` gathers):
-    ``f`` = (t0, X0, V0, a, x_ref), ``ref``, ``group``, ``contact``, ``R``, ``K0``; the gait of
-    row k is ``gaits[gait_id[k]]``."""
+    ``f`` = (t0, t1, X0, V0, a, x_ref) (the layout of ``SegmentChunk.f``), ``ref``,
+    ``group``, ``contact``, ``R``, ``K0``; the gait of row k is ``gaits[gait_id[k]]``."""
 
     f: NDArray[np.float64]
     ref: NDArray[np.int64]
@@ -114,7 +141,8 @@ class Records:
     def from_segments(cls, segs: list) -> Records:
         gaits = list({id(sg.gait): sg.gait for sg in segs}.values())
         ids = {id(g): k for k, g in enumerate(gaits)}
-        return cls(np.array([(sg.t0, sg.X0, sg.V0, sg.a, sg.x_ref) for sg in segs], dtype=float),
+        return cls(np.array([(sg.t0, sg.t1, sg.X0, sg.V0, sg.a, sg.x_ref) for sg in segs],
+                            dtype=float).reshape(-1, 6),
                    np.array([sg.ref for sg in segs], dtype=np.int64),
                    np.array([sg.group for sg in segs], dtype=bool),
                    np.array([sg.contact for sg in segs], dtype=np.int8),
@@ -125,7 +153,7 @@ class Records:
     @classmethod
     def from_chunk(cls, chunk: SegmentChunk) -> Records:
         n = chunk.ref.size
-        return cls(chunk.f[:, [0, 2, 3, 4, 5]], chunk.ref, chunk.group, chunk.contact, chunk.R,
+        return cls(chunk.f, chunk.ref, chunk.group, chunk.contact, chunk.R,
                    chunk.K0, np.zeros(n, dtype=np.int64), [chunk.gait])
 
     @classmethod
@@ -227,43 +255,24 @@ class SegmentList(Sequence):
         return self._starts
 
 
-def evaluate_rows(crawler: Crawler, pieces: list, owner: NDArray[np.int64],
-                  tau: NDArray[np.float64], mats: tuple[NDArray, NDArray]) -> dict:
-    """Exact states of many segments at once: row i is ``pieces[owner[i]]`` at time ``tau[i]``
-    (``evaluate_records`` on the pieces' constants)."""
-    return evaluate_records(crawler, Records.from_segments(pieces), owner, tau, mats)
-
-
 def evaluate_records(crawler: Crawler, rec: Records, owner: NDArray[np.int64],
-                     tau: NDArray[np.float64], mats: tuple[NDArray, NDArray]) -> dict:
+                     tau: NDArray[np.float64]) -> dict:
     """Exact states of many segments at once: row i is segment ``owner[i]`` of ``rec`` at time
-    ``tau[i]``.
+    ``tau[i]`` [s] (sorted or not).
 
-    The same closed forms as ``Segment.evaluate`` (slide: X quadratic in t; stick: the reference
-    body fixed, the group's friction the affine split of what holds it), with every per-segment
-    quantity gathered per row in compiled code (``_exact.closed_form``), so sampling a run costs
-    one compiled gait evaluation per gait and one loop over the rows. ``mats``: the crawler's
-    ``offset_matrices``.
+    The closed forms of ``Segment.evaluate`` (slide: X quadratic in t; stick: the reference
+    body fixed, the group's friction the affine split of what holds it), compiled
+    (``_exact.ClosedForm``): sampling a run costs one compiled gait evaluation per gait and
+    one loop over the rows.
     """
-    from ._exact import closed_form
-    C, W = mats
-    m = crawler.masses
-    p, n = m.size, tau.size
     l, ld, ldd = _gait_values(rec, owner, tau)
-    x, v, R, K = (np.empty((n, p)) for _ in range(4))
-    lam = np.empty((n, p - 1))
-    state = np.empty((n, p), dtype=np.int8)
-    indeterminate = np.empty(n, dtype=bool)
     c = np.ascontiguousarray
-    closed_form(c(l, dtype=float), c(ld, dtype=float), c(ldd, dtype=float), c(W), c(C), c(m),
-                c(crawler.friction), c(crawler.friction_backward),
-                float(crawler.external_force), c(crawler.gravity_forces), c(rec.f),
-                np.ascontiguousarray(rec.ref, dtype=np.int_), np.ascontiguousarray(rec.group),
-                np.ascontiguousarray(rec.contact), np.ascontiguousarray(rec.R),
-                np.ascontiguousarray(rec.K0), np.ascontiguousarray(owner, dtype=np.int_),
-                np.ascontiguousarray(tau, dtype=float), x, v, R, K, lam, state, indeterminate)
+    x, v, R, K, lam, state, ind = crawler_constants(crawler).closed.evaluate(
+        l, ld, ldd, c(rec.f, dtype=float), c(rec.ref, dtype=np.int64), c(rec.group),
+        c(rec.contact, dtype=np.int8), c(rec.R, dtype=float), c(rec.K0, dtype=float),
+        c(owner, dtype=np.int64), c(tau, dtype=float))
     return {'x': x, 'v': v, 'friction': R, 'impulse': K, 'linkage_force': lam,
-            'lengths': l, 'rates': ld, 'contact': state, 'indeterminate': indeterminate}
+            'lengths': l, 'rates': ld, 'contact': state, 'indeterminate': ind}
 
 
 def _gait_values(rec: Records, owner: NDArray[np.int64], tau: NDArray[np.float64]):
