@@ -216,6 +216,40 @@ def test_scallop_is_c2_while_the_bang_bang_stroke_is_not():
     assert max_acceleration_jump(PiecewiseParabolic.stroke(0.1, 0.02, 2.0, 0.2)) > 0.1
 
 
+@pytest.mark.parametrize('asymmetry', [0.01, 0.05, 0.2, 0.5, 0.9])
+def test_scallop_bounds_hold_on_every_bin_and_stay_close_to_the_true_maxima(asymmetry):
+    """The event search's jerk and snap bounds, bin by bin over a period: never below the
+    jerk and snap of central differences of l'' (independent of the closed-form derivatives
+    the bounds use), and within a small factor of them where the stroke is not razor-sharp
+    (Cauchy's estimate alone was 46x above at r = 0.2: 5x the search steps of a Fourier
+    gait)."""
+    gait = Scallop(0.1, 0.02, 2.0, asymmetry, [0.0, 1.3])
+    T = gait.period
+    cg = gait.compiled()
+    nb = 256
+    edges = np.linspace(0.0, T, nb + 1)
+    h = 1e-6 * T
+    worst = 0.0
+    for a, b in zip(edges[:-1], edges[1:]):
+        jb, sb = cg.bounds(a, b)
+        t = np.linspace(a + 2 * h, b - 2 * h, 9)
+        acc = [gait.acceleration(t + k * h) for k in (-2, -1, 0, 1, 2)]
+        jerk = (acc[3] - acc[1]) / (2 * h)
+        snap = (acc[3] - 2 * acc[2] + acc[1]) / h ** 2
+        # the differences carry truncation and rounding error: a relative 1e-3 slack
+        assert np.all(np.abs(jerk) <= jb * (1 + 1e-3)), (a, b, np.abs(jerk).max(0), jb)
+        assert np.all(np.abs(snap) <= sb * (1 + 1e-3) + 1e-3 * np.abs(snap).max()), (a, b)
+        worst = max(worst, float(np.max(jb / np.maximum(np.abs(jerk).max(0), 1e-300))))
+    # the largest jerk of the period, against the largest bound
+    t = np.linspace(0.0, T, 200_001)
+    acc = gait.acceleration(t)
+    true_max = np.abs(np.diff(acc, axis=0) / np.diff(t)[:, None]).max(0)
+    bound_max = np.max([cg.bounds(a, b)[0] for a, b in zip(edges[:-1], edges[1:])], axis=0)
+    assert np.all(bound_max >= true_max * (1 - 1e-3))
+    assert np.all(bound_max <= (4.0 if asymmetry >= 0.05 else 30.0) * true_max), (
+        bound_max / true_max)
+
+
 def test_scallop_with_zero_amplitude_is_a_rest():
     gait = Scallop(0.1, 0.0, 2.0, 0.3)
     assert gait.is_constant(0.0, 10.0)
@@ -543,3 +577,32 @@ def test_a_piecewise_cubic_from_arrays_is_the_one_made_of_its_pieces():
         assert got._index(float(starts[k])) == want._index(float(starts[k])) == k
         assert got._piece(k)._rows == want.pieces[k]._rows and got._piece(k).t0 == anchors[k]
     assert [pc._rows for pc in got.pieces] == [pc._rows for pc in pieces]
+
+
+@pytest.mark.parametrize('t_start', [0.0, 1000.0])
+def test_piecewise_cubic_joins_within_rounding_are_not_breakpoints_and_real_jumps_are(t_start):
+    """Pieces continued by ``cubic_values`` (C2 by construction) differ at a join by the
+    rounding of evaluating the previous piece there (k dt - (k - 1) dt is not dt in floats):
+    no breakpoint, so no segment ends there. A jump of l'' of 1e-9 of its size is one."""
+    from crawler_sim.core.gaits.cubic import cubic_values
+    rng = np.random.default_rng(3)
+    dt, n = 0.005, 200
+    starts = t_start + np.arange(n) * dt
+    l, v, a = np.full(2, 1.0), np.zeros(2), np.array([3.0, -2.0])
+    pieces, mismatched = [], 0
+    for t0 in starts:
+        jerk = rng.uniform(-80, 80, 2)
+        pieces.append(Cubic(t0, l, v, a, jerk))
+        l, v, a = cubic_values(l, v, a, jerk, dt)
+    g = PiecewiseCubic(starts, pieces)
+    # the rounding is really there: the joins' l'' from the previous piece differ from a0
+    left = np.array([pieces[k - 1].at(float(starts[k]))[2] for k in range(1, n)])
+    mismatched = int(np.sum(np.any(left != np.array([pc.a0 for pc in pieces[1:]]), axis=1)))
+    assert mismatched > 10
+    assert g.breakpoints(starts[0] - 1.0, starts[-1] + 1.0).size == 0
+    # a real jump at piece 50 (and so at 51: piece 50 no longer ends at 51's a0)
+    k = 50
+    pc = pieces[k]
+    jumped = pieces[:k] + [Cubic(pc.t0, pc.l0, pc.v0, pc.a0 * (1 + 1e-9), pc.jerk)] + pieces[k + 1:]
+    assert PiecewiseCubic(starts, jumped).breakpoints(starts[0], starts[-1] + 1.0).tolist() == [
+        starts[k], starts[k + 1]]

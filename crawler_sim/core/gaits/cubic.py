@@ -93,8 +93,9 @@ class PiecewiseCubic(BuiltinGait):
     out tick by tick.
 
     The node integrates many ticks in one exact solve with this gait. Joins where l'' does not
-    continue exactly (a cubic's end value differs from the next piece's a0) are breakpoints,
-    so the exact solver places events there precisely; l''' may jump at every join.
+    continue (a cubic's end value differs from the next piece's a0 by more than the rounding
+    of evaluating it there, a few ulps) are breakpoints, so the exact solver places events
+    there precisely; l''' may jump at every join.
     """
 
     def __init__(self, starts: ArrayLike, pieces: list[Cubic]) -> None:
