@@ -194,7 +194,8 @@ def simulate(crawler: Crawler, gait: Gait, t_end: float, method: str = 'exact', 
     times = None if t_eval is None else _check_times(t_eval, t_end)
     times, out, info = solver.simulate(t_end, times, include_events, dt)
     return Trajectory(t=times, x=out['x'], v=out['v'], friction=out['friction'],
-                      contact=out['contact'].astype(np.int8), linkage_force=out['linkage_force'],
-                      impulse=out['impulse'], lengths=out['lengths'], rates=out['rates'],
+                      contact=np.asarray(out['contact'], dtype=np.int8),
+                      linkage_force=out['linkage_force'], impulse=out['impulse'],
+                      lengths=out['lengths'], rates=out['rates'],
                       events=_events(solver.events), indeterminate=out['indeterminate'],
                       crawler=crawler, method=method, info=info)

@@ -475,9 +475,10 @@ def table(coef, *, starts=None, anchors=None, knots=None, period=None,
         # ``cubic_values`` continued) differ there by a few ulps, and a breakpoint at every
         # join ended a segment at each (15 times the segments of the events on 5 ms pieces)
         eps = np.finfo(float).eps
+        size = np.abs(starts_) + np.abs(np.roll(origins, 1))
+        size[~np.isfinite(size)] = 0.0         # a first piece from -inf: no join there
         noise = 4.0 * eps * (np.abs(prev[:, :, 2]) + np.abs(d[:, None] * prev[:, :, 3])
-                             + (np.abs(starts_) + np.abs(np.roll(origins, 1)))[:, None]
-                             * np.abs(prev[:, :, 3]))
+                             + size[:, None] * np.abs(prev[:, :, 3]))
         jumps = np.any(np.abs(end_acc - coef[:, :, 2]) > noise, axis=1)
         if not periodic:
             jumps[0] = False

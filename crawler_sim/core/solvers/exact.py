@@ -36,7 +36,7 @@ from functools import partial
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..gaits import Gait
+from ..gaits import Gait, _positive
 from ..model import Crawler
 from ..trajectory import Event, EventLog
 from . import _exact
@@ -242,7 +242,6 @@ class ExactSolver:
                 keep_history: bool = False, periodic_skip: bool = True,
                 **_ignored: Any) -> dict:
         """The constructor's keyword arguments from ``Stepper``'s (validated)."""
-        from ..gaits import _positive
         return {'tol': _positive('tol', tol, 's'),
                 'max_step': None if max_step is None else _positive('max_step', max_step, 's'),
                 'keep_segments': bool(keep_history), 'periodic_skip': bool(periodic_skip)}
@@ -291,6 +290,14 @@ class ExactSolver:
         """
         segs = self.segments
         k = self._k
+        chunk = segs.only_chunk()
+        if chunk is not None:
+            # the common run: one compiled call finds each time's segment and evaluates
+            x, v, R, K, lam, state, ind, l, ld = k.closed.sample(
+                chunk.gait.compiled(), chunk.f, chunk.ref, chunk.group, chunk.contact, chunk.R,
+                chunk.K0, np.ascontiguousarray(times, dtype=float))
+            return {'x': x, 'v': v, 'friction': R, 'impulse': K, 'linkage_force': lam,
+                    'lengths': l, 'rates': ld, 'contact': state, 'indeterminate': ind}
         n_t = times.size
         table, row_of = segs.records()
         idx = np.searchsorted(segs.starts(), times, side='right') - 1

@@ -225,6 +225,13 @@ class SegmentList(Sequence):
     def extend_chunk(self, chunk: SegmentChunk) -> None:
         self._add(chunk, chunk.f.shape[0])
 
+    def only_chunk(self) -> SegmentChunk | None:
+        """The one ``SegmentChunk`` when that is all the list holds (a run integrated in one
+        call of the compiled loop, no period skipped), else None."""
+        if len(self._parts) == 1 and isinstance(self._parts[0], SegmentChunk):
+            return self._parts[0]
+        return None
+
     def records(self) -> tuple[Records, NDArray[np.int64]]:
         """Every segment's constants as one ``Records`` table, and each item's row in it (-1
         for a ``PeriodicBlock``), without building ``Segment`` objects."""
