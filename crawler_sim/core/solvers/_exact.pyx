@@ -13,8 +13,10 @@
   relative velocity of two bodies stuck together (``rigid``);
 * search: the first zero of the rows, each interval proven free of events from bounds of
   |g''| and |g'| on that interval (the gait's jerk and snap bounds there, ``gait_bounds``) and
-  the rows' values and slopes at its ends, the first bracketed zero narrowed to ``tol``
-  (``search``);
+  the rows' values and slopes at its ends; where a row falls nearly straight onto zero the
+  step goes just past the root Newton predicts, so the event is bracketed at once; the first
+  bracketed zero narrowed (Newton from the nearer end, else the Illinois secant) to adjacent
+  floats (``search``);
 * close: the closed-form state at the event; a periodic gait's state is compared at every
   multiple of its period with the one a period earlier (the caller then skips the repeats).
 
@@ -706,7 +708,7 @@ cdef class ExactCore:
         """A step from a that ``proven`` accepts from a's value and slope alone (just inside
         the first zero of each row's Taylor lower bound g + g' h - B2 h^2 / 2, or of
         g - B1 h): near a simple root a Newton step from the left."""
-        cdef double h = INFINITY, gg, d, b2, q, ht, h1
+        cdef double h = INFINITY, gg, d, b2, q, ht, h1, hr
         cdef bint watched = False
         cdef int r
         for r in range(nr):
@@ -731,7 +733,15 @@ cdef class ExactCore:
                 else:
                     ht = (d + q) / b2 if b2 > 0.0 else INFINITY
             h1 = gg / self.B1[r] if self.B1[r] > 0.0 else INFINITY
-            h = min(h, 0.9999 * max(ht, h1))
+            hr = 0.9999 * max(ht, h1)
+            if d < 0.0 and gg > 0.0 and hr >= 0.8 * (gg / -d):
+                # falling onto zero, the rigorous step within 20 % of Newton's: the row is
+                # nearly straight here, so step just past the root it predicts and bracket
+                # the event (then narrowed) instead of creeping up on it from the left, one
+                # rigorous step at a time, to within 64 tol (four or five steps an event);
+                # every interval accepted is still proven (``proven``)
+                hr = (gg / -d) * (1.0 + 1e-3)
+            h = min(h, hr)
         # ``cap`` (a cost setting) only while a row is watched: it is checked at the search
         # points alone, so they stay dense; the others are proven whatever the step
         if watched:
@@ -819,11 +829,22 @@ cdef class ExactCore:
                     for r in range(nr):
                         bad = (self.watch[r] and gb[r] < -self.noise[r]) or (
                             not self.watch[r] and gb[r] <= 0.0)
-                        den = fa[r] - fb[r]
-                        if bad and den != 0.0:
-                            fr = fa[r] / den
-                            if fr < f:
-                                f = fr
+                        if not bad:
+                            continue
+                        # Newton's step from the end nearer the root (the row's slope there is
+                        # exact): quadratic convergence, where the secant of the ends gains a
+                        # few digits a step; the (Illinois) secant where Newton leaves (a, b)
+                        lvl = -self.noise[r] if self.watch[r] else 0.0
+                        fr = -1.0
+                        if lvl - gb[r] < ga[r] - lvl and db[r] < 0.0:
+                            fr = 1.0 - (gb[r] - lvl) / (db[r] * w)
+                        elif da[r] < 0.0:
+                            fr = (ga[r] - lvl) / (-da[r] * w)
+                        if not (0.0 < fr < 1.0):
+                            den = fa[r] - fb[r]
+                            fr = fa[r] / den if den != 0.0 else 1.0
+                        if fr < f:
+                            f = fr
                     if 0.0 < f < 1.0:
                         # a secant point within one float of an end: the adjacent float
                         ms = a + f * w
