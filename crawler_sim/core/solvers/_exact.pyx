@@ -75,6 +75,319 @@ cdef inline double dot(const double* W, int i, const double* x, int n) noexcept 
     return acc
 
 
+cdef int _copy_into(object a, const void* src, Py_ssize_t nbytes) except -1:
+    """Copy nbytes from src into the C-contiguous array ``a`` (of at least that size)."""
+    cdef Py_buffer v
+    PyObject_GetBuffer(a, &v, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE)
+    try:
+        if v.len < nbytes:
+            raise ValueError('destination too small')
+        memcpy(v.buf, src, nbytes)
+    finally:
+        PyBuffer_Release(&v)
+    return 0
+
+
+cdef double* _buf(object a, Py_buffer* v, Py_ssize_t itemsize, int ndim,
+                  const char* name) except NULL:
+    """The data of a C-contiguous array ``a`` of ``ndim`` dimensions and items of ``itemsize``
+    bytes, through the buffer protocol (a typed memoryview costs several times more per
+    argument, and ``ClosedForm.evaluate`` takes eleven)."""
+    PyObject_GetBuffer(a, v, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT)
+    if v.itemsize != itemsize or v.ndim != ndim:
+        PyBuffer_Release(v)
+        raise ValueError(f'{name.decode()}: expected a C-contiguous {ndim}-d array of '
+                         f'{itemsize}-byte items')
+    return <double*>v.buf
+
+
+cdef class ClosedForm:
+    """The closed forms of one crawler's state inside a segment (MODEL.md s. 2), its constants
+    kept as C arrays: ``evaluate`` samples many segments at once (``segments.Records``), and
+    ``ExactCore.current`` one row. Units: s, m, m/s, N, N s."""
+
+    cdef readonly int p, nl
+    cdef double M, fext
+    cdef double* mem
+    cdef double* W            # (p, nl) offsets from the centre of mass
+    cdef double* C            # (p, nl) offsets from body 0
+    cdef double* m
+    cdef double* fp
+    cdef double* fm
+    cdef double* grav
+    cdef double* e            # work: e, e', e'' of one row (3 p)
+
+    def __cinit__(self, masses, fp, fm, double fext, grav, W, C):
+        cdef int p = len(masses), nl = p - 1, i, j
+        self.p = p
+        self.nl = nl
+        self.mem = <double*>PyMem_Calloc(2 * p * max(nl, 1) + 7 * p, sizeof(double))
+        if self.mem == NULL:
+            raise MemoryError()
+        self.W = self.mem
+        self.C = self.W + p * max(nl, 1)
+        self.m = self.C + p * max(nl, 1)
+        self.fp = self.m + p
+        self.fm = self.fp + p
+        self.grav = self.fm + p
+        self.e = self.grav + p
+        w, c = np.asarray(W, dtype=float), np.asarray(C, dtype=float)
+        for i, (mi, a, b, g) in enumerate(zip(*(np.asarray(q, dtype=float).tolist()
+                                                for q in (masses, fp, fm, grav)))):
+            self.m[i], self.fp[i], self.fm[i], self.grav[i] = mi, a, b, g
+            for j in range(nl):
+                self.W[i * nl + j] = w[i, j]
+                self.C[i * nl + j] = c[i, j]
+        self.M = 0.0
+        for i in range(p):
+            self.M += self.m[i]
+        self.fext = fext
+
+    def __dealloc__(self):
+        PyMem_Free(self.mem)
+
+    def evaluate(self, l, ld, ldd, f, ref, group, contact, R, K0, owner, tau):
+        """Row k of the outputs from the gait values ``l``, ``ld``, ``ldd`` (n, nl) at
+        ``tau[k]`` (n,) and the constants of segment ``owner[k]`` (int64): ``f`` rows (t0, t1,
+        X0, V0, a, x_ref), ``ref`` (int64), ``group`` (bool or uint8), ``contact`` (int8),
+        ``R``, ``K0`` (``segments.Records``), every array C-contiguous.
+
+        Slide: X quadratic in t; stick: the reference body fixed, the group's friction the
+        affine split of what holds it (each member at the same fraction of its interval
+        [-fp_i, fm_i]) and its impulse the integral of that split.
+
+        Returns (x, v, friction, impulse) (n, p), linkage force (n, p - 1), contact (n, p) int8
+        and indeterminate (n,) bool.
+        """
+        cdef Py_buffer b[11]
+        cdef int nb = 0
+        cdef Py_ssize_t n = len(tau)
+        cdef int p = self.p
+        blk = np.empty((4, n, p))
+        lam = np.empty((n, max(p - 1, 0)))
+        state = np.empty((n, p), np.int8)
+        ind = np.empty(n, bool)
+        cdef double[:, :, ::1] o = blk
+        cdef double[:, ::1] lm = lam
+        cdef signed char[:, ::1] st = state
+        cdef unsigned char[::1] nd = ind.view(np.uint8)
+        cdef double* pl
+        cdef double* pld
+        cdef double* pldd
+        cdef double* pf
+        cdef double* pR
+        cdef double* pK0
+        cdef double* pt
+        cdef long* pref
+        cdef long* pown
+        cdef unsigned char* pg
+        cdef signed char* pc
+        try:
+            pl = _buf(l, &b[0], 8, 2, b'l'); nb += 1
+            pld = _buf(ld, &b[1], 8, 2, b'ld'); nb += 1
+            pldd = _buf(ldd, &b[2], 8, 2, b'ldd'); nb += 1
+            pf = _buf(f, &b[3], 8, 2, b'f'); nb += 1
+            pref = <long*>_buf(ref, &b[4], 8, 1, b'ref'); nb += 1
+            pg = <unsigned char*>_buf(group, &b[5], 1, 2, b'group'); nb += 1
+            pc = <signed char*>_buf(contact, &b[6], 1, 2, b'contact'); nb += 1
+            pR = _buf(R, &b[7], 8, 2, b'R'); nb += 1
+            pK0 = _buf(K0, &b[8], 8, 2, b'K0'); nb += 1
+            pown = <long*>_buf(owner, &b[9], 8, 1, b'owner'); nb += 1
+            pt = _buf(tau, &b[10], 8, 1, b'tau'); nb += 1
+            if b[0].shape[0] < n or b[9].shape[0] < n or (n and b[0].shape[1] != self.nl):
+                raise ValueError('gait values and owner must have one row per time')
+            if n:
+                self._rows(n, pl, pld, pldd, pf, pref, pg, pc, pR, pK0, pown, pt,
+                           &o[0, 0, 0], &o[1, 0, 0], &o[2, 0, 0], &o[3, 0, 0],
+                           &lm[0, 0] if p > 1 else NULL, &st[0, 0], &nd[0])
+        finally:
+            for i in range(nb):
+                PyBuffer_Release(&b[i])
+        return blk[0], blk[1], blk[2], blk[3], lam, state, ind
+
+    def sample(self, CompiledGait gait, f, ref, group, contact, R, K0, tau):
+        """``evaluate`` of consecutive segments (records as there, one gait, starts f[:, 0]
+        increasing) at the sorted times ``tau`` [s], each time in the last segment starting at
+        or before it (the first before the first start): one compiled call, the gait evaluated
+        here too (a run's sampling, ``ExactSolver.sample``).
+
+        Returns (x, v, friction, impulse, linkage force, contact, indeterminate, l, l')."""
+        cdef Py_buffer b[7]
+        cdef int nb = 0, nl = self.nl, p = self.p
+        cdef Py_ssize_t n = len(tau), k, sg = 0, n_seg
+        cdef double* pf
+        cdef double* pt
+        cdef double* pR
+        cdef double* pK0
+        cdef long* pref
+        cdef unsigned char* pg
+        cdef signed char* pc
+        vals = np.empty((3, n, nl))
+        own = np.empty(n, np.int64)
+        blk = np.empty((4, n, p))
+        lam = np.empty((n, max(p - 1, 0)))
+        state = np.empty((n, p), np.int8)
+        ind = np.empty(n, bool)
+        cdef double[:, :, ::1] gv = vals
+        cdef long[::1] ow = own
+        cdef double[:, :, ::1] o = blk
+        cdef double[:, ::1] lm = lam
+        cdef signed char[:, ::1] st = state
+        cdef unsigned char[::1] nd = ind.view(np.uint8)
+        cdef double ld3[64]
+        cdef double* w3 = ld3
+        try:
+            pt = _buf(tau, &b[0], 8, 1, b'tau'); nb += 1
+            pf = _buf(f, &b[1], 8, 2, b'f'); nb += 1
+            pref = <long*>_buf(ref, &b[2], 8, 1, b'ref'); nb += 1
+            pg = <unsigned char*>_buf(group, &b[3], 1, 2, b'group'); nb += 1
+            pc = <signed char*>_buf(contact, &b[4], 1, 2, b'contact'); nb += 1
+            pR = _buf(R, &b[5], 8, 2, b'R'); nb += 1
+            pK0 = _buf(K0, &b[6], 8, 2, b'K0'); nb += 1
+            n_seg = b[1].shape[0]
+            if n == 0:
+                return (blk[0], blk[1], blk[2], blk[3], lam, state, ind, vals[0], vals[1])
+            if n_seg == 0 or b[1].shape[1] != 6 or gait.d.nl != nl:
+                raise ValueError('sample: no segments, or records of another crawler')
+            # each time's segment: a merge of the sorted times with the sorted starts
+            for k in range(n):
+                while sg + 1 < n_seg and pf[6 * (sg + 1)] <= pt[k]:
+                    sg += 1
+                ow[k] = sg
+            if gait.d.kind == CALLBACK:        # its values come from Python
+                l, ld, ldd = gait.values(tau)
+                vals[0], vals[1], vals[2] = l, ld, ldd
+            elif nl:
+                if nl > 64:
+                    w3 = <double*>PyMem_Malloc(nl * sizeof(double))
+                    if w3 == NULL:
+                        raise MemoryError()
+                try:
+                    for k in range(n):
+                        gait_eval(&gait.d, pt[k], &gv[0, k, 0], &gv[1, k, 0], &gv[2, k, 0], w3)
+                finally:
+                    if w3 != ld3:
+                        PyMem_Free(w3)
+            self._rows(n, &gv[0, 0, 0] if nl else NULL, &gv[1, 0, 0] if nl else NULL,
+                       &gv[2, 0, 0] if nl else NULL, pf, pref, pg, pc, pR, pK0, &ow[0], pt,
+                       &o[0, 0, 0], &o[1, 0, 0], &o[2, 0, 0], &o[3, 0, 0],
+                       &lm[0, 0] if p > 1 else NULL, &st[0, 0], &nd[0])
+        finally:
+            for i in range(nb):
+                PyBuffer_Release(&b[i])
+        return blk[0], blk[1], blk[2], blk[3], lam, state, ind, vals[0], vals[1]
+
+    cdef void _rows(self, Py_ssize_t n, const double* l, const double* ld, const double* ldd,
+                    const double* f, const long* ref_s, const unsigned char* grp,
+                    const signed char* contact_s, const double* Rseg, const double* K0_s,
+                    const long* owner, const double* tau, double* x, double* v, double* R,
+                    double* K, double* lam, signed char* state, unsigned char* ind) noexcept:
+        cdef int p = self.p, nl = self.nl, i, j, r, n_group, c
+        cdef Py_ssize_t k, sg, kp
+        cdef double a0, a1, a2, d, X, V, A, sr, sdr, s, sd, f_slide, wg, fm_g, total
+        cdef double theta, imp, q, w, acc
+        cdef const double* fs
+        cdef double* e = self.e
+        cdef double* ep = self.e + p
+        cdef double* epp = self.e + 2 * p
+        for k in range(n):
+            sg = owner[k]
+            fs = f + 6 * sg
+            kp = k * p
+            for i in range(p):
+                a0 = 0.0
+                a1 = 0.0
+                a2 = 0.0
+                for j in range(nl):
+                    a0 += l[k * nl + j] * self.W[i * nl + j]
+                    a1 += ld[k * nl + j] * self.W[i * nl + j]
+                    a2 += ldd[k * nl + j] * self.W[i * nl + j]
+                e[i] = a0
+                ep[i] = a1
+                epp[i] = a2
+            d = tau[k] - fs[0]
+            r = ref_s[sg]
+            if r < 0:
+                X = fs[2] + d * (fs[3] + 0.5 * fs[4] * d)
+                V = fs[3] + fs[4] * d
+                for i in range(p):
+                    x[kp + i] = X + e[i]
+                    v[kp + i] = V + ep[i]
+                A = fs[4]
+            else:
+                sr = 0.0
+                sdr = 0.0
+                for j in range(nl):
+                    sr += l[k * nl + j] * self.C[r * nl + j]
+                    sdr += ld[k * nl + j] * self.C[r * nl + j]
+                for i in range(p):
+                    s = 0.0
+                    sd = 0.0
+                    for j in range(nl):
+                        s += l[k * nl + j] * self.C[i * nl + j]
+                        sd += ld[k * nl + j] * self.C[i * nl + j]
+                    x[kp + i] = fs[5] + (s - sr)
+                    v[kp + i] = sd - sdr
+                A = -epp[r]
+                V = -ep[r]
+            f_slide = 0.0
+            n_group = 0
+            for i in range(p):
+                R[kp + i] = 0.0 if grp[sg * p + i] else Rseg[sg * p + i]
+                f_slide += R[kp + i]
+                K[kp + i] = K0_s[sg * p + i] + d * R[kp + i]
+                if grp[sg * p + i]:
+                    n_group += 1
+            f_slide += self.fext
+            if r >= 0:
+                wg = 0.0
+                fm_g = 0.0
+                for i in range(p):
+                    if grp[sg * p + i]:
+                        wg += self.fp[i] + self.fm[i]
+                        fm_g += self.fm[i]
+                if wg > 0.0:
+                    total = self.M * A - f_slide
+                    theta = min(max((-total + fm_g) / wg, 0.0), 1.0)
+                    imp = self.M * (V - fs[3]) - f_slide * d
+                    q = (-imp + fm_g * d) / wg
+                    for i in range(p):
+                        if grp[sg * p + i]:
+                            w = self.fp[i] + self.fm[i]
+                            R[kp + i] = self.fm[i] - theta * w
+                            K[kp + i] = K0_s[sg * p + i] + (self.fm[i] * d - q * w)
+                else:
+                    for i in range(p):
+                        if grp[sg * p + i]:
+                            K[kp + i] = K0_s[sg * p + i]
+            acc = 0.0
+            for i in range(p - 1):
+                acc += R[kp + i] + self.grav[i] - self.m[i] * (A + epp[i])
+                lam[k * (p - 1) + i] = acc
+            for i in range(p):
+                c = contact_s[sg * p + i]
+                if self.fp[i] + self.fm[i] == 0.0:
+                    c = 1 if v[kp + i] > 0 else (-1 if v[kp + i] < 0 else 0)
+                state[kp + i] = c
+            ind[k] = n_group > 1
+
+    def row(self, CompiledGait gait, f, long ref, contact, group, R, K0, double t):
+        """One output row (a dict, as ``ExactSolver.current`` gives) of the segment (f (6,),
+        ref, contact, group, R, K0) at t [s]."""
+        p = self.p
+        l, ld, ldd = gait.values(np.array([t]))
+        x, v, Rout, K, lam, state, ind = self.evaluate(
+            l, ld, ldd, np.ascontiguousarray(f, dtype=float).reshape(1, 6),
+            np.array([ref], np.int64), np.ascontiguousarray(group, dtype=np.uint8).reshape(1, p),
+            np.ascontiguousarray(contact, dtype=np.int8).reshape(1, p),
+            np.ascontiguousarray(R, dtype=float).reshape(1, p),
+            np.ascontiguousarray(K0, dtype=float).reshape(1, p), np.zeros(1, np.int64),
+            np.array([t]))
+        return {'x': x[0], 'v': v[0], 'friction': Rout[0], 'impulse': K[0],
+                'linkage_force': lam[0], 'lengths': l[0], 'rates': ld[0], 'contact': state[0],
+                'indeterminate': bool(ind[0])}
+
+
 cdef class ExactCore:
     """State and loop of one exact solve (``exact.ExactSolver`` wraps it). Its arrays live in
     two C blocks allocated once (a solver per ``simulate``: numpy arrays cost ~100 us)."""
@@ -177,8 +490,8 @@ cdef class ExactCore:
     cdef double _snap_f[24]
     cdef object _saved_gait
 
-    def __cinit__(self, masses, fp, fm, double fext, grav, W, C, double tol, closed=None):
-        cdef int p = len(masses), nl = max(p - 1, 1), nr = 3 * p + 2, n_buf = N_BUF
+    def __cinit__(self, ClosedForm closed, double tol):
+        cdef int p = closed.p, nl = max(p - 1, 1), nr = 3 * p + 2, n_buf = N_BUF
         cdef Py_ssize_t nd, nb, off
         self.p = p
         self.nl = p - 1
@@ -277,32 +590,21 @@ cdef class ExactCore:
         PyMem_Free(self._mem)
         PyMem_Free(self._snap)
 
-    def __init__(self, masses, fp, fm, double fext, grav, W, C, double tol, closed=None):
-        cdef int p = self.p, nl = self.nl, i, j
-        self.closed = (closed if closed is not None
-                       else ClosedForm(masses, fp, fm, fext, grav, W, C))
-        cdef const double[::1] a
-        cdef const double[:, ::1] w
-        a = np.ascontiguousarray(masses, dtype=np.float64)
-        for i in range(p):
-            self.m_[i] = a[i]
-        a = np.ascontiguousarray(fp, dtype=np.float64)
-        for i in range(p):
-            self.fp[i] = a[i]
-        a = np.ascontiguousarray(fm, dtype=np.float64)
-        for i in range(p):
-            self.fm[i] = a[i]
-        a = np.ascontiguousarray(grav, dtype=np.float64)
-        for i in range(p):
-            self.grav[i] = a[i]
-        w = np.ascontiguousarray(W, dtype=np.float64)
-        for i in range(p):
-            for j in range(nl):
-                self.W[i * nl + j] = w[i, j]
-        w = np.ascontiguousarray(C, dtype=np.float64)
-        for i in range(p):
-            for j in range(nl):
-                self.C[i * nl + j] = w[i, j]
+    def __init__(self, ClosedForm closed, double tol):
+        """The segment loop of the crawler whose constants ``closed`` holds (its masses [kg],
+        friction bounds [N], external and gravity forces [N], offset matrices), event times to
+        ``tol`` [s]."""
+        cdef int p = self.p, nl = self.nl, i
+        cdef Py_ssize_t nw = p * nl
+        self.closed = closed
+        memcpy(self.m_, closed.m, p * sizeof(double))
+        memcpy(self.fp, closed.fp, p * sizeof(double))
+        memcpy(self.fm, closed.fm, p * sizeof(double))
+        memcpy(self.grav, closed.grav, p * sizeof(double))
+        if nw:
+            memcpy(self.W, closed.W, nw * sizeof(double))
+            memcpy(self.C, closed.C, nw * sizeof(double))
+        fext = closed.fext
         self.M = 0.0
         self.f_total = 0.0
         for i in range(p):
@@ -382,11 +684,15 @@ cdef class ExactCore:
             _copy_into(out[5], self.sK0, n * p * sizeof(double))
         return out
 
-    def events(self, int n):
-        """The call's first n contact changes: (times (n,), rows (n, 3) of body, old, new)."""
-        if n == 0:
-            return np.empty(0), np.empty((0, 3), np.int_)
-        return np.array(<double[:n]>self.et), np.array(<long[:n, :3]>self.ei)
+    def events(self, int n, make):
+        """The call's first n contact changes as a list of ``make((time, body, old, new))``
+        (``make`` builds an ``Event`` from its tuple)."""
+        cdef list out = []
+        cdef int k
+        for k in range(n):
+            out.append(make((self.et[k], self.ei[3 * k], self.ei[3 * k + 1],
+                             self.ei[3 * k + 2])))
+        return out
 
     def save(self):
         """Keep the state, so a call that raises can be undone (``restore``)."""
@@ -1369,319 +1675,6 @@ cdef class ExactCore:
             self.taylor[r] = 1
         return self.proven(nr, h, &a_[0], &b_[0], &c_[0], &d_[0])
 
-
-
-cdef int _copy_into(object a, const void* src, Py_ssize_t nbytes) except -1:
-    """Copy nbytes from src into the C-contiguous array ``a`` (of at least that size)."""
-    cdef Py_buffer v
-    PyObject_GetBuffer(a, &v, PyBUF_C_CONTIGUOUS | PyBUF_WRITABLE)
-    try:
-        if v.len < nbytes:
-            raise ValueError('destination too small')
-        memcpy(v.buf, src, nbytes)
-    finally:
-        PyBuffer_Release(&v)
-    return 0
-
-
-cdef double* _buf(object a, Py_buffer* v, Py_ssize_t itemsize, int ndim,
-                  const char* name) except NULL:
-    """The data of a C-contiguous array ``a`` of ``ndim`` dimensions and items of ``itemsize``
-    bytes, through the buffer protocol (a typed memoryview costs several times more per
-    argument, and ``ClosedForm.evaluate`` takes eleven)."""
-    PyObject_GetBuffer(a, v, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT)
-    if v.itemsize != itemsize or v.ndim != ndim:
-        PyBuffer_Release(v)
-        raise ValueError(f'{name.decode()}: expected a C-contiguous {ndim}-d array of '
-                         f'{itemsize}-byte items')
-    return <double*>v.buf
-
-
-cdef class ClosedForm:
-    """The closed forms of one crawler's state inside a segment (MODEL.md s. 2), its constants
-    kept as C arrays: ``evaluate`` samples many segments at once (``segments.Records``), and
-    ``ExactCore.current`` one row. Units: s, m, m/s, N, N s."""
-
-    cdef readonly int p, nl
-    cdef double M, fext
-    cdef double* mem
-    cdef double* W            # (p, nl) offsets from the centre of mass
-    cdef double* C            # (p, nl) offsets from body 0
-    cdef double* m
-    cdef double* fp
-    cdef double* fm
-    cdef double* grav
-    cdef double* e            # work: e, e', e'' of one row (3 p)
-
-    def __cinit__(self, masses, fp, fm, double fext, grav, W, C):
-        cdef int p = len(masses), nl = p - 1, i, j
-        self.p = p
-        self.nl = nl
-        self.mem = <double*>PyMem_Calloc(2 * p * max(nl, 1) + 7 * p, sizeof(double))
-        if self.mem == NULL:
-            raise MemoryError()
-        self.W = self.mem
-        self.C = self.W + p * max(nl, 1)
-        self.m = self.C + p * max(nl, 1)
-        self.fp = self.m + p
-        self.fm = self.fp + p
-        self.grav = self.fm + p
-        self.e = self.grav + p
-        w, c = np.asarray(W, dtype=float), np.asarray(C, dtype=float)
-        for i, (mi, a, b, g) in enumerate(zip(*(np.asarray(q, dtype=float).tolist()
-                                                for q in (masses, fp, fm, grav)))):
-            self.m[i], self.fp[i], self.fm[i], self.grav[i] = mi, a, b, g
-            for j in range(nl):
-                self.W[i * nl + j] = w[i, j]
-                self.C[i * nl + j] = c[i, j]
-        self.M = 0.0
-        for i in range(p):
-            self.M += self.m[i]
-        self.fext = fext
-
-    def __dealloc__(self):
-        PyMem_Free(self.mem)
-
-    def evaluate(self, l, ld, ldd, f, ref, group, contact, R, K0, owner, tau):
-        """Row k of the outputs from the gait values ``l``, ``ld``, ``ldd`` (n, nl) at
-        ``tau[k]`` (n,) and the constants of segment ``owner[k]`` (int64): ``f`` rows (t0, t1,
-        X0, V0, a, x_ref), ``ref`` (int64), ``group`` (bool or uint8), ``contact`` (int8),
-        ``R``, ``K0`` (``segments.Records``), every array C-contiguous.
-
-        Slide: X quadratic in t; stick: the reference body fixed, the group's friction the
-        affine split of what holds it (each member at the same fraction of its interval
-        [-fp_i, fm_i]) and its impulse the integral of that split.
-
-        Returns (x, v, friction, impulse) (n, p), linkage force (n, p - 1), contact (n, p) int8
-        and indeterminate (n,) bool.
-        """
-        cdef Py_buffer b[11]
-        cdef int nb = 0
-        cdef Py_ssize_t n = len(tau)
-        cdef int p = self.p
-        blk = np.empty((4, n, p))
-        lam = np.empty((n, max(p - 1, 0)))
-        state = np.empty((n, p), np.int8)
-        ind = np.empty(n, bool)
-        cdef double[:, :, ::1] o = blk
-        cdef double[:, ::1] lm = lam
-        cdef signed char[:, ::1] st = state
-        cdef unsigned char[::1] nd = ind.view(np.uint8)
-        cdef double* pl
-        cdef double* pld
-        cdef double* pldd
-        cdef double* pf
-        cdef double* pR
-        cdef double* pK0
-        cdef double* pt
-        cdef long* pref
-        cdef long* pown
-        cdef unsigned char* pg
-        cdef signed char* pc
-        try:
-            pl = _buf(l, &b[0], 8, 2, b'l'); nb += 1
-            pld = _buf(ld, &b[1], 8, 2, b'ld'); nb += 1
-            pldd = _buf(ldd, &b[2], 8, 2, b'ldd'); nb += 1
-            pf = _buf(f, &b[3], 8, 2, b'f'); nb += 1
-            pref = <long*>_buf(ref, &b[4], 8, 1, b'ref'); nb += 1
-            pg = <unsigned char*>_buf(group, &b[5], 1, 2, b'group'); nb += 1
-            pc = <signed char*>_buf(contact, &b[6], 1, 2, b'contact'); nb += 1
-            pR = _buf(R, &b[7], 8, 2, b'R'); nb += 1
-            pK0 = _buf(K0, &b[8], 8, 2, b'K0'); nb += 1
-            pown = <long*>_buf(owner, &b[9], 8, 1, b'owner'); nb += 1
-            pt = _buf(tau, &b[10], 8, 1, b'tau'); nb += 1
-            if b[0].shape[0] < n or b[9].shape[0] < n or (n and b[0].shape[1] != self.nl):
-                raise ValueError('gait values and owner must have one row per time')
-            if n:
-                self._rows(n, pl, pld, pldd, pf, pref, pg, pc, pR, pK0, pown, pt,
-                           &o[0, 0, 0], &o[1, 0, 0], &o[2, 0, 0], &o[3, 0, 0],
-                           &lm[0, 0] if p > 1 else NULL, &st[0, 0], &nd[0])
-        finally:
-            for i in range(nb):
-                PyBuffer_Release(&b[i])
-        return blk[0], blk[1], blk[2], blk[3], lam, state, ind
-
-    def sample(self, CompiledGait gait, f, ref, group, contact, R, K0, tau):
-        """``evaluate`` of consecutive segments (records as there, one gait, starts f[:, 0]
-        increasing) at the sorted times ``tau`` [s], each time in the last segment starting at
-        or before it (the first before the first start): one compiled call, the gait evaluated
-        here too (a run's sampling, ``ExactSolver.sample``).
-
-        Returns (x, v, friction, impulse, linkage force, contact, indeterminate, l, l')."""
-        cdef Py_buffer b[7]
-        cdef int nb = 0, nl = self.nl, p = self.p
-        cdef Py_ssize_t n = len(tau), k, sg = 0, n_seg
-        cdef double* pf
-        cdef double* pt
-        cdef double* pR
-        cdef double* pK0
-        cdef long* pref
-        cdef unsigned char* pg
-        cdef signed char* pc
-        vals = np.empty((3, n, nl))
-        own = np.empty(n, np.int64)
-        blk = np.empty((4, n, p))
-        lam = np.empty((n, max(p - 1, 0)))
-        state = np.empty((n, p), np.int8)
-        ind = np.empty(n, bool)
-        cdef double[:, :, ::1] gv = vals
-        cdef long[::1] ow = own
-        cdef double[:, :, ::1] o = blk
-        cdef double[:, ::1] lm = lam
-        cdef signed char[:, ::1] st = state
-        cdef unsigned char[::1] nd = ind.view(np.uint8)
-        cdef double ld3[64]
-        cdef double* w3 = ld3
-        try:
-            pt = _buf(tau, &b[0], 8, 1, b'tau'); nb += 1
-            pf = _buf(f, &b[1], 8, 2, b'f'); nb += 1
-            pref = <long*>_buf(ref, &b[2], 8, 1, b'ref'); nb += 1
-            pg = <unsigned char*>_buf(group, &b[3], 1, 2, b'group'); nb += 1
-            pc = <signed char*>_buf(contact, &b[4], 1, 2, b'contact'); nb += 1
-            pR = _buf(R, &b[5], 8, 2, b'R'); nb += 1
-            pK0 = _buf(K0, &b[6], 8, 2, b'K0'); nb += 1
-            n_seg = b[1].shape[0]
-            if n == 0:
-                return (blk[0], blk[1], blk[2], blk[3], lam, state, ind, vals[0], vals[1])
-            if n_seg == 0 or b[1].shape[1] != 6 or gait.d.nl != nl:
-                raise ValueError('sample: no segments, or records of another crawler')
-            # each time's segment: a merge of the sorted times with the sorted starts
-            for k in range(n):
-                while sg + 1 < n_seg and pf[6 * (sg + 1)] <= pt[k]:
-                    sg += 1
-                ow[k] = sg
-            if gait.d.kind == CALLBACK:        # its values come from Python
-                l, ld, ldd = gait.values(tau)
-                vals[0], vals[1], vals[2] = l, ld, ldd
-            elif nl:
-                if nl > 64:
-                    w3 = <double*>PyMem_Malloc(nl * sizeof(double))
-                    if w3 == NULL:
-                        raise MemoryError()
-                try:
-                    for k in range(n):
-                        gait_eval(&gait.d, pt[k], &gv[0, k, 0], &gv[1, k, 0], &gv[2, k, 0], w3)
-                finally:
-                    if w3 != ld3:
-                        PyMem_Free(w3)
-            self._rows(n, &gv[0, 0, 0] if nl else NULL, &gv[1, 0, 0] if nl else NULL,
-                       &gv[2, 0, 0] if nl else NULL, pf, pref, pg, pc, pR, pK0, &ow[0], pt,
-                       &o[0, 0, 0], &o[1, 0, 0], &o[2, 0, 0], &o[3, 0, 0],
-                       &lm[0, 0] if p > 1 else NULL, &st[0, 0], &nd[0])
-        finally:
-            for i in range(nb):
-                PyBuffer_Release(&b[i])
-        return blk[0], blk[1], blk[2], blk[3], lam, state, ind, vals[0], vals[1]
-
-    cdef void _rows(self, Py_ssize_t n, const double* l, const double* ld, const double* ldd,
-                    const double* f, const long* ref_s, const unsigned char* grp,
-                    const signed char* contact_s, const double* Rseg, const double* K0_s,
-                    const long* owner, const double* tau, double* x, double* v, double* R,
-                    double* K, double* lam, signed char* state, unsigned char* ind) noexcept:
-        cdef int p = self.p, nl = self.nl, i, j, r, n_group, c
-        cdef Py_ssize_t k, sg, kp
-        cdef double a0, a1, a2, d, X, V, A, sr, sdr, s, sd, f_slide, wg, fm_g, total
-        cdef double theta, imp, q, w, acc
-        cdef const double* fs
-        cdef double* e = self.e
-        cdef double* ep = self.e + p
-        cdef double* epp = self.e + 2 * p
-        for k in range(n):
-            sg = owner[k]
-            fs = f + 6 * sg
-            kp = k * p
-            for i in range(p):
-                a0 = 0.0
-                a1 = 0.0
-                a2 = 0.0
-                for j in range(nl):
-                    a0 += l[k * nl + j] * self.W[i * nl + j]
-                    a1 += ld[k * nl + j] * self.W[i * nl + j]
-                    a2 += ldd[k * nl + j] * self.W[i * nl + j]
-                e[i] = a0
-                ep[i] = a1
-                epp[i] = a2
-            d = tau[k] - fs[0]
-            r = ref_s[sg]
-            if r < 0:
-                X = fs[2] + d * (fs[3] + 0.5 * fs[4] * d)
-                V = fs[3] + fs[4] * d
-                for i in range(p):
-                    x[kp + i] = X + e[i]
-                    v[kp + i] = V + ep[i]
-                A = fs[4]
-            else:
-                sr = 0.0
-                sdr = 0.0
-                for j in range(nl):
-                    sr += l[k * nl + j] * self.C[r * nl + j]
-                    sdr += ld[k * nl + j] * self.C[r * nl + j]
-                for i in range(p):
-                    s = 0.0
-                    sd = 0.0
-                    for j in range(nl):
-                        s += l[k * nl + j] * self.C[i * nl + j]
-                        sd += ld[k * nl + j] * self.C[i * nl + j]
-                    x[kp + i] = fs[5] + (s - sr)
-                    v[kp + i] = sd - sdr
-                A = -epp[r]
-                V = -ep[r]
-            f_slide = 0.0
-            n_group = 0
-            for i in range(p):
-                R[kp + i] = 0.0 if grp[sg * p + i] else Rseg[sg * p + i]
-                f_slide += R[kp + i]
-                K[kp + i] = K0_s[sg * p + i] + d * R[kp + i]
-                if grp[sg * p + i]:
-                    n_group += 1
-            f_slide += self.fext
-            if r >= 0:
-                wg = 0.0
-                fm_g = 0.0
-                for i in range(p):
-                    if grp[sg * p + i]:
-                        wg += self.fp[i] + self.fm[i]
-                        fm_g += self.fm[i]
-                if wg > 0.0:
-                    total = self.M * A - f_slide
-                    theta = min(max((-total + fm_g) / wg, 0.0), 1.0)
-                    imp = self.M * (V - fs[3]) - f_slide * d
-                    q = (-imp + fm_g * d) / wg
-                    for i in range(p):
-                        if grp[sg * p + i]:
-                            w = self.fp[i] + self.fm[i]
-                            R[kp + i] = self.fm[i] - theta * w
-                            K[kp + i] = K0_s[sg * p + i] + (self.fm[i] * d - q * w)
-                else:
-                    for i in range(p):
-                        if grp[sg * p + i]:
-                            K[kp + i] = K0_s[sg * p + i]
-            acc = 0.0
-            for i in range(p - 1):
-                acc += R[kp + i] + self.grav[i] - self.m[i] * (A + epp[i])
-                lam[k * (p - 1) + i] = acc
-            for i in range(p):
-                c = contact_s[sg * p + i]
-                if self.fp[i] + self.fm[i] == 0.0:
-                    c = 1 if v[kp + i] > 0 else (-1 if v[kp + i] < 0 else 0)
-                state[kp + i] = c
-            ind[k] = n_group > 1
-
-    def row(self, CompiledGait gait, f, long ref, contact, group, R, K0, double t):
-        """One output row (a dict, as ``ExactSolver.current`` gives) of the segment (f (6,),
-        ref, contact, group, R, K0) at t [s]."""
-        p = self.p
-        l, ld, ldd = gait.values(np.array([t]))
-        x, v, Rout, K, lam, state, ind = self.evaluate(
-            l, ld, ldd, np.ascontiguousarray(f, dtype=float).reshape(1, 6),
-            np.array([ref], np.int64), np.ascontiguousarray(group, dtype=np.uint8).reshape(1, p),
-            np.ascontiguousarray(contact, dtype=np.int8).reshape(1, p),
-            np.ascontiguousarray(R, dtype=float).reshape(1, p),
-            np.ascontiguousarray(K0, dtype=float).reshape(1, p), np.zeros(1, np.int64),
-            np.array([t]))
-        return {'x': x[0], 'v': v[0], 'friction': Rout[0], 'impulse': K[0],
-                'linkage_force': lam[0], 'lengths': l[0], 'rates': ld[0], 'contact': state[0],
-                'indeterminate': bool(ind[0])}
 
 
 def solve_inclusion(double c, double u_ref, double force, kinks, f_plus, f_minus):

@@ -86,8 +86,7 @@ class ExactSolver:
         self.keep_segments = keep_segments
         self.periodic_skip = periodic_skip
         k = self._k = crawler_constants(crawler)
-        self._core = _exact.ExactCore(k.m, k.fp, k.fm, k.fext, k.grav, k.W, k.C, self.tol,
-                                      k.closed)
+        self._core = _exact.ExactCore(k.closed, self.tol)
         self.status, self.message = 'ok', ''
         self.reset(t0=t0, x0=x0, v0=v0)
 
@@ -193,8 +192,7 @@ class ExactSolver:
         objects only when read) and its n_ev contact changes as events."""
         core = self._core
         if n_ev:
-            times, rows = core.events(n_ev)
-            self.events.extend(map(_new_event, zip(times.tolist(), *rows.T.tolist())))
+            self.events.extend(core.events(n_ev, _new_event))
         if not n:
             return
         self.n_segments += n
