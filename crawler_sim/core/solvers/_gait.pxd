@@ -33,8 +33,9 @@ ctypedef struct GaitData:
     double freq             # [Hz]
     int nk                  # FOURIER: harmonics
     double* mean            # (nl,) [m]
-    double* p1              # FOURIER: cos coefficients (nl, nk); SCALLOP rows (nl, 4):
-    double* p2              #   amplitude, phase - pi r, cos(pi r), sin(pi r); FOURIER: sin (nl, nk)
+    double* p1              # FOURIER: cos coefficients (nl, nk); SCALLOP rows (nl, 6):
+    double* p2              #   amplitude, phase - pi r, cos(pi r), sin(pi r), and the cosine
+                            #   and sine of phase - pi r; FOURIER: sin (nl, nk)
     # TABLE: piece k, linkage j at coef[(k nl + j) 4 + 0..3] = (l0, v0, a0, jerk) from its origin
     int n                   # pieces
     double period           # > 0: periodic table (pieces of one period, between knots)
@@ -217,14 +218,16 @@ cdef inline int gait_eval(GaitData* g, double t, double* l, double* ld, double* 
         # sin phi = s sin x / D, cos phi = (cos x - c) / D, D = 1 - c cos x;
         # phi''' = -s c (cos x / D^2 - 2 c sin^2 x / D^3),
         # l''' = amp w^3 (cos phi (phi''' - phi'^3) - 3 sin phi phi' phi'')
+        c1 = cos(th)
+        s1 = sin(th)
         for j in range(nl):
-            row = g.p1 + 4 * j
+            row = g.p1 + 6 * j
             amp = row[0]
             c = row[2]
             s = row[3]
-            x = th + row[1]
-            cx = cos(x)
-            sx = sin(x)
+            # x = th + (phase - pi r): cos x and sin x by angle addition
+            cx = c1 * row[4] - s1 * row[5]
+            sx = s1 * row[4] + c1 * row[5]
             inv_d = 1.0 / (1.0 - c * cx)
             sin_phi = s * sx * inv_d
             cos_phi = (cx - c) * inv_d

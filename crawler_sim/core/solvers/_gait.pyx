@@ -418,10 +418,13 @@ def fourier(double freq, mean, cos_c, sin_c) -> CompiledGait:
 
 def scallop(double freq, mean, rows, bins_jerk, bins_snap) -> CompiledGait:
     """The Scallop stroke: ``rows`` (nl, 4) = amplitude [m], phase - pi r [rad], cos(pi r),
-    sin(pi r); derivative bounds per bin, ``bins_*`` (nb, nl) (nb bins per period)."""
+    sin(pi r); derivative bounds per bin, ``bins_*`` (nb, nl) (nb bins per period). Kept with
+    the cosine and sine of each row's phase, so an evaluation takes one cosine and one sine
+    for all linkages (angle addition), not one pair per linkage."""
     cdef CompiledGait g = CompiledGait()
     mean = _f64(mean)
-    rows = _f64(rows)
+    rows = np.asarray(rows, dtype=float)
+    rows = _f64(np.column_stack([rows, np.cos(rows[:, 1]), np.sin(rows[:, 1])]))
     bj = _f64(bins_jerk)
     bs = _f64(bins_snap)
     bj_all = _f64(bj.max(axis=0))
