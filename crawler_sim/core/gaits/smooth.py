@@ -175,44 +175,58 @@ class Scallop(BuiltinGait):
         (B,)), per linkage: (B, n_links) each.
 
         Each is the smaller of two bounds that hold: Cauchy's estimate (``_cauchy``), and the
-        derivative's exact values at the bin's ends (``_derivatives``) plus the error of the
-        chord between them, h^2 / 8 times a bound of the derivative two orders higher (again
-        Cauchy's, but multiplied by h^2 / 8 its looseness hardly matters). Cauchy's estimate
-        alone runs 3-30 times above the true maximum, and the event search's steps shrink with
-        the bound (5 times the evaluations of a Fourier gait per segment).
+        derivative's exact values at the bin's ends (``_derivatives``, with their rounding
+        error) plus the error of the chord between them, h^2 / 8 times a bound of the
+        derivative two orders higher (again Cauchy's, but multiplied by h^2 / 8 its looseness
+        hardly matters). Cauchy's estimate alone runs 46-184 times above the true maximum
+        where the stroke is not sharp (r >= 0.05), the other 1.0-2.7 times, and the event
+        search's steps shrink with the bound (5 times a Fourier gait's evaluations).
         """
-        c3, c4, c5, c6 = self._cauchy((3, 4, 5, 6), t0, t1)
+        c3, c4, c5, c6 = self._cauchy((3, 4, 5, 6), t0, t1, n_radii=7)
         w = self._w
         amp = np.abs(self.amplitude)
         x = w * np.concatenate([t0, t1[-1:]])[:, None] + self.phase - math.pi * self.asymmetry
-        f = self._derivatives(x, 4)
+        f, err = self._derivatives(x, 4)
         h2 = (w * (t1 - t0))[:, None] ** 2 / 8.0            # in x: (w h)^2 / 8
         out = []
-        for fn, cn, cn2, n in ((f[3], c3, c5, 3), (f[4], c4, c6, 4)):
-            ends = np.maximum(np.abs(fn[:-1]), np.abs(fn[1:])) * amp * w ** n
-            # chord + its error (c of order n + 2 carries amp w^(n + 2); the x-width squared
-            # is (w h)^2, so divide by w^2), a 1e-6 margin for the rounding of the end values
-            chord = ends * (1.0 + 1e-6) + h2 * cn2 / w ** 2 + 1e-6 * cn
+        for n, cn, cn2 in ((3, c3, c5), (4, c4, c6)):
+            top = np.abs(f[n]) + err[n]                       # |f^(n)| at the bin ends
+            ends = np.maximum(top[:-1], top[1:]) * amp * w ** n
+            # the bound of order n + 2 carries amp w^(n + 2) and the x-width squared is
+            # (w h)^2: divide by w^2
+            chord = (ends + h2 * cn2 / w ** 2) * (1.0 + 1e-12)
             out.append(np.minimum(cn, chord))
         return out[0], out[1]
 
-    def _derivatives(self, x: NDArray[np.float64], n_max: int) -> list[NDArray[np.float64]]:
+    def _derivatives(self, x: NDArray[np.float64], n_max: int
+                     ) -> tuple[list[NDArray[np.float64]], list[NDArray[np.float64]]]:
         """f, f', ..., f^(n_max) at x, for f(x) = s sin x / D(x), D = 1 - c cos x (l = mean +
-        amplitude f): from f D = s sin x differentiated n times (Leibniz),
-        f^(n) = (s sin^(n) x - sum_{k<n} C(n, k) f^(k) D^(n-k)) / D, with D^(m) = -c cos^(m) x
-        for m >= 1 and sin^(n) x = sin(x + n pi / 2)."""
+        amplitude f), and a bound of each one's rounding error: from f D = s sin x
+        differentiated n times (Leibniz), f^(n) = (s sin^(n) x - sum_{k<n} C(n, k) f^(k)
+        D^(n-k)) / D, with D^(m) = -c cos^(m) x for m >= 1 and sin^(n) x = sin(x + n pi / 2).
+        The error of f^(n): 8 eps times the sum of the magnitudes of its terms, plus the
+        errors of the f^(k) it uses, all over |D|."""
         c, s = self._c, self._s
+        eps = np.finfo(float).eps
         D = 1.0 - c * np.cos(x)
         Dm = [D] + [-c * np.cos(x + m * math.pi / 2.0) for m in range(1, n_max + 1)]
         f: list[NDArray[np.float64]] = []
+        err: list[NDArray[np.float64]] = []
         for n in range(n_max + 1):
             acc = s * np.sin(x + n * math.pi / 2.0)
+            mag = np.abs(acc) + abs(s)                # sin's own rounding
+            prop = np.zeros_like(x)
             for k in range(n):
-                acc = acc - math.comb(n, k) * f[k] * Dm[n - k]
+                term = math.comb(n, k) * f[k] * Dm[n - k]
+                acc = acc - term
+                mag = mag + np.abs(term)
+                prop = prop + math.comb(n, k) * err[k] * np.abs(Dm[n - k])
             f.append(acc / D)
-        return f
+            err.append((8.0 * eps * mag + prop) / np.abs(D))
+        return f, err
 
-    def _cauchy(self, orders: tuple[int, ...], t0, t1) -> list[NDArray[np.float64]]:
+    def _cauchy(self, orders: tuple[int, ...], t0, t1,
+                n_radii: int = 19) -> list[NDArray[np.float64]]:
         """Rigorous bounds of |d^n l / dt^n| on [t0, t1] by Cauchy's estimate, per linkage,
         for each n of ``orders``.
 
@@ -237,7 +251,8 @@ class Scallop(BuiltinGait):
         t0, t1 = np.asarray(t0, float)[..., None], np.asarray(t1, float)[..., None]
         x0 = w * t0 + self.phase - math.pi * self.asymmetry + (math.pi if c < 0 else 0.0)
         span = w * (t1 - t0)
-        radii = np.concatenate([rho0 * np.linspace(0.05, 0.95, 19), [0.25, 0.5, 1.0, 2.0, 3.0]])
+        radii = np.concatenate([rho0 * np.linspace(0.05, 0.95, n_radii),
+                                [0.25, 0.5, 1.0, 2.0, 3.0]])
         best = [np.full(np.broadcast_shapes(x0.shape, span.shape), math.inf) for _ in orders]
         # radii in blocks whose arrays stay well under 128 KiB: glibc maps larger ones anew each
         # time where the trim threshold is fixed (Dask's workers set MALLOC_TRIM_THRESHOLD_),
