@@ -3,8 +3,9 @@ from __future__ import annotations
 
 import bisect
 import warnings
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from typing import NamedTuple
 
 import numpy as np
@@ -92,10 +93,7 @@ class EventLog(Sequence):
             if isinstance(part, list):
                 yield from part
             else:
-                tpl, n, T = part
-                for rep in range(1, n + 1):
-                    for ev in tpl:
-                        yield Event(ev.time + rep * T, ev.body, ev.old, ev.new)
+                yield from _repeated(*part)
 
     def compact(self, limit: int = 1_000_000) -> list[Event] | EventLog:
         """A plain list when it holds at most ``limit`` events, else this log itself."""
@@ -104,6 +102,23 @@ class EventLog(Sequence):
         if len(self._parts) == 1 and isinstance(self._parts[0], list):
             return list(self._parts[0])          # no repeated period: the list as it is
         return list(self)
+
+
+#: an Event from a (time, body, old, new) tuple at C speed
+new_event = partial(tuple.__new__, Event)
+_REPS = 4096       # periods of a repeated block generated at once (bounded memory)
+
+
+def _repeated(template: list, n: int, T: float) -> Iterator[Event]:
+    """The events of one period (``template``) repeated n times, shifted by T, 2 T, ... n T
+    (the times ``EventLog._get`` gives), built a few thousand periods at a time in numpy."""
+    times = [ev.time for ev in template]
+    rest = list(zip(*(ev[1:] for ev in template)))
+    for r0 in range(1, n + 1, _REPS):
+        k = min(_REPS, n + 1 - r0)
+        # (rep T) + time, rep from r0: the float operations of ``_get``, in one array op
+        shifted = np.add.outer(np.arange(r0, r0 + k) * T, times).ravel().tolist()
+        yield from map(new_event, zip(shifted, *(col * k for col in rest)))
 
 
 class State(NamedTuple):

@@ -31,14 +31,13 @@ from __future__ import annotations
 
 import math
 from typing import Any, Sequence
-from functools import partial
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..gaits import Gait, _positive
 from ..model import Crawler
-from ..trajectory import Event, EventLog
+from ..trajectory import EventLog, new_event
 from . import _exact
 from .segments import (PeriodicBlock, Records, Segment, SegmentChunk, SegmentList,
                        crawler_constants, evaluate_records, offset_matrices)
@@ -46,8 +45,6 @@ from .segments import (PeriodicBlock, Records, Segment, SegmentChunk, SegmentLis
 __all__ = ['ExactSolver', 'PeriodicBlock', 'Segment', 'offset_matrices',
            'check_finite_gait']
 
-# an Event from a (time, body, old, new) tuple at C speed
-_new_event = partial(tuple.__new__, Event)
 _EPS = np.finfo(float).eps
 
 
@@ -192,7 +189,7 @@ class ExactSolver:
         objects only when read) and its n_ev contact changes as events."""
         core = self._core
         if n_ev:
-            self.events.extend(core.events(n_ev, _new_event))
+            self.events.extend(core.events(n_ev, new_event))
         if not n:
             return
         self.n_segments += n
