@@ -35,6 +35,19 @@ def test_an_event_log_behaves_as_the_list_of_every_event():
     assert len(log) == 0 and list(log) == []
 
 
+def test_iterating_a_long_repeated_block_gives_the_indexed_events_bit_for_bit():
+    # iteration builds the repeats in numpy, a few thousand periods at a time; indexing
+    # computes each time as time + rep * T in Python floats: the same float operations
+    log = EventLog()
+    T = 0.1 + 1e-9
+    log.add_periodic([Event(0.013, 0, 1, -1), Event(0.0571, 1, -1, 0)], 10_000, T)
+    it = list(log)
+    assert len(it) == 20_000 and all(type(e) is Event for e in it)
+    for k in (0, 1, 8191, 8192, 8193, 19_999):
+        assert it[k] == log[k]
+        assert it[k].time == [0.013, 0.0571][k % 2] + (k // 2 + 1) * T
+
+
 def test_stick_fraction_of_a_skipped_run_equals_the_run_without_the_skip():
     c = cs.Crawler([1.0, 2.0], [1.0, 1.5])
     g = gaits.Sinusoid(1.0, 0.3, 1.0)
