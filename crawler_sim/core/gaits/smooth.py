@@ -90,6 +90,8 @@ class Fourier(BuiltinGait):
 
 #: most values of one array of ``Scallop._cauchy`` (8,192 doubles: 64 KiB)
 _BLOCK_VALUES = 8192
+#: bins per group of ``Scallop._bounds``' Cauchy estimates
+_GROUP = 8
 
 
 class Scallop(BuiltinGait):
@@ -182,7 +184,14 @@ class Scallop(BuiltinGait):
         where the stroke is not sharp (r >= 0.05), the other 1.0-2.7 times, and the event
         search's steps shrink with the bound (5 times a Fourier gait's evaluations).
         """
-        c3, c4, c5, c6 = self._cauchy((3, 4, 5, 6), t0, t1, n_radii=7)
+        # Cauchy's estimates per group of 8 bins (a group's bound holds on each of its bins):
+        # they are a bin's bound only where the chord's is worse, and the chord's error term
+        # carries them times h^2 / 8; most of the tables' cost otherwise
+        n = t0.size
+        first = np.arange(0, n, _GROUP)
+        last = np.minimum(first + _GROUP - 1, n - 1)
+        c3, c4, c5, c6 = (c[np.arange(n) // _GROUP] for c in
+                          self._cauchy((3, 4, 5, 6), t0[first], t1[last], n_radii=7))
         w = self._w
         amp = np.abs(self.amplitude)
         x = w * np.concatenate([t0, t1[-1:]])[:, None] + self.phase - math.pi * self.asymmetry
@@ -208,12 +217,15 @@ class Scallop(BuiltinGait):
         errors of the f^(k) it uses, all over |D|."""
         c, s = self._c, self._s
         eps = np.finfo(float).eps
-        D = 1.0 - c * np.cos(x)
-        Dm = [D] + [-c * np.cos(x + m * math.pi / 2.0) for m in range(1, n_max + 1)]
+        cx, sx = np.cos(x), np.sin(x)
+        sin_n = (sx, cx, -sx, -cx)          # sin^(n) x = sin(x + n pi / 2), n mod 4
+        cos_n = (cx, -sx, -cx, sx)
+        D = 1.0 - c * cx
+        Dm = [D] + [-c * cos_n[m % 4] for m in range(1, n_max + 1)]
         f: list[NDArray[np.float64]] = []
         err: list[NDArray[np.float64]] = []
         for n in range(n_max + 1):
-            acc = s * np.sin(x + n * math.pi / 2.0)
+            acc = s * sin_n[n % 4]
             mag = np.abs(acc) + abs(s)                # sin's own rounding
             prop = np.zeros_like(x)
             for k in range(n):
