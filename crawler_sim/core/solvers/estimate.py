@@ -106,10 +106,17 @@ class BoundEstimate:
             grid = max(span, 1e-300) / FIRST
             self.spacing = grid if math.isinf(self.spacing) else max(self.spacing, grid)
         end = start + WINDOW * self.spacing
-        end = max(end, b)
+        if self.period:
+            # one period is enough: the next ones are its cells shifted (``_repeat``); a
+            # window of 4096 cells was four periods of 1024, three of them evaluated for nothing
+            end = min(end, start + self.period)
+        else:
+            end = max(end, b)
         if math.isfinite(span_hi):
             end = min(end, max(span_hi, b))
         self._scan(start, end)
+        if self.hi < b and not self._repeat(a, b):
+            self._scan(self.hi, b)
 
     def _repeat(self, a: float, b: float) -> bool:
         """A periodic gait whose scan covers a whole period: the cells of [a, b] are that

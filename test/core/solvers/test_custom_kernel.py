@@ -250,3 +250,24 @@ def test_a_custom_gait_reused_for_a_longer_run_costs_what_a_fresh_one_does():
     fresh = count([1e4])
     reused = count([1.0, 1e4])
     assert reused <= 2 * fresh + 100, (fresh, reused)
+
+
+def test_a_periodic_gait_is_scanned_one_period_and_then_repeated():
+    # 1024 cells a period (estimate.PER_PERIOD): a sine's scan needs no refinement, so one
+    # period is 1025 evaluations of l'' (by count); the window of 4096 cells used to scan four
+    # periods of a periodic gait, three of them for nothing. Later stretches, near or far,
+    # are the first period's cells shifted: no evaluation.
+    calls = []
+
+    def accel(t):
+        calls.append(t)
+        return -math.sin(2 * math.pi * t)
+
+    est = BoundEstimate(accel, 1, period=1.0)
+    est.ensure(0.0, 0.01, 0.0, 100.0)
+    assert 1025 <= len(calls) <= 1100 and max(calls) <= 1.0
+    assert est.lo == 0.0 and est.hi == 1.0
+    n = len(calls)
+    est.ensure(2.5, 2.6, 0.0, 100.0)
+    est.ensure(40.2, 40.3, 0.0, 100.0)
+    assert len(calls) == n and est.hi >= 40.3
