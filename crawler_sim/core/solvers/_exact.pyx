@@ -196,6 +196,8 @@ cdef class ClosedForm:
             pt = _buf(tau, &b[10], 8, 1, b'tau'); nb += 1
             if b[0].shape[0] < n or b[9].shape[0] < n or (n and b[0].shape[1] != self.nl):
                 raise ValueError('gait values and owner must have one row per time')
+            if b[3].shape[1] != 6:
+                raise ValueError('f: rows of (t0, t1, X0, V0, a, x_ref) expected')
             if n:
                 self._rows(n, pl, pld, pldd, pf, pref, pg, pc, pR, pK0, pown, pt,
                            &o[0, 0, 0], &o[1, 0, 0], &o[2, 0, 0], &o[3, 0, 0],
@@ -208,74 +210,43 @@ cdef class ClosedForm:
     def sample(self, CompiledGait gait, f, ref, group, contact, R, K0, tau):
         """``evaluate`` of consecutive segments (records as there, one gait, starts f[:, 0]
         increasing) at the sorted times ``tau`` [s], each time in the last segment starting at
-        or before it (the first before the first start): one compiled call, the gait evaluated
-        here too (a run's sampling, ``ExactSolver.sample``).
+        or before it (the first before the first start), the gait evaluated here too (a run's
+        sampling, ``ExactSolver.sample``: no table of records, no search from Python).
 
         Returns (x, v, friction, impulse, linkage force, contact, indeterminate, l, l')."""
-        cdef Py_buffer b[7]
-        cdef int nb = 0, nl = self.nl, p = self.p
+        cdef int nl = self.nl, j
         cdef Py_ssize_t n = len(tau), k, sg = 0, n_seg
-        cdef double* pf
-        cdef double* pt
-        cdef double* pR
-        cdef double* pK0
-        cdef long* pref
-        cdef unsigned char* pg
-        cdef signed char* pc
+        cdef const double[::1] tv = tau
+        cdef const double[:, ::1] fv = f
         vals = np.empty((3, n, nl))
-        own = np.empty(n, np.int64)
-        blk = np.empty((4, n, p))
-        lam = np.empty((n, max(p - 1, 0)))
-        state = np.empty((n, p), np.int8)
-        ind = np.empty(n, bool)
+        own = np.zeros(n, np.int64)
         cdef double[:, :, ::1] gv = vals
         cdef long[::1] ow = own
-        cdef double[:, :, ::1] o = blk
-        cdef double[:, ::1] lm = lam
-        cdef signed char[:, ::1] st = state
-        cdef unsigned char[::1] nd = ind.view(np.uint8)
         cdef double ld3[64]
         cdef double* w3 = ld3
-        try:
-            pt = _buf(tau, &b[0], 8, 1, b'tau'); nb += 1
-            pf = _buf(f, &b[1], 8, 2, b'f'); nb += 1
-            pref = <long*>_buf(ref, &b[2], 8, 1, b'ref'); nb += 1
-            pg = <unsigned char*>_buf(group, &b[3], 1, 2, b'group'); nb += 1
-            pc = <signed char*>_buf(contact, &b[4], 1, 2, b'contact'); nb += 1
-            pR = _buf(R, &b[5], 8, 2, b'R'); nb += 1
-            pK0 = _buf(K0, &b[6], 8, 2, b'K0'); nb += 1
-            n_seg = b[1].shape[0]
-            if n == 0:
-                return (blk[0], blk[1], blk[2], blk[3], lam, state, ind, vals[0], vals[1])
-            if n_seg == 0 or b[1].shape[1] != 6 or gait.d.nl != nl:
-                raise ValueError('sample: no segments, or records of another crawler')
-            # each time's segment: a merge of the sorted times with the sorted starts
-            for k in range(n):
-                while sg + 1 < n_seg and pf[6 * (sg + 1)] <= pt[k]:
-                    sg += 1
-                ow[k] = sg
-            if gait.d.kind == CALLBACK:        # its values come from Python
-                l, ld, ldd = gait.values(tau)
-                vals[0], vals[1], vals[2] = l, ld, ldd
-            elif nl:
-                if nl > 64:
-                    w3 = <double*>PyMem_Malloc(nl * sizeof(double))
-                    if w3 == NULL:
-                        raise MemoryError()
-                try:
-                    for k in range(n):
-                        gait_eval(&gait.d, pt[k], &gv[0, k, 0], &gv[1, k, 0], &gv[2, k, 0], w3)
-                finally:
-                    if w3 != ld3:
-                        PyMem_Free(w3)
-            self._rows(n, &gv[0, 0, 0] if nl else NULL, &gv[1, 0, 0] if nl else NULL,
-                       &gv[2, 0, 0] if nl else NULL, pf, pref, pg, pc, pR, pK0, &ow[0], pt,
-                       &o[0, 0, 0], &o[1, 0, 0], &o[2, 0, 0], &o[3, 0, 0],
-                       &lm[0, 0] if p > 1 else NULL, &st[0, 0], &nd[0])
-        finally:
-            for i in range(nb):
-                PyBuffer_Release(&b[i])
-        return blk[0], blk[1], blk[2], blk[3], lam, state, ind, vals[0], vals[1]
+        n_seg = fv.shape[0]
+        if n and (n_seg == 0 or gait.d.nl != nl):
+            raise ValueError('sample: no segments, or a gait of another crawler')
+        # each time's segment: a merge of the sorted times with the sorted starts
+        for k in range(n):
+            while sg + 1 < n_seg and fv[sg + 1, 0] <= tv[k]:
+                sg += 1
+            ow[k] = sg
+        if n and gait.d.kind == CALLBACK:          # its values come from Python
+            vals[0], vals[1], vals[2] = gait.values(tau)
+        elif n and nl:
+            if nl > 64:
+                w3 = <double*>PyMem_Malloc(nl * sizeof(double))
+                if w3 == NULL:
+                    raise MemoryError()
+            try:
+                for k in range(n):
+                    gait_eval(&gait.d, tv[k], &gv[0, k, 0], &gv[1, k, 0], &gv[2, k, 0], w3)
+            finally:
+                if w3 != ld3:
+                    PyMem_Free(w3)
+        out = self.evaluate(vals[0], vals[1], vals[2], f, ref, group, contact, R, K0, own, tau)
+        return out + (vals[0], vals[1])
 
     cdef void _rows(self, Py_ssize_t n, const double* l, const double* ld, const double* ldd,
                     const double* f, const long* ref_s, const unsigned char* grp,

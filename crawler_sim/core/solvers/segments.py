@@ -33,19 +33,17 @@ def offset_matrices(masses: NDArray) -> tuple[NDArray, NDArray]:
 
 class CrawlerConstants:
     """What the exact method derives from a crawler, once per ``Crawler`` (a sweep or a node
-    builds many solvers for one crawler): masses [kg], friction bounds fp / fm [N], external
-    force [N], gravity forces [N], ``offset_matrices`` C and W, and its compiled closed forms
-    (``_exact.ClosedForm``)."""
+    builds many solvers for one crawler): its compiled closed forms (``_exact.ClosedForm``,
+    which hold masses, friction bounds, external and gravity forces and the offset matrices;
+    the segment loop copies them from it), and in Python the masses [kg] and W."""
 
     def __init__(self, crawler: Crawler) -> None:
         from ._exact import ClosedForm
         self.m = crawler.masses
-        self.fp, self.fm = crawler.friction, crawler.friction_backward
-        self.fext = float(crawler.external_force)
-        self.grav = crawler.gravity_forces
-        self.C, self.W = offset_matrices(crawler.masses)
-        self.free = (self.fp + self.fm) == 0.0
-        self.closed = ClosedForm(self.m, self.fp, self.fm, self.fext, self.grav, self.W, self.C)
+        C, self.W = offset_matrices(crawler.masses)
+        self.closed = ClosedForm(self.m, crawler.friction, crawler.friction_backward,
+                                 float(crawler.external_force), crawler.gravity_forces, self.W,
+                                 C)
 
 
 _CONSTANTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
