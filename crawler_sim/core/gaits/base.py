@@ -131,12 +131,20 @@ class Gait:
     def _compile(self):
         """A gait that is not built in: its Python ``at`` (and ``jerk_bound``,
         ``breakpoints``, ``is_constant``) called from the compiled loop."""
-        from ..solvers._gait import callback
-        from ..solvers.estimate import BoundEstimate
-        own = type(self).jerk_bound is not Gait.jerk_bound
-        estimate = BoundEstimate(lambda t: self.at(t)[2], self.n_links, self.period,
-                                 getattr(self, 'max_step', None), self.breakpoints)
-        return callback(self, self.n_links, estimate, jerk=self.jerk_bound if own else None)
+        from ..solvers._gait import callback, proxy
+        from ..solvers.proxy import ChebTable
+        if type(self).jerk_bound is not Gait.jerk_bound and self._gives_bounds():
+            return callback(self, self.n_links, jerk=self.jerk_bound)
+        table = ChebTable(lambda t: self.at(t)[2], lambda t: self.at(t)[:2], self.n_links,
+                          self.period, getattr(self, 'max_step', None), self.breakpoints)
+        return proxy(self, self.n_links, table)
+
+    def _gives_bounds(self) -> bool:
+        """The subclass's ``jerk_bound`` gives bounds (not None, its "unknown")."""
+        try:
+            return self.jerk_bound(0.0, 0.0) is not None
+        except Exception:      # noqa: BLE001 (its errors surface where the solver asks)
+            return True
 
     def __getstate__(self) -> dict:
         # the compiled form is rebuilt where the gait is used (a sweep sends gaits to workers)

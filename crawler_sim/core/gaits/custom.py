@@ -54,12 +54,15 @@ class Custom(Gait):
             self._jerk = jb
 
     def _compile(self):
-        from ..solvers._gait import callback
-        from ..solvers.estimate import BoundEstimate
-        estimate = BoundEstimate(self._fns[2], self.n_links, self.period, self.max_step,
-                                 self.breakpoints)
-        return callback(self, self.n_links, estimate,
-                        fns=self._fns, jerk=self._jerk, breakpoints=self._breaks)
+        from ..solvers._gait import callback, proxy
+        from ..solvers.proxy import ChebTable
+        if self._jerk is not None:
+            return callback(self, self.n_links, fns=self._fns, jerk=self._jerk,
+                            breakpoints=self._breaks)
+        fl, fv, fa = self._fns
+        table = ChebTable(fa, lambda t: (fl(t), fv(t)), self.n_links, self.period,
+                          self.max_step, self.breakpoints)
+        return proxy(self, self.n_links, table, fns=self._fns)
 
     def __call__(self, t: float | ArrayLike) -> Triple:
         if np.ndim(t) == 0:

@@ -31,13 +31,13 @@ from cpython.buffer cimport (PyObject_GetBuffer, PyBuffer_Release, PyBUF_C_CONTI
                             PyBUF_FORMAT, PyBUF_WRITABLE)
 from libc.string cimport memcpy
 
-from crawler_sim.core.solvers._gait cimport (CompiledGait, GaitData, FOURIER, CALLBACK,
+from crawler_sim.core.solvers._gait cimport (CompiledGait, GaitData, FOURIER, CALLBACK, PROXY,
                                              gait_eval, gait_rates, gait_lengths, gait_bounds,
                                              gait_next_break, gait_is_constant)
 from crawler_sim.core.solvers._inclusion cimport inclusion
 
 __all__ = ['ExactCore', 'ClosedForm', 'REACHED', 'FULL', 'STALLED', 'NONFINITE', 'NO_STEPS',
-           'PERIODIC', 'BOUNDS']
+           'PERIODIC']
 
 # statuses of ``drive``
 cdef enum:
@@ -47,22 +47,19 @@ cdef enum:
     S_NONFINITE = 4    # a gait value is not finite (``bad_time`` says where)
     S_NO_STEPS = 5     # the search ran out of steps
     S_PERIODIC = 6     # a period repeats the previous one (``k_at``): the caller skips
-    S_BOUNDS = 7       # estimated gait bounds kept growing
-REACHED, FULL, STALLED, NONFINITE, NO_STEPS, PERIODIC, BOUNDS = 0, 2, 3, 4, 5, 6, 7
+REACHED, FULL, STALLED, NONFINITE, NO_STEPS, PERIODIC = 0, 2, 3, 4, 5, 6
 
 # search outcomes
 cdef enum:
     F_OK = 0
     F_NONFINITE = 1
     F_NO_STEPS = 2
-    F_EXCEEDED = 3
 
 cdef double EPS = 2.220446049250313e-16
 cdef int STALL_ULPS = 64          # a segment this short (in floats of t) makes no progress
 cdef int STALL_SEGMENTS = 256     # consecutive such segments before the solver reports a stall
 cdef double AMBIGUOUS = 1e-10     # relative slack below which a mode choice is decided later
 cdef long MAX_STEPS = 10000000    # grid and narrowing steps of one search: a safety net
-cdef int RETRIES = 16             # searches redone with grown estimated bounds, per segment
 cdef int N_BUF = 256              # segment records per call
 
 
@@ -938,7 +935,7 @@ cdef class ExactCore:
         cdef bint has1, has2, exact_jerk
         cdef double b2, b1, x1, x2
         has_snap = gait_bounds(g, a, b, self.jerk, self.snap)
-        exact_jerk = g.kind != CALLBACK or (<CompiledGait>g.obj).estimated
+        exact_jerk = g.kind != CALLBACK
         for r in range(nr):
             b2 = 0.0
             b1 = 0.0
@@ -966,10 +963,10 @@ cdef class ExactCore:
 
     cdef int values(self, GaitData* g, double t, double t0, int nr, double* gv,
                     double* dg) except -1:
-        """The rows and their slopes at t; 1 when a CALLBACK gait's bounds grew."""
-        cdef int r, j, nl = self.nl, code
+        """The rows and their slopes at t."""
+        cdef int r, j, nl = self.nl
         cdef double v, dv
-        code = gait_rates(g, t, self.ld, self.ldd, self.ld3)
+        gait_rates(g, t, self.ld, self.ldd, self.ld3)
         for r in range(nr):
             v = self.c0[r] + self.c1[r] * (t - t0)
             dv = self.c1[r]
@@ -978,7 +975,7 @@ cdef class ExactCore:
                 dv += self.A1[(r) * self.nl + j] * self.ldd[j] + self.A2[(r) * self.nl + j] * self.ld3[j]
             gv[r] = v
             dg[r] = dv
-        return code
+        return 0
 
     cdef double step(self, int nr, const double* ga, const double* da, double tol,
                      double cap) noexcept:
@@ -1054,7 +1051,7 @@ cdef class ExactCore:
     cdef int search(self, GaitData* g, double t0, double end, int nr, double tol, double cap,
                     double* t_out) except -1:
         """First event of the rows in (t0, end]: its time in t_out (INFINITY when none) and
-        the rows hit in ``hit``; returns F_OK, F_NONFINITE, F_NO_STEPS or F_EXCEEDED."""
+        the rows hit in ``hit``; returns F_OK, F_NONFINITE or F_NO_STEPS."""
         cdef double* ga = self.wk + 0 * self.nr
         cdef double* da = self.wk + 1 * self.nr
         cdef double* gm = self.wk + 2 * self.nr
@@ -1073,8 +1070,7 @@ cdef class ExactCore:
         cdef double h_last = INFINITY
         for r in range(nr):
             self.hit[r] = 0
-        if self.values(g, t0, t0, nr, ga, da) == 1:
-            return F_EXCEEDED
+        self.values(g, t0, t0, nr, ga, da)
         for r in range(nr):
             sc = fabs(self.c0[r]) + fabs(self.c1[r]) * (end - t0)
             for j in range(nl):
@@ -1152,8 +1148,7 @@ cdef class ExactCore:
                     t_out[0] = INFINITY
                     return F_OK
                 m = min(a + h, lim)
-            if self.values(g, m, t0, nr, gm, dm) == 1:
-                return F_EXCEEDED
+            self.values(g, m, t0, nr, gm, dm)
             self.n_evals += 1
             for r in range(nr):
                 if not (isfinite(gm[r]) and isfinite(dm[r])):
@@ -1312,7 +1307,7 @@ cdef class ExactCore:
         """Integrate towards t_end (see the module doc); ``T`` > 0: the period whose
         multiples end segments and are compared. Returns a status."""
         cdef GaitData* g = &gait.d
-        cdef int p = self.p, nl = self.nl, i, j, r, nr, r0, code, retries, n_hit
+        cdef int p = self.p, nl = self.nl, i, j, r, nr, r0, code, n_hit
         cdef int guard = 0, status = S_REACHED, n_max = self.n_buf
         cdef int ev_max = 2 * self.n_buf
         cdef double t, ts, end, b, kT, t0, a, V0, X_s, V_s, t_ev, tt, d, f_slide, imp, w, fmg
@@ -1324,7 +1319,7 @@ cdef class ExactCore:
         self.k_at = -1
         self.bad_time = NAN
         t = self.t
-        if g.kind == CALLBACK:
+        if g.kind == CALLBACK or g.kind == PROXY:
             gait.span_lo = t
             gait.span_hi = t_end
         while t < t_end:
@@ -1436,17 +1431,10 @@ cdef class ExactCore:
             else:
                 nr = self.build_rows(self.contact, self.group, r0, V0, a)
                 if nr > 0 and end > t0:
-                    if g.kind == CALLBACK:
+                    if g.kind == CALLBACK or g.kind == PROXY:
                         gait.span_lo = t0
                         gait.span_hi = end
-                    for retries in range(RETRIES + 1):
-                        code = self.search(g, t0, end, nr, tol, cap, &tt)
-                        if code != F_EXCEEDED:
-                            break
-                    if code == F_EXCEEDED:
-                        status = S_BOUNDS
-                        self.bad_time = t0
-                        break
+                    code = self.search(g, t0, end, nr, tol, cap, &tt)
                     if code == F_NO_STEPS:
                         status = S_NO_STEPS
                         break

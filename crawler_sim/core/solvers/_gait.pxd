@@ -10,19 +10,22 @@ arithmetic exists once. Four kinds:
 * SCALLOP: the warped cosine stroke of ``gaits.smooth.Scallop``;
 * TABLE: constant-jerk pieces (l0, v0, a0, jerk) per linkage, ``Cubic``, ``PiecewiseCubic``,
   ``PiecewiseParabolic`` (jerk 0) and ``Spline``; periodic or not;
-* CALLBACK: Python callables (``Custom`` and any other ``Gait`` subclass), l''' by a difference
-  of l''.
+* CALLBACK: Python callables with bounds of their own (``Custom`` given ``jerk_bound``, a
+  ``Gait`` subclass with ``jerk_bound``), called at every evaluation;
+* PROXY: Python callables without bounds (``Custom``, any other ``Gait`` subclass), sampled
+  into Chebyshev pieces (``proxy.ChebTable``) as the solver reaches them.
 
 Units: t [s], l [m], l' [m/s], l'' [m/s^2], l''' [m/s^3], l'''' [m/s^4].
 """
 from cpython.mem cimport PyMem_Malloc, PyMem_Free
-from libc.math cimport floor, fabs, sin, cos, M_PI, INFINITY, NAN
+from libc.math cimport floor, fabs, sin, cos, nextafter, M_PI, INFINITY, NAN
 
 cdef enum:
     FOURIER = 0
     SCALLOP = 1
     TABLE = 2
     CALLBACK = 3
+    PROXY = 4
 
 
 
@@ -56,7 +59,12 @@ ctypedef struct GaitData:
     double* bj_all          # SCALLOP: the largest bin (nl,)
     double* bs_all
     bint constant           # l' = l'' = 0 at all times
-    void* obj               # CALLBACK: the CompiledGait that owns this struct
+    void* obj               # CALLBACK, PROXY: the CompiledGait that owns this struct
+    # PROXY: n pieces between knots (n + 1,); series coef (n, nl, 4, stride) of l, l', l'',
+    # l''' in u = (2 t - a - b) / (b - a), ncoef (n,) of them in use; bj, bs (n, nl) bounds
+    # per piece; rest (n,); period > 0 once the pieces cover one period from knots[0]
+    int* ncoef
+    int stride
 
 
 cdef class CompiledGait:
@@ -69,27 +77,21 @@ cdef class CompiledGait:
     cdef object _fns                    # (l, l', l'') callables of one float, or None
     cdef bint _scalar                   # the callables return floats (one linkage)
     cdef object _jerk                   # user bound: None, an array (nl,) or a callable
-    cdef public object estimate         # ``estimate.BoundEstimate``: bounds where none are given
-    cdef public bint estimated          # the bounds in use are the estimate's
-    cdef double[:, ::1] _buf            # rows l, l', l'', l''' of the last evaluation
+    cdef double[:, ::1] _buf            # rows l, l', l'' of the last evaluation
     cdef double _t_len, _t_rates        # times of the values in _buf (NaN: none)
     cdef public double span_lo, span_hi  # the span being integrated: callables stay inside it
-    cdef public int exceeded            # evaluations above the estimated jerk bound
-    cdef public object lock             # CALLBACK: one solver at a time (its state is shared)
-    cdef object _est_starts             # the estimate's arrays as last seen, and views of them
-    cdef double[::1] _st
-    cdef double[:, ::1] _d1, _d2
-    cdef double _safety
-    cdef int _sync(self) except -1
-    cdef int _lookup(self, double a, double b, double* jerk, double* snap) except -1
-    cdef bint _check(self, double t, double* ld3) except -1
-    cdef double _diff_step(self, double t) except -1.0
+    cdef public object lock             # CALLBACK, PROXY: one solver at a time (shared state)
     cdef int _fetch(self, double t, bint with_length) except -1
     cdef int cb_rates(self, double t, double* ld, double* ldd, double* ld3) except -1
     cdef int cb_lengths(self, double t, double* l) except -1
     cdef int cb_bounds(self, double a, double b, double* jerk, double* snap) except -1
     cdef double cb_next_break(self, double t) except? -1.0
     cdef int cb_is_constant(self, double a, double b) except -1
+    # PROXY kind
+    cdef public object table            # ``proxy.ChebTable``
+    cdef int px_sync(self) except -1
+    cdef int px_ensure(self, double t) except -1
+    cdef bint _covers(self, double t) noexcept
 
 
 # ----------------------------------------------------------------------------- tables
@@ -184,13 +186,139 @@ cdef inline double next_jump(const GaitData* g, double t) noexcept nogil:
     return g.jump_times[lo] if lo < nj else INFINITY
 
 
+# ----------------------------------------------------------------------------- proxies
+cdef inline int proxy_locate(GaitData* g, double t, double* u, double* m) except -1:
+    """Piece of a PROXY gait holding t (built first when t lies outside the table), the
+    variable u in [-1, 1] there and, once the pieces are periodic, the period index m."""
+    cdef int lo, hi, mid, k, K
+    cdef double tt = t, a, b
+    if g.period <= 0.0 and not (g.n > 0 and g.knots[0] <= t <= g.knots[g.n]):
+        (<CompiledGait>g.obj).px_ensure(t)
+    m[0] = 0.0
+    if g.period > 0.0:
+        m[0] = floor((t - g.knots[0]) / g.period)
+        tt = t - m[0] * g.period
+    K = g.n
+    k = g.hint
+    if not (0 <= k < K and g.knots[k] <= tt and (tt < g.knots[k + 1] or k == K - 1)):
+        lo = 0
+        hi = K + 1
+        while lo < hi:
+            mid = (lo + hi) >> 1
+            if g.knots[mid] <= tt:
+                lo = mid + 1
+            else:
+                hi = mid
+        k = lo - 1
+        if k < 0:
+            k = 0
+        if k > K - 1:
+            k = K - 1
+        g.hint = k
+    a = g.knots[k]
+    b = g.knots[k + 1]
+    u[0] = (2.0 * tt - a - b) / (b - a) if b > a else 0.0
+    return k
+
+
+cdef inline void proxy_piece(const GaitData* g, int k, double u, double* l, double* ld,
+                             double* ldd, double* ld3) noexcept nogil:
+    """The four series of piece k at u by Clenshaw's recurrence (l skipped when NULL)."""
+    cdef int j, i, nl = g.nl, nc = g.ncoef[k], st = g.stride
+    cdef const double* c
+    cdef double u2 = 2.0 * u, x0, x1, x2, x3, y0, y1, y2, y3, z
+    for j in range(nl):
+        c = g.coef + (k * nl + j) * 4 * st
+        x0 = 0.0
+        x1 = 0.0
+        x2 = 0.0
+        x3 = 0.0
+        y0 = 0.0
+        y1 = 0.0
+        y2 = 0.0
+        y3 = 0.0
+        for i in range(nc - 1, 0, -1):
+            z = c[i] + u2 * x0 - y0
+            y0 = x0
+            x0 = z
+            z = c[st + i] + u2 * x1 - y1
+            y1 = x1
+            x1 = z
+            z = c[2 * st + i] + u2 * x2 - y2
+            y2 = x2
+            x2 = z
+            z = c[3 * st + i] + u2 * x3 - y3
+            y3 = x3
+            x3 = z
+        if l != NULL:
+            l[j] = c[0] + u * x0 - y0
+        ld[j] = c[st] + u * x1 - y1
+        ldd[j] = c[2 * st] + u * x2 - y2
+        ld3[j] = c[3 * st] + u * x3 - y3
+
+
+cdef inline double proxy_next_break(GaitData* g, double t) except? -1.0:
+    """The first join of a PROXY gait's pieces after t (INFINITY at the end of the span)."""
+    cdef double u, m, x
+    cdef int k
+    cdef CompiledGait cg = <CompiledGait>g.obj
+    if g.period <= 0.0 and not (g.n > 0 and t < g.knots[g.n]):
+        if t >= cg.span_hi:
+            return INFINITY
+        proxy_locate(g, nextafter(t, INFINITY), &u, &m)
+    k = proxy_locate(g, t, &u, &m)
+    while True:
+        k += 1
+        if k > g.n:
+            if g.period <= 0.0:
+                return INFINITY
+            k = 1
+            m += 1.0
+        x = g.knots[k] + m * g.period if g.period > 0.0 else g.knots[k]
+        if x > t:
+            return x
+
+
+cdef inline int proxy_walk(GaitData* g, double a, double b, double* jerk, double* snap,
+                           bint* rest) except -1:
+    """Over the pieces whose interiors [a, b] touches: the largest bounds per linkage and
+    whether every one is at rest. Returns the number of pieces."""
+    cdef double u, m, start
+    cdef int k, j, nl = g.nl, count = 0
+    if b > a:
+        proxy_locate(g, b, &u, &m)          # built up to b first (a build may start afresh)
+    k = proxy_locate(g, a, &u, &m)
+    rest[0] = True
+    for j in range(nl):
+        jerk[j] = 0.0
+        snap[j] = 0.0
+    while True:
+        count += 1
+        for j in range(nl):
+            if g.bj[k * nl + j] > jerk[j]:
+                jerk[j] = g.bj[k * nl + j]
+            if g.bs[k * nl + j] > snap[j]:
+                snap[j] = g.bs[k * nl + j]
+        if not g.rest[k]:
+            rest[0] = False
+        k += 1
+        if k == g.n:
+            if g.period <= 0.0:
+                break
+            k = 0
+            m += 1.0
+        start = g.knots[k] + m * g.period if g.period > 0.0 else g.knots[k]
+        if start >= b or count > g.n:
+            break
+    return count
+
+
 # ----------------------------------------------------------------------------- evaluation
 cdef inline int gait_eval(GaitData* g, double t, double* l, double* ld, double* ldd,
                           double* ld3) except -1:
     """l (when ``l`` is not NULL), l', l'' and l''' at t: the one evaluation of every kind
-    (lengths share the trigonometric values of the rates). Returns 0, or 1 when a CALLBACK
-    gait's value contradicts its estimated bounds (they have been grown: the caller redoes
-    what relied on them)."""
+    (lengths share the trigonometric values of the rates). Returns 0 (a CALLBACK gait's l'''
+    is 0: its search uses the user's bounds alone)."""
     cdef int j, k, nl = g.nl, nk, code
     cdef double d, m, a0, jk, ft, th, w, amp, c, s, x, cx, sx, inv_d, sin_phi, cos_phi
     cdef double dphi, ddphi, dddphi, c1, s1, cc, ss, cn, wk, wk2, wk3, a_, b_
@@ -206,6 +334,10 @@ cdef inline int gait_eval(GaitData* g, double t, double* l, double* ld, double* 
             ld[j] = row[4 * j + 1] + d * (a0 + 0.5 * d * jk)
             ldd[j] = a0 + d * jk
             ld3[j] = jk
+        return 0
+    if g.kind == PROXY:
+        k = proxy_locate(g, t, &d, &m)
+        proxy_piece(g, k, d, l, ld, ldd, ld3)
         return 0
     if g.kind == CALLBACK:
         if l != NULL:
@@ -307,6 +439,8 @@ cdef inline double gait_next_break(GaitData* g, double t) except? -1.0:
         return next_jump(g, t)
     if g.kind == CALLBACK:
         return (<CompiledGait>g.obj).cb_next_break(t)
+    if g.kind == PROXY:
+        return proxy_next_break(g, t)
     return INFINITY
 
 
@@ -314,10 +448,17 @@ cdef inline int gait_is_constant(GaitData* g, double a, double b) except -1:
     """1 when l' = l'' = 0 on all of [a, b] (pieces judged on their interiors)."""
     cdef int k
     cdef double d, m
+    cdef double buf[64]
+    cdef bint rest
     if g.constant:
         return 1
     if g.kind == CALLBACK:
         return (<CompiledGait>g.obj).cb_is_constant(a, b)
+    if g.kind == PROXY:
+        if g.nl > 32:
+            return 0
+        proxy_walk(g, a, b, buf, buf + 32, &rest)
+        return 1 if rest else 0
     if g.kind != TABLE:
         return 0
     if g.period > 0.0 and b - a >= g.period:
@@ -342,6 +483,7 @@ cdef inline int gait_bounds(GaitData* g, double a, double b, double* jerk,
     0 when l''' may jump inside (no snap bound: ``snap`` is then left undefined)."""
     cdef int j, k, k0, k1, kk, nl = g.nl, nb, first
     cdef double d, m, u0, x, st
+    cdef bint rest
     if g.kind == FOURIER:
         for j in range(nl):
             jerk[j] = g.bj[j]
@@ -349,6 +491,9 @@ cdef inline int gait_bounds(GaitData* g, double a, double b, double* jerk,
         return 1
     if g.kind == CALLBACK:
         return (<CompiledGait>g.obj).cb_bounds(a, b, jerk, snap)
+    if g.kind == PROXY:
+        # the bounds of the pieces' series; across a join the jerk may jump (no snap bound)
+        return 1 if proxy_walk(g, a, b, jerk, snap, &rest) == 1 else 0
     if g.kind == SCALLOP:
         # bins k0 .. k1 that [a, b] touches (wrapping); each bin bound holds on its closed bin
         nb = g.nb

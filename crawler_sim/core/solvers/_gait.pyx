@@ -15,7 +15,7 @@ import numpy as np
 from libc.math cimport fabs, isfinite, nextafter, INFINITY, NAN
 from cpython.mem cimport PyMem_Malloc, PyMem_Free
 
-__all__ = ['CompiledGait', 'fourier', 'scallop', 'table', 'callback']
+__all__ = ['CompiledGait', 'fourier', 'scallop', 'table', 'callback', 'proxy']
 
 
 _NO_LOCK = contextlib.nullcontext()
@@ -51,7 +51,6 @@ cdef class CompiledGait:
         self._t_rates = NAN
         self.span_lo = -INFINITY
         self.span_hi = INFINITY
-        self.estimate = None
         self.lock = _NO_LOCK
 
     @property
@@ -72,7 +71,7 @@ cdef class CompiledGait:
         if n == 0 or nl == 0:
             return l, ld, ldd
         for k in range(n):
-            if self.d.kind == CALLBACK:
+            if self.d.kind == CALLBACK or (self.d.kind == PROXY and not self._covers(tt[k])):
                 self._fetch(tt[k], True)
                 for j in range(nl):
                     L[k, j] = self._buf[0, j]
@@ -96,7 +95,7 @@ cdef class CompiledGait:
         if self.d.nl != 1:
             a, b, c = self.at(t)
             return float(a[0]), float(b[0]), float(c[0])
-        if self.d.kind == CALLBACK:
+        if self.d.kind == CALLBACK or (self.d.kind == PROXY and not self._covers(t)):
             self._fetch(t, True)
             return self._buf[0, 0], self._buf[1, 0], self._buf[2, 0]
         gait_eval(&self.d, t, l, ld, ldd, ld3)
@@ -107,7 +106,7 @@ cdef class CompiledGait:
         values come from Python: the caller checks their shapes and values there)."""
         cdef int nl = self.d.nl, j
         cdef double* w
-        if self.d.kind == CALLBACK:
+        if self.d.kind == CALLBACK or self.d.kind == PROXY:
             return False
         if nl == 0:
             return True
@@ -200,37 +199,14 @@ cdef class CompiledGait:
         return 0
 
     cdef int cb_rates(self, double t, double* ld, double* ldd, double* ld3) except -1:
+        """l' and l'' from the user's functions; l''' 0 (the search of a CALLBACK gait uses
+        the user's bounds alone, no slope of l'')."""
         cdef int j, nl = self.d.nl
-        cdef double s, dd, x
         self._fetch(t, False)
         for j in range(nl):
             ld[j] = self._buf[1, j]
             ldd[j] = self._buf[2, j]
             ld3[j] = 0.0
-        if not self.estimated:
-            # rigorous bounds given: the search needs no slope of l''
-            return 0
-        # l''' by a difference of l'' inside the span being integrated (estimate.py)
-        dd = self._diff_step(t)
-        s = t + dd
-        if s > self.span_hi:
-            s = t - dd
-            if s < self.span_lo:
-                s = self.span_hi if self.span_hi != t else self.span_lo
-        if s == t or not isfinite(s):
-            return 0
-        if self._fns is None:
-            acc = _row(self._gait.at(s)[2], nl)
-        elif self._scalar:
-            acc = (float(self._fns[2](s)),)
-        else:
-            acc = _row(self._fns[2](s), nl)
-        for j in range(nl):
-            x = (acc[j] - ldd[j]) / (s - t)
-            ld3[j] = x
-        if self._check(t, ld3):
-            self.exceeded += 1
-            return 1
         return 0
 
     cdef int cb_bounds(self, double a, double b, double* jerk, double* snap) except -1:
@@ -238,15 +214,11 @@ cdef class CompiledGait:
         jb = self._jerk
         if callable(jb):
             jb = jb(a, b)
-            if jb is not None:
-                jb = _user_bound(jb, nl, a, b)
-        if jb is None:
-            # no bound given (here): the estimate's, and the checks of every value against it
-            self.estimated = True
-            est = self.estimate
-            if not (est.lo <= a and b <= est.hi):
-                est.ensure(a, b, self.span_lo, self.span_hi)
-            return self._lookup(a, b, jerk, snap)
+            if jb is None:
+                raise ValueError(f'jerk_bound({a!r}, {b!r}) gave no bound: it must return '
+                                 'bounds of |l\'\'\'| >= 0 m/s^3 (or give the gait no '
+                                 'jerk_bound)')
+            jb = _user_bound(jb, nl, a, b)
         for j in range(nl):
             jerk[j] = jb[j]
         if self._fns is None:       # a Gait subclass: its own snap bound, if any
@@ -257,84 +229,6 @@ cdef class CompiledGait:
                     snap[j] = sb[j]
                 return 1
         return 0
-
-    # the estimate's cells (``estimate.BoundEstimate``), read through views kept until its
-    # arrays change
-    cdef int _sync(self) except -1:
-        est = self.estimate
-        st = est.starts
-        if st is not self._est_starts:
-            self._est_starts = st
-            self._st = st
-            self._d1 = est.d1
-            self._d2 = est.d2
-            self._safety = est.SAFETY
-        return 0
-
-    cdef int _lookup(self, double a, double b, double* jerk, double* snap) except -1:
-        """``SAFETY`` times the largest differences of the cells [a, b] touches, each cell with
-        its two neighbours (its end samples may miss a rise inside it)."""
-        cdef int n, k, j, k0, k1, nl = self.d.nl
-        self._sync()
-        n = self._st.shape[0]
-        k0 = _cell(self._st, a)
-        k1 = _cell(self._st, b)
-        if k1 > k0 and self._st[k1] >= b:
-            k1 -= 1
-        k0 = max(k0 - 1, 0)
-        k1 = min(k1 + 1, n - 1)
-        for j in range(nl):
-            jerk[j] = 0.0
-            snap[j] = 0.0
-        for k in range(k0, k1 + 1):
-            for j in range(nl):
-                if self._d1[k, j] > jerk[j]:
-                    jerk[j] = self._d1[k, j]
-                if self._d2[k, j] > snap[j]:
-                    snap[j] = self._d2[k, j]
-        for j in range(nl):
-            jerk[j] *= self._safety
-            snap[j] *= self._safety
-        return 1
-
-    cdef bint _check(self, double t, double* ld3) except -1:
-        """True, with the cell of t grown to the jerk it saw (its snap in proportion), when the
-        jerk at t exceeds the bound the cells give there."""
-        cdef double bound, x, ratio
-        cdef int n, k, j, kk, nl = self.d.nl
-        cdef bint grew = False
-        self._sync()
-        n = self._st.shape[0]
-        if n == 0:
-            return False
-        k = _cell(self._st, t)
-        for j in range(nl):
-            bound = 0.0
-            for kk in range(max(k - 1, 0), min(k + 2, n)):
-                if self._d1[kk, j] > bound:
-                    bound = self._d1[kk, j]
-            x = fabs(ld3[j])
-            if x > self._safety * bound:
-                ratio = x / max(self._d1[k, j], 1e-300)
-                if ratio < 1.0:
-                    ratio = 1.0
-                self._d1[k, j] = max(self._d1[k, j], x)
-                self._d2[k, j] = self._d2[k, j] * ratio
-                grew = True
-        return grew
-
-    cdef double _diff_step(self, double t) except -1.0:
-        """The difference step of the jerk: 1e-4 of the width of the cell of t, and at least
-        64 floats of t (``estimate.BoundEstimate.diff_step``)."""
-        cdef int n, k
-        cdef double w
-        self._sync()
-        n = self._st.shape[0]
-        if n == 0:
-            return self.estimate.diff_step(t)
-        k = _cell(self._st, t)
-        w = (self._st[k + 1] if k + 1 < n else <double>self.estimate.hi) - self._st[k]
-        return max(1e-4 * w, 64.0 * (nextafter(fabs(t), INFINITY) - fabs(t)) + 1e-300)
 
     cdef double cb_next_break(self, double t) except? -1.0:
         cdef double w
@@ -358,6 +252,36 @@ cdef class CompiledGait:
     cdef int cb_is_constant(self, double a, double b) except -1:
         return 1 if self._gait.is_constant(a, b) else 0
 
+    # ------------------------------------------------------------------ PROXY kind
+    cdef bint _covers(self, double t) noexcept:
+        """The table holds t: Python reads the pieces the solvers used there; elsewhere the
+        user's functions (nothing is built outside a solve)."""
+        return self.d.period > 0.0 or (self.d.n > 0 and self.d.knots[0] <= t
+                                       and t <= self.d.knots[self.d.n])
+    cdef int px_ensure(self, double t) except -1:
+        """The table built up to t (inside the span being integrated), then read."""
+        self.table.ensure(t, self.span_lo, self.span_hi)
+        return self.px_sync()
+
+    cdef int px_sync(self) except -1:
+        """Point the struct at the table's arrays (kept alive here)."""
+        tb = self.table
+        knots, coef, ncoef, bj, bs = tb.knots, tb.coef, tb.ncoef, tb.bj, tb.bs
+        rest = np.ascontiguousarray(tb.rest, dtype=np.uint8)
+        self._keep = (knots, coef, ncoef, bj, bs, rest)
+        cdef int[::1] nc = ncoef
+        self.d.n = <int>ncoef.shape[0]
+        self.d.knots = _dptr(knots)
+        self.d.coef = _dptr(coef)
+        self.d.ncoef = &nc[0] if self.d.n else NULL
+        self.d.bj = _dptr(bj)
+        self.d.bs = _dptr(bs)
+        self.d.rest = _bptr(rest)
+        self.d.stride = coef.shape[3]
+        self.d.period = float(tb.period) if tb.periodic else 0.0
+        self.d.hint = 0
+        return 0
+
 
 def _row(v, int nl):
     """A user value as a tuple of nl floats."""
@@ -365,18 +289,6 @@ def _row(v, int nl):
     if a.size != nl:
         raise ValueError(f'gait values must have {nl} entries (one per linkage), got {a.size}')
     return a.tolist()
-
-
-cdef int _cell(double[::1] starts, double t) noexcept:
-    """The estimate's cell holding t (the first or last cell outside its span)."""
-    cdef Py_ssize_t lo = 0, hi = starts.shape[0], mid
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        if starts[mid] <= t:
-            lo = mid + 1
-        else:
-            hi = mid
-    return <int>max(lo - 1, 0)
 
 
 def _user_bound(jb, int nl, double a, double b):
@@ -515,13 +427,11 @@ def table(coef, *, starts=None, anchors=None, knots=None, period=None,
     return g
 
 
-def callback(gait, int n_links, estimate, fns=None, jerk=None,
-             breakpoints=None) -> CompiledGait:
-    """A Python gait: ``fns`` = (l, l', l'') callables of one float (else ``gait.at``);
-    ``jerk``: a bound of |l'''| [m/s^3] (an array (nl,), or a callable (t0, t1) -> bounds or
-    None), else (or where it gives None) the bounds of ``estimate``
-    (``estimate.BoundEstimate``); ``breakpoints``: the sorted times where l'' jumps (None:
-    ``gait.breakpoints``)."""
+def callback(gait, int n_links, fns=None, jerk=None, breakpoints=None) -> CompiledGait:
+    """A Python gait with bounds of its own, its functions called at every evaluation:
+    ``fns`` = (l, l', l'') callables of one float (else ``gait.at``); ``jerk``: a bound of
+    |l'''| [m/s^3] (an array (nl,), or a callable (t0, t1) -> bounds); ``breakpoints``: the
+    sorted times where l'' jumps (None: ``gait.breakpoints``)."""
     cdef CompiledGait g = CompiledGait()
     g.d.kind = CALLBACK
     g.d.nl = n_links
@@ -530,8 +440,6 @@ def callback(gait, int n_links, estimate, fns=None, jerk=None,
     g._gait = gait
     g._fns = fns
     g._jerk = jerk
-    g.estimate = estimate
-    g.estimated = jerk is None
     g.lock = threading.Lock()
     g._buf = np.zeros((4, max(n_links, 1)))
     g._scalar = False
@@ -543,3 +451,179 @@ def callback(gait, int n_links, estimate, fns=None, jerk=None,
     g._keep = _f64(breakpoints) if breakpoints is not None else None
     g.d.constant = False
     return g
+
+
+def proxy(gait, int n_links, table, fns=None) -> CompiledGait:
+    """A Python gait without bounds, evaluated in the solvers from the Chebyshev pieces of
+    ``table`` (``proxy.ChebTable``, built as they reach new times); from Python (``values``,
+    ``at``), the user's functions ``fns`` = (l, l', l'') (else ``gait.at``)."""
+    cdef CompiledGait g = CompiledGait()
+    g.d.kind = PROXY
+    g.d.nl = n_links
+    g.n_links = n_links
+    g.period = gait.period
+    g._gait = gait
+    g._fns = fns
+    g.table = table
+    g.lock = threading.Lock()
+    g._buf = np.zeros((4, max(n_links, 1)))
+    g._scalar = False
+    if fns is not None and n_links == 1:
+        try:
+            g._scalar = all(isinstance(f(0.0), (float, int)) for f in fns)
+        except Exception:       # not defined at 0: the general conversion
+            g._scalar = False
+    g.d.constant = False
+    g.px_sync()
+    return g
+
+
+# ---------------------------------------------------------------------- PROXY tables
+# The arithmetic of ``proxy.ChebTable`` (its module doc): Chebyshev series of sampled pieces.
+
+def cheb_fit(const double[:, :, ::1] f, const double[:, ::1] dct, const double[::1] a,
+             const double[::1] b, const double[::1] scale):
+    """Series of l'' on each piece from its values at the N + 1 nodes (``f`` (K, N + 1, nl),
+    node 0 at the piece's end b); the coefficients below the rounding of the values (64 eps
+    of their scale, the piece's or ``scale``, plus eps |t| times the series' own l''' bound)
+    set to zero. Returns (c (K, N + 1, nl), last (K,) index of the last kept coefficient,
+    tail (K,): the largest of the last three coefficients over the values' scale)."""
+    cdef Py_ssize_t K = f.shape[0], n1 = f.shape[1], nl = f.shape[2], k, i, q, j
+    c_arr = np.zeros((K, n1, nl))
+    last_arr = np.full(K, -1, dtype=np.intp)
+    tail_arr = np.zeros(K)
+    cdef double[:, :, ::1] c = c_arr
+    cdef Py_ssize_t[::1] last = last_arr
+    cdef double[::1] tail = tail_arr
+    cdef double s, vs, jb, tol, w, tm, eps = 2.220446049250313e-16
+    for k in range(K):
+        w = b[k] - a[k]
+        tm = max(fabs(a[k]), fabs(b[k]))
+        for j in range(nl):
+            vs = scale[j]
+            for i in range(n1):
+                vs = max(vs, fabs(f[k, i, j]))
+            jb = 0.0
+            for q in range(n1):
+                s = 0.0
+                for i in range(n1):
+                    s += dct[q, i] * f[k, i, j]
+                c[k, q, j] = s
+                jb += <double>(q * q) * fabs(s)
+            jb = jb * 2.0 / w if w > 0.0 else 0.0
+            if not isfinite(jb):
+                jb = 0.0
+            tol = 64.0 * eps * vs + eps * tm * jb + 1e-300
+            for q in range(max(n1 - 3, 0), n1):
+                tail[k] = max(tail[k], fabs(c[k, q, j]) / (vs + 1e-300))
+            for q in range(n1 - 1, -1, -1):
+                if fabs(c[k, q, j]) > tol:
+                    if q > last[k]:
+                        last[k] = q
+                    break
+        for q in range(last[k] + 1, n1):
+            for j in range(nl):
+                c[k, q, j] = 0.0
+    return c_arr, last_arr, tail_arr
+
+
+def cheb_series(const double[:, :, ::1] acc, const double[::1] a, const double[::1] b,
+                const double[:, :, ::1] states, int width):
+    """The four series of each piece from its l'' series ``acc`` (K, N + 1, nl) and the
+    user's (l, l') at its start, ``states`` (K + 1, 2, nl) (the last row: the end of the last
+    piece): l' and l by integration from u = -1, l''' and l'''' by differentiation, in time
+    units (d/dt = (2 / w) d/du).
+
+    Returns (coef (K, nl, 4, width), ncoef (K,), bj, bs (K, nl) = sums of |coefficients| of
+    l''' and l'''' (bounds on the piece: |T_k| <= 1), rest (K,), ends (K, 2, nl) = l and l'
+    of the series at each piece's end)."""
+    cdef Py_ssize_t K = acc.shape[0], n1 = acc.shape[1], nl = acc.shape[2], k, j, q, d, nc
+    coef_arr = np.zeros((K, nl, 4, width))
+    ncoef_arr = np.ones(K, dtype=np.intc)
+    bj_arr = np.zeros((K, nl))
+    bs_arr = np.zeros((K, nl))
+    rest_arr = np.ones(K, dtype=bool)
+    ends_arr = np.zeros((K, 2, nl))
+    cdef double[:, :, :, ::1] coef = coef_arr
+    cdef int[::1] ncoef = ncoef_arr
+    cdef double[:, ::1] bj = bj_arr, bs = bs_arr
+    cdef unsigned char[::1] rest = rest_arr.view(np.uint8)
+    cdef double[:, :, ::1] ends = ends_arr
+    cdef double half, inv, v, sgn, s
+    cdef double* c
+    cdef double* snap = <double*>PyMem_Malloc(width * sizeof(double))
+    if snap == NULL:
+        raise MemoryError()
+    try:
+        for k in range(K):
+            half = 0.5 * (b[k] - a[k])
+            inv = 1.0 / half if half > 0.0 else 0.0
+            for j in range(nl):
+                c = &coef[k, j, 0, 0]
+                # series 2: l''
+                for q in range(n1):
+                    c[2 * width + q] = acc[k, q, j]
+                # series 1 = integral of series 2, series 0 = integral of series 1
+                for d in range(2, 0, -1):
+                    _cheb_integrate(c + d * width, c + (d - 1) * width, width, half,
+                                    states[k, d - 1, j])
+                # series 3: l''' (derivative of series 2); l'''' only as a bound
+                _cheb_derive(c + 2 * width, c + 3 * width, width, inv)
+                _cheb_derive(c + 3 * width, snap, width, inv)
+                s = 0.0
+                for q in range(width):
+                    s += fabs(c[3 * width + q])
+                bj[k, j] = s
+                s = 0.0
+                for q in range(width):
+                    s += fabs(snap[q])
+                bs[k, j] = s
+                for d in range(2):
+                    v = 0.0
+                    for q in range(width):
+                        v += c[d * width + q]          # T_q(1) = 1
+                    ends[k, d, j] = v
+                for d in range(4):
+                    for q in range(width - 1, -1, -1):
+                        if c[d * width + q] != 0.0:
+                            if q + 1 > ncoef[k]:
+                                ncoef[k] = <int>(q + 1)
+                            if d == 1 or d == 2:
+                                rest[k] = 0
+                            break
+    finally:
+        PyMem_Free(snap)
+    return coef_arr, ncoef_arr, bj_arr, bs_arr, rest_arr, ends_arr
+
+
+cdef void _cheb_integrate(const double* c, double* out, Py_ssize_t n, double scale,
+                          double start) noexcept:
+    """out = start + scale * (integral of the series c from u = -1), both of length n (the
+    integral's top term dropped: c's last two are zero here)."""
+    cdef Py_ssize_t q
+    cdef double v = 0.0, sgn = -1.0
+    for q in range(n):
+        out[q] = 0.0
+    if n > 1:
+        out[1] = c[0] - (0.5 * c[2] if n > 2 else 0.0)
+    for q in range(2, n):
+        out[q] = (c[q - 1] - (c[q + 1] if q + 1 < n else 0.0)) / (2.0 * q)
+    for q in range(1, n):
+        v += sgn * out[q]                # value at u = -1: T_q(-1) = (-1)^q
+        sgn = -sgn
+    out[0] = -v
+    for q in range(n):
+        out[q] *= scale
+    out[0] += start
+
+
+cdef void _cheb_derive(const double* c, double* out, Py_ssize_t n, double scale) noexcept:
+    """out = scale * (derivative of the series c), both of length n."""
+    cdef Py_ssize_t q
+    for q in range(n):
+        out[q] = 0.0
+    for q in range(n - 1, 0, -1):
+        out[q - 1] = (out[q + 1] if q + 1 < n else 0.0) + 2.0 * q * c[q]
+    out[0] *= 0.5
+    for q in range(n):
+        out[q] *= scale

@@ -23,9 +23,9 @@ as one ``PeriodicBlock``), the records and events of the segments, the messages 
 Guarantee: for a gait whose ``jerk_bound`` (and ``snap_bound``, where it gives one) are true
 bounds on every interval (every built-in gait, and a ``Custom`` gait given ``jerk_bound=``), no
 contact event is missed and every event time is within ``tol`` seconds (or one float spacing of
-t) of the exact one; for a ``Custom`` gait without a bound, the bounds are estimated from a scan
-of the gait's l'' and grown whenever a later value contradicts them (``estimate``: reliable, not a
-proof).
+t) of the exact one. A gait of Python functions without bounds (a ``Custom`` gait without
+``jerk_bound``) is sampled into Chebyshev pieces to the rounding of its values (``proxy``) and
+the guarantee holds for those pieces: sampling, not a proof.
 """
 from __future__ import annotations
 
@@ -164,14 +164,9 @@ class ExactSolver:
             msg = (f'exact solver stalled after t = {t!r} s; report this scene (try '
                    'method="implicit")')
             exc = RuntimeError(msg)
-        elif status == _exact.NO_STEPS:
+        else:
             msg = (f'exact solver: the event search ran out of steps after t = {t!r} s; report '
                    'this scene (try method="implicit")')
-            exc = RuntimeError(msg)
-        else:
-            msg = (f'exact solver: the estimated bounds of the gait kept growing at t = '
-                   f'{core.bad_time!r} s; give the Custom gait jerk_bound= (a bound of |l\'\'\'| '
-                   'in m/s^3) or list the times where l\'\' jumps in breakpoints=')
             exc = RuntimeError(msg)
         self.status, self.message = 'failed', msg
         raise exc
@@ -288,9 +283,11 @@ class ExactSolver:
         chunk = segs.only_chunk()
         if chunk is not None:
             # the common run: one compiled call finds each time's segment and evaluates
-            x, v, R, K, lam, state, ind, l, ld = k.closed.sample(
-                chunk.gait.compiled(), chunk.f, chunk.ref, chunk.group, chunk.contact, chunk.R,
-                chunk.K0, np.ascontiguousarray(times, dtype=float))
+            cg = chunk.gait.compiled()
+            with cg.lock:        # a Custom gait's pieces are shared by its solvers
+                x, v, R, K, lam, state, ind, l, ld = k.closed.sample(
+                    cg, chunk.f, chunk.ref, chunk.group, chunk.contact, chunk.R, chunk.K0,
+                    np.ascontiguousarray(times, dtype=float))
             return {'x': x, 'v': v, 'friction': R, 'impulse': K, 'linkage_force': lam,
                     'lengths': l, 'rates': ld, 'contact': state, 'indeterminate': ind}
         n_t = times.size

@@ -173,6 +173,7 @@ class TimeStepper:
         self.status, self.message = 'ok', ''
         while True:
             with self._cg.lock:
+                self._cg.span_lo, self._cg.span_hi = self.t, t1
                 status = self._core.advance(self._cg, t1)
             self._drain()
             if status == _stepping.NONFINITE:
@@ -191,6 +192,8 @@ class TimeStepper:
         k = 0
         while True:
             with self._cg.lock:
+                self._cg.span_lo = self.t
+                self._cg.span_hi = float(times[-1]) if times.size else self.t
                 status, k = self._core.run(
                     self._cg, times, k, out['x'], out['v'], out['friction'], out['impulse'],
                     out['linkage_force'], out['lengths'], out['rates'], out['contact'],

@@ -283,14 +283,18 @@ def evaluate_records(crawler: Crawler, rec: Records, owner: NDArray[np.int64],
 def _gait_values(rec: Records, owner: NDArray[np.int64], tau: NDArray[np.float64]):
     """(l, l', l'') at ``tau[i]`` from the gait of row ``owner[i]`` (one call per gait)."""
     if len(rec.gaits) == 1:
-        return rec.gaits[0].compiled().values(tau)
+        cg = rec.gaits[0].compiled()
+        with cg.lock:
+            return cg.values(tau)
     which = rec.gait_id[owner]
     out = None
     for key, gait in enumerate(rec.gaits):
         sel = np.nonzero(which == key)[0]
         if not sel.size:
             continue
-        vals = gait.compiled().values(tau[sel])
+        cg = gait.compiled()
+        with cg.lock:
+            vals = cg.values(tau[sel])
         if out is None:
             out = tuple(np.empty((tau.size,) + v.shape[1:]) for v in vals)
         for o, v in zip(out, vals):

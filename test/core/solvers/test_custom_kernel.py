@@ -1,6 +1,6 @@
-"""A ``Custom`` gait on the compiled loop (the CALLBACK kind of ``core.solvers._gait``): the
-user's lambdas called from the segment loop, bounds estimated from a scan of l'' and grown when
-a value contradicts them (``core.solvers.estimate``), or the user's ``jerk_bound``.
+"""A ``Custom`` gait on the compiled loop: without ``jerk_bound`` its functions sampled into
+Chebyshev pieces (the PROXY kind of ``core.solvers._gait``, ``core.solvers.proxy``), with it
+the user's lambdas called from the segment loop and the user's bound (the CALLBACK kind).
 
 Reference: the independent event-driven oracle (test/support/oracle.py, written apart from the
 solvers, accurate to ~1e-12 m here); the tolerance is 1e-10 m. A search with bounds that fit
@@ -16,7 +16,6 @@ import pytest
 
 import crawler_sim as cs
 from crawler_sim import gaits
-from crawler_sim.core.solvers.estimate import BoundEstimate
 from crawler_sim.core.solvers.exact import ExactSolver
 
 from test.support.oracle import Oracle
@@ -99,31 +98,10 @@ def test_a_non_finite_acceleration_is_an_error_naming_it():
         cs.simulate(cs.Crawler([1, 1], [1, 1]), g, 1.0)
 
 
-def test_bounds_that_prove_too_small_are_grown_and_the_search_redone(monkeypatch):
-    # the first scan's estimate made 50 times too small: the search's values contradict it,
-    # the scan cell where that happened takes the value seen, the search runs again, and the
-    # answer is the oracle's
-    scan = BoundEstimate._scan
-    first = [True]
-
-    def small(self, a, b):
-        scan(self, a, b)
-        if first.pop() if first else False:
-            self.d1 /= 50.0
-            self.d2 /= 50.0
-    monkeypatch.setattr(BoundEstimate, '_scan', small)
-    c = cs.Crawler([1, 1], [0.5, 1])
-    g = _sine()
-    _, x = _run(c, g, 3.0)
-    ref, _ = Oracle.for_crawler(c, _sine_kin(1.0, 0.3, W)).solve(3.0, [0.0, 3.0], h=1e-4)
-    np.testing.assert_allclose(x, ref[1], rtol=0, atol=1e-10)
-    assert g.compiled().exceeded > 0
-
-
-def test_a_sharp_feature_sets_the_bounds_of_its_own_block_only():
+def test_a_sharp_feature_is_resolved_where_it_is():
     # a Scallop of asymmetry 0.006 as user lambdas: |l'''| in its sharp phase is ~1e5 times the
     # slow phase's. One bound for the whole run made the slow phase take ~1e6 evaluations
-    # (12.8 s); with blocks the run needs ~1e3. Reference: the oracle.
+    # (12.8 s); the pieces halve only where the gait is sharp. Reference: the oracle.
     sc = gaits.Scallop(1.0, 0.2, 1.0, 0.006)
     g = gaits.Custom(lambda t: sc.at(t)[0], lambda t: sc.at(t)[1], lambda t: sc.at(t)[2])
     c = cs.Crawler([1.0, 1.0], [1.0, 2.0])
@@ -252,22 +230,113 @@ def test_a_custom_gait_reused_for_a_longer_run_costs_what_a_fresh_one_does():
     assert reused <= 2 * fresh + 100, (fresh, reused)
 
 
-def test_a_periodic_gait_is_scanned_one_period_and_then_repeated():
-    # 1024 cells a period (estimate.PER_PERIOD): a sine's scan needs no refinement, so one
-    # period is 1025 evaluations of l'' (by count); the window of 4096 cells used to scan four
-    # periods of a periodic gait, three of them for nothing. Later stretches, near or far,
-    # are the first period's cells shifted: no evaluation.
+# ---------------------------------------------------------------- the Chebyshev pieces
+def _table(gait, t0, t1):
+    """The pieces a solve over [t0, t1] builds (``proxy.ChebTable``)."""
+    cg = gait.compiled()
+    cg.table.ensure(t0, t0, t1)
+    cg.table.ensure(t1, t0, t1)
+    return cg.table
+
+
+def test_the_pieces_match_the_functions_and_numpys_chebyshev_calculus():
+    # l = 1 + 0.3 (sin w t + 0.3 sin 2 w t) over 10 periods: each piece's four series
+    # (numpy.polynomial.chebyshev evaluates them, an implementation apart from ours) against
+    # the closed forms, to the rounding of the functions themselves (|t| eps l''' ~ 3e-13 at
+    # t = 10 for l''); l''' is numpy's derivative of our l'' series.
+    from numpy.polynomial import chebyshev as C
+    l3 = lambda t: -0.3 * W ** 3 * (math.cos(W * t) + 2.4 * math.cos(2 * W * t))  # noqa: E731
+    g = gaits.Custom(lambda t: 1 + 0.3 * (math.sin(W * t) + 0.3 * math.sin(2 * W * t)),
+                     lambda t: 0.3 * W * (math.cos(W * t) + 0.6 * math.cos(2 * W * t)),
+                     lambda t: -0.3 * W * W * (math.sin(W * t) + 1.2 * math.sin(2 * W * t)))
+    tb = _table(g, 0.0, 10.0)
+    ts = np.linspace(0.0, 10.0, 2001)
+    k = np.clip(np.searchsorted(tb.knots, ts, side='right') - 1, 0, tb.knots.size - 2)
+    a, b = tb.knots[k], tb.knots[k + 1]
+    u = (2 * ts - a - b) / (b - a)
+    fns = g._fns + (l3,)
+    scale = (1.3, 0.3 * W * 1.6, 0.3 * W * W * 2.2, 0.3 * W ** 3 * 3.4)
+    for d, fn in enumerate(fns):
+        got = np.array([C.chebval(u[i], tb.coef[k[i], 0, d]) for i in range(ts.size)])
+        want = np.array([fn(t) for t in ts])
+        assert np.max(np.abs(got - want)) < (1e-13, 1e-12, 1e-11, 2e-8)[d] * scale[d], d
+    for q in range(tb.knots.size - 1):
+        half = 0.5 * (tb.knots[q + 1] - tb.knots[q])
+        der = C.chebder(tb.coef[q, 0, 2]) / half
+        np.testing.assert_allclose(der, tb.coef[q, 0, 3][:der.size], rtol=0, atol=1e-9)
+        # the bound of |l'''| on each piece holds (sum of |coefficients|, |T_k| <= 1)
+        inside = (ts >= tb.knots[q]) & (ts <= tb.knots[q + 1])
+        assert np.max(np.abs([l3(t) for t in ts[inside]])) <= tb.bj[q, 0] * (1 + 1e-12)
+
+
+def test_a_run_calls_the_functions_once_per_cell_not_per_evaluation():
+    # 10 periods, no period given: 256 cells (1/256 of the span), 33 nodes per 32 cells, two
+    # values (l, l') per join; the search and the 161 output samples read the pieces. The
+    # answer is the oracle's.
     calls = []
+    g = _sine(calls=calls)
+    c = cs.Crawler([1, 1], [0.5, 1])
+    grid = np.linspace(0.0, 10.0, 161)
+    tr = cs.simulate(c, g, 10.0, t_eval=grid)
+    assert len(calls) <= 8 * 33 + 2 * 9 + 3 * 3, len(calls)
+    ref, _ = Oracle.for_crawler(c, _sine_kin(1.0, 0.3, W)).solve(10.0, grid, h=1e-4)
+    np.testing.assert_allclose(tr.x, ref, rtol=0, atol=1e-10)
 
-    def accel(t):
-        calls.append(t)
-        return -math.sin(2 * math.pi * t)
 
-    est = BoundEstimate(accel, 1, period=1.0)
-    est.ensure(0.0, 0.01, 0.0, 100.0)
-    assert 1025 <= len(calls) <= 1100 and max(calls) <= 1.0
-    assert est.lo == 0.0 and est.hi == 1.0
-    n = len(calls)
-    est.ensure(2.5, 2.6, 0.0, 100.0)
-    est.ensure(40.2, 40.3, 0.0, 100.0)
-    assert len(calls) == n and est.hi >= 40.3
+def test_a_periodic_gait_is_sampled_one_period_then_repeated():
+    # period= given: 1024 cells a period, 32 pieces of 33 nodes over [0, 1], none after it;
+    # the 20th period reads the first one's pieces (the oracle agrees)
+    calls = []
+    g = gaits.Custom(*_sine(calls=calls)._fns, period=1.0)
+    c = cs.Crawler([1, 1], [0.5, 1])
+    tr = cs.simulate(c, g, 20.0, t_eval=[0.0, 19.5, 20.0], periodic_skip=False)
+    assert len(calls) <= 32 * 33 + 2 * 33 + 3 * 3 and max(calls) <= 1.0, (len(calls), max(calls))
+    ref, _ = Oracle.for_crawler(c, _sine_kin(1.0, 0.3, W)).solve(20.0, [0.0, 19.5, 20.0],
+                                                               h=1e-4)
+    np.testing.assert_allclose(tr.x, ref, rtol=0, atol=1e-10)
+
+
+def test_a_kink_of_l_acceleration_is_found_in_one_split():
+    # l'' = 1 + slope (t - 0.3137), the slope -20 before and 80 after (l''' jumps, l'' is
+    # continuous: legal without breakpoints). The slopes' lines meet at the kink, where its
+    # piece is split: a few hundred evaluations, not the ~900 of halving; the run agrees with
+    # the same gait given the kink as a breakpoint (then each side is one polynomial).
+    tk, s0, s1 = 0.3137, -20.0, 80.0
+
+    def fns(d):
+        s = s1 if d > 0 else s0
+        return 1 + d + 0.5 * d * d + s * d ** 3 / 6, 1 + d + s * d * d / 2, 1 + s * d
+    calls = [0]
+
+    def acc(t):
+        calls[0] += 1
+        return fns(t - tk)[2]
+    g = gaits.Custom(lambda t: fns(t - tk)[0], lambda t: fns(t - tk)[1], acc)
+    c = cs.Crawler([1.0, 2.0], [0.3, 0.4])
+    x = cs.simulate(c, g, 1.0, t_eval=[0.0, 0.5, 1.0]).x
+    assert calls[0] < 400, calls[0]
+    gb = gaits.Custom(*g._fns, breakpoints=[tk])
+    xb = cs.simulate(c, gb, 1.0, t_eval=[0.0, 0.5, 1.0]).x
+    np.testing.assert_allclose(x, xb, rtol=0, atol=1e-12)
+    assert tk in g.compiled().table.knots
+
+
+def test_a_velocity_that_is_not_the_integral_of_the_acceleration_is_refused():
+    # l' off by a factor 2: the pieces' integral of l'' misses the user's l' at the first join
+    g = gaits.Custom(lambda t: 1 + 0.3 * math.sin(W * t), lambda t: 0.6 * W * math.cos(W * t),
+                     lambda t: -0.3 * W * W * math.sin(W * t))
+    with pytest.raises(ValueError, match=r"gait velocity of linkage 0 at t = .* derivatives"):
+        cs.simulate(cs.Crawler([1, 1], [1, 1]), g, 2.0)
+
+
+def test_the_rounding_of_a_late_time_is_not_taken_for_a_feature():
+    # sin(w t) near t = 1e6 s is known to |t| eps w ~ 1e-9 of its size: the pieces accept that
+    # noise (a tail halving no longer lowers) instead of halving down to nothing
+    t0 = 1e6
+    g = gaits.Custom(lambda t: 1 + 0.3 * math.sin(W * t), lambda t: 0.3 * W * math.cos(W * t),
+                     lambda t: -0.3 * W * W * math.sin(W * t))
+    st = cs.Stepper(cs.Crawler([1, 1], [1, 2]), g, t0=t0)
+    st.advance(t0 + 2.0)
+    tb = g.compiled().table
+    assert tb.knots.size < 200 and tb.calls < 10_000, (tb.knots.size, tb.calls)
+    assert np.all(np.isfinite(st.state.x))

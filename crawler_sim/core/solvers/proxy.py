@@ -1,0 +1,371 @@
+"""A gait of Python functions (a ``Custom`` gait without ``jerk_bound``, a user's ``Gait``
+subclass without bounds of its own), sampled into Chebyshev series to machine precision: the
+compiled kind PROXY of ``_gait.pxd`` evaluates them, so the solvers' loops run as fast as for
+a built-in gait and the user's functions are called only to build the pieces.
+
+A piece [a, b] takes l'' at the N + 1 = 33 Chebyshev points of its own interval, its series by
+a discrete cosine transform, and is kept when its last coefficients have fallen to the
+rounding of the values (``_tolerance``: 64 eps of the values' scale, plus what rounding a
+time of size |t| does to l'' through l'''); else it is halved and sampled again. l' and l are
+the series' integrals from the user's l'(a) and l(a), checked against l'(b) and l(b) (the
+next piece's anchors); l''' and l'''' are its derivatives, and the sums of their coefficients'
+magnitudes bound them on the piece (|T_k| <= 1). Every join of two pieces is reported as a
+breakpoint, so the solvers never assume l'' continuous across one.
+
+Sampling density (what the build can see): pieces are 32 cells wide and a cell is
+``T / 1024`` for a periodic gait, ``max_step / 8`` when one is given, else 1/256 of what is
+left of the span being integrated (never finer than before), as the bound scan it replaces:
+33 points per 32 cells (the points crowd at the ends: the widest gap is pi / 2 cells). A
+feature narrower than that between two points is not seen; a sharp one that a point touches
+makes its piece unhappy and is resolved by halving where it is. A periodic gait is sampled
+over one period and repeated.
+
+l'' that jumps (a contract breach: jumps must be listed in ``breakpoints=``) keeps a piece
+unhappy down to ``MIN_WIDTH`` of a cell: the jump is refused with its time. l''' that jumps
+(l'' with a kink) is legal: its pieces are halved down to that width around the kink (list
+such times in ``breakpoints=`` too and each piece is one polynomial at once).
+
+The user's functions are only called inside the span being integrated.
+"""
+from __future__ import annotations
+
+import math
+from typing import Callable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from . import _gait
+
+__all__ = ['ChebTable', 'N', 'L']
+
+N = 32                  # degree of a sampled piece (N + 1 Chebyshev points)
+L = N + 3               # coefficients per series (l has degree N + 2)
+PIECE = 32              # cells per piece
+PER_PERIOD = 1024       # cells per period of a periodic gait
+FIRST = 256             # cells of a span without a period or max_step
+WINDOW = 128            # most pieces built at once (before halving)
+MIN_WIDTH = 1e-6        # of a cell: the narrowest piece halving makes
+KEEP = 1 << 21          # most coefficients kept (the oldest pieces go)
+_JUMP = 1e-3            # l'' differing across a narrowest piece by this share of its scale
+NOISE = 1e-12            # a tail (over the values' scale) this small that halving keeps: noise
+MAX_PIECES = 100_000    # most pieces sampled in one build
+_EPS = np.finfo(float).eps
+
+_U = np.cos(np.pi * np.arange(N + 1) / N)                # nodes, from +1 down to -1
+
+
+def _dct() -> NDArray:
+    """Values at the nodes -> series: c_q = (2 / N) sum'' f_i cos(pi i q / N), the first and
+    last terms (in i and in q) halved (DCT-I)."""
+    q = np.arange(N + 1)[:, None]
+    i = np.arange(N + 1)[None, :]
+    dct = (2.0 / N) * np.cos(np.pi * i * q / N)
+    dct[:, [0, N]] *= 0.5
+    dct[[0, N], :] *= 0.5
+    return np.ascontiguousarray(dct)
+
+
+_DCT = _dct()
+
+
+class ChebTable:
+    """Pieces of one gait: ``knots`` (n + 1,) [s]; ``coef`` (n, nl, 4, L): the series of l
+    [m], l' [m/s], l'' [m/s^2] and l''' [m/s^3] in u in [-1, 1] over each piece; ``ncoef``
+    (n,) coefficients in use; ``bj`` / ``bs`` (n, nl) bounds of |l'''| [m/s^3] and |l''''|
+    [m/s^4] on each piece; ``rest`` (n,) l' = l'' = 0 on the piece. ``periodic``: the pieces
+    cover one period exactly, repeated from ``knots[0]``.
+
+    ``accel(t)`` gives the user's l'' at one time, ``state(t)`` its (l, l') (two values of
+    nl entries); ``breaks(t0, t1)`` the times in (t0, t1) where l'' may jump."""
+
+    def __init__(self, accel: Callable[[float], object],
+                 state: Callable[[float], tuple], n_links: int,
+                 period: float | None = None, max_step: float | None = None,
+                 breaks: Callable[[float, float], NDArray] | None = None) -> None:
+        self._accel = accel
+        self._state = state
+        self._breaks = breaks
+        self.nl = n_links
+        self.period = period
+        self.max_step = max_step
+        self.spacing = math.inf         # cell width [s], set by the first build
+        self.scale = np.zeros(n_links)  # largest |l''| seen [m/s^2]
+        self.keep = max(2 * WINDOW, KEEP // (4 * L * max(n_links, 1)))
+        self.calls = 0                  # evaluations of the user's functions
+        self._reset()
+
+    def _reset(self) -> None:
+        nl = self.nl
+        self.knots = np.zeros(0)
+        self.coef = np.zeros((0, nl, 4, L))
+        self.ncoef = np.zeros(0, dtype=np.intc)
+        self.bj = np.zeros((0, nl))
+        self.bs = np.zeros((0, nl))
+        self.rest = np.zeros(0, dtype=bool)
+        self.periodic = False
+        self._end_state = None          # (l, l') at knots[-1], shape (2, nl)
+        self._last_brk = False          # knots[-1] is a breakpoint
+        self._quiet = np.zeros(nl)      # see ``_build`` [m/s^2]
+        self._span = 0.0                # length of the window being built [s]
+
+    @property
+    def lo(self) -> float:
+        return float(self.knots[0]) if self.knots.size else math.inf
+
+    @property
+    def hi(self) -> float:
+        return float(self.knots[-1]) if self.knots.size else -math.inf
+
+    # ------------------------------------------------------------------ building
+    def ensure(self, t: float, span_lo: float, span_hi: float) -> None:
+        """Pieces up to t: continued from the last piece when t lies ahead of it and the
+        span starts inside the table, else a fresh table from t; a window at a time, never
+        past ``span_hi`` when t is inside the span (the user's functions are evaluated
+        where the solver integrates)."""
+        if self.periodic or (self.knots.size and self.lo <= t <= self.hi):
+            return
+        if self.knots.size and self.hi < t and self.lo <= span_lo <= self.hi:
+            start = self.hi
+        else:
+            self._reset()
+            start = t
+        stop = span_hi if (math.isfinite(span_hi) and span_hi >= t) else t
+        if stop <= start and not self.knots.size:
+            # a time outside any span (a solver reading its first state): that instant only
+            self._point(t)
+            return
+        self._set_spacing(start, stop)
+        while not self.knots.size or (self.hi < t and not self.periodic):
+            s = self.hi if self.knots.size else start
+            end = s + WINDOW * PIECE * self.spacing
+            if self.period:
+                end = min(end, (self.lo if self.knots.size else s) + self.period)
+            if stop > s:
+                end = min(end, stop)
+            self._build(s, max(end, t))
+            if self.period and self.hi - self.lo >= self.period:
+                self.periodic = True
+
+    def _point(self, t: float) -> None:
+        """A table of the one instant t: constant series of the user's values there."""
+        nl = self.nl
+        st = self._states([t])
+        acc = self._sample(np.array([t]), np.array([t]), np.zeros(1, bool), np.zeros(1, bool),
+                           nodes=False)
+        self.coef = np.zeros((1, nl, 4, L))
+        self.coef[0, :, :2, 0] = st[0].T
+        self.coef[0, :, 2, 0] = acc[0, 0]
+        self.knots = np.array([t, t])
+        self.ncoef = np.ones(1, dtype=np.intc)
+        self.bj = np.zeros((1, nl))
+        self.bs = np.zeros((1, nl))
+        self.rest = np.array([not (st[0, 1].any() or acc.any())])
+        self._end_state = st[0]
+
+    def _states(self, ts: list) -> NDArray:
+        """The user's (l, l') at the times ``ts``, shape (len(ts), 2, nl), checked."""
+        nl = self.nl
+        got = [self._state(x) for x in ts]
+        self.calls += 2 * len(ts)
+        try:
+            st = np.asarray(got, dtype=float).reshape(len(got), 2, nl)
+        except ValueError:
+            raise ValueError(f'gait values must have {nl} entries (one per linkage)') from None
+        if not np.isfinite(st).all():
+            k, i = map(int, np.argwhere(~np.isfinite(st).all(axis=2))[0])
+            raise ValueError(f"gait {('length', 'velocity')[i]} must be finite, got a "
+                             f'non-finite value at t = {ts[k]!r} s')
+        return st
+
+    def _set_spacing(self, start: float, stop: float) -> None:
+        cands = [self.period / PER_PERIOD if self.period else None,
+                 self.max_step / 8.0 if self.max_step else None]
+        cands = [c for c in cands if c]
+        if cands:
+            self.spacing = min(cands)
+        elif stop > start or math.isinf(self.spacing):
+            # 1/FIRST of what is left of the span, never finer than before: a long run on a
+            # gait object that served a short one first costs what a fresh one does
+            grid = max(stop - start, 1e-300) / FIRST
+            self.spacing = grid if math.isinf(self.spacing) else max(self.spacing, grid)
+
+    def _build(self, a: float, b: float) -> None:
+        """Pieces over [a, b]: split at the gait's breakpoints, then into pieces of
+        ``PIECE`` cells (at most ``WINDOW`` per stretch), each halved until happy."""
+        # the breakpoints inside (a, b], b included: a span may end at one (its end value is
+        # then read as the left limit)
+        cuts = ([float(x) for x in self._breaks(a, math.nextafter(b, math.inf))]
+                if self._breaks is not None and b > a else [])
+        edges = [a] + [c for c in cuts if a < c < b] + [b]
+        lefts, rights, brk = [], [], []
+        for x0, x1 in zip(edges[:-1], edges[1:]):
+            n = min(max(1, math.ceil((x1 - x0) / (PIECE * self.spacing) - 1e-9)), WINDOW)
+            e = np.linspace(x0, x1, n + 1)
+            e[0], e[-1] = x0, x1
+            lefts.extend(e[:-1].tolist())
+            rights.extend(e[1:].tolist())
+            brk.extend([False] * (n - 1) + [x1 in cuts])
+        first_left = bool(self.knots.size and a == self.hi and self._last_brk)
+        if self._end_state is None:
+            self._end_state = self._states([a])[0]
+        # the l'' that moves l by its own size over the window [m/s^2]: 64 eps of it is
+        # below what the user's arithmetic resolves (a tanh step's flat tails are quantised)
+        l0, v0 = np.abs(self._end_state)
+        self._span = b - a
+        self._quiet = (l0 + v0 * self._span) / self._span ** 2 if b > a else 0.0 * l0
+        self._append(*self._happy(np.array(lefts), np.array(rights), np.array(brk, bool),
+                                  first_left))
+
+    def _sample(self, a: NDArray, b: NDArray, bl: NDArray, br: NDArray,
+                nodes: bool = True) -> NDArray:
+        """l'' at each piece's nodes, shape (K, N + 1, nl) (at a only, (K, 1, nl), without
+        ``nodes``); a node on a breakpoint is read one float inside the piece (the side it
+        belongs to)."""
+        if nodes:
+            t = 0.5 * (a + b)[:, None] + 0.5 * (b - a)[:, None] * _U[None, :]
+            t[:, 0], t[:, N] = b, a
+            t[br, 0] = np.nextafter(b[br], -np.inf)
+            t[bl, N] = np.nextafter(a[bl], np.inf)
+        else:
+            t = a[:, None].copy()
+        ts = t.ravel().tolist()
+        fn = self._accel
+        vals = np.asarray([fn(x) for x in ts], dtype=float)
+        self.calls += len(ts)
+        if vals.size != len(ts) * self.nl:
+            raise ValueError(f'gait values must have {self.nl} entries (one per linkage), '
+                             f'got {vals.size // max(len(ts), 1)}')
+        vals = vals.reshape(t.shape + (self.nl,))
+        if not np.isfinite(vals).all():
+            k = int(np.nonzero(~np.isfinite(vals.reshape(-1, self.nl)).all(axis=1))[0][0])
+            raise ValueError(f'gait acceleration must be finite, got a non-finite value at '
+                             f't = {ts[k]!r} s')
+        return vals
+
+    def _happy(self, a: NDArray, b: NDArray, br: NDArray, first_left: bool):
+        """(a, b, right end a breakpoint, l'' series (K, N + 1, nl)) of the pieces, sorted;
+        the unhappy ones halved until happy."""
+        bl = np.zeros(a.size, dtype=bool)
+        bl[1:] = br[:-1]
+        bl[0] = first_left
+        min_w = MIN_WIDTH * self.spacing
+        parent = np.full(a.size, np.inf)        # the tail of the piece each one halves
+        out, count = [], 0
+        while a.size:
+            count += a.size
+            if count > MAX_PIECES:
+                raise ValueError(
+                    f'gait acceleration (l\'\') could not be resolved on [{float(a.min())!r}, '
+                    f'{float(b.max())!r}] s ({MAX_PIECES} pieces): is it continuous there? '
+                    'List the times where it jumps in breakpoints=')
+            f = self._sample(a, b, bl, br)
+            self.scale = np.maximum(self.scale, np.abs(f).max(axis=(0, 1)))
+            c, last, tail = _gait.cheb_fit(f, _DCT, a, b, np.maximum(self.scale, self._quiet))
+            w = b - a
+            tiny = w <= np.maximum(min_w, 64.0 * np.spacing(np.maximum(np.abs(a), np.abs(b))))
+            happy = last <= N - 3
+            # rounding of the user's arithmetic above ours: a tail at the noise floor that
+            # halving no longer lowers (a smooth function's falls by orders at each halving)
+            noise = (tail <= NOISE) & (tail > 0.25 * parent)
+            for k in np.nonzero(~happy & ~noise & tiny)[0].tolist():
+                self._refuse_jump(float(b[k]), f[k])
+            ok = happy | noise | tiny
+            out.append((a[ok], b[ok], br[ok], c[ok]))
+            split = ~ok
+            m = _split_points(a[split], b[split], f[split])
+            a, b = np.concatenate([a[split], m]), np.concatenate([m, b[split]])
+            br, bl = (np.concatenate([np.zeros(m.size, bool), br[split]]),
+                      np.concatenate([bl[split], np.zeros(m.size, bool)]))
+            parent = np.concatenate([tail[split], tail[split]])
+        a, b, br, c = (np.concatenate(x) for x in zip(*out))
+        order = np.argsort(a, kind='stable')
+        return a[order], b[order], br[order], c[order]
+
+    def _refuse_jump(self, b: float, f: NDArray) -> None:
+        """A narrowest piece whose l'' still differs across it by a sizeable share of its
+        scale: l'' jumps there (ValueError naming ``breakpoints=``); a kink passes."""
+        d = f[0] - f[N]
+        j = int(np.argmax(np.abs(d)))
+        if abs(d[j]) > _JUMP * self.scale[j] and abs(d[j]) > 1e-9 * self._quiet[j]:
+            raise ValueError(
+                f"gait acceleration (l'') of linkage {j} jumps by {d[j]:.6g} m/s^2 at "
+                f"t = {b!r} s: a Custom gait must list the times where l'' jumps in "
+                "breakpoints= (l'' must be continuous between breakpoints)")
+
+    def _append(self, a: NDArray, b: NDArray, br: NDArray, acc_c: NDArray) -> None:
+        """The pieces' series of l and l' from the user's values at their starts, checked at
+        their ends; the derivative series and the bounds."""
+        st = np.concatenate([self._end_state[None], self._states(b.tolist())])
+        coef, ncoef, bj, bs, rest, ends = _gait.cheb_series(acc_c, a, b, st, L)
+        _check_ends(a, b, ends, acc_c, st[1:], self._quiet, self._span)
+        self._end_state = st[-1]
+        self._last_brk = bool(br[-1])
+        self.knots = (np.concatenate([self.knots[:-1], a, b[-1:]]) if self.knots.size
+                      else np.concatenate([a, b[-1:]]))
+        self.coef = np.concatenate([self.coef, coef])
+        self.ncoef = np.concatenate([self.ncoef, ncoef])
+        self.bj = np.concatenate([self.bj, bj])
+        self.bs = np.concatenate([self.bs, bs])
+        self.rest = np.concatenate([self.rest, rest])
+        if self.rest.size > self.keep and not self.period:
+            drop = self.rest.size - self.keep
+            self.knots, self.coef = self.knots[drop:], self.coef[drop:]
+            self.ncoef, self.bj, self.bs = self.ncoef[drop:], self.bj[drop:], self.bs[drop:]
+            self.rest = self.rest[drop:]
+        for name in ('knots', 'coef', 'ncoef', 'bj', 'bs', 'rest'):
+            setattr(self, name, np.ascontiguousarray(getattr(self, name)))
+
+
+def _split_points(a: NDArray, b: NDArray, f: NDArray) -> NDArray:
+    """Where to halve each unresolved piece: at the node where the slope of l'' turns far
+    more than anywhere else (a kink or a jump of l''), else the middle. A split there narrows
+    a kink by the nodes' spacing (about N / pi) rather than by 2."""
+    t = 0.5 * (a + b)[:, None] + 0.5 * (b - a)[:, None] * _U[None, ::-1]  # ascending
+    v = f[:, ::-1]                                                          # (K, N + 1, nl)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        slope = np.diff(v, axis=1) / np.diff(t, axis=1)[:, :, None]
+        turn = np.abs(np.diff(slope, axis=1)).max(axis=2)                   # (K, N - 1)
+    turn = np.where(np.isfinite(turn), turn, 0.0)
+    k = np.argmax(turn, axis=1)
+    r = np.arange(k.size)
+    top = turn[r, k]
+    rest = np.sort(turn, axis=1)[:, -4]        # the fourth largest (a kink moves two or three)
+    sharp = top > 16.0 * rest
+    # the kink sits in gap k or k + 1 (around node k + 1): where the line through the gap
+    # before them meets the line through the gap after them (exact for a kinked line)
+    j = np.argmax(np.abs(np.diff(slope, axis=1))[r, k], axis=1)          # its linkage
+    kl, kr = np.clip(k - 1, 0, N - 1), np.clip(k + 2, 0, N - 1)
+    sl, sr = slope[r, kl, j], slope[r, kr, j]
+    fl, fr = v[r, kl + 1, j], v[r, kr, j]
+    tl, tr = t[r, kl + 1], t[r, kr]
+    with np.errstate(divide='ignore', invalid='ignore'):
+        meet = (fr - fl + sl * tl - sr * tr) / (sl - sr)
+    node = t[r, k + 1]
+    lo_, hi_ = t[r, k], t[r, np.minimum(k + 2, N)]
+    meet = np.where(np.isfinite(meet) & (meet > lo_) & (meet < hi_), meet, node)
+    inside = (meet > a + 1e-9 * (b - a)) & (meet < b - 1e-9 * (b - a))
+    return np.where(sharp & inside, meet, 0.5 * (a + b))
+
+
+def _check_ends(a: NDArray, b: NDArray, ends: NDArray, acc: NDArray, user: NDArray,
+                quiet: NDArray, h: float) -> None:
+    """l and l' of each piece's series at its end (``ends`` (K, 2, nl)) against the user's
+    (``user``): a gait whose length and velocity are not the integrals of its acceleration
+    is refused (its pieces would not join). Differences within the rounding of the user's
+    arithmetic pass (64 eps of l, and of l over the window's length h for l')."""
+    w = (b - a)[:, None]
+    amax = np.abs(acc).sum(axis=1)
+    tol_v = 1e-6 * (np.abs(user[:, 1]) + w * amax) + 64.0 * _EPS * h * quiet
+    tol_l = (1e-6 * (np.abs(user[:, 0]) + w * np.abs(user[:, 1]) + w * w * amax)
+             + 64.0 * _EPS * h * h * quiet + 1e-300)
+    for i, tol in ((1, tol_v), (0, tol_l)):
+        bad = np.abs(ends[:, i] - user[:, i]) > tol
+        if bad.any():
+            k, j = map(int, np.argwhere(bad)[0])
+            name, what = (('velocity', "l' from the integral of l''") if i else
+                          ('length', "l from the integral of l'"))
+            raise ValueError(
+                f'gait {name} of linkage {j} at t = {float(b[k])!r} s is {user[k, i, j]!r}, '
+                f'but {what} from t = {float(a[k])!r} s gives {ends[k, i, j]!r}: a gait\'s '
+                'length, velocity and acceleration must be each other\'s derivatives')
