@@ -4,8 +4,8 @@ implicit method's speed and convergence, and the cold start.
 Scenes: l = 1 + 0.3 (sin wt + 0.3 sin 2wt), T = 10 periods, from rest (body 0 at x = 0):
 m = (1, 1), f = (0.5, 1) at 1 Hz; m = (1, 2), f = (1, 1) at 1 Hz; m = (1, 1), f = (5, 10) at
 5 Hz. Each with the built-in ``Fourier`` gait and with the ``Custom`` gait of plain ``math.sin``
-lambdas without a period (the issue's user gait), made anew for every timed run, so the scan
-of its estimated bounds (``core.solvers.callback``), once per gait object, is timed too.
+lambdas without a period (the issue's user gait), made anew for every timed run, so its
+sampling into Chebyshev pieces (``core.solvers.proxy``), once per gait object, is timed too.
 
 * exact: ``simulate(..., t_eval=grid)`` with the defaults (periodic skip allowed), whatever
   solver is on this branch;

@@ -353,10 +353,10 @@ def test_batched_sampling_equals_each_segments_own_closed_form(scene):
 
 
 # ----------------------------------------------------------------------------------------------
-# Two routes of the exact solver's event search (crawler_sim.core.solvers.events): rigorous
-# interval bounds from Gait.jerk_bound / snap_bound, and, for a gait that hides them, bounds
-# estimated from the gait's own values (segments redone when an estimate proves too small).
-# Both must find the same events and states: each is the other's independent reference.
+# Two routes of the exact solver's event search: rigorous interval bounds from the built-in
+# gait's compiled kind, and, for a gait that hides its bounds, the Chebyshev pieces its own
+# values are sampled into (crawler_sim.core.solvers.proxy). Both must find the same events and
+# states: each is the other's independent reference.
 def _no_jerk_bound(gait):
     class Hidden(type(gait)):
         def jerk_bound(self, t0, t1):
@@ -387,7 +387,7 @@ def _actuator_windows(seed, n_windows=300, per=10, dt=1e-3):
 
 
 @pytest.mark.parametrize('scene', ['actuator_p3', 'sinusoid_p4', 'parabolic_p2', 'scallop_p2'])
-def test_bounded_and_estimated_event_searches_find_the_same_events(scene):
+def test_bounded_and_sampled_event_searches_find_the_same_events(scene):
     def run(hide: bool):
         wrap = _no_jerk_bound if hide else (lambda g: g)
         if scene == 'actuator_p3':

@@ -107,7 +107,7 @@ def draw_case(family: str, seed: int) -> Case:
                     desc=f'custom w1={w1.tolist()} w2={w2.tolist()}', **kw)
     if family in ('custom_bound', 'custom_period'):
         # the 'custom' lambdas with a true jerk bound (the sum of a w^3), or a periodic copy of
-        # a sharp Scallop given period= (the estimate repeats one scanned period)
+        # a sharp Scallop given period= (sampled over one period, then repeated)
         if family == 'custom_period':
             r = float(10 ** rng.uniform(math.log10(0.005), math.log10(0.1)))
             src = G.Scallop(mean, amp, freq, r, phase)
@@ -177,8 +177,8 @@ def draw_case(family: str, seed: int) -> Case:
         return Case(kin=_vec(g), gait=g, breakpoints=np.empty(0), timescale=1 / (freq * K), desc=f'{freq=} {K=}', **kw)
     if family == 'custom_sharp':
         # the user's copy of a sharp Scallop or a many-harmonic Fourier gait as plain lambdas
-        # (no period, no bound): the compiled loop's estimated bounds, scan cells and
-        # stretches (``solvers.callback``) against the oracle fed the built-in gait
+        # (no period, no bound): the Chebyshev pieces (``solvers.proxy``) against the
+        # oracle fed the built-in gait
         if rng.random() < 0.6:
             r = float(10 ** rng.uniform(math.log10(0.01), math.log10(0.1)))
             src = G.Scallop(mean, amp, freq, r if rng.random() < 0.5 else 1 - r, phase)

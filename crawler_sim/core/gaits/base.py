@@ -110,12 +110,15 @@ class Gait:
     4. Optionally override ``is_constant`` (rest intervals the solver can skip). It must return
        True only when l' == 0 and l'' == 0 on all of [t0, t1].
     5. Optionally override ``jerk_bound`` (and ``snap_bound``): with true bounds the exact
-       solver's event search is rigorous; without them it estimates them (``solvers.estimate``).
+       solver's event search is rigorous for your ``at`` (called at every evaluation);
+       without them (or where it returns None at t = 0) the gait is sampled into Chebyshev
+       pieces (``solvers.proxy``) that the solvers read.
 
     Every gait runs in the compiled solvers through ``compiled()``: the built-in gaits
     (``BuiltinGait``) as their own compiled kind, which their Python methods call too (one
-    arithmetic); any other gait, such as a user's subclass, through its Python methods behind
-    the compiled kind CALLBACK (slower per evaluation, the same loop).
+    arithmetic); any other gait, such as a user's subclass, through its Python methods: sampled
+    into the pieces of the kind PROXY, or, with bounds of its own, called at every evaluation
+    (the kind CALLBACK).
     """
 
     n_links: int

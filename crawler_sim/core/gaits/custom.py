@@ -18,16 +18,21 @@ class Custom(Gait):
 
     Optional hints for the exact solver (the more it knows, the less it must assume):
 
-    - ``breakpoints``: times where l'' jumps, so events there are placed without searching;
-    - ``period`` [s]: the gait repeats with this period (enables the periodic skip);
+    - ``breakpoints``: times where l'' jumps, so events there are placed without searching
+      (times where only l''' jumps may be listed too: each side is then sampled apart);
+    - ``period`` [s]: the gait repeats with this period (enables the periodic skip; the gait
+      is sampled over one period);
     - ``jerk_bound`` [m/s^3]: an upper bound of |l'''| (float, one per linkage, or a callable
-      ``(t0, t1) -> bounds`` on [t0, t1]). With it the event search is rigorous; without it
-      the solver estimates the bound from the gait's own values and redoes a search with a
-      larger estimate whenever a later value contradicts it (``solvers.estimate``);
-    - ``max_step`` [s]: the largest step between two event checks.
+      ``(t0, t1) -> bounds`` on [t0, t1]). With it the event search is rigorous for your
+      functions, called at every evaluation of the search (about 1 us each);
+    - ``max_step`` [s]: the largest step between two event checks (and the sampling: 8
+      cells per step).
 
-    Every form runs in the compiled segment loop (the callables called from it, about 1 us per
-    evaluation), at times inside the span being integrated only.
+    Without ``jerk_bound`` the functions are sampled into Chebyshev pieces to the rounding of
+    their values (``solvers.proxy``: l'' at about one point per cell, l and l' at each join,
+    checked to be its integrals) and the solver reads the pieces. Every form runs in the
+    compiled segment loop, the callables called at times inside the span being integrated
+    only.
     """
 
     def __init__(self, length: Callable[[float], ArrayLike],

@@ -237,10 +237,12 @@ cdef inline void proxy_piece(const GaitData* g, int k, double u, double* l, doub
         y1 = 0.0
         y2 = 0.0
         y3 = 0.0
+        if l != NULL:
+            for i in range(nc - 1, 0, -1):
+                z = c[i] + u2 * x0 - y0
+                y0 = x0
+                x0 = z
         for i in range(nc - 1, 0, -1):
-            z = c[i] + u2 * x0 - y0
-            y0 = x0
-            x0 = z
             z = c[st + i] + u2 * x1 - y1
             y1 = x1
             x1 = z

@@ -528,7 +528,8 @@ def cheb_fit(const double[:, :, ::1] f, const double[:, ::1] dct, const double[:
 
 
 def cheb_series(const double[:, :, ::1] acc, const double[::1] a, const double[::1] b,
-                const double[:, :, ::1] states, int width):
+                const double[:, :, ::1] states, int width, const double[::1] quiet,
+                double h):
     """The four series of each piece from its l'' series ``acc`` (K, N + 1, nl) and the
     user's (l, l') at its start, ``states`` (K + 1, 2, nl) (the last row: the end of the last
     piece): l' and l by integration from u = -1, l''' and l'''' by differentiation, in time
@@ -536,7 +537,10 @@ def cheb_series(const double[:, :, ::1] acc, const double[::1] a, const double[:
 
     Returns (coef (K, nl, 4, width), ncoef (K,), bj, bs (K, nl) = sums of |coefficients| of
     l''' and l'''' (bounds on the piece: |T_k| <= 1), rest (K,), ends (K, 2, nl) = l and l'
-    of the series at each piece's end)."""
+    of the series at each piece's end, mismatch: None, or (k, d, j) of the first end where
+    the series' l (d = 0) or l' (d = 1) misses the user's (``states[k + 1]``) by more than
+    1e-6 of the scales and the rounding of the user's arithmetic (64 eps of ``quiet`` [m/s^2]
+    times h^2, h for l': ``quiet`` moves l by its own size over the window's length h))."""
     cdef Py_ssize_t K = acc.shape[0], n1 = acc.shape[1], nl = acc.shape[2], k, j, q, d, nc
     coef_arr = np.zeros((K, nl, 4, width))
     ncoef_arr = np.ones(K, dtype=np.intc)
@@ -549,11 +553,13 @@ def cheb_series(const double[:, :, ::1] acc, const double[::1] a, const double[:
     cdef double[:, ::1] bj = bj_arr, bs = bs_arr
     cdef unsigned char[::1] rest = rest_arr.view(np.uint8)
     cdef double[:, :, ::1] ends = ends_arr
-    cdef double half, inv, v, sgn, s
+    cdef double half, inv, v, sgn, s, amax, w, tol, eps = 2.220446049250313e-16
+    cdef Py_ssize_t bad[3]
     cdef double* c
     cdef double* snap = <double*>PyMem_Malloc(width * sizeof(double))
     if snap == NULL:
         raise MemoryError()
+    bad[0] = -1
     try:
         for k in range(K):
             half = 0.5 * (b[k] - a[k])
@@ -578,11 +584,27 @@ def cheb_series(const double[:, :, ::1] acc, const double[::1] a, const double[:
                 for q in range(width):
                     s += fabs(snap[q])
                 bs[k, j] = s
-                for d in range(2):
+                amax = 0.0
+                for q in range(n1):
+                    amax += fabs(acc[k, q, j])
+                for d in range(1, -1, -1):              # l' first: l follows from it
                     v = 0.0
                     for q in range(width):
                         v += c[d * width + q]          # T_q(1) = 1
                     ends[k, d, j] = v
+                    # against the user's value there: within 1e-6 of the scales, or the
+                    # rounding of the user's arithmetic (64 eps of l, of l / h for l')
+                    w = 2.0 * half
+                    if d == 1:
+                        tol = (1e-6 * (fabs(states[k + 1, 1, j]) + w * amax)
+                               + 64.0 * eps * h * quiet[j])
+                    else:
+                        tol = (1e-6 * (fabs(states[k + 1, 0, j]) + w * fabs(states[k + 1, 1, j])
+                                       + w * w * amax) + 64.0 * eps * h * h * quiet[j] + 1e-300)
+                    if bad[0] < 0 and not fabs(v - states[k + 1, d, j]) <= tol:
+                        bad[0] = k
+                        bad[1] = d
+                        bad[2] = j
                 for d in range(4):
                     for q in range(width - 1, -1, -1):
                         if c[d * width + q] != 0.0:
@@ -593,7 +615,8 @@ def cheb_series(const double[:, :, ::1] acc, const double[::1] a, const double[:
                             break
     finally:
         PyMem_Free(snap)
-    return coef_arr, ncoef_arr, bj_arr, bs_arr, rest_arr, ends_arr
+    mismatch = None if bad[0] < 0 else (bad[0], bad[1], bad[2])
+    return coef_arr, ncoef_arr, bj_arr, bs_arr, rest_arr, ends_arr, mismatch
 
 
 cdef void _cheb_integrate(const double* c, double* out, Py_ssize_t n, double scale,

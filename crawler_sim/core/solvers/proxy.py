@@ -225,8 +225,10 @@ class ChebTable:
         if nodes:
             t = 0.5 * (a + b)[:, None] + 0.5 * (b - a)[:, None] * _U[None, :]
             t[:, 0], t[:, N] = b, a
-            t[br, 0] = np.nextafter(b[br], -np.inf)
-            t[bl, N] = np.nextafter(a[bl], np.inf)
+            if br.any():
+                t[br, 0] = np.nextafter(b[br], -np.inf)
+            if bl.any():
+                t[bl, N] = np.nextafter(a[bl], np.inf)
         else:
             t = a[:, None].copy()
         ts = t.ravel().tolist()
@@ -262,9 +264,11 @@ class ChebTable:
             f = self._sample(a, b, bl, br)
             self.scale = np.maximum(self.scale, np.abs(f).max(axis=(0, 1)))
             c, last, tail = _gait.cheb_fit(f, _DCT, a, b, np.maximum(self.scale, self._quiet))
+            happy = last <= N - 3
+            if not out and happy.all():
+                return a, b, br, c     # the common window: every piece resolved at once
             w = b - a
             tiny = w <= np.maximum(min_w, 64.0 * np.spacing(np.maximum(np.abs(a), np.abs(b))))
-            happy = last <= N - 3
             # rounding of the user's arithmetic above ours: a tail at the noise floor that
             # halving no longer lowers (a smooth function's falls by orders at each halving)
             noise = (tail <= NOISE) & (tail > 0.25 * parent)
@@ -273,11 +277,15 @@ class ChebTable:
             ok = happy | noise | tiny
             out.append((a[ok], b[ok], br[ok], c[ok]))
             split = ~ok
+            if not split.any():
+                break
             m = _split_points(a[split], b[split], f[split])
             a, b = np.concatenate([a[split], m]), np.concatenate([m, b[split]])
             br, bl = (np.concatenate([np.zeros(m.size, bool), br[split]]),
                       np.concatenate([bl[split], np.zeros(m.size, bool)]))
             parent = np.concatenate([tail[split], tail[split]])
+        if len(out) == 1:
+            return out[0]             # nothing split: still in order
         a, b, br, c = (np.concatenate(x) for x in zip(*out))
         order = np.argsort(a, kind='stable')
         return a[order], b[order], br[order], c[order]
@@ -297,8 +305,10 @@ class ChebTable:
         """The pieces' series of l and l' from the user's values at their starts, checked at
         their ends; the derivative series and the bounds."""
         st = np.concatenate([self._end_state[None], self._states(b.tolist())])
-        coef, ncoef, bj, bs, rest, ends = _gait.cheb_series(acc_c, a, b, st, L)
-        _check_ends(a, b, ends, acc_c, st[1:], self._quiet, self._span)
+        coef, ncoef, bj, bs, rest, ends, bad = _gait.cheb_series(
+            acc_c, a, b, st, L, np.asarray(self._quiet, dtype=float), self._span)
+        if bad is not None:
+            _refuse_ends(a, b, ends, st[1:], *bad)
         self._end_state = st[-1]
         self._last_brk = bool(br[-1])
         self.knots = (np.concatenate([self.knots[:-1], a, b[-1:]]) if self.knots.size
@@ -348,24 +358,14 @@ def _split_points(a: NDArray, b: NDArray, f: NDArray) -> NDArray:
     return np.where(sharp & inside, meet, 0.5 * (a + b))
 
 
-def _check_ends(a: NDArray, b: NDArray, ends: NDArray, acc: NDArray, user: NDArray,
-                quiet: NDArray, h: float) -> None:
-    """l and l' of each piece's series at its end (``ends`` (K, 2, nl)) against the user's
-    (``user``): a gait whose length and velocity are not the integrals of its acceleration
-    is refused (its pieces would not join). Differences within the rounding of the user's
-    arithmetic pass (64 eps of l, and of l over the window's length h for l')."""
-    w = (b - a)[:, None]
-    amax = np.abs(acc).sum(axis=1)
-    tol_v = 1e-6 * (np.abs(user[:, 1]) + w * amax) + 64.0 * _EPS * h * quiet
-    tol_l = (1e-6 * (np.abs(user[:, 0]) + w * np.abs(user[:, 1]) + w * w * amax)
-             + 64.0 * _EPS * h * h * quiet + 1e-300)
-    for i, tol in ((1, tol_v), (0, tol_l)):
-        bad = np.abs(ends[:, i] - user[:, i]) > tol
-        if bad.any():
-            k, j = map(int, np.argwhere(bad)[0])
-            name, what = (('velocity', "l' from the integral of l''") if i else
-                          ('length', "l from the integral of l'"))
-            raise ValueError(
-                f'gait {name} of linkage {j} at t = {float(b[k])!r} s is {user[k, i, j]!r}, '
-                f'but {what} from t = {float(a[k])!r} s gives {ends[k, i, j]!r}: a gait\'s '
-                'length, velocity and acceleration must be each other\'s derivatives')
+def _refuse_ends(a: NDArray, b: NDArray, ends: NDArray, user: NDArray, k: int, i: int,
+                 j: int) -> None:
+    """The series of piece k miss the user's l (i = 0) or l' (i = 1) of linkage j at the
+    piece's end (``_gait.cheb_series``): the gait's length and velocity are not the
+    integrals of its acceleration (its pieces would not join)."""
+    name, what = (('velocity', "l' from the integral of l''") if i else
+                  ('length', "l from the integral of l'"))
+    raise ValueError(
+        f'gait {name} of linkage {j} at t = {float(b[k])!r} s is {float(user[k, i, j])!r}, '
+        f'but {what} from t = {float(a[k])!r} s gives {float(ends[k, i, j])!r}: a gait\'s '
+        'length, velocity and acceleration must be each other\'s derivatives')
