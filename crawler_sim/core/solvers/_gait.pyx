@@ -650,3 +650,41 @@ cdef void _cheb_derive(const double* c, double* out, Py_ssize_t n, double scale)
     out[0] *= 0.5
     for q in range(n):
         out[q] *= scale
+
+
+def cheb_sample(fn, const double[::1] a, const double[::1] b, bl, br, const double[::1] nodes,
+                int nl):
+    """The user's l'' (``fn`` of one float) at each piece's nodes: shape (K, len(nodes), nl),
+    node i of piece k at its centre + half its width times ``nodes[i]`` (from +1 down to -1:
+    its end b first, its start a last, exactly); a node on a breakpoint (``bl``, ``br``: the
+    piece starts / ends at one) read one float inside the piece, on the side it belongs to.
+    Values are checked: nl entries each, finite."""
+    cdef Py_ssize_t K = a.shape[0], n1 = nodes.shape[0], k, i, j
+    cdef double t, v
+    cdef const unsigned char[::1] left = np.ascontiguousarray(bl, dtype=np.uint8)
+    cdef const unsigned char[::1] right = np.ascontiguousarray(br, dtype=np.uint8)
+    out = np.empty((K, n1, nl))
+    cdef double[:, :, ::1] o = out
+    for k in range(K):
+        for i in range(n1):
+            if i == 0:
+                t = nextafter(b[k], -INFINITY) if right[k] else b[k]
+            elif i == n1 - 1:
+                t = nextafter(a[k], INFINITY) if left[k] else a[k]
+            else:
+                t = 0.5 * (a[k] + b[k]) + 0.5 * (b[k] - a[k]) * nodes[i]
+            x = fn(t)
+            if nl == 1 and type(x) is float:
+                o[k, i, 0] = <double>x
+            else:
+                row = np.asarray(x, dtype=float).reshape(-1)
+                if row.shape[0] != nl:
+                    raise ValueError(f'gait values must have {nl} entries (one per linkage), '
+                                     f'got {row.shape[0]}')
+                for j in range(nl):
+                    o[k, i, j] = row[j]
+            for j in range(nl):
+                if not isfinite(o[k, i, j]):
+                    raise ValueError(f'gait acceleration must be finite, got a non-finite '
+                                     f'value at t = {t!r} s')
+    return out

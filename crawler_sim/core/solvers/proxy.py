@@ -53,6 +53,7 @@ MAX_PIECES = 100_000    # most pieces sampled in one build
 _EPS = np.finfo(float).eps
 
 _U = np.cos(np.pi * np.arange(N + 1) / N)                # nodes, from +1 down to -1
+_ONE = np.array([1.0])                                   # the one node of an instant
 
 
 def _dct() -> NDArray:
@@ -220,30 +221,10 @@ class ChebTable:
     def _sample(self, a: NDArray, b: NDArray, bl: NDArray, br: NDArray,
                 nodes: bool = True) -> NDArray:
         """l'' at each piece's nodes, shape (K, N + 1, nl) (at a only, (K, 1, nl), without
-        ``nodes``); a node on a breakpoint is read one float inside the piece (the side it
-        belongs to)."""
-        if nodes:
-            t = 0.5 * (a + b)[:, None] + 0.5 * (b - a)[:, None] * _U[None, :]
-            t[:, 0], t[:, N] = b, a
-            if br.any():
-                t[br, 0] = np.nextafter(b[br], -np.inf)
-            if bl.any():
-                t[bl, N] = np.nextafter(a[bl], np.inf)
-        else:
-            t = a[:, None].copy()
-        ts = t.ravel().tolist()
-        fn = self._accel
-        vals = np.asarray([fn(x) for x in ts], dtype=float)
-        self.calls += len(ts)
-        if vals.size != len(ts) * self.nl:
-            raise ValueError(f'gait values must have {self.nl} entries (one per linkage), '
-                             f'got {vals.size // max(len(ts), 1)}')
-        vals = vals.reshape(t.shape + (self.nl,))
-        if not np.isfinite(vals).all():
-            k = int(np.nonzero(~np.isfinite(vals.reshape(-1, self.nl)).all(axis=1))[0][0])
-            raise ValueError(f'gait acceleration must be finite, got a non-finite value at '
-                             f't = {ts[k]!r} s')
-        return vals
+        ``nodes``; ``_gait.cheb_sample``)."""
+        out = _gait.cheb_sample(self._accel, a, b, bl, br, _U if nodes else _ONE, self.nl)
+        self.calls += out.shape[0] * out.shape[1]
+        return out
 
     def _happy(self, a: NDArray, b: NDArray, br: NDArray, first_left: bool):
         """(a, b, right end a breakpoint, l'' series (K, N + 1, nl)) of the pieces, sorted;
