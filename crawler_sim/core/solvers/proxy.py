@@ -5,8 +5,11 @@ a built-in gait and the user's functions are called only to build the pieces.
 
 A piece [a, b] takes l'' at the N + 1 = 33 Chebyshev points of its own interval, its series by
 a discrete cosine transform, and is kept when its last coefficients have fallen to the
-rounding of the values (``_tolerance``: 64 eps of the values' scale, plus what rounding a
-time of size |t| does to l'' through l'''); else it is halved and sampled again. l' and l are
+rounding of the values (``_gait.cheb_fit``: 64 eps of the values' scale, the largest of the
+piece's, of all seen so far and of the l'' that would move l by its own size over the window,
+plus what rounding a time of size |t| does to l'' through l'''); else it is split and sampled
+again. A tail at the noise floor that splitting no longer lowers (the user's own rounding, such
+as sin(w t) at t = 1e6 s) is accepted. l' and l are
 the series' integrals from the user's l'(a) and l(a), checked against l'(b) and l(b) (the
 next piece's anchors); l''' and l'''' are its derivatives, and the sums of their coefficients'
 magnitudes bound them on the piece (|T_k| <= 1). Every join of two pieces is reported as a
@@ -22,8 +25,10 @@ over one period and repeated.
 
 l'' that jumps (a contract breach: jumps must be listed in ``breakpoints=``) keeps a piece
 unhappy down to ``MIN_WIDTH`` of a cell: the jump is refused with its time. l''' that jumps
-(l'' with a kink) is legal: its pieces are halved down to that width around the kink (list
-such times in ``breakpoints=`` too and each piece is one polynomial at once).
+(l'' with a kink) is legal: where the slope of the samples turns far more than elsewhere, the
+piece is split where the lines through the samples on either side meet, which is the kink of
+a kinked line (list such times in ``breakpoints=`` and each side is one polynomial at once).
+Other pieces are halved.
 
 The user's functions are only called inside the span being integrated.
 """
@@ -48,7 +53,7 @@ WINDOW = 128            # most pieces built at once (before halving)
 MIN_WIDTH = 1e-6        # of a cell: the narrowest piece halving makes
 KEEP = 1 << 21          # most coefficients kept (the oldest pieces go)
 _JUMP = 1e-3            # l'' differing across a narrowest piece by this share of its scale
-NOISE = 1e-12            # a tail (over the values' scale) this small that halving keeps: noise
+NOISE = 1e-12           # a tail (over the values' scale) this small that splitting keeps: noise
 MAX_PIECES = 100_000    # most pieces sampled in one build
 _EPS = np.finfo(float).eps
 
