@@ -338,6 +338,13 @@ cdef inline int gait_eval(GaitData* g, double t, double* l, double* ld, double* 
             ld3[j] = jk
         return 0
     if g.kind == PROXY:
+        if (g.period <= 0.0 and not (g.n > 0 and g.knots[0] <= t <= g.knots[g.n])
+                and not ((<CompiledGait>g.obj).span_lo <= t <= (<CompiledGait>g.obj).span_hi)):
+            # outside the pieces and outside any solve (a solver reading its first state):
+            # the user's functions, as from Python; nothing is built
+            if l != NULL:
+                (<CompiledGait>g.obj).cb_lengths(t, l)
+            return (<CompiledGait>g.obj).cb_rates(t, ld, ldd, ld3)
         k = proxy_locate(g, t, &d, &m)
         proxy_piece(g, k, d, l, ld, ldd, ld3)
         return 0

@@ -102,12 +102,21 @@ cdef class CompiledGait:
         return l[0], ld[0], ldd[0]
 
     def finite_at(self, double t) -> bool:
-        """True when l, l' and l'' are finite at t [s]; False for a CALLBACK gait (its
-        values come from Python: the caller checks their shapes and values there)."""
+        """True when l, l' and l'' are finite at t [s]; for a gait of Python functions, also
+        that they give n_links values there (False on any failure: the caller checks the
+        values again and names what is wrong)."""
         cdef int nl = self.d.nl, j
         cdef double* w
         if self.d.kind == CALLBACK or self.d.kind == PROXY:
-            return False
+            try:
+                self._fetch(t, True)
+            except Exception:         # noqa: BLE001 (reported by the caller's own checks)
+                return False
+            for j in range(nl):
+                if not (isfinite(self._buf[0, j]) and isfinite(self._buf[1, j])
+                        and isfinite(self._buf[2, j])):
+                    return False
+            return True
         if nl == 0:
             return True
         w = <double*>PyMem_Malloc(4 * nl * sizeof(double))
@@ -465,6 +474,8 @@ def proxy(gait, int n_links, table, fns=None) -> CompiledGait:
     g._gait = gait
     g._fns = fns
     g.table = table
+    g.span_lo = INFINITY          # no solve yet: outside the pieces, the user's functions
+    g.span_hi = -INFINITY
     g.lock = threading.Lock()
     g._buf = np.zeros((4, max(n_links, 1)))
     g._scalar = False

@@ -126,7 +126,8 @@ class ChebTable:
     # ------------------------------------------------------------------ building
     def ensure(self, t: float, span_lo: float, span_hi: float) -> None:
         """Pieces up to t: continued from the last piece when t lies ahead of it and the
-        span starts inside the table, else a fresh table from t; a window at a time, never
+        span starts inside the table, else a fresh table from the span's start (from t
+        outside the span); a window at a time, never
         past ``span_hi`` when t is inside the span (the user's functions are evaluated
         where the solver integrates)."""
         if self.periodic or (self.knots.size and self.lo <= t <= self.hi):
@@ -135,7 +136,7 @@ class ChebTable:
             start = self.hi
         else:
             self._reset()
-            start = t
+            start = span_lo if math.isfinite(span_lo) and span_lo <= t <= span_hi else t
         stop = span_hi if (math.isfinite(span_hi) and span_hi >= t) else t
         if stop <= start and not self.knots.size:
             # a time outside any span (a solver reading its first state): that instant only
