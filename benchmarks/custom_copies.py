@@ -1,6 +1,6 @@
 """Differential check of the Custom gait's compiled path: a built-in gait (Scallop, Fourier,
-Sinusoid) run with its rigorous bounds against the same functions as ``Custom`` lambdas, whose
-bounds the solver estimates (``crawler_sim/core/solvers/callback.py``).
+Sinusoid) run with its rigorous bounds against the same functions as ``Custom`` lambdas, which
+the solver samples into Chebyshev pieces (``crawler_sim/core/solvers/proxy.py``).
 
 Random two- to four-body scenes (masses and frictions over two decades, direction-dependent
 friction in half of them, v0 != 0 in 30 %), 1-4 periods, 9 samples; a case is bad when the two

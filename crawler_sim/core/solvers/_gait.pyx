@@ -498,7 +498,7 @@ def cheb_fit(const double[:, :, ::1] f, const double[:, ::1] dct, const double[:
     node 0 at the piece's end b); the coefficients below the rounding of the values (64 eps
     of their scale, the piece's or ``scale``, plus eps |t| times the series' own l''' bound)
     set to zero. Returns (c (K, N + 1, nl), last (K,) index of the last kept coefficient,
-    tail (K,): the largest of the last three coefficients over the values' scale)."""
+    tail (K,): the largest of the last three coefficients over the piece's largest value)."""
     cdef Py_ssize_t K = f.shape[0], n1 = f.shape[1], nl = f.shape[2], k, i, q, j
     c_arr = np.zeros((K, n1, nl))
     last_arr = np.full(K, -1, dtype=np.intp)
@@ -506,14 +506,15 @@ def cheb_fit(const double[:, :, ::1] f, const double[:, ::1] dct, const double[:
     cdef double[:, :, ::1] c = c_arr
     cdef Py_ssize_t[::1] last = last_arr
     cdef double[::1] tail = tail_arr
-    cdef double s, vs, jb, tol, w, tm, eps = 2.220446049250313e-16
+    cdef double s, vs, local, jb, tol, w, tm, eps = 2.220446049250313e-16
     for k in range(K):
         w = b[k] - a[k]
         tm = max(fabs(a[k]), fabs(b[k]))
         for j in range(nl):
-            vs = scale[j]
+            local = 0.0
             for i in range(n1):
-                vs = max(vs, fabs(f[k, i, j]))
+                local = max(local, fabs(f[k, i, j]))
+            vs = max(scale[j], local)
             jb = 0.0
             for q in range(n1):
                 s = 0.0
@@ -526,7 +527,10 @@ def cheb_fit(const double[:, :, ::1] f, const double[:, ::1] dct, const double[:
                 jb = 0.0
             tol = 64.0 * eps * vs + eps * tm * jb + 1e-300
             for q in range(max(n1 - 3, 0), n1):
-                tail[k] = max(tail[k], fabs(c[k, q, j]) / (vs + 1e-300))
+                # over the piece's own values: the noise of the user's arithmetic is a share
+                # of what it computes there (a share of the largest value seen is too coarse
+                # where the gait is slow)
+                tail[k] = max(tail[k], fabs(c[k, q, j]) / (local + 1e-300))
             for q in range(n1 - 1, -1, -1):
                 if fabs(c[k, q, j]) > tol:
                     if q > last[k]:

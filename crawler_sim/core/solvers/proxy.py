@@ -53,7 +53,7 @@ WINDOW = 128            # most pieces built at once (before halving)
 MIN_WIDTH = 1e-6        # of a cell: the narrowest piece halving makes
 KEEP = 1 << 21          # most coefficients kept (the oldest pieces go)
 _JUMP = 1e-3            # l'' differing across a narrowest piece by this share of its scale
-NOISE = 1e-12           # a tail (over the values' scale) this small that splitting keeps: noise
+NOISE = 1e-8            # a tail (over the piece's values) this small that splitting keeps: noise
 MAX_PIECES = 100_000    # most pieces sampled in one build
 _EPS = np.finfo(float).eps
 

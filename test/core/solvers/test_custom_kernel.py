@@ -340,3 +340,20 @@ def test_the_rounding_of_a_late_time_is_not_taken_for_a_feature():
     tb = g.compiled().table
     assert tb.knots.size < 200 and tb.calls < 10_000, (tb.knots.size, tb.calls)
     assert np.all(np.isfinite(st.state.x))
+
+
+@pytest.mark.parametrize('r', [0.004, 0.002])
+def test_a_very_sharp_copy_is_resolved_to_its_own_rounding(r):
+    # a Scallop of asymmetry 0.002 computes its sharp phase's l'' with a rounding of ~3e-11 of
+    # its size (1 / (1 - cos(pi r)) ~ 1e5 amplifies eps): pieces there stop splitting at that
+    # floor (measured over each piece's own values: over the largest value seen, the slow
+    # phase's pieces were accepted 1e-7 off, 5e-9 m; with a floor below the rounding the
+    # build never ended). Reference: the built-in Scallop's rigorous run of the same formula.
+    sc = gaits.Scallop(1.0, 0.2, 1.0, r)
+    g = gaits.Custom(lambda t: sc.at1(t)[0], lambda t: sc.at1(t)[1], lambda t: sc.at1(t)[2])
+    c = cs.Crawler([1.0, 1.5], [1.0, 2.0])
+    t = np.linspace(0.0, 2.0, 9)
+    x = cs.simulate(c, g, 2.0, t_eval=t).x
+    ref = cs.simulate(c, sc, 2.0, t_eval=t).x
+    np.testing.assert_allclose(x, ref, rtol=0, atol=1e-10)
+    assert g.compiled().table.calls < 10_000
