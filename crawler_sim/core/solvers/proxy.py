@@ -208,10 +208,9 @@ class ChebTable:
         lefts, rights, brk = [], [], []
         for x0, x1 in zip(edges[:-1], edges[1:]):
             n = min(max(1, math.ceil((x1 - x0) / (PIECE * self.spacing) - 1e-9)), WINDOW)
-            e = np.linspace(x0, x1, n + 1)
-            e[0], e[-1] = x0, x1
-            lefts.extend(e[:-1].tolist())
-            rights.extend(e[1:].tolist())
+            e = [x0 + (x1 - x0) * i / n for i in range(n)] + [x1]
+            lefts.extend(e[:-1])
+            rights.extend(e[1:])
             brk.extend([False] * (n - 1) + [x1 in cuts])
         first_left = bool(self.knots.size and a == self.hi and self._last_brk)
         if self._end_state is None:
@@ -298,20 +297,22 @@ class ChebTable:
             _refuse_ends(a, b, ends, st[1:], *bad)
         self._end_state = st[-1]
         self._last_brk = bool(br[-1])
-        self.knots = (np.concatenate([self.knots[:-1], a, b[-1:]]) if self.knots.size
-                      else np.concatenate([a, b[-1:]]))
-        self.coef = np.concatenate([self.coef, coef])
-        self.ncoef = np.concatenate([self.ncoef, ncoef])
-        self.bj = np.concatenate([self.bj, bj])
-        self.bs = np.concatenate([self.bs, bs])
-        self.rest = np.concatenate([self.rest, rest])
+        # (concatenations and leading-axis slices stay C-contiguous, as the struct reads them)
+        if not self.knots.size:         # a fresh table: the window's arrays as they are
+            self.knots = np.append(a, b[-1])
+            self.coef, self.ncoef, self.bj, self.bs, self.rest = coef, ncoef, bj, bs, rest
+        else:
+            self.knots = np.concatenate([self.knots[:-1], a, b[-1:]])
+            self.coef = np.concatenate([self.coef, coef])
+            self.ncoef = np.concatenate([self.ncoef, ncoef])
+            self.bj = np.concatenate([self.bj, bj])
+            self.bs = np.concatenate([self.bs, bs])
+            self.rest = np.concatenate([self.rest, rest])
         if self.rest.size > self.keep and not self.period:
             drop = self.rest.size - self.keep
             self.knots, self.coef = self.knots[drop:], self.coef[drop:]
             self.ncoef, self.bj, self.bs = self.ncoef[drop:], self.bj[drop:], self.bs[drop:]
             self.rest = self.rest[drop:]
-        for name in ('knots', 'coef', 'ncoef', 'bj', 'bs', 'rest'):
-            setattr(self, name, np.ascontiguousarray(getattr(self, name)))
 
 
 def _split_points(a: NDArray, b: NDArray, f: NDArray) -> NDArray:
