@@ -134,6 +134,7 @@ class ChebTable:
             return
         if self.knots.size and self.hi < t and self.lo <= span_lo <= self.hi:
             start = self.hi
+            self._forget(span_lo)
         else:
             self._reset()
             start = span_lo if math.isfinite(span_lo) and span_lo <= t <= span_hi else t
@@ -153,6 +154,16 @@ class ChebTable:
             self._build(s, max(end, t))
             if self.period and self.hi - self.lo >= self.period:
                 self.periodic = True
+
+    def _forget(self, t: float) -> None:
+        """Drop the pieces that end before t (a solver never goes back before the span it
+        integrates; outside the pieces Python reads the user's functions): streaming in
+        short steps then copies a few pieces per step, not the whole table."""
+        k = int(np.searchsorted(self.knots, t, side='right')) - 1
+        if k > 0 and not self.period:
+            self.knots, self.coef = self.knots[k:], self.coef[k:]
+            self.ncoef, self.bj, self.bs = self.ncoef[k:], self.bj[k:], self.bs[k:]
+            self.rest = self.rest[k:]
 
     def _point(self, t: float) -> None:
         """A table of the one instant t: constant series of the user's values there."""
