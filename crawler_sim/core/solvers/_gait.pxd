@@ -95,11 +95,23 @@ cdef class CompiledGait:
 
 
 # ----------------------------------------------------------------------------- tables
+cdef inline int count_le(const double* x, int n, double t, double shift) noexcept nogil:
+    """How many of the sorted x[0 .. n - 1], each plus ``shift``, are <= t (binary search)."""
+    cdef int lo = 0, hi = n, mid
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if x[mid] + shift <= t:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
 cdef inline int table_locate(const GaitData* g, double t, double* d, double* m) noexcept nogil:
     """Piece of a TABLE gait at t (closed on the left), the offset d = t - its origin and, when
     periodic, its period index m (knot k of period m sits at knots[k] + m T, the last one at
     knots[0] + (m + 1) T, computed so at every time ``breakpoints`` reports)."""
-    cdef int lo, hi, mid, j
+    cdef int j
     cdef int K = g.n
     cdef double T, mm
     if g.period > 0.0:
@@ -108,15 +120,7 @@ cdef inline int table_locate(const GaitData* g, double t, double* d, double* m) 
         if g.knots[0] + (mm + 1.0) * T <= t:
             j = K + 1
         else:
-            lo = 0
-            hi = K
-            while lo < hi:
-                mid = (lo + hi) >> 1
-                if g.knots[mid] + mm * T <= t:
-                    lo = mid + 1
-                else:
-                    hi = mid
-            j = lo
+            j = count_le(g.knots, K, t, mm * T)
         if j == 0:
             mm -= 1.0
             j = K
@@ -128,15 +132,7 @@ cdef inline int table_locate(const GaitData* g, double t, double* d, double* m) 
         return j - 1
     j = g.hint
     if not (0 <= j < K and (j == 0 or g.starts[j] <= t) and (j == K - 1 or t < g.starts[j + 1])):
-        lo = 0
-        hi = K
-        while lo < hi:
-            mid = (lo + hi) >> 1
-            if g.starts[mid] <= t:
-                lo = mid + 1
-            else:
-                hi = mid
-        j = lo - 1
+        j = count_le(g.starts, K, t, 0.0) - 1
         if j < 0:
             j = 0
         (<GaitData*>g).hint = j
@@ -154,7 +150,7 @@ cdef inline double piece_start(const GaitData* g, int k, double m) noexcept nogi
 
 cdef inline double next_jump(const GaitData* g, double t) noexcept nogil:
     """The first breakpoint of a TABLE gait after t (INFINITY when none)."""
-    cdef int lo, hi, mid
+    cdef int lo
     cdef double T, m, b
     cdef int nj = g.n_jumps
     if nj == 0:
@@ -164,25 +160,11 @@ cdef inline double next_jump(const GaitData* g, double t) noexcept nogil:
         m = floor((t - g.knots[0]) / T) - 1.0
         while True:
             # the first breakpoint of period m after t, else the next period
-            lo = 0
-            hi = nj
-            while lo < hi:
-                mid = (lo + hi) >> 1
-                if g.jump_times[mid] + m * T <= t:
-                    lo = mid + 1
-                else:
-                    hi = mid
+            lo = count_le(g.jump_times, nj, t, m * T)
             if lo < nj:
                 return g.jump_times[lo] + m * T
             m += 1.0
-    lo = 0
-    hi = nj
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        if g.jump_times[mid] <= t:
-            lo = mid + 1
-        else:
-            hi = mid
+    lo = count_le(g.jump_times, nj, t, 0.0)
     return g.jump_times[lo] if lo < nj else INFINITY
 
 
@@ -190,7 +172,7 @@ cdef inline double next_jump(const GaitData* g, double t) noexcept nogil:
 cdef inline int proxy_locate(GaitData* g, double t, double* u, double* m) except -1:
     """Piece of a PROXY gait holding t (built first when t lies outside the table), the
     variable u in [-1, 1] there and, once the pieces are periodic, the period index m."""
-    cdef int lo, hi, mid, k, K
+    cdef int k, K
     cdef double tt = t, a, b
     if g.period <= 0.0 and not (g.n > 0 and g.knots[0] <= t <= g.knots[g.n]):
         (<CompiledGait>g.obj).px_ensure(t)
@@ -201,15 +183,7 @@ cdef inline int proxy_locate(GaitData* g, double t, double* u, double* m) except
     K = g.n
     k = g.hint
     if not (0 <= k < K and g.knots[k] <= tt and (tt < g.knots[k + 1] or k == K - 1)):
-        lo = 0
-        hi = K + 1
-        while lo < hi:
-            mid = (lo + hi) >> 1
-            if g.knots[mid] <= tt:
-                lo = mid + 1
-            else:
-                hi = mid
-        k = lo - 1
+        k = count_le(g.knots, K + 1, tt, 0.0) - 1
         if k < 0:
             k = 0
         if k > K - 1:

@@ -441,14 +441,23 @@ def callback(gait, int n_links, fns=None, jerk=None, breakpoints=None) -> Compil
     ``fns`` = (l, l', l'') callables of one float (else ``gait.at``); ``jerk``: a bound of
     |l'''| [m/s^3] (an array (nl,), or a callable (t0, t1) -> bounds); ``breakpoints``: the
     sorted times where l'' jumps (None: ``gait.breakpoints``)."""
+    cdef CompiledGait g = _python_gait(CALLBACK, gait, n_links, fns)
+    g._jerk = jerk
+    g._keep = _f64(breakpoints) if breakpoints is not None else None
+    return g
+
+
+cdef CompiledGait _python_gait(int kind, gait, int n_links, fns):
+    """The part of the CALLBACK and PROXY kinds that reads the user's functions (``_fetch``):
+    the gait, its callables, the buffer of their values, one solver at a time."""
     cdef CompiledGait g = CompiledGait()
-    g.d.kind = CALLBACK
+    g.d.kind = kind
     g.d.nl = n_links
+    g.d.constant = False
     g.n_links = n_links
     g.period = gait.period
     g._gait = gait
     g._fns = fns
-    g._jerk = jerk
     g.lock = threading.Lock()
     g._buf = np.zeros((4, max(n_links, 1)))
     g._scalar = False
@@ -457,8 +466,6 @@ def callback(gait, int n_links, fns=None, jerk=None, breakpoints=None) -> Compil
             g._scalar = all(isinstance(f(0.0), (float, int)) for f in fns)
         except Exception:       # not defined at 0: the general conversion
             g._scalar = False
-    g._keep = _f64(breakpoints) if breakpoints is not None else None
-    g.d.constant = False
     return g
 
 
@@ -466,25 +473,10 @@ def proxy(gait, int n_links, table, fns=None) -> CompiledGait:
     """A Python gait without bounds, evaluated in the solvers from the Chebyshev pieces of
     ``table`` (``proxy.ChebTable``, built as they reach new times); from Python (``values``,
     ``at``), the user's functions ``fns`` = (l, l', l'') (else ``gait.at``)."""
-    cdef CompiledGait g = CompiledGait()
-    g.d.kind = PROXY
-    g.d.nl = n_links
-    g.n_links = n_links
-    g.period = gait.period
-    g._gait = gait
-    g._fns = fns
+    cdef CompiledGait g = _python_gait(PROXY, gait, n_links, fns)
     g.table = table
     g.span_lo = INFINITY          # no solve yet: outside the pieces, the user's functions
     g.span_hi = -INFINITY
-    g.lock = threading.Lock()
-    g._buf = np.zeros((4, max(n_links, 1)))
-    g._scalar = False
-    if fns is not None and n_links == 1:
-        try:
-            g._scalar = all(isinstance(f(0.0), (float, int)) for f in fns)
-        except Exception:       # not defined at 0: the general conversion
-            g._scalar = False
-    g.d.constant = False
     g.px_sync()
     return g
 
