@@ -250,6 +250,32 @@ def test_scallop_bounds_hold_on_every_bin_and_stay_close_to_the_true_maxima(asym
         bound_max / true_max)
 
 
+@pytest.mark.parametrize('asymmetry', [0.2, 0.004])
+def test_scallop_bounds_over_any_interval_are_the_largest_of_the_bins_it_touches(asymmetry):
+    """The search looks up bounds over intervals of any length (range maxima of the bins);
+    each must be the largest of the bins' own bounds (``Scallop._bounds`` per bin, read here
+    bin by bin) over the bins the interval touches, or one more to its right (the lookup
+    rounds the interval's length up to whole bins). Intervals wrap around the period and
+    run from a fraction of a bin to almost a period."""
+    gait = Scallop(0.1, 0.02, 2.0, asymmetry, [0.0, 1.3])
+    T = gait.period
+    cg = gait.compiled()
+    nb = gait._bins
+    k = np.arange(nb)
+    bins = np.stack(gait._bounds(k * T / nb, (k + 1) * T / nb), axis=1)   # (nb, 2, n_links)
+    rng = np.random.default_rng(3)
+    for n_bins in [rng.uniform(0, 4, 150), rng.uniform(4, 200, 150),
+                   rng.uniform(200, nb - 3, 100)]:
+        for width in n_bins:
+            a = rng.uniform(-2 * T, 2 * T)
+            b = a + width * T / nb
+            k0, k1 = int(np.floor(a / T * nb)), int(np.floor(b / T * nb))
+            got = np.array(cg.bounds(a, b))
+            low = bins[np.arange(k0, k1 + 1) % nb].max(axis=0)
+            high = bins[np.arange(k0, k1 + 2) % nb].max(axis=0)
+            assert np.all(low <= got) and np.all(got <= high), (a, b)
+
+
 def test_scallop_with_zero_amplitude_is_a_rest():
     gait = Scallop(0.1, 0.0, 2.0, 0.3)
     assert gait.is_constant(0.0, 10.0)

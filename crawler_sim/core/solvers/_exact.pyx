@@ -31,8 +31,8 @@ from cpython.buffer cimport (PyObject_GetBuffer, PyBuffer_Release, PyBUF_C_CONTI
                             PyBUF_FORMAT, PyBUF_WRITABLE)
 from libc.string cimport memcpy
 
-from crawler_sim.core.solvers._gait cimport (CompiledGait, GaitData, FOURIER, CALLBACK, PROXY,
-                                             gait_eval, gait_rates, gait_lengths, gait_bounds,
+from crawler_sim.core.solvers._gait cimport (CompiledGait, GaitData, FOURIER, SCALLOP,
+                                             CALLBACK, PROXY, gait_eval, gait_rates, gait_lengths, gait_bounds,
                                              gait_next_break, gait_is_constant)
 from crawler_sim.core.solvers._inclusion cimport inclusion
 
@@ -1082,7 +1082,13 @@ cdef class ExactCore:
             self.watch[r] = ga[r] <= self.noise[r]
             if self.watch[r]:
                 self.noise[r] = max(self.noise[r], 4.0 * fabs(ga[r]))
-        fixed = g.kind == FOURIER        # bounds independent of the interval
+        # bounds independent of the interval: a FOURIER gait's hold everywhere, a PROXY
+        # gait's on its piece (every join is a breakpoint: a search never crosses one)
+        fixed = g.kind == FOURIER or g.kind == PROXY
+        # bounds that vary inside a search, looked up in constant time (SCALLOP's range
+        # maxima of its bins): each step is sized with its own interval's bounds too (a
+        # TABLE's lookup walks its pieces: measured slower than the proof failures it saves)
+        ahead = g.kind == SCALLOP
         a = t0
         self.row_bounds(g, t0, min(end, t0 + cap), nr)
         h = self.step(nr, ga, da, tol, cap)
@@ -1212,6 +1218,12 @@ cdef class ExactCore:
                     t_out[0] = a
                     return F_OK
                 h = self.step(nr, ga, da, tol, cap)
+                if ahead and h < end - a:
+                    # the bounds of the step's own interval: a step sized with the bounds
+                    # behind it fails its proof where the gait turns sharp ahead (they can
+                    # only shrink the step, which the interval's bounds then still cover)
+                    self.row_bounds(g, a, a + h, nr)
+                    h = min(h, self.step(nr, ga, da, tol, cap))
                 for r in range(nr):
                     if self.watch[r]:
                         # a watched row is seen at the search points alone: they grow at most

@@ -27,6 +27,8 @@ cdef enum:
     CALLBACK = 3
     PROXY = 4
 
+cdef enum:
+    SCALLOP_LEVELS = 6      # range maxima of up to 2^6 bins (a longer run: one per 64 bins)
 
 
 ctypedef struct GaitData:
@@ -52,8 +54,10 @@ ctypedef struct GaitData:
     int hint                # the piece found last (lookups are mostly near it)
     int n_jumps
     double* jump_times      # (n_jumps,) sorted breakpoint times (of one period when periodic)
-    # derivative bounds: FOURIER constant (nl,); SCALLOP nb bins per period (nb, nl)
+    # derivative bounds: FOURIER constant (nl,); SCALLOP nb bins per period (nlev, nb, nl):
+    # level q the largest of the 2^q bins from each bin on
     int nb
+    int nlev
     double* bj              # |l'''| [m/s^3]
     double* bs              # |l''''| [m/s^4]
     double* bj_all          # SCALLOP: the largest bin (nl,)
@@ -464,7 +468,7 @@ cdef inline int gait_bounds(GaitData* g, double a, double b, double* jerk,
                             double* snap) except -1:
     """Bounds of |l'''| and |l''''| per linkage on [a, b] (between breakpoints). Returns 1, or
     0 when l''' may jump inside (no snap bound: ``snap`` is then left undefined)."""
-    cdef int j, k, k0, k1, kk, nl = g.nl, nb, first
+    cdef int j, k, k0, k1, kk, nl = g.nl, nb, first, q
     cdef double d, m, u0, x, st
     cdef bint rest
     if g.kind == FOURIER:
@@ -492,13 +496,25 @@ cdef inline int gait_bounds(GaitData* g, double a, double b, double* jerk,
         for j in range(nl):
             jerk[j] = 0.0
             snap[j] = 0.0
-        for kk in range(k0, k1 + 1):
-            k = kk % nb
+        # runs of w = 2^q bins (the widest level within the run) from k0 on, the last one
+        # ending at k1: two lookups for runs up to 2^(SCALLOP_LEVELS + 1) bins
+        q = 0
+        while q + 1 < g.nlev and (2 << q) <= k1 - k0 + 1:
+            q += 1
+        first = k1 - (1 << q) + 1             # start of the last run
+        kk = k0
+        while True:
+            if kk > first:
+                kk = first
+            k = (q * nb + (kk if kk < nb else kk - nb)) * nl
             for j in range(nl):
-                if g.bj[k * nl + j] > jerk[j]:
-                    jerk[j] = g.bj[k * nl + j]
-                if g.bs[k * nl + j] > snap[j]:
-                    snap[j] = g.bs[k * nl + j]
+                if g.bj[k + j] > jerk[j]:
+                    jerk[j] = g.bj[k + j]
+                if g.bs[k + j] > snap[j]:
+                    snap[j] = g.bs[k + j]
+            if kk == first:
+                break
+            kk += 1 << q
         return 1
     # TABLE: the pieces [a, b] touches; jerk constant on each, so snap 0 unless a join inside
     # changes it

@@ -337,6 +337,19 @@ def fourier(double freq, mean, cos_c, sin_c) -> CompiledGait:
     return g
 
 
+def _range_maxima(bins):
+    """Bins (nb, nl) -> (SCALLOP_LEVELS + 1, nb, nl): level q holds the largest of the 2^q
+    bins from each bin on (wrapping around the period), so the largest over any run of bins
+    is two lookups (runs up to 2^(q + 1)) or one per 2^q bins (longer ones)."""
+    out = [bins]
+    for q in range(1, SCALLOP_LEVELS + 1):
+        if (1 << q) > bins.shape[0]:
+            break
+        prev = out[len(out) - 1]
+        out.append(np.maximum(prev, np.roll(prev, -(1 << (q - 1)), axis=0)))
+    return np.ascontiguousarray(np.stack(out))
+
+
 def scallop(double freq, mean, rows, bins_jerk, bins_snap) -> CompiledGait:
     """The Scallop stroke: ``rows`` (nl, 4) = amplitude [m], phase - pi r [rad], cos(pi r),
     sin(pi r); derivative bounds per bin, ``bins_*`` (nb, nl) (nb bins per period). Kept with
@@ -346,17 +359,18 @@ def scallop(double freq, mean, rows, bins_jerk, bins_snap) -> CompiledGait:
     mean = _f64(mean)
     rows = np.asarray(rows, dtype=float)
     rows = _f64(np.column_stack([rows, np.cos(rows[:, 1]), np.sin(rows[:, 1])]))
-    bj = _f64(bins_jerk)
-    bs = _f64(bins_snap)
-    bj_all = _f64(bj.max(axis=0))
-    bs_all = _f64(bs.max(axis=0))
+    bj = _range_maxima(np.asarray(bins_jerk, dtype=float))
+    bs = _range_maxima(np.asarray(bins_snap, dtype=float))
+    bj_all = _f64(bj[0].max(axis=0))
+    bs_all = _f64(bs[0].max(axis=0))
     g._keep = (mean, rows, bj, bs, bj_all, bs_all)
     g.d.kind = SCALLOP
     g.d.nl = rows.shape[0]
     g.d.freq = freq
     g.d.mean = _dptr(mean)
     g.d.p1 = _dptr(rows)
-    g.d.nb = bj.shape[0]
+    g.d.nb = bj.shape[1]
+    g.d.nlev = bj.shape[0]
     g.d.bj = _dptr(bj)
     g.d.bs = _dptr(bs)
     g.d.bj_all = _dptr(bj_all)
