@@ -23,6 +23,12 @@ feature narrower than that between two points is not seen; a sharp one that a po
 makes its piece unhappy and is resolved by halving where it is. A periodic gait is sampled
 over one period and repeated.
 
+Where the density is the user's (a period's 1024 cells, max_step's) rather than one the
+function needs, neighbouring pieces are then joined where one series holds both (``_join``:
+read from the pieces, no new calls, and checked against each piece at its own nodes, the
+user's samples): every join ends a segment of the solver, and a sine's period sampled as 32
+pieces is one series.
+
 l'' that jumps (a contract breach: jumps must be listed in ``breakpoints=``) keeps a piece
 unhappy down to ``MIN_WIDTH`` of a cell: the jump is refused with its time. l''' that jumps
 (l'' with a kink) is legal: where the slope of the samples turns far more than elsewhere, the
@@ -59,6 +65,7 @@ _EPS = np.finfo(float).eps
 
 _U = np.cos(np.pi * np.arange(N + 1) / N)                # nodes, from +1 down to -1
 _ONE = np.array([1.0])                                   # the one node of an instant
+_Q2 = (np.arange(N + 1) ** 2)[None, :, None]            # |T_q'| <= q^2 on [-1, 1]
 
 
 def _dct() -> NDArray:
@@ -231,8 +238,12 @@ class ChebTable:
         l0, v0 = np.abs(self._end_state)
         self._span = b - a
         self._quiet = (l0 + v0 * self._span) / self._span ** 2 if b > a else 0.0 * l0
-        self._append(*self._happy(np.array(lefts), np.array(rights), np.array(brk, bool),
-                                  first_left))
+        pieces = self._happy(np.array(lefts), np.array(rights), np.array(brk, bool), first_left)
+        if self.period or self.max_step:
+            # a density the user asked for (a period's 1024 cells, or max_step's), not one
+            # the function needs: join what one series holds (every join ends a segment)
+            pieces = self._join(*pieces)
+        self._append(*pieces)
 
     def _sample(self, a: NDArray, b: NDArray, bl: NDArray, br: NDArray,
                 nodes: bool = True) -> NDArray:
@@ -287,6 +298,47 @@ class ChebTable:
         order = np.argsort(a, kind='stable')
         return a[order], b[order], br[order], c[order]
 
+    def _join(self, a: NDArray, b: NDArray, br: NDArray, c: NDArray):
+        """Neighbouring pieces (no breakpoint between them) joined, pair by pair and again,
+        where one series holds both: the pieces' series read at the joined piece's nodes
+        (no call of the user's functions), kept when happy (``cheb_fit``) and equal to the
+        pieces at their own nodes, the user's samples, to the rounding ``cheb_fit`` allows.
+        What the sampling saw is kept; only the joins go."""
+        eps = _EPS
+        while a.size > 1:
+            k = np.arange(0, a.size - 1, 2)
+            k = k[~br[k]]
+            if not k.size:
+                break
+            lo, hi, mid = a[k], b[k + 1], b[k]
+            t = 0.5 * (lo + hi)[:, None] + 0.5 * (hi - lo)[:, None] * _U[None, :]
+            right = t > mid[:, None]
+            f = np.where(right[:, :, None], _clenshaw(c[k + 1], a[k + 1], b[k + 1], t),
+                         _clenshaw(c[k], a[k], b[k], t))
+            scale = np.maximum(self.scale, self._quiet)
+            cc, last, _ = _gait.cheb_fit(np.ascontiguousarray(f), _DCT, lo, hi, scale)
+            ok = last <= N - 3
+            # cheb_fit's rounding: 64 eps of the values' scale plus |t| eps times l'''
+            l3 = (_Q2 * np.abs(cc)).sum(axis=1) * 2.0 / (hi - lo)[:, None]    # (K, nl)
+            t_eps = eps * np.maximum(np.abs(lo), np.abs(hi))[:, None] * l3
+            for side in (k, k + 1):     # the joined series at each piece's own nodes
+                ts = 0.5 * (a[side] + b[side])[:, None] + 0.5 * (b[side] - a[side])[:, None] * _U
+                own = _clenshaw(c[side], a[side], b[side], ts)
+                tol = 64 * eps * np.maximum(scale, np.abs(own).max(axis=1)) + t_eps
+                ok &= (np.abs(_clenshaw(cc, lo, hi, ts) - own) <= tol[:, None, :]).all(axis=(1, 2))
+            if not ok.any():
+                break
+            keep = np.ones(a.size, bool)
+            keep[k[ok] + 1] = False
+            b = b.copy()
+            b[k[ok]] = hi[ok]
+            br = br.copy()
+            br[k[ok]] = br[k[ok] + 1]
+            c = c.copy()
+            c[k[ok]] = cc[ok]
+            a, b, br, c = a[keep], b[keep], br[keep], c[keep]
+        return a, b, br, c
+
     def _refuse_jump(self, b: float, f: NDArray) -> None:
         """A narrowest piece whose l'' still differs across it by a sizeable share of its
         scale: l'' jumps there (ValueError naming ``breakpoints=``); a kink passes."""
@@ -324,6 +376,16 @@ class ChebTable:
             self.knots, self.coef = self.knots[drop:], self.coef[drop:]
             self.ncoef, self.bj, self.bs = self.ncoef[drop:], self.bj[drop:], self.bs[drop:]
             self.rest = self.rest[drop:]
+
+
+def _clenshaw(c: NDArray, a: NDArray, b: NDArray, t: NDArray) -> NDArray:
+    """Series ``c`` (K, N + 1, nl) of the pieces [a, b] (K,) at the times ``t`` (K, M):
+    values (K, M, nl)."""
+    u = ((2.0 * t - (a + b)[:, None]) / (b - a)[:, None])[:, :, None]
+    x = y = np.zeros((c.shape[0], t.shape[1], c.shape[2]))
+    for i in range(c.shape[1] - 1, 0, -1):
+        x, y = c[:, None, i, :] + 2.0 * u * x - y, x
+    return c[:, None, 0, :] + u * x - y
 
 
 def _split_points(a: NDArray, b: NDArray, f: NDArray) -> NDArray:

@@ -186,6 +186,20 @@ def test_a_periodic_custom_copy_of_a_sharp_scallop_keeps_its_short_reversal():
     x = cs.simulate(c, g, 3.0, t_eval=t).x
     ref, _ = Oracle.for_crawler(c, lambda s: sc(np.asarray(s, float))).solve(3.0, t, h=2e-5)
     np.testing.assert_allclose(x, ref, rtol=0, atol=1e-10)
+    # the period's pieces, joined where one series holds two, still follow the sharp phase:
+    # l'' of the pieces (numpy's chebval) against the Scallop's closed form, densely where
+    # it is sharp (its 83,000 m/s^2 peak; the formula's own rounding there is ~1e-11 of it)
+    from numpy.polynomial import chebyshev as C
+    tb = g.compiled().table
+    assert 8 < tb.knots.size - 1 < 32
+    ts = np.concatenate([np.linspace(0.0, 1.0, 4001), np.linspace(0.99, 1.0, 4001),
+                         np.linspace(0.0, 0.01, 4001)])
+    k = np.clip(np.searchsorted(tb.knots, ts, side='right') - 1, 0, tb.knots.size - 2)
+    u = (2 * ts - tb.knots[k] - tb.knots[k + 1]) / (tb.knots[k + 1] - tb.knots[k])
+    got = np.array([[C.chebval(u[i], tb.coef[k[i], j, 2]) for j in range(2)]
+                    for i in range(ts.size)])
+    want = sc(ts)[2]
+    assert np.abs(got - want).max() < 1e-10 * np.abs(want).max()
 
 
 def test_a_jump_of_l_acceleration_without_breakpoints_is_refused_naming_them():
@@ -285,12 +299,16 @@ def test_a_run_calls_the_functions_once_per_cell_not_per_evaluation():
 
 def test_a_periodic_gait_is_sampled_one_period_then_repeated():
     # period= given: 1024 cells a period, 32 pieces of 33 nodes over [0, 1], none after it;
-    # the 20th period reads the first one's pieces (the oracle agrees)
+    # the 20th period reads the first one's pieces (the oracle agrees). A sine's period is one
+    # series of degree < 30: the 32 pieces are joined into one (each join would end a
+    # segment: 20 x 32 segments instead of about 5 a period)
     calls = []
     g = gaits.Custom(*_sine(calls=calls)._fns, period=1.0)
     c = cs.Crawler([1, 1], [0.5, 1])
     tr = cs.simulate(c, g, 20.0, t_eval=[0.0, 19.5, 20.0], periodic_skip=False)
     assert len(calls) <= 32 * 33 + 2 * 33 + 3 * 3 and max(calls) <= 1.0, (len(calls), max(calls))
+    assert g.compiled().table.knots.tolist() == [0.0, 1.0]
+    assert len(tr.events) <= 5 * 20 + 2
     ref, _ = Oracle.for_crawler(c, _sine_kin(1.0, 0.3, W)).solve(20.0, [0.0, 19.5, 20.0],
                                                                h=1e-4)
     np.testing.assert_allclose(tr.x, ref, rtol=0, atol=1e-10)
