@@ -66,7 +66,7 @@ class Custom(Gait):
                             breakpoints=self._breaks)
         fl, fv, fa = self._fns
         table = ChebTable(fa, lambda t: (fl(t), fv(t)), self.n_links, self.period,
-                          self.max_step, self.breakpoints)
+                          self.max_step, self.breakpoints if self._breaks.size else None)
         return proxy(self, self.n_links, table, fns=self._fns)
 
     def __call__(self, t: float | ArrayLike) -> Triple:

@@ -199,42 +199,47 @@ cdef inline int proxy_locate(GaitData* g, double t, double* u, double* m) except
     return k
 
 
+cdef inline double cheb_dot(const double* c, const double* T, int n) noexcept nogil:
+    """sum c_q T_q, q < n, in four independent partial sums (short dependency chains)."""
+    cdef double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0
+    cdef int q = 0
+    while q + 3 < n:
+        s0 += c[q] * T[q]
+        s1 += c[q + 1] * T[q + 1]
+        s2 += c[q + 2] * T[q + 2]
+        s3 += c[q + 3] * T[q + 3]
+        q += 4
+    while q < n:
+        s0 += c[q] * T[q]
+        q += 1
+    return (s0 + s2) + (s1 + s3)
+
+
 cdef inline void proxy_piece(const GaitData* g, int k, double u, double* l, double* ld,
                              double* ldd, double* ld3) noexcept nogil:
-    """The four series of piece k at u by Clenshaw's recurrence (l skipped when NULL)."""
-    cdef int j, i, nl = g.nl, nc = g.ncoef[k], st = g.stride
+    """The four series of piece k at u (l skipped when NULL): the Chebyshev values T_q(u)
+    once for all series and linkages, by doubling (T_(m+i) = 2 T_m T_i - T_(m-i), each level
+    from the one before, so the chain is log2(n) long, not n as in Clenshaw's recurrence,
+    which made an evaluation three times a Fourier gait's), then one sum per series."""
+    cdef int j, i, m, nl = g.nl, nc = g.ncoef[k], st = g.stride
     cdef const double* c
-    cdef double u2 = 2.0 * u, x0, x1, x2, x3, y0, y1, y2, y3, z
+    cdef double T[64]
+    T[0] = 1.0
+    T[1] = u
+    m = 1
+    while m + 1 < nc:
+        for i in range(1, m + 1):
+            if m + i >= nc:
+                break
+            T[m + i] = 2.0 * T[m] * T[i] - T[m - i]
+        m *= 2
     for j in range(nl):
         c = g.coef + (k * nl + j) * 4 * st
-        x0 = 0.0
-        x1 = 0.0
-        x2 = 0.0
-        x3 = 0.0
-        y0 = 0.0
-        y1 = 0.0
-        y2 = 0.0
-        y3 = 0.0
         if l != NULL:
-            for i in range(nc - 1, 0, -1):
-                z = c[i] + u2 * x0 - y0
-                y0 = x0
-                x0 = z
-        for i in range(nc - 1, 0, -1):
-            z = c[st + i] + u2 * x1 - y1
-            y1 = x1
-            x1 = z
-            z = c[2 * st + i] + u2 * x2 - y2
-            y2 = x2
-            x2 = z
-            z = c[3 * st + i] + u2 * x3 - y3
-            y3 = x3
-            x3 = z
-        if l != NULL:
-            l[j] = c[0] + u * x0 - y0
-        ld[j] = c[st] + u * x1 - y1
-        ldd[j] = c[2 * st] + u * x2 - y2
-        ld3[j] = c[3 * st] + u * x3 - y3
+            l[j] = cheb_dot(c, T, nc)
+        ld[j] = cheb_dot(c + st, T, nc)
+        ldd[j] = cheb_dot(c + 2 * st, T, nc)
+        ld3[j] = cheb_dot(c + 3 * st, T, nc)
 
 
 cdef inline double proxy_next_break(GaitData* g, double t) except? -1.0:

@@ -286,6 +286,8 @@ cdef class CompiledGait:
         self.d.bj = _dptr(bj)
         self.d.bs = _dptr(bs)
         self.d.rest = _bptr(rest)
+        if coef.shape[3] > 64:     # ``proxy_piece`` keeps T_q(u) for q < 64
+            raise ValueError(f'proxy series of {coef.shape[3]} coefficients (at most 64)')
         self.d.stride = coef.shape[3]
         self.d.period = float(tb.period) if tb.periodic else 0.0
         self.d.hint = 0
@@ -679,7 +681,8 @@ def cheb_sample(fn, const double[::1] a, const double[::1] b, bl, br, const doub
     node i of piece k at its centre + half its width times ``nodes[i]`` (from +1 down to -1:
     its end b first, its start a last, exactly); a node on a breakpoint (``bl``, ``br``: the
     piece starts / ends at one) read one float inside the piece, on the side it belongs to.
-    Values are checked: nl entries each, finite."""
+    Values are checked: nl entries each, finite. A piece's start that is the end of the piece
+    before it (no breakpoint between) takes that piece's value (one call, not two)."""
     cdef Py_ssize_t K = a.shape[0], n1 = nodes.shape[0], k, i, j
     cdef double t, v
     cdef const unsigned char[::1] left = np.ascontiguousarray(bl, dtype=np.uint8)
@@ -688,6 +691,11 @@ def cheb_sample(fn, const double[::1] a, const double[::1] b, bl, br, const doub
     cdef double[:, :, ::1] o = out
     for k in range(K):
         for i in range(n1):
+            if (i == n1 - 1 and n1 > 1 and k > 0 and a[k] == b[k - 1] and not left[k]
+                    and not right[k - 1]):
+                for j in range(nl):
+                    o[k, i, j] = o[k - 1, 0, j]
+                continue
             if i == 0:
                 t = nextafter(b[k], -INFINITY) if right[k] else b[k]
             elif i == n1 - 1:

@@ -143,7 +143,8 @@ class ChebTable:
             start = self.hi
             self._forget(span_lo)
         else:
-            self._reset()
+            if self.knots.size:
+                self._reset()
             start = span_lo if math.isfinite(span_lo) and span_lo <= t <= span_hi else t
         stop = span_hi if (math.isfinite(span_hi) and span_hi >= t) else t
         if stop <= start and not self.knots.size:
