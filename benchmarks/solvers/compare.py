@@ -128,8 +128,8 @@ def _scene_row(name: str, repeats: int, h_ref: float, say: Callable) -> dict:
                            'reference_richardson_correction': rich['richardson_correction'],
                            'reference_second_correction': rich['second_correction']}
     hz = SCENES[name][2]
-    # the Custom gait made anew for every run: the scan of its bounds (``callback``), once per
-    # gait object, is timed too
+    # the Custom gait made anew for every run: its sampling into Chebyshev pieces
+    # (``solvers.proxy``), once per gait object, is timed too
     for label, make in (('exact_builtin', lambda: builtin), ('exact_custom', lambda: _custom(hz))):
         try:
             tm, tr = _timed(lambda: simulate(crawler, make(), T, t_eval=grid), repeats)
