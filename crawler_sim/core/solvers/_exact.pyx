@@ -1104,7 +1104,7 @@ cdef class ExactCore:
                     break
                 w = b - a
                 if w < 0.5 * w0:
-                    f = 1.0
+                    f = 2.0                 # no point proposed: halve
                     for r in range(nr):
                         bad = (self.watch[r] and gb[r] < -self.noise[r]) or (
                             not self.watch[r] and gb[r] <= 0.0)
@@ -1119,12 +1119,18 @@ cdef class ExactCore:
                             fr = 1.0 - (gb[r] - lvl) / (db[r] * w)
                         elif da[r] < 0.0:
                             fr = (ga[r] - lvl) / (-da[r] * w)
-                        if not (0.0 < fr < 1.0):
+                        if not (0.0 < fr < 1.0 or (fr == 1.0 and gb[r] == 0.0
+                                                   and not self.watch[r])):
                             den = fa[r] - fb[r]
-                            fr = fa[r] / den if den != 0.0 else 1.0
+                            fr = fa[r] / den if den != 0.0 else 2.0
+                            if not (0.0 < fr < 1.0):
+                                fr = 2.0
                         if fr < f:
                             f = fr
-                    if 0.0 < f < 1.0:
+                    if 0.0 < f <= 1.0:
+                        # f = 1: a falling row exactly 0 at b (Newton from b puts its root
+                        # there): the float just below b, which ends the narrowing when it is
+                        # good (halving towards b took ~30 steps);
                         # a secant point within one float of an end: the adjacent float
                         ms = a + f * w
                         if ms <= a:

@@ -146,3 +146,16 @@ def test_a_velocity_that_touches_zero_is_a_stick():
     ref, _ = Oracle.for_crawler(crawler, lambda s: gait(np.asarray(s, float))).solve(
         0.2, t, h=2e-5)
     np.testing.assert_allclose(run.x, ref, rtol=0, atol=1e-10)
+
+
+@pytest.mark.parametrize('c0,c1', [(0.5, -0.5), (3.0, -2.0), (0.75, -0.25)])
+def test_a_row_that_lands_exactly_on_zero_ends_the_narrowing_at_once(c0, c1):
+    # g(t) = c0 + c1 t, its root -c0 / c1 a float where g rounds to exactly 0.0 (by hand: 1,
+    # 1.5, 3). Newton's point lands on it, so the bracket's bad end b has g(b) = 0: the root
+    # is b. The float below b then closes the bracket (it was halved from a towards b instead:
+    # 55 evaluations of the gait for one event).
+    gait = gaits.Fourier(1.0, ([0.0], [0.3]), 1.0)
+    t, hit, n = _core().search_rows(gait.compiled(), 0.0, 8.0, [c0], [c1], [[0.0]], [[0.0]],
+                                    1e-13, 1.0)
+    assert t == -c0 / c1 and hit.tolist() == [True]
+    assert n <= 4, n
