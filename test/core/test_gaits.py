@@ -632,3 +632,75 @@ def test_piecewise_cubic_joins_within_rounding_are_not_breakpoints_and_real_jump
     jumped = pieces[:k] + [Cubic(pc.t0, pc.l0, pc.v0, pc.a0 * (1 + 1e-9), pc.jerk)] + pieces[k + 1:]
     assert PiecewiseCubic(starts, jumped).breakpoints(starts[0], starts[-1] + 1.0).tolist() == [
         starts[k], starts[k + 1]]
+
+
+def _random_cubics(n, seed):
+    """n constant-jerk pieces of uneven widths from t = 0, C2 at the joins (by construction:
+    each starts from the previous one's end state), and their (starts, jerks)."""
+    rng = np.random.default_rng(seed)
+    starts = np.concatenate([[0.0], np.cumsum(rng.uniform(2e-3, 8e-3, n - 1))])
+    l, v, a = np.array([1.0, 0.9]), np.zeros(2), np.zeros(2)
+    pieces, jerks = [], rng.normal(0.0, 40.0, (n, 2))
+    jerks[rng.uniform(size=n) < 0.1] = jerks[0]        # some joins keep the jerk (no snap jump)
+    for k, t0 in enumerate(starts):
+        pieces.append(Cubic(t0, l, v, a, jerks[k]))
+        w = starts[k + 1] - t0 if k + 1 < n else 0.0
+        l, v, a = gaits.cubic_values(l, v, a, jerks[k], w)
+    return PiecewiseCubic(starts, pieces), starts, jerks
+
+
+@pytest.mark.parametrize('kind', ['pieces', 'periodic spline'])
+def test_table_bounds_and_ranges_over_any_interval_match_the_pieces_it_touches(kind):
+    """The search reads a piecewise gait's |l'''| bound, whether a join inside changes the jerk
+    (no snap bound), and the range of l' and l'' over intervals of any length in a few lookups
+    (extremes per run of pieces). Each is checked against the pieces read one by one: the
+    largest |jerk| of the pieces [a, b] touches (a piece starting at b is not), and l', l'' at
+    every join inside, both ends and 50 points per piece (l'' is linear on a piece, so its
+    extremes are among those; l''s vertex may fall between: a slack of 1e-3 of its scale)."""
+    if kind == 'pieces':
+        gait, starts, jerks = _random_cubics(300, seed=5)
+        period, lo_t, hi_t = None, 0.0, starts[-1] + 0.01
+    else:
+        tk = np.linspace(0.0, 1.0, 151)
+        y = 1.0 + 0.2 * np.sin(2 * np.pi * tk)[:, None] * [1.0, -0.5] + 0.01 * np.cos(
+            50 * tk)[:, None]
+        y[-1] = y[0]
+        gait = gaits.Spline(tk, y, periodic=True)
+        starts, period, lo_t, hi_t = tk[:-1], 1.0, -1.3, 2.2
+        mid = starts + 0.5 * np.diff(tk)
+        jerks = (gait(mid + 1e-4)[2] - gait(mid - 1e-4)[2]) / 2e-4     # per piece (cubic)
+    cg = gait.compiled()
+    rng = np.random.default_rng(11)
+    for trial in range(300):
+        a = rng.uniform(lo_t, hi_t)
+        b = a + rng.choice([1e-4, 5e-3, 0.05, 0.3, 1.5]) * rng.uniform()
+        if trial % 5 == 0:        # b on a join
+            k = np.searchsorted(starts, b % (period or np.inf)) % len(starts)
+            b = starts[k] + (np.floor(b / period) * period if period else 0.0)
+            if b <= a:
+                continue
+        # the pieces touched, one by one
+        if period:
+            m0, m1 = np.floor(a / period), np.floor(b / period)
+            ts = np.concatenate([starts + q * period for q in np.arange(m0, m1 + 1)])
+        else:
+            ts = starts
+        first = max(np.searchsorted(ts, a, side='right') - 1, 0)
+        last = np.searchsorted(ts, b, side='left') - 1
+        idx = np.arange(first, max(last, first) + 1) % len(starts)
+        jb, sb = cg.bounds(a, b)
+        assert_allclose(jb, np.abs(jerks[idx]).max(axis=0), rtol=1e-6, atol=1e-9)
+        inner = np.array([jerks[(i + 1) % len(starts)] for i in idx[:-1]]).reshape(-1, 2)
+        changes = bool(np.any(inner != jerks[idx[:-1]])) if idx.size > 1 else False
+        if kind == 'pieces':
+            assert (sb is None) == changes, (a, b)
+        rg = cg.ranges(a, b)
+        pts = np.concatenate([[a, b], ts[(ts > a) & (ts < b)]])
+        pts = np.concatenate([pts, np.linspace(a, b, 50 * idx.size + 2)])
+        _, v, acc = gait(pts)
+        for row, vals, tol in ((0, v, 1e-3 * np.abs(v).max() + 1e-12),
+                               (2, acc, 1e-9 * np.abs(acc).max() + 1e-12)):
+            assert np.all(rg[row] <= vals.min(axis=0) + 1e-12), (a, b, row)
+            assert np.all(rg[row + 1] >= vals.max(axis=0) - 1e-12), (a, b, row)
+            assert np.all(rg[row] >= vals.min(axis=0) - tol), (a, b, row)
+            assert np.all(rg[row + 1] <= vals.max(axis=0) + tol), (a, b, row)

@@ -32,7 +32,8 @@ from cpython.buffer cimport (PyObject_GetBuffer, PyBuffer_Release, PyBUF_C_CONTI
 from libc.string cimport memcpy
 
 from crawler_sim.core.solvers._gait cimport (CompiledGait, GaitData, FOURIER, SCALLOP,
-                                             CALLBACK, PROXY, gait_eval, gait_rates, gait_lengths, gait_bounds,
+                                             TABLE, CALLBACK, PROXY, gait_eval, gait_rates,
+                                             gait_lengths, gait_bounds, gait_ranges,
                                              gait_next_break, gait_is_constant)
 from crawler_sim.core.solvers._inclusion cimport inclusion
 
@@ -431,8 +432,12 @@ cdef class ExactCore:
     cdef double* B2
     cdef double* B1
     cdef double* noise
+    cdef double* RL               # (nr,) lower bound of each row from the gait's ranges
+    cdef double rg_end            # the end of the interval ``rg`` holds
     cdef double* jerk
     cdef double* snap
+    cdef double* rg               # (2, 4, nl) ranges of l' and l'' (``gait_ranges``), and
+                                  # those of the stretch a step is extended by
     cdef double* kinks
     cdef double* fpz
     cdef double* fmz
@@ -468,8 +473,8 @@ cdef class ExactCore:
         # doubles: state first (K, ck_K, last_f, last_R, last_K0 are what ``save`` copies)
         nd = (p + p + 6 + p + p                       # K, ck_K, last_f, last_R, last_K0
               + 4 * p + 2 * p * nl                    # fp, fm, m_, grav, W, C
-              + 8 * nl + 10 * p                       # l .. snap, e .. fmz
-              + 5 * nr + 2 * nr * nl + 10 * nr        # c0 .. noise, A1, A2, wk
+              + 16 * nl + 10 * p                      # l .. snap, rg, e .. fmz
+              + 6 * nr + 2 * nr * nl + 10 * nr        # c0 .. noise, RL, A1, A2, wk
               + 6 * n_buf + 2 * p * n_buf + 2 * n_buf)    # sf, sR, sK0, et
         nb = (p + p + p + p + p + p + p               # contact zero cache_group ck_contact ck_zero
               + p + p + p + p + p                     # last_contact last_group free hits group
@@ -501,6 +506,7 @@ cdef class ExactCore:
         self.ldd2 = d; d += nl
         self.jerk = d; d += nl
         self.snap = d; d += nl
+        self.rg = d; d += 8 * nl
         self.e = d; d += p
         self.ep = d; d += p
         self.epp = d; d += p
@@ -516,6 +522,7 @@ cdef class ExactCore:
         self.B2 = d; d += nr
         self.B1 = d; d += nr
         self.noise = d; d += nr
+        self.RL = d; d += nr
         self.A1 = d; d += nr * nl
         self.A2 = d; d += nr * nl
         self.wk = d; d += 10 * nr
@@ -1025,8 +1032,9 @@ cdef class ExactCore:
     cdef bint proven(self, int nr, double h, const double* ga, const double* gb,
                      const double* da, const double* db) noexcept:
         """Every unwatched row > 0 on an interval of length h with these end values and
-        slopes: the best of four lower bounds, each rigorous where |g''| <= B2 (chord:
-        min - B2 h^2 / 8; Taylor from either end, concave) or |g'| <= B1 (mean - B1 h / 2)."""
+        slopes: the best of five lower bounds, each rigorous where |g''| <= B2 (chord:
+        min - B2 h^2 / 8; Taylor from either end, concave) or |g'| <= B1 (mean - B1 h / 2),
+        or from the gait's ranges of l' and l'' over the interval (``RL``, ``range_lower``)."""
         cdef int r
         cdef double q, lo
         for r in range(nr):
@@ -1034,12 +1042,51 @@ cdef class ExactCore:
                 continue
             q = self.B2[r] * (h * h)
             lo = max(min(ga[r], gb[r]) - q / 8.0, 0.5 * (ga[r] + gb[r]) - self.B1[r] * (h / 2.0))
+            lo = max(lo, self.RL[r])
             if self.taylor[r]:
                 lo = max(lo, min(ga[r], ga[r] + da[r] * h - q / 2.0))
                 lo = max(lo, min(gb[r], gb[r] - db[r] * h - q / 2.0))
             if lo <= 0.0:
                 return False
         return True
+
+    cdef bint range_lower(self, GaitData* g, double a, double b, double t0, int nr,
+                          bint extend) noexcept:
+        """RL: each row's lower bound on [a, b] from the gait's ranges of l' and l''
+        (``gait_ranges``: a TABLE gait's pieces are polynomials, so a row is bounded over many
+        pieces at once, where its derivative bounds stop at every join whose jerk changes);
+        -inf without ranges. ``extend``: the ranges held are [a, x] and only [x, b] is read
+        (a step being doubled). Returns whether every unwatched row's bound is > 0."""
+        cdef int r, j, nl = self.nl
+        cdef double v, x
+        cdef double* more = self.rg + 4 * nl
+        cdef bint ok = True
+        if extend:
+            if not gait_ranges(g, self.rg_end, b, more):
+                return False
+            for j in range(nl):
+                self.rg[j] = min(self.rg[j], more[j])
+                self.rg[nl + j] = max(self.rg[nl + j], more[nl + j])
+                self.rg[2 * nl + j] = min(self.rg[2 * nl + j], more[2 * nl + j])
+                self.rg[3 * nl + j] = max(self.rg[3 * nl + j], more[3 * nl + j])
+        elif not gait_ranges(g, a, b, self.rg):
+            for r in range(nr):
+                self.RL[r] = -INFINITY
+            return False
+        self.rg_end = b
+        for r in range(nr):
+            v = self.c0[r] + min(self.c1[r] * (a - t0), self.c1[r] * (b - t0))
+            for j in range(nl):
+                x = self.A1[r * nl + j]
+                if x != 0.0:
+                    v += min(x * self.rg[j], x * self.rg[nl + j])
+                x = self.A2[r * nl + j]
+                if x != 0.0:
+                    v += min(x * self.rg[2 * nl + j], x * self.rg[3 * nl + j])
+            self.RL[r] = v
+            if not self.watch[r] and not v > 0.0:
+                ok = False
+        return ok
 
     cdef bint bad_any(self, int nr, const double* gv) noexcept:
         cdef int r
@@ -1065,7 +1112,9 @@ cdef class ExactCore:
         cdef int r, j, nl = self.nl, side = 0
         cdef double sc, a, h, m, w, f, fr, den, ms, b = INFINITY, sb = INFINITY, lim, lvl
         cdef double w0 = INFINITY, w1 = INFINITY, w2 = INFINITY
-        cdef bint have_b = False, saved = False, bad, settled, fixed
+        cdef bint have_b = False, saved = False, bad, settled, fixed, ahead, ranged, watched
+        cdef int it2
+        cdef double x2, by_range = NAN
         cdef long it, n_small = 0
         cdef double h_last = INFINITY
         for r in range(nr):
@@ -1089,6 +1138,12 @@ cdef class ExactCore:
         # maxima of its bins): each step is sized with its own interval's bounds too (a
         # TABLE's lookup walks its pieces: measured slower than the proof failures it saves)
         ahead = g.kind == SCALLOP
+        # ranges of l' and l'' over an interval (TABLE): a step is doubled, before the gait is
+        # evaluated, while they prove every row positive on it
+        ranged = g.kind == TABLE
+        self.rg_end = NAN                # no ranges held (the rows are this search's)
+        for r in range(nr):
+            self.RL[r] = -INFINITY
         a = t0
         self.row_bounds(g, t0, min(end, t0 + cap), nr)
         h = self.step(nr, ga, da, tol, cap)
@@ -1098,6 +1153,7 @@ cdef class ExactCore:
                 h_last = h
         lim = end
         for it in range(MAX_STEPS):
+            by_range = NAN
             if have_b:
                 m = 0.5 * (a + b)
                 if not (a < m < b):
@@ -1160,6 +1216,23 @@ cdef class ExactCore:
                     t_out[0] = INFINITY
                     return F_OK
                 m = min(a + h, lim)
+                if ranged:
+                    watched = False
+                    for r in range(nr):
+                        if self.watch[r]:
+                            watched = True
+                    # the ranges over [a, m] first (kept for the proof), then the step doubled
+                    # while they prove every row positive, before the gait is evaluated
+                    if not watched and self.range_lower(g, a, m, t0, nr, False):
+                        by_range = m
+                        for it2 in range(40):
+                            if m >= lim:
+                                break
+                            x2 = min(a + 2.0 * (m - a), lim)
+                            if not self.range_lower(g, a, x2, t0, nr, True):
+                                break
+                            m = x2
+                            by_range = m
             self.values(g, m, t0, nr, gm, dm)
             self.n_evals += 1
             for r in range(nr):
@@ -1181,8 +1254,11 @@ cdef class ExactCore:
                 continue
             if m - a > tol:
                 if not fixed:
+                    # (also after a step the ranges proved: the next step is sized with them)
                     self.row_bounds(g, a, m, nr)
-                if not self.proven(nr, m - a, ga, gm, da, dm):
+                if ranged and m != by_range and (have_b or self.rg_end != m):
+                    self.range_lower(g, a, m, t0, nr, False)
+                if m != by_range and not self.proven(nr, m - a, ga, gm, da, dm):
                     if have_b:           # scan [a, m] first, the bracket put aside
                         saved = True
                         sb = b
@@ -1649,6 +1725,7 @@ cdef class ExactCore:
             self.watch[r] = bool(watch[r])
             self.B2[r] = B2[r]
             self.B1[r] = B1[r]
+            self.RL[r] = -INFINITY
             self.taylor[r] = 1
         return self.proven(nr, h, &a_[0], &b_[0], &c_[0], &d_[0])
 

@@ -28,7 +28,7 @@ cdef enum:
     PROXY = 4
 
 cdef enum:
-    SCALLOP_LEVELS = 6      # range maxima of up to 2^6 bins (a longer run: one per 64 bins)
+    RANGE_LEVELS = 6        # range extremes of up to 2^6 items (a longer run: one per 64)
 
 
 ctypedef struct GaitData:
@@ -54,6 +54,11 @@ ctypedef struct GaitData:
     int hint                # the piece found last (lookups are mostly near it)
     int n_jumps
     double* jump_times      # (n_jumps,) sorted breakpoint times (of one period when periodic)
+    # TABLE: per piece and linkage |jerk|, lo l', hi l', lo l'', hi l'' over the whole piece,
+    # (nlev, n, 5, nl), level q the extreme over 2^q pieces from each on (``range_run``); jjump
+    # counts over the pieces before each, (2 n + 1,) (two periods when periodic)
+    double* stat
+    int* jj_before
     # derivative bounds: FOURIER constant (nl,); SCALLOP nb bins per period (nlev, nb, nl):
     # level q the largest of the 2^q bins from each bin on
     int nb
@@ -469,11 +474,129 @@ cdef inline int gait_is_constant(GaitData* g, double a, double b) except -1:
             return 1
 
 
+cdef inline void run_extreme(const double* lev, int n, int nlev, int width, int i0,
+                             int count, bint largest, int nl, double* out) noexcept nogil:
+    """The extreme (largest, else smallest) over ``count`` consecutive items from i0 on
+    (indices mod n; i0 + count <= 2 n) of a table of range extremes, merged into out (nl,):
+    ``lev`` the item 0, level 0 entry, ``width`` doubles per item, n items per level, level q
+    the extreme over the 2^q items from each on (SCALLOP's bins, TABLE's pieces). Runs of
+    2^q items (the widest level within the run), the last one ending at the run's end: two
+    lookups for runs up to 2^nlev items, one per 2^(nlev - 1) beyond."""
+    cdef int q = 0, w, last, kk, j
+    cdef const double* row
+    while q + 1 < nlev and (2 << q) <= count:
+        q += 1
+    w = 1 << q
+    last = i0 + count - w
+    kk = i0
+    while True:
+        if kk > last:
+            kk = last
+        row = lev + (q * n + (kk if kk < n else kk - n)) * width
+        for j in range(nl):
+            if (row[j] > out[j]) if largest else (row[j] < out[j]):
+                out[j] = row[j]
+        if kk == last:
+            break
+        kk += w
+
+
+cdef inline void table_run(const GaitData* g, int i0, int count, int f, bint largest,
+                           double* out) noexcept nogil:
+    """Field f of a TABLE gait's ``stat`` over the ``count`` pieces from i0 on
+    (``run_extreme``)."""
+    run_extreme(g.stat + f * g.nl, g.n, g.nlev, 5 * g.nl, i0, count, largest, g.nl, out)
+
+
+cdef inline int table_span(const GaitData* g, double a, double b, int* k0, double* d0,
+                           int* k1, double* d1) noexcept nogil:
+    """The pieces a TABLE gait's [a, b] touches (a piece starting at b or later is not): the
+    first, k0 (offset d0 of a from its origin), the last, k1 (offset d1 of b), as indices
+    mod n. Returns how many (more than n: every piece, more than once)."""
+    cdef double m0, m1
+    cdef int u, hint = g.hint
+    k0[0] = table_locate(g, a, d0, &m0)
+    k1[0] = table_locate(g, b, d1, &m1)
+    (<GaitData*>g).hint = hint      # the evaluations' piece (b may lie far ahead of it)
+    u = <int>((m1 - m0) * g.n) + k1[0] - k0[0]
+    if u > 0 and piece_start(g, k1[0], m1) >= b:
+        # b at the start of piece k1: the one before ends there (its offset, d1 from it)
+        k1[0] = k1[0] - 1 if k1[0] > 0 else g.n - 1
+        u -= 1
+        d1[0] = b - (piece_start(g, k1[0], m1 - (1.0 if k1[0] == g.n - 1 else 0.0))
+                     if g.period > 0.0 else g.anchors[k1[0]])
+    return u + 1
+
+
+cdef inline void piece_ranges(const GaitData* g, int k, double d0, double d1,
+                              double* rg) noexcept nogil:
+    """l' (ends, vertex) and l'' (ends) of piece k between offsets d0 <= d1, merged into rg."""
+    cdef int j, nl = g.nl
+    cdef double v0, a0, jk, x, dv
+    cdef const double* row = g.coef + k * nl * 4
+    for j in range(nl):
+        v0 = row[4 * j + 1]
+        a0 = row[4 * j + 2]
+        jk = row[4 * j + 3]
+        x = a0 + d0 * jk
+        rg[2 * nl + j] = min(rg[2 * nl + j], x)
+        rg[3 * nl + j] = max(rg[3 * nl + j], x)
+        x = a0 + d1 * jk
+        rg[2 * nl + j] = min(rg[2 * nl + j], x)
+        rg[3 * nl + j] = max(rg[3 * nl + j], x)
+        x = v0 + d0 * (a0 + 0.5 * d0 * jk)
+        rg[j] = min(rg[j], x)
+        rg[nl + j] = max(rg[nl + j], x)
+        x = v0 + d1 * (a0 + 0.5 * d1 * jk)
+        rg[j] = min(rg[j], x)
+        rg[nl + j] = max(rg[nl + j], x)
+        if jk != 0.0:
+            dv = -a0 / jk
+            if d0 < dv < d1:
+                x = v0 + dv * (a0 + 0.5 * dv * jk)
+                rg[j] = min(rg[j], x)
+                rg[nl + j] = max(rg[nl + j], x)
+
+
+cdef inline int gait_ranges(GaitData* g, double a, double b, double* rg) noexcept:
+    """The smallest and largest l' [m/s] and l'' [m/s^2] of each linkage over [a, b], into
+    ``rg`` (4, nl) rows lo l', hi l', lo l'', hi l'': exact (up to rounding) for a TABLE gait,
+    whose pieces are polynomials (l'' linear, l' quadratic: its ends and vertex): the two end
+    pieces from their coefficients, those between from the tables of whole pieces. Returns 1,
+    or 0 for the other kinds (no ranges)."""
+    cdef int j, k0, k1, count, f, nl = g.nl
+    cdef double d0, d1, e
+    if g.kind != TABLE:
+        return 0
+    for j in range(nl):
+        rg[j] = INFINITY
+        rg[nl + j] = -INFINITY
+        rg[2 * nl + j] = INFINITY
+        rg[3 * nl + j] = -INFINITY
+    count = table_span(g, a, b, &k0, &d0, &k1, &d1)
+    if count == 1:
+        piece_ranges(g, k0, d0, d1, rg)
+        return 1
+    if count > g.n:
+        for f in range(1, 5):
+            table_run(g, 0, g.n, f, f % 2 == 0, rg + (f - 1) * nl)
+        return 1
+    # piece k0 from a to its end, piece k1 from its start to b, the count - 2 between whole
+    e = (g.knots[k0 + 1] - g.knots[k0] if g.period > 0.0
+         else g.starts[k0 + 1] - g.anchors[k0])
+    piece_ranges(g, k0, d0, e, rg)
+    piece_ranges(g, k1, 0.0 if g.period > 0.0 else g.starts[k1] - g.anchors[k1], d1, rg)
+    if count > 2:
+        for f in range(1, 5):
+            table_run(g, k0 + 1, count - 2, f, f % 2 == 0, rg + (f - 1) * nl)
+    return 1
+
+
 cdef inline int gait_bounds(GaitData* g, double a, double b, double* jerk,
                             double* snap) except -1:
     """Bounds of |l'''| and |l''''| per linkage on [a, b] (between breakpoints). Returns 1, or
     0 when l''' may jump inside (no snap bound: ``snap`` is then left undefined)."""
-    cdef int j, k, k0, k1, kk, nl = g.nl, nb, first, q
+    cdef int j, k, k0, k1, kk, nl = g.nl, nb, first, q, count
     cdef double d, m, u0, x, st
     cdef bint rest
     if g.kind == FOURIER:
@@ -501,56 +624,19 @@ cdef inline int gait_bounds(GaitData* g, double a, double b, double* jerk,
         for j in range(nl):
             jerk[j] = 0.0
             snap[j] = 0.0
-        # runs of w = 2^q bins (the widest level within the run) from k0 on, the last one
-        # ending at k1: two lookups for runs up to 2^(SCALLOP_LEVELS + 1) bins
-        q = 0
-        while q + 1 < g.nlev and (2 << q) <= k1 - k0 + 1:
-            q += 1
-        first = k1 - (1 << q) + 1             # start of the last run
-        kk = k0
-        while True:
-            if kk > first:
-                kk = first
-            k = (q * nb + (kk if kk < nb else kk - nb)) * nl
-            for j in range(nl):
-                if g.bj[k + j] > jerk[j]:
-                    jerk[j] = g.bj[k + j]
-                if g.bs[k + j] > snap[j]:
-                    snap[j] = g.bs[k + j]
-            if kk == first:
-                break
-            kk += 1 << q
+        # bins k0 .. k1 (range maxima: a few lookups)
+        run_extreme(g.bj, nb, g.nlev, nl, k0, k1 - k0 + 1, True, nl, jerk)
+        run_extreme(g.bs, nb, g.nlev, nl, k0, k1 - k0 + 1, True, nl, snap)
         return 1
     # TABLE: the pieces [a, b] touches; jerk constant on each, so snap 0 unless a join inside
-    # changes it
+    # changes it (range maxima of |jerk|, counts of such joins: no walk over the pieces)
     for j in range(nl):
         jerk[j] = 0.0
         snap[j] = 0.0
-    k = table_locate(g, a, &d, &m)
-    first = 1
-    kk = 0
-    while True:
-        if not first:
-            st = piece_start(g, k, m)
-            if st >= b:
-                break
-            if g.jjump[k] and st > a:
-                kk = 1
-        first = 0
-        for j in range(nl):
-            x = fabs(g.coef[(k * nl + j) * 4 + 3])
-            if x > jerk[j]:
-                jerk[j] = x
-        k += 1
-        if k == g.n:
-            if g.period <= 0.0:
-                break
-            k = 0
-            m += 1.0
-        if g.period > 0.0 and b - a >= 2.0 * g.period and k == 0:
-            # every piece seen once, the rest repeats: no snap bound if a join changes the jerk
-            for k1 in range(g.n):
-                if g.jjump[k1]:
-                    kk = 1
-            break
-    return 0 if kk else 1
+    count = table_span(g, a, b, &k0, &d, &k1, &m)
+    if count > g.n:
+        table_run(g, 0, g.n, 0, True, jerk)
+        return 0 if g.jj_before[g.n] > 0 else 1
+    table_run(g, k0, count, 0, True, jerk)
+    # joins inside: the starts of the pieces after k0 (those after a), count - 1 of them
+    return 0 if g.jj_before[k0 + count] - g.jj_before[k0 + 1] > 0 else 1

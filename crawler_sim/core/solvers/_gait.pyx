@@ -165,6 +165,15 @@ cdef class CompiledGait:
         ok = gait_bounds(&self.d, t0, t1, &j[0], &s[0])
         return jerk[:self.d.nl], (snap[:self.d.nl] if ok else None)
 
+    def ranges(self, double t0, double t1):
+        """(lo l', hi l', lo l'', hi l'') per linkage over [t0, t1] [m/s, m/s^2], shape (4, nl),
+        or None where the kind has no ranges (only TABLE gaits: ``gait_ranges``)."""
+        out = np.zeros((4, max(self.d.nl, 1)))
+        cdef double[:, ::1] o = out
+        if not gait_ranges(&self.d, t0, t1, &o[0, 0]):
+            return None
+        return out[:, :self.d.nl]
+
     # ------------------------------------------------------------------ CALLBACK kind
     cdef int _fetch(self, double t, bint with_length) except -1:
         """The Python gait's l' and l'' (and l when asked) at t into ``_buf`` rows."""
@@ -339,19 +348,6 @@ def fourier(double freq, mean, cos_c, sin_c) -> CompiledGait:
     return g
 
 
-def _range_maxima(bins):
-    """Bins (nb, nl) -> (SCALLOP_LEVELS + 1, nb, nl): level q holds the largest of the 2^q
-    bins from each bin on (wrapping around the period), so the largest over any run of bins
-    is two lookups (runs up to 2^(q + 1)) or one per 2^q bins (longer ones)."""
-    out = [bins]
-    for q in range(1, SCALLOP_LEVELS + 1):
-        if (1 << q) > bins.shape[0]:
-            break
-        prev = out[len(out) - 1]
-        out.append(np.maximum(prev, np.roll(prev, -(1 << (q - 1)), axis=0)))
-    return np.ascontiguousarray(np.stack(out))
-
-
 def scallop(double freq, mean, rows, bins_jerk, bins_snap) -> CompiledGait:
     """The Scallop stroke: ``rows`` (nl, 4) = amplitude [m], phase - pi r [rad], cos(pi r),
     sin(pi r); derivative bounds per bin, ``bins_*`` (nb, nl) (nb bins per period). Kept with
@@ -361,8 +357,8 @@ def scallop(double freq, mean, rows, bins_jerk, bins_snap) -> CompiledGait:
     mean = _f64(mean)
     rows = np.asarray(rows, dtype=float)
     rows = _f64(np.column_stack([rows, np.cos(rows[:, 1]), np.sin(rows[:, 1])]))
-    bj = _range_maxima(np.asarray(bins_jerk, dtype=float))
-    bs = _range_maxima(np.asarray(bins_snap, dtype=float))
+    bj = _range_levels(np.asarray(bins_jerk, dtype=float), 1.0, True)
+    bs = _range_levels(np.asarray(bins_snap, dtype=float), 1.0, True)
     bj_all = _f64(bj[0].max(axis=0))
     bs_all = _f64(bs[0].max(axis=0))
     g._keep = (mean, rows, bj, bs, bj_all, bs_all)
@@ -381,6 +377,50 @@ def scallop(double freq, mean, rows, bins_jerk, bins_snap) -> CompiledGait:
     g.n_links = g.d.nl
     g.period = 1.0 / freq
     return g
+
+
+def _table_stats(coef, d0, d1, periodic):
+    """Per piece and linkage over its whole extent (offsets d0 .. d1 from its origin):
+    |jerk|, the smallest and largest l' (ends and vertex) and l'' (ends), shape (n, 5, nl);
+    a piece without an end (the last of a table that is not periodic) or a start (a first
+    one from -inf) has unbounded ranges. Then ``_range_levels``: the extremes over 2^q pieces
+    from each on, so a run of pieces is a few lookups."""
+    v0, a0, jk = coef[:, :, 1], coef[:, :, 2], coef[:, :, 3]
+    x0, x1 = d0[:, None], d1[:, None]
+    with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
+        acc = np.stack([a0 + x0 * jk, a0 + x1 * jk])
+        vel = [v0 + x0 * (a0 + 0.5 * x0 * jk), v0 + x1 * (a0 + 0.5 * x1 * jk)]
+        dv = np.where(jk != 0.0, -a0 / np.where(jk != 0.0, jk, 1.0), np.nan)
+        inside = (dv > x0) & (dv < x1)
+        vv = np.where(inside, v0 + dv * (a0 + 0.5 * dv * jk), vel[0])
+    vel = np.stack(vel + [vv])
+    fin = np.isfinite(x0) & np.isfinite(x1)
+    lo_v = np.where(fin, vel.min(axis=0), -np.inf)
+    hi_v = np.where(fin, vel.max(axis=0), np.inf)
+    lo_a = np.where(fin, acc.min(axis=0), -np.inf)
+    hi_a = np.where(fin, acc.max(axis=0), np.inf)
+    st = np.stack([np.abs(jk), lo_v, hi_v, lo_a, hi_a], axis=1)        # (n, 5, nl)
+    return _range_levels(st, np.array([1.0, -1.0, 1.0, -1.0, 1.0])[:, None], periodic)
+
+
+def _range_levels(st, sign, periodic):
+    """Items (n, ...) -> (levels, n, ...): level q holds the extreme of the 2^q items from each
+    on, the largest where ``sign`` (broadcast over an item) is +1, the smallest where -1;
+    wrapping around when ``periodic``, else clipped at the last item. So the extreme over any
+    run of items is a few lookups (``run_extreme``): a Scallop's bins of bounds, a table's
+    pieces."""
+    out = [st]
+    n = st.shape[0]
+    for q in range(1, RANGE_LEVELS + 1):
+        if (1 << q) > n:
+            break
+        prev = out[len(out) - 1]
+        sh = 1 << (q - 1)
+        nxt = np.roll(prev, -sh, axis=0)
+        if not periodic:
+            nxt[n - sh:] = prev[n - sh:]
+        out.append(sign * np.maximum(sign * prev, sign * nxt))
+    return np.ascontiguousarray(np.stack(out))
 
 
 def table(coef, *, starts=None, anchors=None, knots=None, period=None,
@@ -429,7 +469,12 @@ def table(coef, *, starts=None, anchors=None, knots=None, period=None,
     jj = np.ascontiguousarray(jj)
     rest = np.ascontiguousarray(np.all(coef[:, :, 1:] == 0.0, axis=(1, 2)))
     jump_times = _f64(starts_[jumps])
-    g._keep = (coef, knots if periodic else starts_, origins, jumps, jj, rest, jump_times)
+    ends = knots[1:] if periodic else np.append(starts_[1:], np.inf)
+    stat = _table_stats(coef, starts_ - origins, ends - origins, periodic)
+    jj_before = np.ascontiguousarray(np.concatenate([[0], np.cumsum(np.tile(jj, 2))]),
+                                     dtype=np.intc)
+    g._keep = (coef, knots if periodic else starts_, origins, jumps, jj, rest, jump_times,
+               stat, jj_before)
     g.d.kind = TABLE
     g.d.nl = nl
     g.d.n = n
@@ -439,6 +484,10 @@ def table(coef, *, starts=None, anchors=None, knots=None, period=None,
     g.d.rest = _bptr(rest)
     g.d.n_jumps = jump_times.size
     g.d.jump_times = _dptr(jump_times)
+    g.d.stat = _dptr(stat)
+    g.d.nlev = stat.shape[0]
+    cdef int[::1] jb = jj_before
+    g.d.jj_before = &jb[0]
     if periodic:
         g.d.period = float(period)
         g.d.knots = _dptr(knots)
