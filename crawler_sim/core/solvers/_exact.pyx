@@ -434,6 +434,7 @@ cdef class ExactCore:
     cdef double* noise
     cdef double* RL               # (nr,) lower bound of each row from the gait's ranges
     cdef double rg_end            # the end of the interval ``rg`` holds
+    cdef bint crossed             # the last ``row_bounds`` interval held a join changing l'''
     cdef double* jerk
     cdef double* snap
     cdef double* rg               # (2, 4, nl) ranges of l' and l'' (``gait_ranges``), and
@@ -942,6 +943,7 @@ cdef class ExactCore:
         cdef bint has1, has2, exact_jerk
         cdef double b2, b1, x1, x2
         has_snap = gait_bounds(g, a, b, self.jerk, self.snap)
+        self.crossed = not has_snap
         exact_jerk = g.kind != CALLBACK
         for r in range(nr):
             b2 = 0.0
@@ -1216,7 +1218,9 @@ cdef class ExactCore:
                     t_out[0] = INFINITY
                     return F_OK
                 m = min(a + h, lim)
-                if ranged:
+                if ranged and self.crossed:
+                    # (after steps across joins that change the jerk, where the rows' bounds
+                    # are Lipschitz bounds only: a piece or two a step)
                     watched = False
                     for r in range(nr):
                         if self.watch[r]:

@@ -511,14 +511,44 @@ cdef inline void table_run(const GaitData* g, int i0, int count, int f, bint lar
 cdef inline int table_span(const GaitData* g, double a, double b, int* k0, double* d0,
                            int* k1, double* d1) noexcept nogil:
     """The pieces a TABLE gait's [a, b] touches (a piece starting at b or later is not): the
-    first, k0 (offset d0 of a from its origin), the last, k1 (offset d1 of b), as indices
-    mod n. Returns how many (more than n: every piece, more than once)."""
-    cdef double m0, m1
-    cdef int u, hint = g.hint
+    first, k0 (offset d0 of a from its origin), the last, k1 (offset d1 of b from its
+    origin), as indices mod n. Returns how many (more than n: every piece, more than once).
+    b is looked for in the next few pieces first (most intervals are short)."""
+    cdef double m0, m, o
+    cdef int k, count = 1
     k0[0] = table_locate(g, a, d0, &m0)
+    k = k0[0]
+    m = m0
+    while True:
+        # does piece k (of period m) end after b? (its successor starts at b or later)
+        if k + 1 < g.n:
+            if piece_start(g, k + 1, m) >= b:
+                break
+            k += 1
+        elif g.period > 0.0:
+            if piece_start(g, 0, m + 1.0) >= b:
+                break
+            k = 0
+            m += 1.0
+        else:
+            break                        # the last piece holds everything after it
+        count += 1
+        if count > 4:
+            return _table_span_far(g, a, b, k0[0], m0, k1, d1)
+    k1[0] = k
+    o = piece_start(g, k, m) if g.period > 0.0 else g.anchors[k]
+    d1[0] = b - o
+    return count
+
+
+cdef inline int _table_span_far(const GaitData* g, double a, double b, int k0, double m0,
+                                int* k1, double* d1) noexcept nogil:
+    """``table_span`` for a b beyond the next few pieces: b located by binary search."""
+    cdef double m1
+    cdef int u, hint = g.hint
     k1[0] = table_locate(g, b, d1, &m1)
-    (<GaitData*>g).hint = hint      # the evaluations' piece (b may lie far ahead of it)
-    u = <int>((m1 - m0) * g.n) + k1[0] - k0[0]
+    (<GaitData*>g).hint = hint      # the evaluations' piece (b lies far ahead of it)
+    u = <int>((m1 - m0) * g.n) + k1[0] - k0
     if u > 0 and piece_start(g, k1[0], m1) >= b:
         # b at the start of piece k1: the one before ends there (its offset, d1 from it)
         k1[0] = k1[0] - 1 if k1[0] > 0 else g.n - 1
