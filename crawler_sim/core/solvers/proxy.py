@@ -44,6 +44,7 @@ import math
 from typing import Callable
 
 import numpy as np
+from numpy.polynomial.chebyshev import chebval
 from numpy.typing import NDArray
 
 from . import _gait
@@ -306,6 +307,7 @@ class ChebTable:
         pieces at their own nodes, the user's samples, to the rounding ``cheb_fit`` allows.
         What the sampling saw is kept; only the joins go."""
         eps = _EPS
+        scale = np.maximum(self.scale, self._quiet)
         while a.size > 1:
             k = np.arange(0, a.size - 1, 2)
             k = k[~br[k]]
@@ -314,9 +316,8 @@ class ChebTable:
             lo, hi, mid = a[k], b[k + 1], b[k]
             t = 0.5 * (lo + hi)[:, None] + 0.5 * (hi - lo)[:, None] * _U[None, :]
             right = t > mid[:, None]
-            f = np.where(right[:, :, None], _clenshaw(c[k + 1], a[k + 1], b[k + 1], t),
-                         _clenshaw(c[k], a[k], b[k], t))
-            scale = np.maximum(self.scale, self._quiet)
+            f = np.where(right[:, :, None], _series_at(c[k + 1], a[k + 1], b[k + 1], t),
+                         _series_at(c[k], a[k], b[k], t))
             cc, last, _ = _gait.cheb_fit(np.ascontiguousarray(f), _DCT, lo, hi, scale)
             ok = last <= N - 3
             # cheb_fit's rounding: 64 eps of the values' scale plus |t| eps times l'''
@@ -324,9 +325,10 @@ class ChebTable:
             t_eps = eps * np.maximum(np.abs(lo), np.abs(hi))[:, None] * l3
             for side in (k, k + 1):     # the joined series at each piece's own nodes
                 ts = 0.5 * (a[side] + b[side])[:, None] + 0.5 * (b[side] - a[side])[:, None] * _U
-                own = _clenshaw(c[side], a[side], b[side], ts)
+                own = _series_at(c[side], a[side], b[side], ts)
                 tol = 64 * eps * np.maximum(scale, np.abs(own).max(axis=1)) + t_eps
-                ok &= (np.abs(_clenshaw(cc, lo, hi, ts) - own) <= tol[:, None, :]).all(axis=(1, 2))
+                off = np.abs(_series_at(cc, lo, hi, ts) - own)
+                ok &= (off <= tol[:, None, :]).all(axis=(1, 2))
             if not ok.any():
                 break
             keep = np.ones(a.size, bool)
@@ -379,14 +381,11 @@ class ChebTable:
             self.rest = self.rest[drop:]
 
 
-def _clenshaw(c: NDArray, a: NDArray, b: NDArray, t: NDArray) -> NDArray:
+def _series_at(c: NDArray, a: NDArray, b: NDArray, t: NDArray) -> NDArray:
     """Series ``c`` (K, N + 1, nl) of the pieces [a, b] (K,) at the times ``t`` (K, M):
-    values (K, M, nl)."""
-    u = ((2.0 * t - (a + b)[:, None]) / (b - a)[:, None])[:, :, None]
-    x = y = np.zeros((c.shape[0], t.shape[1], c.shape[2]))
-    for i in range(c.shape[1] - 1, 0, -1):
-        x, y = c[:, None, i, :] + 2.0 * u * x - y, x
-    return c[:, None, 0, :] + u * x - y
+    values (K, M, nl) (numpy's ``chebval``, piece by piece through broadcasting)."""
+    u = (2.0 * t - (a + b)[:, None]) / (b - a)[:, None]
+    return chebval(u[:, :, None], np.moveaxis(c, 1, 0)[:, :, None, :], tensor=False)
 
 
 def _split_points(a: NDArray, b: NDArray, f: NDArray) -> NDArray:
