@@ -321,8 +321,8 @@ cdef inline int gait_eval(GaitData* g, double t, double* l, double* ld, double* 
             jk = row[4 * j + 3]
             if l != NULL:
                 l[j] = row[4 * j] + d * (row[4 * j + 1] + d * (0.5 * a0 + d * jk / 6.0))
-            ld[j] = row[4 * j + 1] + d * (a0 + 0.5 * d * jk)
-            ldd[j] = a0 + d * jk
+            ld[j] = piece_rate(row + 4 * j, d)
+            ldd[j] = piece_acc(row + 4 * j, d)
             ld3[j] = jk
         return 0
     if g.kind == PROXY:
@@ -558,32 +558,36 @@ cdef inline int _table_span_far(const GaitData* g, double a, double b, int k0, d
     return u + 1
 
 
-cdef inline void piece_ranges(const GaitData* g, int k, double d0, double d1,
+cdef inline double piece_rate(const double* r, double d) noexcept nogil:
+    """l' [m/s] of a constant-jerk row r = (l0, v0, a0, jerk) at offset d [s] from its
+    origin (``gait_eval``, the ranges and the tables of pieces: one expression)."""
+    return r[1] + d * (r[2] + 0.5 * d * r[3])
+
+
+cdef inline double piece_acc(const double* r, double d) noexcept nogil:
+    """l'' [m/s^2] of a constant-jerk row r at offset d [s]."""
+    return r[2] + d * r[3]
+
+
+cdef inline void piece_ranges(const double* row, int nl, double d0, double d1,
                               double* rg) noexcept nogil:
-    """l' (ends, vertex) and l'' (ends) of piece k between offsets d0 <= d1, merged into rg."""
-    cdef int j, nl = g.nl
-    cdef double v0, a0, jk, x, dv
-    cdef const double* row = g.coef + k * nl * 4
+    """l' (ends, vertex) and l'' (ends) between offsets d0 <= d1 of the constant-jerk piece
+    whose rows (nl, 4) start at ``row``, merged into rg (4, nl)."""
+    cdef int j
+    cdef double x, dv
+    cdef const double* r
     for j in range(nl):
-        v0 = row[4 * j + 1]
-        a0 = row[4 * j + 2]
-        jk = row[4 * j + 3]
-        x = a0 + d0 * jk
-        rg[2 * nl + j] = min(rg[2 * nl + j], x)
-        rg[3 * nl + j] = max(rg[3 * nl + j], x)
-        x = a0 + d1 * jk
-        rg[2 * nl + j] = min(rg[2 * nl + j], x)
-        rg[3 * nl + j] = max(rg[3 * nl + j], x)
-        x = v0 + d0 * (a0 + 0.5 * d0 * jk)
-        rg[j] = min(rg[j], x)
-        rg[nl + j] = max(rg[nl + j], x)
-        x = v0 + d1 * (a0 + 0.5 * d1 * jk)
-        rg[j] = min(rg[j], x)
-        rg[nl + j] = max(rg[nl + j], x)
-        if jk != 0.0:
-            dv = -a0 / jk
+        r = row + 4 * j
+        for x in (piece_acc(r, d0), piece_acc(r, d1)):
+            rg[2 * nl + j] = min(rg[2 * nl + j], x)
+            rg[3 * nl + j] = max(rg[3 * nl + j], x)
+        for x in (piece_rate(r, d0), piece_rate(r, d1)):
+            rg[j] = min(rg[j], x)
+            rg[nl + j] = max(rg[nl + j], x)
+        if r[3] != 0.0:
+            dv = -r[2] / r[3]
             if d0 < dv < d1:
-                x = v0 + dv * (a0 + 0.5 * dv * jk)
+                x = piece_rate(r, dv)
                 rg[j] = min(rg[j], x)
                 rg[nl + j] = max(rg[nl + j], x)
 
@@ -605,7 +609,7 @@ cdef inline int gait_ranges(GaitData* g, double a, double b, double* rg) noexcep
         rg[3 * nl + j] = -INFINITY
     count = table_span(g, a, b, &k0, &d0, &k1, &d1)
     if count == 1:
-        piece_ranges(g, k0, d0, d1, rg)
+        piece_ranges(g.coef + k0 * nl * 4, nl, d0, d1, rg)
         return 1
     if count > g.n:
         for f in range(1, 5):
@@ -614,8 +618,9 @@ cdef inline int gait_ranges(GaitData* g, double a, double b, double* rg) noexcep
     # piece k0 from a to its end, piece k1 from its start to b, the count - 2 between whole
     e = (g.knots[k0 + 1] - g.knots[k0] if g.period > 0.0
          else g.starts[k0 + 1] - g.anchors[k0])
-    piece_ranges(g, k0, d0, e, rg)
-    piece_ranges(g, k1, 0.0 if g.period > 0.0 else g.starts[k1] - g.anchors[k1], d1, rg)
+    piece_ranges(g.coef + k0 * nl * 4, nl, d0, e, rg)
+    piece_ranges(g.coef + k1 * nl * 4, nl,
+                 0.0 if g.period > 0.0 else g.starts[k1] - g.anchors[k1], d1, rg)
     if count > 2:
         for f in range(1, 5):
             table_run(g, k0 + 1, count - 2, f, f % 2 == 0, rg + (f - 1) * nl)

@@ -381,46 +381,71 @@ def scallop(double freq, mean, rows, bins_jerk, bins_snap) -> CompiledGait:
 
 def _table_stats(coef, d0, d1, periodic):
     """Per piece and linkage over its whole extent (offsets d0 .. d1 from its origin):
-    |jerk|, the smallest and largest l' (ends and vertex) and l'' (ends), shape (n, 5, nl);
-    a piece without an end (the last of a table that is not periodic) or a start (a first
-    one from -inf) has unbounded ranges. Then ``_range_levels``: the extremes over 2^q pieces
-    from each on, so a run of pieces is a few lookups."""
-    v0, a0, jk = coef[:, :, 1], coef[:, :, 2], coef[:, :, 3]
-    x0, x1 = d0[:, None], d1[:, None]
-    with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
-        acc = np.stack([a0 + x0 * jk, a0 + x1 * jk])
-        vel = [v0 + x0 * (a0 + 0.5 * x0 * jk), v0 + x1 * (a0 + 0.5 * x1 * jk)]
-        dv = np.where(jk != 0.0, -a0 / np.where(jk != 0.0, jk, 1.0), np.nan)
-        inside = (dv > x0) & (dv < x1)
-        vv = np.where(inside, v0 + dv * (a0 + 0.5 * dv * jk), vel[0])
-    vel = np.stack(vel + [vv])
-    fin = np.isfinite(x0) & np.isfinite(x1)
-    lo_v = np.where(fin, vel.min(axis=0), -np.inf)
-    hi_v = np.where(fin, vel.max(axis=0), np.inf)
-    lo_a = np.where(fin, acc.min(axis=0), -np.inf)
-    hi_a = np.where(fin, acc.max(axis=0), np.inf)
-    st = np.stack([np.abs(jk), lo_v, hi_v, lo_a, hi_a], axis=1)        # (n, 5, nl)
-    return _range_levels(st, np.array([1.0, -1.0, 1.0, -1.0, 1.0])[:, None], periodic)
+    |jerk|, the smallest and largest l' (ends and vertex) and l'' (ends) (``piece_ranges``),
+    shape (n, 5, nl); a piece without an end (the last of a table that is not periodic) or a
+    start (a first one from -inf) has unbounded ranges. Then ``_range_levels``: the extremes
+    over 2^q pieces from each on, so a run of pieces is a few lookups."""
+    cdef const double[:, :, ::1] c = coef
+    cdef const double[::1] lo = _f64(d0), hi = _f64(d1)
+    cdef Py_ssize_t n = c.shape[0], nl = c.shape[1], k, j
+    st_arr = np.empty((n, 5, nl))
+    cdef double[:, :, ::1] st = st_arr
+    cdef double[::1] rg = np.empty(4 * nl)
+    cdef bint bounded
+    for k in range(n):
+        bounded = isfinite(lo[k]) and isfinite(hi[k])
+        for j in range(nl):
+            st[k, 0, j] = fabs(c[k, j, 3])
+            rg[j] = INFINITY if bounded else -INFINITY
+            rg[nl + j] = -rg[j]
+            rg[2 * nl + j] = rg[j]
+            rg[3 * nl + j] = -rg[j]
+        if bounded:
+            piece_ranges(&c[k, 0, 0], <int>nl, lo[k], hi[k], &rg[0])
+        for j in range(4 * nl):
+            st[k, 1 + j // nl, j % nl] = rg[j]
+    return _range_levels(st_arr, np.array([1.0, -1.0, 1.0, -1.0, 1.0])[:, None], periodic)
 
 
-def _range_levels(st, sign, periodic):
+def _counts_before(flags):
+    """(2 n + 1,) how many of ``flags`` (n,), repeated twice, come before each index."""
+    cdef const unsigned char[::1] f = np.ascontiguousarray(flags, dtype=np.uint8)
+    cdef Py_ssize_t n = f.shape[0], i
+    out = np.empty(2 * n + 1, dtype=np.intc)
+    cdef int[::1] o = out
+    o[0] = 0
+    for i in range(2 * n):
+        o[i + 1] = o[i] + f[i % n]
+    return out
+
+
+def _range_levels(st, sign, bint periodic):
     """Items (n, ...) -> (levels, n, ...): level q holds the extreme of the 2^q items from each
     on, the largest where ``sign`` (broadcast over an item) is +1, the smallest where -1;
     wrapping around when ``periodic``, else clipped at the last item. So the extreme over any
     run of items is a few lookups (``run_extreme``): a Scallop's bins of bounds, a table's
-    pieces."""
-    out = [st]
-    n = st.shape[0]
-    for q in range(1, RANGE_LEVELS + 1):
-        if (1 << q) > n:
-            break
-        prev = out[len(out) - 1]
+    pieces (built with every gait that has them: loops, not array calls, for small tables)."""
+    st = _f64(st)
+    cdef Py_ssize_t n = st.shape[0], w = st.size // max(n, 1), q, k, k2, c, sh, L = 1
+    while L <= RANGE_LEVELS and (1 << L) <= n:
+        L += 1
+    out_arr = np.empty((L,) + st.shape)
+    cdef double[:, :, ::1] o = out_arr.reshape(L, n, w)
+    cdef const double[::1] sg = _f64(np.broadcast_to(sign, st.shape[1:]).reshape(-1))
+    cdef const double[:, ::1] s0 = st.reshape(n, w)
+    cdef double x, y
+    o[0, :, :] = s0
+    for q in range(1, L):
         sh = 1 << (q - 1)
-        nxt = np.roll(prev, -sh, axis=0)
-        if not periodic:
-            nxt[n - sh:] = prev[n - sh:]
-        out.append(sign * np.maximum(sign * prev, sign * nxt))
-    return np.ascontiguousarray(np.stack(out))
+        for k in range(n):
+            k2 = k + sh
+            if k2 >= n:
+                k2 = k2 - n if periodic else n - 1
+            for c in range(w):
+                x = o[q - 1, k, c]
+                y = o[q - 1, k2, c]
+                o[q, k, c] = (x if x >= y else y) if sg[c] > 0.0 else (x if x <= y else y)
+    return out_arr
 
 
 def table(coef, *, starts=None, anchors=None, knots=None, period=None,
@@ -471,8 +496,7 @@ def table(coef, *, starts=None, anchors=None, knots=None, period=None,
     jump_times = _f64(starts_[jumps])
     ends = knots[1:] if periodic else np.append(starts_[1:], np.inf)
     stat = _table_stats(coef, starts_ - origins, ends - origins, periodic)
-    jj_before = np.ascontiguousarray(np.concatenate([[0], np.cumsum(np.tile(jj, 2))]),
-                                     dtype=np.intc)
+    jj_before = _counts_before(jj)
     g._keep = (coef, knots if periodic else starts_, origins, jumps, jj, rest, jump_times,
                stat, jj_before)
     g.d.kind = TABLE
