@@ -579,11 +579,14 @@ def cheb_fit(const double[:, :, ::1] f, const double[:, ::1] dct, const double[:
     node 0 at the piece's end b); the coefficients below the rounding of the values (64 eps
     of their scale, the piece's or ``scale``, plus eps |t| times the series' own l''' bound)
     set to zero. Returns (c (K, N + 1, nl), last (K,) index of the last kept coefficient,
-    tail (K,): the largest of the last three coefficients over the piece's largest value)."""
+    tail (K,): the largest of the last three coefficients over the piece's largest value,
+    tol (K, nl): that rounding [m/s^2])."""
     cdef Py_ssize_t K = f.shape[0], n1 = f.shape[1], nl = f.shape[2], k, i, q, j
     c_arr = np.zeros((K, n1, nl))
     last_arr = np.full(K, -1, dtype=np.intp)
     tail_arr = np.zeros(K)
+    tol_arr = np.zeros((K, nl))
+    cdef double[:, ::1] tols = tol_arr
     cdef double[:, :, ::1] c = c_arr
     cdef Py_ssize_t[::1] last = last_arr
     cdef double[::1] tail = tail_arr
@@ -607,6 +610,7 @@ def cheb_fit(const double[:, :, ::1] f, const double[:, ::1] dct, const double[:
             if not isfinite(jb):
                 jb = 0.0
             tol = 64.0 * eps * vs + eps * tm * jb + 1e-300
+            tols[k, j] = tol
             for q in range(max(n1 - 3, 0), n1):
                 # over the piece's own values: the noise of the user's arithmetic is a share
                 # of what it computes there (a share of the largest value seen is too coarse
@@ -620,7 +624,7 @@ def cheb_fit(const double[:, :, ::1] f, const double[:, ::1] dct, const double[:
         for q in range(last[k] + 1, n1):
             for j in range(nl):
                 c[k, q, j] = 0.0
-    return c_arr, last_arr, tail_arr
+    return c_arr, last_arr, tail_arr, tol_arr
 
 
 def cheb_series(const double[:, :, ::1] acc, const double[::1] a, const double[::1] b,

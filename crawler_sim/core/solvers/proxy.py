@@ -66,7 +66,6 @@ _EPS = np.finfo(float).eps
 
 _U = np.cos(np.pi * np.arange(N + 1) / N)                # nodes, from +1 down to -1
 _ONE = np.array([1.0])                                   # the one node of an instant
-_Q2 = (np.arange(N + 1) ** 2)[None, :, None]            # |T_q'| <= q^2 on [-1, 1]
 
 
 def _dct() -> NDArray:
@@ -273,7 +272,8 @@ class ChebTable:
                     'List the times where it jumps in breakpoints=')
             f = self._sample(a, b, bl, br)
             self.scale = np.maximum(self.scale, np.abs(f).max(axis=(0, 1)))
-            c, last, tail = _gait.cheb_fit(f, _DCT, a, b, np.maximum(self.scale, self._quiet))
+            c, last, tail, _ = _gait.cheb_fit(f, _DCT, a, b,
+                                              np.maximum(self.scale, self._quiet))
             happy = last <= N - 3
             if not out and happy.all():
                 return a, b, br, c     # the common window: every piece resolved at once
@@ -306,7 +306,6 @@ class ChebTable:
         (no call of the user's functions), kept when happy (``cheb_fit``) and equal to the
         pieces at their own nodes, the user's samples, to the rounding ``cheb_fit`` allows.
         What the sampling saw is kept; only the joins go."""
-        eps = _EPS
         scale = np.maximum(self.scale, self._quiet)
         while a.size > 1:
             k = np.arange(0, a.size - 1, 2)
@@ -318,15 +317,11 @@ class ChebTable:
             right = t > mid[:, None]
             f = np.where(right[:, :, None], _series_at(c[k + 1], a[k + 1], b[k + 1], t),
                          _series_at(c[k], a[k], b[k], t))
-            cc, last, _ = _gait.cheb_fit(np.ascontiguousarray(f), _DCT, lo, hi, scale)
+            cc, last, _, tol = _gait.cheb_fit(np.ascontiguousarray(f), _DCT, lo, hi, scale)
             ok = last <= N - 3
-            # cheb_fit's rounding: 64 eps of the values' scale plus |t| eps times l'''
-            l3 = (_Q2 * np.abs(cc)).sum(axis=1) * 2.0 / (hi - lo)[:, None]    # (K, nl)
-            t_eps = eps * np.maximum(np.abs(lo), np.abs(hi))[:, None] * l3
             for side in (k, k + 1):     # the joined series at each piece's own nodes
                 ts = 0.5 * (a[side] + b[side])[:, None] + 0.5 * (b[side] - a[side])[:, None] * _U
                 own = _series_at(c[side], a[side], b[side], ts)
-                tol = 64 * eps * np.maximum(scale, np.abs(own).max(axis=1)) + t_eps
                 off = np.abs(_series_at(cc, lo, hi, ts) - own)
                 ok &= (off <= tol[:, None, :]).all(axis=(1, 2))
             if not ok.any():
