@@ -109,16 +109,14 @@ class Gait:
        on it.
     4. Optionally override ``is_constant`` (rest intervals the solver can skip). It must return
        True only when l' == 0 and l'' == 0 on all of [t0, t1].
-    5. Optionally override ``jerk_bound`` (and ``snap_bound``): with true bounds the exact
-       solver's event search is rigorous for your ``at`` (called at every evaluation);
-       without them (or where it returns None at t = 0) the gait is sampled into Chebyshev
-       pieces (``solvers.proxy``) that the solvers read.
+    5. Optionally override ``jerk_bound``: the pieces the gait is sampled into are checked
+       against it (a piece whose l''' exceeds it is refused, naming ``jerk_bound``).
 
     Every gait runs in the compiled solvers through ``compiled()``: the built-in gaits
     (``BuiltinGait``) as their own compiled kind, which their Python methods call too (one
-    arithmetic); any other gait, such as a user's subclass, through its Python methods: sampled
-    into the pieces of the kind PROXY, or, with bounds of its own, called at every evaluation
-    (the kind CALLBACK).
+    arithmetic); any other gait, such as a user's subclass, through its Python methods,
+    sampled into Chebyshev pieces to the rounding of its values (``solvers.proxy``, the kind
+    PROXY) that the solvers read.
     """
 
     n_links: int
@@ -132,22 +130,15 @@ class Gait:
         return cg
 
     def _compile(self):
-        """A gait that is not built in: its Python ``at`` (and ``jerk_bound``,
-        ``breakpoints``, ``is_constant``) called from the compiled loop."""
-        from ..solvers._gait import callback, proxy
+        """A gait that is not built in: its Python ``at`` sampled into Chebyshev pieces
+        (split at its ``breakpoints``, checked against its ``jerk_bound`` if it has one)."""
+        from ..solvers._gait import proxy
         from ..solvers.proxy import ChebTable
-        if type(self).jerk_bound is not Gait.jerk_bound and self._gives_bounds():
-            return callback(self, self.n_links, jerk=self.jerk_bound)
+        jerk = self.jerk_bound if type(self).jerk_bound is not Gait.jerk_bound else None
         table = ChebTable(lambda t: self.at(t)[2], lambda t: self.at(t)[:2], self.n_links,
-                          self.period, getattr(self, 'max_step', None), self.breakpoints)
+                          self.period, getattr(self, 'max_step', None), self.breakpoints,
+                          jerk)
         return proxy(self, self.n_links, table)
-
-    def _gives_bounds(self) -> bool:
-        """The subclass's ``jerk_bound`` gives bounds (not None, its "unknown")."""
-        try:
-            return self.jerk_bound(0.0, 0.0) is not None
-        except Exception:      # noqa: BLE001 (its errors surface where the solver asks)
-            return True
 
     def __getstate__(self) -> dict:
         # the compiled form is rebuilt where the gait is used (a sweep sends gaits to workers)
@@ -205,14 +196,15 @@ class Gait:
         """Upper bounds of |l'''| [m/s^3] per linkage on [t0, t1], or None if unknown (default).
 
         Between the breakpoints l'' must be Lipschitz with this constant (l''' may jump, as at
-        the joins of a `PiecewiseCubic`). The exact solver's event search is rigorous only with
-        a true bound: a bound that is too small can make it miss an event."""
+        the joins of a `PiecewiseCubic`). A built-in gait's bound is the one its event search
+        is proven with; a user's gait is sampled into pieces that are checked against it."""
         return None
 
     def snap_bound(self, t0: float, t1: float) -> NDArray[np.float64] | None:
         """Upper bounds of |l''''| [m/s^4] per linkage on [t0, t1] between breakpoints, or None
-        when unknown or when l''' jumps inside (the solver then bounds the stuck-force rows
-        with `jerk_bound` alone)."""
+        when unknown or when l''' jumps inside (a built-in gait's search then bounds the
+        stuck-force rows with `jerk_bound` alone; a user's gait is sampled, its own series'
+        bounds used)."""
         return None
 
 
@@ -220,7 +212,7 @@ class BuiltinGait(Gait):
     """A gait with a compiled kind of its own (``_kind``): every evaluation, from Python and
     from the solvers, goes through it. A subclass that overrides an evaluation method (``at``,
     ``_eval``, ``breakpoints``, ...) runs in the solvers through its Python methods instead
-    (the CALLBACK kind), so what it says is what the solvers see."""
+    (sampled, as any user's gait), so what it says is what the solvers see."""
 
     _EVALUATION = ('__call__', '_eval', 'at', 'at1', 'breakpoints', 'is_constant',
                    'jerk_bound', 'snap_bound')

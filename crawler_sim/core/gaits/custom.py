@@ -23,16 +23,15 @@ class Custom(Gait):
     - ``period`` [s]: the gait repeats with this period (enables the periodic skip; the gait
       is sampled over one period);
     - ``jerk_bound`` [m/s^3]: an upper bound of |l'''| (float, one per linkage, or a callable
-      ``(t0, t1) -> bounds`` on [t0, t1]). With it the event search is rigorous for your
-      functions, called at every evaluation of the search (about 1 us each);
+      ``(t0, t1) -> bounds`` on [t0, t1]): every sampled piece is checked against it, and a
+      gait whose l''' exceeds it is refused, naming it;
     - ``max_step`` [s]: the largest step between two event checks (and the sampling: 8
       cells per step).
 
-    Without ``jerk_bound`` the functions are sampled into Chebyshev pieces to the rounding of
-    their values (``solvers.proxy``: l'' at about one point per cell, l and l' at each join,
-    checked to be its integrals) and the solver reads the pieces. Every form runs in the
-    compiled segment loop, the callables called at times inside the span being integrated
-    only.
+    The functions are sampled into Chebyshev pieces to the rounding of their values
+    (``solvers.proxy``: l'' at about one point per cell, l and l' at each join, checked to be
+    its integrals) and the solver reads the pieces, in the compiled segment loop; the
+    callables are called at times inside the span being integrated only.
     """
 
     def __init__(self, length: Callable[[float], ArrayLike],
@@ -59,14 +58,12 @@ class Custom(Gait):
             self._jerk = jb
 
     def _compile(self):
-        from ..solvers._gait import callback, proxy
+        from ..solvers._gait import proxy
         from ..solvers.proxy import ChebTable
-        if self._jerk is not None:
-            return callback(self, self.n_links, fns=self._fns, jerk=self._jerk,
-                            breakpoints=self._breaks)
         fl, fv, fa = self._fns
         table = ChebTable(fa, lambda t: (fl(t), fv(t)), self.n_links, self.period,
-                          self.max_step, self.breakpoints if self._breaks.size else None)
+                          self.max_step, self.breakpoints if self._breaks.size else None,
+                          self.jerk_bound if self._jerk is not None else None)
         return proxy(self, self.n_links, table, fns=self._fns)
 
     def __call__(self, t: float | ArrayLike) -> Triple:

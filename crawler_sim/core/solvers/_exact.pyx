@@ -32,7 +32,7 @@ from cpython.buffer cimport (PyObject_GetBuffer, PyBuffer_Release, PyBUF_C_CONTI
 from libc.string cimport memcpy
 
 from crawler_sim.core.solvers._gait cimport (CompiledGait, GaitData, FOURIER, SCALLOP,
-                                             TABLE, CALLBACK, PROXY, gait_eval, gait_rates,
+                                             TABLE, PROXY, gait_eval, gait_rates,
                                              gait_lengths, gait_bounds, gait_ranges,
                                              gait_next_break, gait_is_constant)
 from crawler_sim.core.solvers._inclusion cimport inclusion
@@ -230,9 +230,7 @@ cdef class ClosedForm:
             while sg + 1 < n_seg and fv[sg + 1, 0] <= tv[k]:
                 sg += 1
             ow[k] = sg
-        if n and gait.d.kind == CALLBACK:          # its values come from Python
-            vals[0], vals[1], vals[2] = gait.values(tau)
-        elif n and nl:
+        if n and nl:
             if nl > 64:
                 w3 = <double*>PyMem_Malloc(nl * sizeof(double))
                 if w3 == NULL:
@@ -452,7 +450,6 @@ cdef class ExactCore:
     cdef unsigned char* hits
     cdef unsigned char* group
     cdef unsigned char* group2
-    cdef unsigned char* taylor
     cdef signed char* new_contact
     cdef signed char* new2
     cdef int* idx
@@ -480,7 +477,7 @@ cdef class ExactCore:
         nb = (p + p + p + p + p + p + p               # contact zero cache_group ck_contact ck_zero
               + p + p + p + p + p                     # last_contact last_group free hits group
               + p + p + p                             # group2 new_contact new2
-              + 3 * nr + 2 * p * n_buf)               # watch hit taylor, scontact sgroup
+              + 2 * nr + 2 * p * n_buf)               # watch hit, scontact sgroup
         self._mem = <char*>PyMem_Calloc(1, nd * sizeof(double) + nb + 16
                                         + (2 * nr + n_buf + 6 * n_buf) * sizeof(long)
                                         + 2 * p * sizeof(int) + 64)
@@ -555,7 +552,6 @@ cdef class ExactCore:
         self.new2 = <signed char*>u; u += p
         self.watch = u; u += nr
         self.hit = u; u += nr
-        self.taylor = u; u += nr
         self.scontact = <signed char*>u; u += p * n_buf
         self.sgroup = u; u += p * n_buf
         self._snap = <char*>PyMem_Calloc(1, self._n_state * sizeof(double) + 8 * p + 16)
@@ -936,15 +932,12 @@ cdef class ExactCore:
 
     # ------------------------------------------------------------------ search
     cdef int row_bounds(self, GaitData* g, double a, double b, int nr) except -1:
-        """B2 (|g''|) and B1 (|g'|, force rows only) of each row on [a, b], and whether its
-        slope may enter a Taylor bound (``taylor``: a force row's slope needs l''', which a
-        CALLBACK gait with bounds of its own does not give)."""
+        """B2 (|g''|) and B1 (|g'|, force rows only) of each row on [a, b]."""
         cdef int r, j, nl = self.nl, has_snap
-        cdef bint has1, has2, exact_jerk
+        cdef bint has1, has2
         cdef double b2, b1, x1, x2
         has_snap = gait_bounds(g, a, b, self.jerk, self.snap)
         self.crossed = not has_snap
-        exact_jerk = g.kind != CALLBACK
         for r in range(nr):
             b2 = 0.0
             b1 = 0.0
@@ -967,7 +960,6 @@ cdef class ExactCore:
                     b2 = INFINITY
             self.B2[r] = b2
             self.B1[r] = b1 if (has2 and self.c1[r] == 0.0 and not has1) else INFINITY
-            self.taylor[r] = exact_jerk or not has2
         return 0
 
     cdef int values(self, GaitData* g, double t, double t0, int nr, double* gv,
@@ -1003,8 +995,6 @@ cdef class ExactCore:
             b2 = self.B2[r]
             if b2 == INFINITY:
                 ht = 0.0
-            elif not self.taylor[r]:
-                ht = sqrt(2.0 * gg / b2) if b2 > 0.0 else INFINITY    # slope unknown
             else:
                 # the positive root, in the form without cancellation
                 q = sqrt(d * d + 2.0 * b2 * gg)
@@ -1045,9 +1035,8 @@ cdef class ExactCore:
             q = self.B2[r] * (h * h)
             lo = max(min(ga[r], gb[r]) - q / 8.0, 0.5 * (ga[r] + gb[r]) - self.B1[r] * (h / 2.0))
             lo = max(lo, self.RL[r])
-            if self.taylor[r]:
-                lo = max(lo, min(ga[r], ga[r] + da[r] * h - q / 2.0))
-                lo = max(lo, min(gb[r], gb[r] - db[r] * h - q / 2.0))
+            lo = max(lo, min(ga[r], ga[r] + da[r] * h - q / 2.0))
+            lo = max(lo, min(gb[r], gb[r] - db[r] * h - q / 2.0))
             if lo <= 0.0:
                 return False
         return True
@@ -1417,7 +1406,7 @@ cdef class ExactCore:
         self.k_at = -1
         self.bad_time = NAN
         t = self.t
-        if g.kind == CALLBACK or g.kind == PROXY:
+        if g.kind == PROXY:
             gait.span_lo = t
             gait.span_hi = t_end
         while t < t_end:
@@ -1529,7 +1518,7 @@ cdef class ExactCore:
             else:
                 nr = self.build_rows(self.contact, self.group, r0, V0, a)
                 if nr > 0 and end > t0:
-                    if g.kind == CALLBACK or g.kind == PROXY:
+                    if g.kind == PROXY:
                         gait.span_lo = t0
                         gait.span_hi = end
                     code = self.search(g, t0, end, nr, tol, cap, &tt)
@@ -1717,7 +1706,6 @@ cdef class ExactCore:
             self.watch[r] = bool(watch[r])
             self.B2[r] = B2[r]
             self.B1[r] = B1[r]
-            self.taylor[r] = 1
         return self.step(nr, &g[0], &d[0], tol, cap)
 
     def proven_interval(self, double h, ga, gb, da, db, watch, B2, B1) -> bool:
@@ -1730,7 +1718,6 @@ cdef class ExactCore:
             self.B2[r] = B2[r]
             self.B1[r] = B1[r]
             self.RL[r] = -INFINITY
-            self.taylor[r] = 1
         return self.proven(nr, h, &a_[0], &b_[0], &c_[0], &d_[0])
 
 

@@ -10,10 +10,8 @@ arithmetic exists once. Four kinds:
 * SCALLOP: the warped cosine stroke of ``gaits.smooth.Scallop``;
 * TABLE: constant-jerk pieces (l0, v0, a0, jerk) per linkage, ``Cubic``, ``PiecewiseCubic``,
   ``PiecewiseParabolic`` (jerk 0) and ``Spline``; periodic or not;
-* CALLBACK: Python callables with bounds of their own (``Custom`` given ``jerk_bound``, a
-  ``Gait`` subclass with ``jerk_bound``), called at every evaluation;
-* PROXY: Python callables without bounds (``Custom``, any other ``Gait`` subclass), sampled
-  into Chebyshev pieces (``proxy.ChebTable``) as the solver reaches them.
+* PROXY: Python callables (``Custom``, any other ``Gait`` subclass), sampled into Chebyshev
+  pieces (``proxy.ChebTable``) as the solver reaches them.
 
 Units: t [s], l [m], l' [m/s], l'' [m/s^2], l''' [m/s^3], l'''' [m/s^4].
 """
@@ -24,7 +22,6 @@ cdef enum:
     FOURIER = 0
     SCALLOP = 1
     TABLE = 2
-    CALLBACK = 3
     PROXY = 4
 
 cdef enum:
@@ -68,7 +65,7 @@ ctypedef struct GaitData:
     double* bj_all          # SCALLOP: the largest bin (nl,)
     double* bs_all
     bint constant           # l' = l'' = 0 at all times
-    void* obj               # CALLBACK, PROXY: the CompiledGait that owns this struct
+    void* obj               # PROXY: the CompiledGait that owns this struct
     # PROXY: n pieces between knots (n + 1,); series coef (n, nl, 4, stride) of l, l', l'',
     # l''' in u = (2 t - a - b) / (b - a), ncoef (n,) of them in use; bj, bs (n, nl) bounds
     # per piece; rest (n,); period > 0 once the pieces cover one period from knots[0]
@@ -81,21 +78,17 @@ cdef class CompiledGait:
     cdef readonly int n_links
     cdef readonly object period         # [s] or None
     cdef object _keep                   # the arrays the struct points into
-    # CALLBACK kind
+    # PROXY kind: the user's functions (read outside the pieces)
     cdef object _gait                   # the Python gait
     cdef object _fns                    # (l, l', l'') callables of one float, or None
     cdef bint _scalar                   # the callables return floats (one linkage)
-    cdef object _jerk                   # user bound: None, an array (nl,) or a callable
     cdef double[:, ::1] _buf            # rows l, l', l'' of the last evaluation
     cdef double _t_len, _t_rates        # times of the values in _buf (NaN: none)
     cdef public double span_lo, span_hi  # the span being integrated: callables stay inside it
-    cdef public object lock             # CALLBACK, PROXY: one solver at a time (shared state)
+    cdef public object lock             # PROXY: one solver at a time (shared state)
     cdef int _fetch(self, double t, bint with_length) except -1
     cdef int cb_rates(self, double t, double* ld, double* ldd, double* ld3) except -1
     cdef int cb_lengths(self, double t, double* l) except -1
-    cdef int cb_bounds(self, double a, double b, double* jerk, double* snap) except -1
-    cdef double cb_next_break(self, double t) except? -1.0
-    cdef int cb_is_constant(self, double a, double b) except -1
     # PROXY kind
     cdef public object table            # ``proxy.ChebTable``
     cdef int px_sync(self) except -1
@@ -307,8 +300,7 @@ cdef inline int proxy_walk(GaitData* g, double a, double b, double* jerk, double
 cdef inline int gait_eval(GaitData* g, double t, double* l, double* ld, double* ldd,
                           double* ld3) except -1:
     """l (when ``l`` is not NULL), l', l'' and l''' at t: the one evaluation of every kind
-    (lengths share the trigonometric values of the rates). Returns 0 (a CALLBACK gait's l'''
-    is 0: its search uses the user's bounds alone)."""
+    (lengths share the trigonometric values of the rates). Returns 0."""
     cdef int j, k, nl = g.nl, nk, code
     cdef double d, m, a0, jk, ft, th, w, amp, c, s, x, cx, sx, inv_d, sin_phi, cos_phi
     cdef double dphi, ddphi, dddphi, c1, s1, cc, ss, cn, wk, wk2, wk3, a_, b_
@@ -336,10 +328,6 @@ cdef inline int gait_eval(GaitData* g, double t, double* l, double* ld, double* 
         k = proxy_locate(g, t, &d, &m)
         proxy_piece(g, k, d, l, ld, ldd, ld3)
         return 0
-    if g.kind == CALLBACK:
-        if l != NULL:
-            (<CompiledGait>g.obj).cb_lengths(t, l)
-        return (<CompiledGait>g.obj).cb_rates(t, ld, ldd, ld3)
     ft = g.freq * t
     th = 2.0 * M_PI * (ft - floor(ft))          # the phase in cycles first (large t)
     w = 2.0 * M_PI * g.freq
@@ -415,8 +403,6 @@ cdef inline int gait_lengths(GaitData* g, double t, double* l) except -1:
     cdef double buf[96]
     cdef double* w
     cdef int nl = g.nl
-    if g.kind == CALLBACK:
-        return (<CompiledGait>g.obj).cb_lengths(t, l)
     if nl <= 32:
         gait_eval(g, t, l, buf, buf + 32, buf + 64)
         return 0
@@ -434,8 +420,6 @@ cdef inline double gait_next_break(GaitData* g, double t) except? -1.0:
     """The first time after t where l'' may jump [s] (INFINITY when none)."""
     if g.kind == TABLE:
         return next_jump(g, t)
-    if g.kind == CALLBACK:
-        return (<CompiledGait>g.obj).cb_next_break(t)
     if g.kind == PROXY:
         return proxy_next_break(g, t)
     return INFINITY
@@ -449,8 +433,6 @@ cdef inline int gait_is_constant(GaitData* g, double a, double b) except -1:
     cdef bint rest
     if g.constant:
         return 1
-    if g.kind == CALLBACK:
-        return (<CompiledGait>g.obj).cb_is_constant(a, b)
     if g.kind == PROXY:
         if g.nl > 32:
             return 0
@@ -639,8 +621,6 @@ cdef inline int gait_bounds(GaitData* g, double a, double b, double* jerk,
             jerk[j] = g.bj[j]
             snap[j] = g.bs[j]
         return 1
-    if g.kind == CALLBACK:
-        return (<CompiledGait>g.obj).cb_bounds(a, b, jerk, snap)
     if g.kind == PROXY:
         # the bounds of the pieces' series; across a join the jerk may jump (no snap bound)
         return 1 if proxy_walk(g, a, b, jerk, snap, &rest) == 1 else 0

@@ -15,7 +15,7 @@ import numpy as np
 from libc.math cimport fabs, isfinite, nextafter, INFINITY, NAN
 from cpython.mem cimport PyMem_Malloc, PyMem_Free
 
-__all__ = ['CompiledGait', 'fourier', 'scallop', 'table', 'callback', 'proxy']
+__all__ = ['CompiledGait', 'fourier', 'scallop', 'table', 'proxy']
 
 
 _NO_LOCK = contextlib.nullcontext()
@@ -71,7 +71,7 @@ cdef class CompiledGait:
         if n == 0 or nl == 0:
             return l, ld, ldd
         for k in range(n):
-            if self.d.kind == CALLBACK or (self.d.kind == PROXY and not self._covers(tt[k])):
+            if self.d.kind == PROXY and not self._covers(tt[k]):
                 self._fetch(tt[k], True)
                 for j in range(nl):
                     L[k, j] = self._buf[0, j]
@@ -95,7 +95,7 @@ cdef class CompiledGait:
         if self.d.nl != 1:
             a, b, c = self.at(t)
             return float(a[0]), float(b[0]), float(c[0])
-        if self.d.kind == CALLBACK or (self.d.kind == PROXY and not self._covers(t)):
+        if self.d.kind == PROXY and not self._covers(t):
             self._fetch(t, True)
             return self._buf[0, 0], self._buf[1, 0], self._buf[2, 0]
         gait_eval(&self.d, t, l, ld, ldd, ld3)
@@ -107,7 +107,7 @@ cdef class CompiledGait:
         values again and names what is wrong)."""
         cdef int nl = self.d.nl, j
         cdef double* w
-        if self.d.kind == CALLBACK or self.d.kind == PROXY:
+        if self.d.kind == PROXY:
             try:
                 self._fetch(t, True)
             except Exception:         # noqa: BLE001 (reported by the caller's own checks)
@@ -132,7 +132,7 @@ cdef class CompiledGait:
             PyMem_Free(w)
 
     def jerk(self, double t):
-        """l''' at t [m/s^3] (a CALLBACK gait: a difference of its l'')."""
+        """l''' at t [m/s^3]."""
         out = np.empty((4, max(self.d.nl, 1)))
         cdef double[:, ::1] o = out
         gait_rates(&self.d, t, &o[0, 0], &o[1, 0], &o[2, 0])
@@ -174,7 +174,7 @@ cdef class CompiledGait:
             return None
         return out[:, :self.d.nl]
 
-    # ------------------------------------------------------------------ CALLBACK kind
+    # ------------------------------------------------------------------ the user's functions
     cdef int _fetch(self, double t, bint with_length) except -1:
         """The Python gait's l' and l'' (and l when asked) at t into ``_buf`` rows."""
         cdef int j, nl = self.d.nl
@@ -217,8 +217,8 @@ cdef class CompiledGait:
         return 0
 
     cdef int cb_rates(self, double t, double* ld, double* ldd, double* ld3) except -1:
-        """l' and l'' from the user's functions; l''' 0 (the search of a CALLBACK gait uses
-        the user's bounds alone, no slope of l'')."""
+        """l' and l'' from the user's functions (a PROXY gait outside its pieces and outside
+        any solve, where no search runs); l''' 0."""
         cdef int j, nl = self.d.nl
         self._fetch(t, False)
         for j in range(nl):
@@ -226,49 +226,6 @@ cdef class CompiledGait:
             ldd[j] = self._buf[2, j]
             ld3[j] = 0.0
         return 0
-
-    cdef int cb_bounds(self, double a, double b, double* jerk, double* snap) except -1:
-        cdef int j, nl = self.d.nl
-        jb = self._jerk
-        if callable(jb):
-            jb = jb(a, b)
-            if jb is None:
-                raise ValueError(f'jerk_bound({a!r}, {b!r}) gave no bound: it must return '
-                                 'bounds of |l\'\'\'| >= 0 m/s^3 (or give the gait no '
-                                 'jerk_bound)')
-            jb = _user_bound(jb, nl, a, b)
-        for j in range(nl):
-            jerk[j] = jb[j]
-        if self._fns is None:       # a Gait subclass: its own snap bound, if any
-            sb = self._gait.snap_bound(a, b)
-            if sb is not None:
-                sb = np.broadcast_to(np.asarray(sb, dtype=float), (nl,))
-                for j in range(nl):
-                    snap[j] = sb[j]
-                return 1
-        return 0
-
-    cdef double cb_next_break(self, double t) except? -1.0:
-        cdef double w
-        if self._fns is not None:          # a Custom gait: its sorted breakpoints
-            br = self._keep
-            i = np.searchsorted(br, t, side='right')
-            return float(br[i]) if i < br.size else INFINITY
-        # a Gait subclass: its breakpoints() over the span being integrated (growing windows
-        # outside a solve)
-        if isfinite(self.span_hi) and self.span_hi > t:
-            b = self._gait.breakpoints(t, self.span_hi)
-            return float(b[0]) if len(b) else INFINITY
-        w = 1.0
-        while w < 1e12:
-            b = self._gait.breakpoints(t, t + w)
-            if len(b):
-                return float(b[0])
-            w *= 16.0
-        return INFINITY
-
-    cdef int cb_is_constant(self, double a, double b) except -1:
-        return 1 if self._gait.is_constant(a, b) else 0
 
     # ------------------------------------------------------------------ PROXY kind
     cdef bint _covers(self, double t) noexcept:
@@ -309,14 +266,6 @@ def _row(v, int nl):
     if a.size != nl:
         raise ValueError(f'gait values must have {nl} entries (one per linkage), got {a.size}')
     return a.tolist()
-
-
-def _user_bound(jb, int nl, double a, double b):
-    arr = np.broadcast_to(np.asarray(jb, dtype=float), (nl,))
-    if np.any(np.isnan(arr)) or np.any(arr < 0):
-        raise ValueError(f'jerk_bound({a}, {b}) must return values >= 0 m/s^3, '
-                         f'got {arr.tolist()}')
-    return arr
 
 
 # ---------------------------------------------------------------------- constructors
@@ -525,19 +474,8 @@ def table(coef, *, starts=None, anchors=None, knots=None, period=None,
     return g
 
 
-def callback(gait, int n_links, fns=None, jerk=None, breakpoints=None) -> CompiledGait:
-    """A Python gait with bounds of its own, its functions called at every evaluation:
-    ``fns`` = (l, l', l'') callables of one float (else ``gait.at``); ``jerk``: a bound of
-    |l'''| [m/s^3] (an array (nl,), or a callable (t0, t1) -> bounds); ``breakpoints``: the
-    sorted times where l'' jumps (None: ``gait.breakpoints``)."""
-    cdef CompiledGait g = _python_gait(CALLBACK, gait, n_links, fns)
-    g._jerk = jerk
-    g._keep = _f64(breakpoints) if breakpoints is not None else None
-    return g
-
-
 cdef CompiledGait _python_gait(int kind, gait, int n_links, fns):
-    """The part of the CALLBACK and PROXY kinds that reads the user's functions (``_fetch``):
+    """The part of the PROXY kind that reads the user's functions (``_fetch``):
     the gait, its callables, the buffer of their values, one solver at a time."""
     cdef CompiledGait g = CompiledGait()
     g.d.kind = kind

@@ -20,12 +20,12 @@ compiled form (``Gait.compiled()``, ``_gait``): there is one implementation of e
 module keeps what happens once per call: the periodic skip (whole periods that repeat are stored
 as one ``PeriodicBlock``), the records and events of the segments, the messages of failures.
 
-Guarantee: for a gait whose ``jerk_bound`` (and ``snap_bound``, where it gives one) are true
-bounds on every interval (every built-in gait, and a ``Custom`` gait given ``jerk_bound=``), no
-contact event is missed and every event time is within ``tol`` seconds (or one float spacing of
-t) of the exact one. A gait of Python functions without bounds (a ``Custom`` gait without
-``jerk_bound``) is sampled into Chebyshev pieces to the rounding of its values (``proxy``) and
-the guarantee holds for those pieces: sampling, not a proof.
+Guarantee: for every built-in gait (its compiled bounds of l''' and l'''' hold on every
+interval), no contact event is missed and every event time is within ``tol`` seconds (or one
+float spacing of t) of the exact one. A gait of Python functions (``Custom``, a user's ``Gait``
+subclass) is sampled into Chebyshev pieces to the rounding of its values (``proxy``; a
+``jerk_bound`` it gives is checked against them) and the guarantee holds for those pieces:
+sampling, not a proof.
 """
 from __future__ import annotations
 

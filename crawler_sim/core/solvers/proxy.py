@@ -1,7 +1,7 @@
-"""A gait of Python functions (a ``Custom`` gait without ``jerk_bound``, a user's ``Gait``
-subclass without bounds of its own), sampled into Chebyshev series to machine precision: the
-compiled kind PROXY of ``_gait.pxd`` evaluates them, so the solvers' loops run as fast as for
-a built-in gait and the user's functions are called only to build the pieces.
+"""A gait of Python functions (a ``Custom`` gait, a user's ``Gait`` subclass), sampled into
+Chebyshev series to machine precision: the compiled kind PROXY of ``_gait.pxd`` evaluates
+them, so the solvers' loops run as fast as for a built-in gait and the user's functions are
+called only to build the pieces.
 
 A piece [a, b] takes l'' at the N + 1 = 33 Chebyshev points of its own interval, its series by
 a discrete cosine transform, and is kept when its last coefficients have fallen to the
@@ -35,6 +35,10 @@ unhappy down to ``MIN_WIDTH`` of a cell: the jump is refused with its time. l'''
 piece is split where the lines through the samples on either side meet, which is the kink of
 a kinked line (list such times in ``breakpoints=`` and each side is one polynomial at once).
 Other pieces are halved.
+
+A bound of |l'''| the user gives (``jerk_bound``) is checked against every piece: the series'
+l''' at the piece's nodes must stay within it, beyond the rounding of the fit (else the bound
+or the functions are wrong, and the gait is refused naming ``jerk_bound``).
 
 The user's functions are only called inside the span being integrated.
 """
@@ -90,15 +94,19 @@ class ChebTable:
     cover one period exactly, repeated from ``knots[0]``.
 
     ``accel(t)`` gives the user's l'' at one time, ``state(t)`` its (l, l') (two values of
-    nl entries); ``breaks(t0, t1)`` the times in (t0, t1) where l'' may jump."""
+    nl entries); ``breaks(t0, t1)`` the times in (t0, t1) where l'' may jump; ``jerk(t0,
+    t1)`` the user's bounds of |l'''| [m/s^3] on [t0, t1] ((nl,) or None), which the pieces
+    are checked against."""
 
     def __init__(self, accel: Callable[[float], object],
                  state: Callable[[float], tuple], n_links: int,
                  period: float | None = None, max_step: float | None = None,
-                 breaks: Callable[[float, float], NDArray] | None = None) -> None:
+                 breaks: Callable[[float, float], NDArray] | None = None,
+                 jerk: Callable[[float, float], NDArray | None] | None = None) -> None:
         self._accel = accel
         self._state = state
         self._breaks = breaks
+        self._jerk = jerk
         self.nl = n_links
         self.period = period
         self.max_step = max_step
@@ -356,6 +364,8 @@ class ChebTable:
             acc_c, a, b, st, L, np.asarray(self._quiet, dtype=float), self._span)
         if bad is not None:
             _refuse_ends(a, b, ends, st[1:], *bad)
+        if self._jerk is not None:
+            self._check_jerk(a, b, coef)
         self._end_state = st[-1]
         self._last_brk = bool(br[-1])
         # (concatenations and leading-axis slices stay C-contiguous, as the struct reads them)
@@ -374,6 +384,32 @@ class ChebTable:
             self.knots, self.coef = self.knots[drop:], self.coef[drop:]
             self.ncoef, self.bj, self.bs = self.ncoef[drop:], self.bj[drop:], self.bs[drop:]
             self.rest = self.rest[drop:]
+
+    def _check_jerk(self, a: NDArray, b: NDArray, coef: NDArray) -> None:
+        """The pieces' l''' at their nodes within the user's ``jerk_bound``, beyond what the
+        fit's rounding does to a derivative (Markov: an error of degree N and size e on a
+        piece of width w has a slope up to 2 N^2 e / w; e: the rounding ``cheb_fit`` allows,
+        or the noise floor a piece may keep) and 1e-9 of the bound. A ValueError names the
+        first piece where l''' exceeds it."""
+        t = 0.5 * (a + b)[:, None] + 0.5 * (b - a)[:, None] * _U[None, :]
+        jerk = np.abs(_series_at(np.moveaxis(coef[:, :, 3, :], 1, 2), a, b, t))  # (K, N+1, nl)
+        acc = np.abs(coef[:, :, 2, :]).sum(axis=2)                               # (K, nl)
+        err = (NOISE * acc + 64.0 * _EPS * np.maximum(self.scale, self._quiet)
+               + _EPS * np.maximum(np.abs(a), np.abs(b))[:, None] * jerk.max(axis=1))
+        slack = 2.0 * N * N * err / (b - a)[:, None]
+        for k in range(a.size):
+            bound = self._jerk(float(a[k]), float(b[k]))
+            if bound is None:
+                continue
+            bound = np.broadcast_to(np.asarray(bound, dtype=float), (self.nl,))
+            over = jerk[k] - (bound * (1.0 + 1e-9) + slack[k])
+            if (over > 0.0).any():
+                i, j = map(int, np.argwhere(over > 0.0)[0])
+                raise ValueError(
+                    f"gait jerk_bound of linkage {j} on [{float(a[k])!r}, {float(b[k])!r}] s "
+                    f"is {float(bound[j]):.6g} m/s^3, but the gait's l''' reaches "
+                    f"{float(jerk[k, i, j]):.6g} m/s^3 at t = {float(t[k, i])!r} s: "
+                    "jerk_bound must bound |l'''| (or be left out)")
 
 
 def _series_at(c: NDArray, a: NDArray, b: NDArray, t: NDArray) -> NDArray:

@@ -1,6 +1,6 @@
-"""A ``Custom`` gait on the compiled loop: without ``jerk_bound`` its functions sampled into
-Chebyshev pieces (the PROXY kind of ``core.solvers._gait``, ``core.solvers.proxy``), with it
-the user's lambdas called from the segment loop and the user's bound (the CALLBACK kind).
+"""A ``Custom`` gait on the compiled loop: its functions sampled into Chebyshev pieces (the
+PROXY kind of ``core.solvers._gait``, ``core.solvers.proxy``), with or without ``jerk_bound``
+(which the pieces are checked against).
 
 Reference: the independent event-driven oracle (test/support/oracle.py, written apart from the
 solvers, accurate to ~1e-12 m here); the tolerance is 1e-10 m. A search with bounds that fit
@@ -283,18 +283,50 @@ def test_the_pieces_match_the_functions_and_numpys_chebyshev_calculus():
         assert np.max(np.abs([l3(t) for t in ts[inside]])) <= tb.bj[q, 0] * (1 + 1e-12)
 
 
-def test_a_run_calls_the_functions_once_per_cell_not_per_evaluation():
+@pytest.mark.parametrize('jerk', [None, 0.3 * W ** 3, lambda t0, t1: 0.3 * W ** 3])
+def test_a_run_calls_the_functions_once_per_cell_not_per_evaluation(jerk):
     # 10 periods, no period given: 256 cells (1/256 of the span), 33 nodes per 32 cells, two
     # values (l, l') per join; the search and the 161 output samples read the pieces. The
-    # answer is the oracle's.
+    # answer is the oracle's. A jerk_bound (|l'''| = 0.3 w^3 exactly) changes nothing of it:
+    # it is checked against the pieces, not called at every evaluation (~4,000 calls before)
     calls = []
-    g = _sine(calls=calls)
+    g = gaits.Custom(*_sine(calls=calls)._fns, jerk_bound=jerk)
     c = cs.Crawler([1, 1], [0.5, 1])
     grid = np.linspace(0.0, 10.0, 161)
     tr = cs.simulate(c, g, 10.0, t_eval=grid)
     assert len(calls) <= 8 * 33 + 2 * 9 + 3 * 3, len(calls)
     ref, _ = Oracle.for_crawler(c, _sine_kin(1.0, 0.3, W)).solve(10.0, grid, h=1e-4)
     np.testing.assert_allclose(tr.x, ref, rtol=0, atol=1e-10)
+
+
+@pytest.mark.parametrize('form', ['float', 'callable', 'subclass'])
+def test_a_jerk_bound_the_gait_exceeds_is_refused_naming_it(form):
+    # l''' of 1 + 0.3 sin(w t) reaches 0.3 w^3 = 74.4 m/s^3; a bound of 0.9 of it is wrong
+    # and must be named (a bound 1e-6 above it passes: the check allows only the rounding)
+    bad, good = 0.9 * 0.3 * W ** 3, (1 + 1e-6) * 0.3 * W ** 3
+    c = cs.Crawler([1, 1], [1, 1])
+
+    def make(bound):
+        if form == 'float':
+            return gaits.Custom(*_sine()._fns, jerk_bound=bound)
+        if form == 'callable':
+            return gaits.Custom(*_sine()._fns, jerk_bound=lambda t0, t1: bound)
+
+        class Sine(gaits.Gait):
+            n_links = 1
+
+            def _eval(self, t):
+                s, co = np.sin(W * t)[:, None], np.cos(W * t)[:, None]
+                return 1 + 0.3 * s, 0.3 * W * co, -0.3 * W * W * s
+
+            def jerk_bound(self, t0, t1):
+                return np.array([bound])
+        return Sine()
+    with pytest.raises(ValueError, match=r"jerk_bound of linkage 0 .* must bound \|l'''\|"):
+        cs.simulate(c, make(bad), 2.0)
+    x = cs.simulate(c, make(good), 2.0, t_eval=[0.0, 2.0]).x[-1]
+    ref, _ = Oracle.for_crawler(c, _sine_kin(1.0, 0.3, W)).solve(2.0, [0.0, 2.0], h=1e-4)
+    np.testing.assert_allclose(x, ref[1], rtol=0, atol=1e-10)
 
 
 def test_a_periodic_gait_is_sampled_one_period_then_repeated():
