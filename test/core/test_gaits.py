@@ -650,13 +650,15 @@ def _random_cubics(n, seed):
 
 
 @pytest.mark.parametrize('kind', ['pieces', 'periodic spline'])
-def test_table_bounds_and_ranges_over_any_interval_match_the_pieces_it_touches(kind):
+def test_table_bounds_ranges_and_row_minima_over_any_interval_match_the_pieces_it_touches(kind):
     """The search reads a piecewise gait's |l'''| bound, whether a join inside changes the jerk
-    (no snap bound), and the range of l' and l'' over intervals of any length in a few lookups
-    (extremes per run of pieces). Each is checked against the pieces read one by one: the
-    largest |jerk| of the pieces [a, b] touches (a piece starting at b is not), and l', l'' at
-    every join inside, both ends and 50 points per piece (l'' is linear on a piece, so its
-    extremes are among those; l''s vertex may fall between: a slack of 1e-3 of its scale)."""
+    (no snap bound), the range of l' and l'' over intervals of any length in a few lookups
+    (extremes per run of pieces) and each event row's smallest value (the pieces walked).
+    Each is checked against the pieces read one by one: the largest |jerk| of the pieces
+    [a, b] touches (a piece starting at b is not); l', l'' and random rows c0 + c1 (t - t0) +
+    A1 l' + A2 l'' at every join inside, both ends and 400 points per piece (l'' is linear on
+    a piece, so its extremes are among those; l' and the rows are quadratics, whose vertex may
+    fall between: slacks of 1e-3 of l's scale and 1e-5 of a row's range)."""
     if kind == 'pieces':
         gait, starts, jerks = _random_cubics(300, seed=5)
         period, lo_t, hi_t = None, 0.0, starts[-1] + 0.01
@@ -669,7 +671,10 @@ def test_table_bounds_and_ranges_over_any_interval_match_the_pieces_it_touches(k
         starts, period, lo_t, hi_t = tk[:-1], 1.0, -1.3, 2.2
         mid = starts + 0.5 * np.diff(tk)
         jerks = (gait(mid + 1e-4)[2] - gait(mid - 1e-4)[2]) / 2e-4     # per piece (cubic)
+    from crawler_sim import Crawler
+    from crawler_sim.core.solvers.exact import ExactSolver
     cg = gait.compiled()
+    core = ExactSolver(Crawler([1.0] * 3, [1.0] * 3), gait)._core      # rows of 2 links
     rng = np.random.default_rng(11)
     for trial in range(300):
         a = rng.uniform(lo_t, hi_t)
@@ -694,10 +699,20 @@ def test_table_bounds_and_ranges_over_any_interval_match_the_pieces_it_touches(k
         changes = bool(np.any(inner != jerks[idx[:-1]])) if idx.size > 1 else False
         if kind == 'pieces':
             assert (sb is None) == changes, (a, b)
-        rg = cg.ranges(a, b)
+        c0, c1 = rng.normal(size=4), rng.normal(size=4)
+        A1, A2 = rng.normal(size=(4, 2)), rng.normal(size=(4, 2)) * 0.1
+        A1[0] = 0.0                     # a row of l'' alone
+        A2[1] = 0.0                     # a row of l' alone
+        t0 = a - rng.uniform(0.0, 0.1)
+        low = core.row_minima(cg, a, b, t0, c0, c1, A1, A2)
         pts = np.concatenate([[a, b], ts[(ts > a) & (ts < b)]])
-        pts = np.concatenate([pts, np.linspace(a, b, 50 * idx.size + 2)])
+        pts = np.concatenate([pts, np.linspace(a, b, 400 * idx.size + 2)])
         _, v, acc = gait(pts)
+        rows = c0 + c1 * (pts - t0)[:, None] + v @ A1.T + acc @ A2.T      # (M, 4)
+        span = rows.max(axis=0) - rows.min(axis=0)
+        assert np.all(low <= rows.min(axis=0) + 1e-12), (a, b)
+        assert np.all(low >= rows.min(axis=0) - 1e-5 * span - 1e-12), (a, b)
+        rg = cg.ranges(a, b)
         for row, vals, tol in ((0, v, 1e-3 * np.abs(v).max() + 1e-12),
                                (2, acc, 1e-9 * np.abs(acc).max() + 1e-12)):
             assert np.all(rg[row] <= vals.min(axis=0) + 1e-12), (a, b, row)

@@ -33,7 +33,8 @@ from libc.string cimport memcpy
 
 from crawler_sim.core.solvers._gait cimport (CompiledGait, GaitData, FOURIER, SCALLOP,
                                              TABLE, PROXY, gait_eval, gait_rates,
-                                             gait_lengths, gait_bounds, gait_ranges,
+                                             table_locate, piece_start,
+                                             gait_lengths, gait_bounds,
                                              gait_next_break, gait_is_constant)
 from crawler_sim.core.solvers._inclusion cimport inclusion
 
@@ -430,23 +431,21 @@ cdef class ExactCore:
     cdef double* B2
     cdef double* B1
     cdef double* noise
-    cdef double* RL               # (nr,) lower bound of each row from the gait's ranges
-    cdef double rg_end            # the end of the interval ``rg`` holds
-    cdef bint crossed             # the last ``row_bounds`` interval held a join changing l'''
+    cdef double* RL               # (nr,) each row's smallest value (``range_lower``)
     cdef double* jerk
     cdef double* snap
-    cdef double* rg               # (2, 4, nl) ranges of l' and l'' (``gait_ranges``), and
-                                  # those of the stretch a step is extended by
     cdef double* kinks
     cdef double* fpz
     cdef double* fmz
     cdef double* A1               # (nr, nl)
     cdef double* A2               # (nr, nl)
     cdef double* wk               # (10, nr)
+    cdef double* qd               # (4, nr) the rows' quadratics on a piece (``piece_lows``)
     cdef long* lab_kind
     cdef long* lab_body
     cdef unsigned char* watch
     cdef unsigned char* hit
+    cdef unsigned char* mirror    # (nr,) row r is row r - 1 negated, but for c0 (a bound pair)
     cdef unsigned char* hits
     cdef unsigned char* group
     cdef unsigned char* group2
@@ -471,13 +470,13 @@ cdef class ExactCore:
         # doubles: state first (K, ck_K, last_f, last_R, last_K0 are what ``save`` copies)
         nd = (p + p + 6 + p + p                       # K, ck_K, last_f, last_R, last_K0
               + 4 * p + 2 * p * nl                    # fp, fm, m_, grav, W, C
-              + 16 * nl + 10 * p                      # l .. snap, rg, e .. fmz
-              + 6 * nr + 2 * nr * nl + 10 * nr        # c0 .. noise, RL, A1, A2, wk
+              + 8 * nl + 10 * p                       # l .. snap, e .. fmz
+              + 6 * nr + 2 * nr * nl + 14 * nr        # c0 .. noise, RL, A1, A2, wk, qd
               + 6 * n_buf + 2 * p * n_buf + 2 * n_buf)    # sf, sR, sK0, et
         nb = (p + p + p + p + p + p + p               # contact zero cache_group ck_contact ck_zero
               + p + p + p + p + p                     # last_contact last_group free hits group
               + p + p + p                             # group2 new_contact new2
-              + 2 * nr + 2 * p * n_buf)               # watch hit, scontact sgroup
+              + 3 * nr + 2 * p * n_buf)               # watch hit mirror, scontact sgroup
         self._mem = <char*>PyMem_Calloc(1, nd * sizeof(double) + nb + 16
                                         + (2 * nr + n_buf + 6 * n_buf) * sizeof(long)
                                         + 2 * p * sizeof(int) + 64)
@@ -504,7 +503,6 @@ cdef class ExactCore:
         self.ldd2 = d; d += nl
         self.jerk = d; d += nl
         self.snap = d; d += nl
-        self.rg = d; d += 8 * nl
         self.e = d; d += p
         self.ep = d; d += p
         self.epp = d; d += p
@@ -524,6 +522,7 @@ cdef class ExactCore:
         self.A1 = d; d += nr * nl
         self.A2 = d; d += nr * nl
         self.wk = d; d += 10 * nr
+        self.qd = d; d += 4 * nr
         self.sf = d; d += 6 * n_buf
         self.sR = d; d += p * n_buf
         self.sK0 = d; d += p * n_buf
@@ -552,6 +551,7 @@ cdef class ExactCore:
         self.new2 = <signed char*>u; u += p
         self.watch = u; u += nr
         self.hit = u; u += nr
+        self.mirror = u; u += nr
         self.scontact = <signed char*>u; u += p * n_buf
         self.sgroup = u; u += p * n_buf
         self._snap = <char*>PyMem_Calloc(1, self._n_state * sizeof(double) + 8 * p + 16)
@@ -937,7 +937,6 @@ cdef class ExactCore:
         cdef bint has1, has2
         cdef double b2, b1, x1, x2
         has_snap = gait_bounds(g, a, b, self.jerk, self.snap)
-        self.crossed = not has_snap
         for r in range(nr):
             b2 = 0.0
             b1 = 0.0
@@ -1041,43 +1040,168 @@ cdef class ExactCore:
                 return False
         return True
 
-    cdef bint range_lower(self, GaitData* g, double a, double b, double t0, int nr,
-                          bint extend) noexcept:
-        """RL: each row's lower bound on [a, b] from the gait's ranges of l' and l''
-        (``gait_ranges``: a TABLE gait's pieces are polynomials, so a row is bounded over many
-        pieces at once, where its derivative bounds stop at every join whose jerk changes);
-        -inf without ranges. ``extend``: the ranges held are [a, x] and only [x, b] is read
-        (a step being doubled). Returns whether every unwatched row's bound is > 0."""
-        cdef int r, j, nl = self.nl
-        cdef double v, x
-        cdef double* more = self.rg + 4 * nl
-        cdef bint ok = True
-        if extend:
-            if not gait_ranges(g, self.rg_end, b, more):
-                return False
-            for j in range(nl):
-                self.rg[j] = min(self.rg[j], more[j])
-                self.rg[nl + j] = max(self.rg[nl + j], more[nl + j])
-                self.rg[2 * nl + j] = min(self.rg[2 * nl + j], more[2 * nl + j])
-                self.rg[3 * nl + j] = max(self.rg[3 * nl + j], more[3 * nl + j])
-        elif not gait_ranges(g, a, b, self.rg):
+    cdef bint range_lower(self, GaitData* g, double a, double b, double t0, int nr) noexcept:
+        """RL: each row's smallest value on [a, b], exact up to rounding for a TABLE gait (its
+        pieces' quadratics, ``piece_lows``); -inf for the other kinds. Returns whether the
+        rows are proven on [a, b]: every unwatched row > 0, every watched one >= -noise."""
+        cdef int r
+        if g.kind != TABLE:
             for r in range(nr):
                 self.RL[r] = -INFINITY
             return False
-        self.rg_end = b
+        return self.table_walk(g, a, b, t0, nr, False) >= b
+
+    cdef double table_walk(self, GaitData* g, double a, double b, double t0, int nr,
+                           bint stop) noexcept:
+        """Each row's smallest value over [a, b] into RL, the pieces walked one by one from
+        their quadratics (``piece_lows``, exact up to rounding). (Ranges of l' and l'' over
+        runs of pieces, a few lookups, proved too little near a row's zero and cost more
+        than the walk: measured.) With ``stop``, the walk ends in the first
+        piece where a row is not proven (an unwatched row <= 0, a watched one < -noise):
+        there just before its quadratic's first root, checked by its minimum up to there
+        (else halved towards x). Returns the end of [a, x] on which RL proves every row (b
+        when all of [a, b] is; a when none of it)."""
+        cdef int r, k, it, nl = self.nl
+        cdef double d, m, hi, origin, nxt, x, y, lvl, lowest
+        cdef int hint = g.hint
+        cdef bint ok
+        cdef double* low = self.qd + 3 * nr
         for r in range(nr):
-            v = self.c0[r] + min(self.c1[r] * (a - t0), self.c1[r] * (b - t0))
-            for j in range(nl):
-                x = self.A1[r * nl + j]
-                if x != 0.0:
-                    v += min(x * self.rg[j], x * self.rg[nl + j])
-                x = self.A2[r * nl + j]
-                if x != 0.0:
-                    v += min(x * self.rg[2 * nl + j], x * self.rg[3 * nl + j])
-            self.RL[r] = v
-            if not self.watch[r] and not v > 0.0:
+            self.RL[r] = INFINITY
+        x = a
+        k = table_locate(g, x, &d, &m)
+        origin = x - d
+        while x < b:
+            if k + 1 < g.n:
+                nxt = piece_start(g, k + 1, m)
+            elif g.period > 0.0:
+                nxt = piece_start(g, 0, m + 1.0)
+            else:
+                nxt = INFINITY
+            hi = min(b, nxt)
+            if not hi > x:                   # (no progress: a time the pieces cannot split)
+                break
+            # x's piece from its quadratics
+            ok = self.piece_lows(g.coef + k * nl * 4, origin, t0, nr, x - origin, hi - origin,
+                                 low, stop)
+            if stop and not ok:
+                # the first root of the rows that fail, then proven up to just before it
+                y = hi
+                for r in range(nr):
+                    lvl = -self.noise[r] if self.watch[r] else 0.0
+                    if not (low[r] > lvl or (self.watch[r] and low[r] == lvl)):
+                        y = min(y, origin + self.quad_root(r, x - origin, hi - origin, lvl))
+                y = x + (y - x) * (1.0 - 1e-6)
+                for it in range(8):
+                    if y <= x:
+                        break
+                    if self.piece_lows(g.coef + k * nl * 4, origin, t0, nr, x - origin,
+                                       y - origin, low, False):
+                        for r in range(nr):
+                            self.RL[r] = min(self.RL[r], low[r])
+                        g.hint = hint
+                        return y
+                    y = x + 0.5 * (y - x)
+                g.hint = hint
+                return x
+            for r in range(nr):
+                self.RL[r] = min(self.RL[r], low[r])
+            x = hi
+            k += 1                      # the next piece (its start is x unless x = b)
+            if k == g.n:
+                k = 0
+                m += 1.0
+            origin = piece_start(g, k, m) if g.period > 0.0 else g.anchors[k if k < g.n else 0]
+        g.hint = hint                   # the evaluations' piece (the walk ran ahead of it)
+        if stop:
+            return x
+        for r in range(nr):
+            lowest = self.RL[r]
+            if not (lowest > 0.0 or (self.watch[r] and lowest >= -self.noise[r])):
+                return a
+        return b if x >= b else a
+
+    cdef bint piece_lows(self, const double* row, double origin, double t0, int nr, double d0,
+                         double d1, double* low, bint store) noexcept:
+        """Each row on one constant-jerk piece (rows (nl, 4) = l0, v0, a0, jerk at ``row``,
+        offsets d from ``origin``) is q0 + q1 d + q2 d^2 (l' = v0 + a0 d + jerk d^2 / 2,
+        l'' = a0 + jerk d): its smallest value over offsets [d0, d1] (its ends and, when
+        inside, its vertex) less 16 eps of the sizes of its terms (the combination's
+        rounding), so that it bounds the exact row from below, into low (nr,); with
+        ``store`` the quadratics into ``qd`` (3, nr) (``quad_root``). Returns whether every
+        row is proven by it (unwatched > 0, watched >= -noise)."""
+        cdef int r, j, nl = self.nl
+        cdef double q0, q1, q2, x1, x2, v, sa, sb, big = max(fabs(d0), fabs(d1))
+        cdef double p0 = 0.0, p1 = 0.0, p2 = 0.0, sp0 = 0.0, sp1 = 0.0, sp2 = 0.0
+        cdef const double* c
+        cdef bint ok = True
+        for r in range(nr):
+            # the gait's part (A1 l' + A2 l''): a bound pair's second row is the first's
+            # negated (exactly), so it is summed once
+            if self.mirror[r]:
+                p0 = -p0
+                p1 = -p1
+                p2 = -p2
+            else:
+                p0 = p1 = p2 = sp0 = sp1 = sp2 = 0.0
+                for j in range(nl):
+                    c = row + 4 * j
+                    x1 = self.A1[r * nl + j]
+                    x2 = self.A2[r * nl + j]
+                    p0 += x1 * c[1] + x2 * c[2]
+                    sp0 += fabs(x1 * c[1]) + fabs(x2 * c[2])
+                    p1 += x1 * c[2] + x2 * c[3]
+                    sp1 += fabs(x1 * c[2]) + fabs(x2 * c[3])
+                    p2 += 0.5 * x1 * c[3]
+                    sp2 += fabs(0.5 * x1 * c[3])
+            q0 = self.c0[r] + self.c1[r] * (origin - t0) + p0
+            q1 = self.c1[r] + p1
+            q2 = p2
+            v = min(q0 + d0 * (q1 + d0 * q2), q0 + d1 * (q1 + d1 * q2))
+            if q2 > 0.0:
+                # the vertex, where the slope turns from - to + inside (one division, there)
+                sa = q1 + 2.0 * q2 * d0
+                sb = q1 + 2.0 * q2 * d1
+                if sa < 0.0 < sb:
+                    v = min(v, q0 - q1 * q1 / (4.0 * q2))
+            v -= 16.0 * 2.220446049250313e-16 * (
+                fabs(self.c0[r]) + fabs(self.c1[r] * (origin - t0)) + sp0
+                + big * (fabs(self.c1[r]) + sp1 + big * sp2))
+            low[r] = v
+            if not (v > 0.0 or (self.watch[r] and v >= -self.noise[r])):
                 ok = False
+            if store:
+                self.qd[r] = q0
+                self.qd[nr + r] = q1
+                self.qd[2 * nr + r] = q2
         return ok
+
+    cdef double quad_root(self, int r, double d0, double d1, double lvl) noexcept:
+        """The first offset in [d0, d1] where row r's quadratic (``piece_lows``) comes down
+        to ``lvl`` (its smallest point when rounding leaves it no root there)."""
+        cdef double q0 = self.qd[r] - lvl, q1 = self.qd[self.nr + r], q2 = self.qd[2 * self.nr + r]
+        cdef double disc, sq, u, r1, r2, best = d1, dv
+        if q0 + d0 * (q1 + d0 * q2) <= 0.0:
+            return d0
+        if q2 == 0.0:
+            if q1 < 0.0:
+                best = min(d1, -q0 / q1)
+            return max(best, d0)
+        disc = q1 * q1 - 4.0 * q2 * q0
+        if disc >= 0.0:
+            sq = sqrt(disc)
+            u = -0.5 * (q1 + (sq if q1 >= 0.0 else -sq))
+            r1 = u / q2
+            r2 = q0 / u if u != 0.0 else INFINITY
+            for dv in (r1, r2):
+                if d0 < dv < best:
+                    best = dv
+            return best
+        if q2 > 0.0:                   # no root: the vertex, its smallest point
+            dv = -q1 / (2.0 * q2)
+            if d0 < dv < d1:
+                return dv
+        return d1
 
     cdef bint bad_any(self, int nr, const double* gv) noexcept:
         cdef int r
@@ -1103,8 +1227,7 @@ cdef class ExactCore:
         cdef int r, j, nl = self.nl, side = 0
         cdef double sc, a, h, m, w, f, fr, den, ms, b = INFINITY, sb = INFINITY, lim, lvl
         cdef double w0 = INFINITY, w1 = INFINITY, w2 = INFINITY
-        cdef bint have_b = False, saved = False, bad, settled, fixed, ahead, ranged, watched
-        cdef int it2
+        cdef bint have_b = False, saved = False, bad, settled, fixed, ahead, ranged
         cdef double x2, by_range = NAN
         cdef long it, n_small = 0
         cdef double h_last = INFINITY
@@ -1129,10 +1252,9 @@ cdef class ExactCore:
         # maxima of its bins): each step is sized with its own interval's bounds too (a
         # TABLE's lookup walks its pieces: measured slower than the proof failures it saves)
         ahead = g.kind == SCALLOP
-        # ranges of l' and l'' over an interval (TABLE): a step is doubled, before the gait is
-        # evaluated, while they prove every row positive on it
+        # the rows' exact minima over an interval (TABLE: piecewise quadratics): a step is
+        # doubled, before the gait is evaluated, while they prove every row on it
         ranged = g.kind == TABLE
-        self.rg_end = NAN                # no ranges held (the rows are this search's)
         for r in range(nr):
             self.RL[r] = -INFINITY
         a = t0
@@ -1207,25 +1329,14 @@ cdef class ExactCore:
                     t_out[0] = INFINITY
                     return F_OK
                 m = min(a + h, lim)
-                if ranged and self.crossed:
-                    # (after steps across joins that change the jerk, where the rows' bounds
-                    # are Lipschitz bounds only: a piece or two a step)
-                    watched = False
-                    for r in range(nr):
-                        if self.watch[r]:
-                            watched = True
-                    # the ranges over [a, m] first (kept for the proof), then the step doubled
-                    # while they prove every row positive, before the gait is evaluated
-                    if not watched and self.range_lower(g, a, m, t0, nr, False):
+                if ranged:
+                    # the rows' minima walked piece by piece from a, up to the first piece
+                    # where one may fail (there, to just before its quadratic's first root):
+                    # the step, when longer than the Taylor step, before the gait is evaluated
+                    x2 = self.table_walk(g, a, lim, t0, nr, True)
+                    if x2 >= m or (x2 > a and x2 == lim):
+                        m = x2
                         by_range = m
-                        for it2 in range(40):
-                            if m >= lim:
-                                break
-                            x2 = min(a + 2.0 * (m - a), lim)
-                            if not self.range_lower(g, a, x2, t0, nr, True):
-                                break
-                            m = x2
-                            by_range = m
             self.values(g, m, t0, nr, gm, dm)
             self.n_evals += 1
             for r in range(nr):
@@ -1249,8 +1360,8 @@ cdef class ExactCore:
                 if not fixed:
                     # (also after a step the ranges proved: the next step is sized with them)
                     self.row_bounds(g, a, m, nr)
-                if ranged and m != by_range and (have_b or self.rg_end != m):
-                    self.range_lower(g, a, m, t0, nr, False)
+                if ranged and m != by_range:
+                    self.range_lower(g, a, m, t0, nr)
                 if m != by_range and not self.proven(nr, m - a, ga, gm, da, dm):
                     if have_b:           # scan [a, m] first, the bracket put aside
                         saved = True
@@ -1328,6 +1439,7 @@ cdef class ExactCore:
             if self.free[i] or (r0 >= 0 and group[i]):
                 continue
             sg = <double>contact[i]
+            self.mirror[nr] = 0
             self.lab_kind[nr] = 0
             self.lab_body[nr] = i
             if r0 < 0:
@@ -1356,6 +1468,7 @@ cdef class ExactCore:
                 f_slide += self.R[i]
         # the ground force the group needs: -M W_r l'' - f_slide, within [lo, hi]
         for s in range(2):
+            self.mirror[nr] = s
             self.lab_kind[nr] = 1
             self.lab_body[nr] = r0
             self.c0[nr] = (-f_slide - lo) if s == 0 else (hi + f_slide)
@@ -1367,6 +1480,7 @@ cdef class ExactCore:
         for i in range(p):
             if group[i] and i != r0:
                 for s in range(2):
+                    self.mirror[nr] = s
                     self.lab_kind[nr] = 2
                     self.lab_body[nr] = i
                     self.c0[nr] = 0.0
@@ -1707,6 +1821,23 @@ cdef class ExactCore:
             self.B2[r] = B2[r]
             self.B1[r] = B1[r]
         return self.step(nr, &g[0], &d[0], tol, cap)
+
+    def row_minima(self, CompiledGait gait, double a, double b, double t0, c0, c1, A1, A2):
+        """The compiled ``range_lower`` for rows c0 + c1 (t - t0) + A1 . l'(t) + A2 . l''(t)
+        (A1, A2 of shape (nr, nl)) over [a, b]: each row's lower bound (-inf for a gait that
+        is not a TABLE)."""
+        cdef int nr = len(c0), r, j, nl = self.nl
+        if nr > self.nr:
+            raise ValueError(f'at most {self.nr} rows')
+        for r in range(nr):
+            self.c0[r] = c0[r]
+            self.c1[r] = c1[r]
+            self.watch[r] = 0
+            for j in range(nl):
+                self.A1[r * nl + j] = A1[r][j]
+                self.A2[r * nl + j] = A2[r][j]
+        self.range_lower(&gait.d, a, b, t0, nr)
+        return np.array([self.RL[r] for r in range(nr)])
 
     def proven_interval(self, double h, ga, gb, da, db, watch, B2, B1) -> bool:
         """The compiled ``proven`` for an interval of length h."""
