@@ -1,7 +1,10 @@
 """Every path of the core, measured side by side (issue 23 floors).
 
 * exact, cost per event of each gait family against the Fourier gait's, p = 2 and p = 3 (the
-  same run of this script; ratios);
+  same run of this script; ratios), each over ``periods`` seconds (20: the periodic gaits'
+  20 periods, a PiecewiseCubic of 5 ms pieces over as long), and the PiecewiseCubic over its
+  first second (200 pieces, 9-11 events: the scene of earlier figures, where the fixed cost
+  of a ``simulate`` call, printed as "set-up", is most of its run);
 * implicit and penalty with their default output (every step): steps per second, p = 2 and 3,
   on Scallop and bang-bang (PiecewiseParabolic.stroke) gaits, and the README's example;
 * first use: a fresh interpreter's first ``simulate`` of each gait kind and method.
@@ -37,8 +40,9 @@ def _median(fn, repeats: int) -> float:
     return statistics.median(out)
 
 
-def families(p: int) -> dict:
-    """One gait per family for p bodies (period 1 s, lengths around 1 m)."""
+def families(p: int, seconds: float = 20.0) -> dict:
+    """One gait per family for p bodies (period 1 s, lengths around 1 m; the PiecewiseCubic's
+    5 ms pieces of random jerk cover ``seconds``, its first second apart)."""
     n = p - 1
     w = 2 * math.pi
     phase = -0.9 * np.arange(n)
@@ -52,7 +56,7 @@ def families(p: int) -> dict:
     tk = np.linspace(0.0, 1.0, 17)
     y = 1.0 + 0.25 * np.sin(w * tk[:, None] + phase)
     y[-1] = y[0]
-    starts = np.arange(200) * 0.005
+    starts = np.arange(round(max(seconds, 1.0) / 0.005)) * 0.005
     pieces, l, v, a = [], np.full(n, 1.0), np.zeros(n), np.zeros(n)
     rng = np.random.default_rng(1)
     for t0 in starts:
@@ -66,6 +70,7 @@ def families(p: int) -> dict:
         'PiecewiseParabolic': G.PiecewiseParabolic.stroke(1.0, 0.25, 1.0, 0.3, n_links=n),
         'Spline': G.Spline(tk, y, periodic=True),
         'PiecewiseCubic': G.PiecewiseCubic(starts, pieces),
+        'PiecewiseCubic 1 s': G.PiecewiseCubic(starts[:200], pieces[:200]),
         'Custom': G.Custom(*fns),
         'Custom jerk_bound': G.Custom(*fns, jerk_bound=0.25 * w ** 3),
         'Custom breakpoints': G.Custom(*fns, breakpoints=[0.25, 0.75]),
@@ -78,9 +83,9 @@ def exact_per_event(p: int, repeats: int, periods: float) -> list[dict]:
     m = rng.uniform(0.5, 2.0, p)
     crawler = cs.Crawler(m, rng.uniform(0.5, 2.0, p) * m)
     rows = []
-    for name, gait in families(p).items():
-        T = 1.0 if name != 'PiecewiseCubic' else 0.999
-        t_end = periods * T if name != 'PiecewiseCubic' else 0.999
+    for name, gait in families(p, periods).items():
+        t_end = {'PiecewiseCubic': periods - 0.001, 'PiecewiseCubic 1 s': 0.999}.get(name,
+                                                                                  periods)
         # the search's evaluations of the gait per event: the part of the cost that the
         # machine's noise does not move
         solver = ExactSolver(crawler, gait, periodic_skip=False)
@@ -93,6 +98,12 @@ def exact_per_event(p: int, repeats: int, periods: float) -> list[dict]:
     base = next(r for r in rows if r['gait'] == 'Fourier')['us_per_event']
     for r in rows:
         r['ratio_vs_fourier'] = r['us_per_event'] / base
+    # the fixed cost of one call: a run of 1 us of the Fourier gait (no event)
+    four = families(p, 1.0)['Fourier']
+    rows.append({'p': p, 'gait': 'set-up', 'events': 0, 'time_s': _median(
+        lambda: cs.simulate(crawler, four, 1e-6, t_eval=[0.0, 1e-6], periodic_skip=False),
+        repeats), 'us_per_event': math.nan, 'evals_per_event': math.nan,
+        'ratio_vs_fourier': math.nan})
     return rows
 
 
@@ -159,6 +170,10 @@ def main() -> None:
               'readme_implicit_example_s': readme_example(args.repeats),
               'first_use': first_use()}
     for r in report['exact']:
+        if r['gait'] == 'set-up':
+            print(f"exact p={r['p']} set-up: a simulate call of 1 us, "
+                  f"{1e6 * r['time_s']:.1f} us")
+            continue
         print(f"exact p={r['p']} {r['gait']:20s} {r['events']:6d} events "
               f"{r['us_per_event']:8.2f} us/event  x{r['ratio_vs_fourier']:.2f} vs Fourier  "
               f"{r['evals_per_event']:5.1f} evaluations/event")

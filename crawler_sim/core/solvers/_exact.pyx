@@ -26,6 +26,7 @@ the caller drains them after each call. Units: s, m, m/s, N, N s.
 import numpy as np
 
 from libc.math cimport fabs, floor, isfinite, nextafter, sqrt, INFINITY, NAN
+cimport cython
 from cpython.mem cimport PyMem_Calloc, PyMem_Free, PyMem_Malloc
 from cpython.buffer cimport (PyObject_GetBuffer, PyBuffer_Release, PyBUF_C_CONTIGUOUS,
                             PyBUF_FORMAT, PyBUF_WRITABLE)
@@ -356,6 +357,7 @@ cdef class ClosedForm:
                 'indeterminate': bool(ind[0])}
 
 
+@cython.final
 cdef class ExactCore:
     """State and loop of one exact solve (``exact.ExactSolver`` wraps it). Its arrays live in
     two C blocks allocated once (a solver per ``simulate``: numpy arrays cost ~100 us)."""
@@ -1053,16 +1055,18 @@ cdef class ExactCore:
 
     cdef double table_walk(self, GaitData* g, double a, double b, double t0, int nr,
                            bint stop) noexcept:
-        """Each row's smallest value over [a, b] into RL, the pieces walked one by one from
-        their quadratics (``piece_lows``, exact up to rounding). (Ranges of l' and l'' over
-        runs of pieces, a few lookups, proved too little near a row's zero and cost more
-        than the walk: measured.) With ``stop``, the walk ends in the first
+        """A lower bound of each row over [a, b] into RL, the pieces walked from a: a run of
+        2^q whole pieces at once where the gait's ranges of l' and l'' over it (its table of
+        range extremes, one lookup per field) prove every row (``run_rows``: q grows after a
+        run proven, shrinks after one that is not, and near a row's zero, where they fail,
+        they are tried again only every few pieces), else one piece from its quadratics
+        (``piece_lows``, exact up to rounding). With ``stop``, the walk ends in the first
         piece where a row is not proven (an unwatched row <= 0, a watched one < -noise):
         there just before its quadratic's first root, checked by its minimum up to there
         (else halved towards x). Returns the end of [a, x] on which RL proves every row (b
         when all of [a, b] is; a when none of it)."""
-        cdef int r, k, it, nl = self.nl
-        cdef double d, m, hi, origin, nxt, x, y, lvl, lowest
+        cdef int r, k, it, k2, nl = self.nl, q, q_try = 3, wait = 0
+        cdef double d, m, m2, hi, origin, nxt, x, y, lvl, lowest, te
         cdef int hint = g.hint
         cdef bint ok
         cdef double* low = self.qd + 3 * nr
@@ -1072,6 +1076,35 @@ cdef class ExactCore:
         k = table_locate(g, x, &d, &m)
         origin = x - d
         while x < b:
+            if wait == 0 and x == piece_start(g, k, m):
+                # whole pieces from x's: the longest run of 2^q (q <= q_try) the ranges prove
+                q = min(q_try, g.nlev - 1)
+                while q >= 1:
+                    k2 = k + (1 << q)
+                    m2 = m
+                    if g.period > 0.0:
+                        if k2 >= g.n:
+                            k2 -= g.n
+                            m2 += 1.0
+                        te = piece_start(g, k2, m2)
+                    else:
+                        te = g.starts[k2] if k2 < g.n else INFINITY
+                    if te <= b and self.run_rows(g, q, k, x, te, t0, nr, low):
+                        break
+                    q -= 1
+                if q >= 1:
+                    for r in range(nr):
+                        self.RL[r] = min(self.RL[r], low[r])
+                    x = te
+                    k = k2
+                    m = m2
+                    origin = piece_start(g, k, m) if g.period > 0.0 else g.anchors[k]
+                    q_try = q + 1
+                    continue
+                q_try = 1
+                wait = 4                # near a zero: a few pieces exactly before the next try
+            elif wait > 0:
+                wait -= 1
             if k + 1 < g.n:
                 nxt = piece_start(g, k + 1, m)
             elif g.period > 0.0:
@@ -1121,6 +1154,37 @@ cdef class ExactCore:
                 return a
         return b if x >= b else a
 
+    cdef bint run_rows(self, GaitData* g, int q, int k, double ts, double te, double t0, int nr,
+                       double* low) noexcept:
+        """Each row's lower bound over the 2^q whole pieces from piece k ([ts, te]) from the
+        extremes of l' and l'' over them (``stat`` level q: one record), less 16 eps of the
+        sizes of its terms, into low (nr,). Returns whether every row is proven by it."""
+        cdef int r, j, nl = self.nl
+        cdef const double* rec = g.stat + (q * g.n + k) * 5 * nl
+        cdef double v, u, sz, e
+        cdef bint ok = True
+        for r in range(nr):
+            u = min(self.c1[r] * (ts - t0), self.c1[r] * (te - t0))
+            v = self.c0[r] + u
+            sz = fabs(self.c0[r]) + fabs(u)
+            for j in range(nl):
+                e = self.A1[r * nl + j]
+                if e != 0.0:
+                    u = min(e * rec[nl + j], e * rec[2 * nl + j])
+                    v += u
+                    sz += fabs(u)
+                e = self.A2[r * nl + j]
+                if e != 0.0:
+                    u = min(e * rec[3 * nl + j], e * rec[4 * nl + j])
+                    v += u
+                    sz += fabs(u)
+            v -= 16.0 * 2.220446049250313e-16 * sz
+            low[r] = v
+            if not (v > 0.0 or (self.watch[r] and v >= -self.noise[r])):
+                ok = False
+                break
+        return ok
+
     cdef bint piece_lows(self, const double* row, double origin, double t0, int nr, double d0,
                          double d1, double* low, bint store) noexcept:
         """Each row on one constant-jerk piece (rows (nl, 4) = l0, v0, a0, jerk at ``row``,
@@ -1135,10 +1199,20 @@ cdef class ExactCore:
         cdef double p0 = 0.0, p1 = 0.0, p2 = 0.0, sp0 = 0.0, sp1 = 0.0, sp2 = 0.0
         cdef const double* c
         cdef bint ok = True
+        # the arrays in locals: the stores to low and qd may alias self's fields otherwise
+        cdef const double* A1 = self.A1
+        cdef const double* A2 = self.A2
+        cdef const double* c0 = self.c0
+        cdef const double* c1 = self.c1
+        cdef const unsigned char* mirror = self.mirror
+        cdef const unsigned char* watch = self.watch
+        cdef const double* noise = self.noise
+        cdef double* qd = self.qd
+        cdef double dt0 = origin - t0
         for r in range(nr):
             # the gait's part (A1 l' + A2 l''): a bound pair's second row is the first's
             # negated (exactly), so it is summed once
-            if self.mirror[r]:
+            if mirror[r]:
                 p0 = -p0
                 p1 = -p1
                 p2 = -p2
@@ -1146,16 +1220,16 @@ cdef class ExactCore:
                 p0 = p1 = p2 = sp0 = sp1 = sp2 = 0.0
                 for j in range(nl):
                     c = row + 4 * j
-                    x1 = self.A1[r * nl + j]
-                    x2 = self.A2[r * nl + j]
+                    x1 = A1[r * nl + j]
+                    x2 = A2[r * nl + j]
                     p0 += x1 * c[1] + x2 * c[2]
                     sp0 += fabs(x1 * c[1]) + fabs(x2 * c[2])
                     p1 += x1 * c[2] + x2 * c[3]
                     sp1 += fabs(x1 * c[2]) + fabs(x2 * c[3])
                     p2 += 0.5 * x1 * c[3]
                     sp2 += fabs(0.5 * x1 * c[3])
-            q0 = self.c0[r] + self.c1[r] * (origin - t0) + p0
-            q1 = self.c1[r] + p1
+            q0 = c0[r] + c1[r] * dt0 + p0
+            q1 = c1[r] + p1
             q2 = p2
             v = min(q0 + d0 * (q1 + d0 * q2), q0 + d1 * (q1 + d1 * q2))
             if q2 > 0.0:
@@ -1165,15 +1239,14 @@ cdef class ExactCore:
                 if sa < 0.0 < sb:
                     v = min(v, q0 - q1 * q1 / (4.0 * q2))
             v -= 16.0 * 2.220446049250313e-16 * (
-                fabs(self.c0[r]) + fabs(self.c1[r] * (origin - t0)) + sp0
-                + big * (fabs(self.c1[r]) + sp1 + big * sp2))
+                fabs(c0[r]) + fabs(c1[r] * dt0) + sp0 + big * (fabs(c1[r]) + sp1 + big * sp2))
             low[r] = v
-            if not (v > 0.0 or (self.watch[r] and v >= -self.noise[r])):
+            if not (v > 0.0 or (watch[r] and v >= -noise[r])):
                 ok = False
             if store:
-                self.qd[r] = q0
-                self.qd[nr + r] = q1
-                self.qd[2 * nr + r] = q2
+                qd[r] = q0
+                qd[nr + r] = q1
+                qd[2 * nr + r] = q2
         return ok
 
     cdef double quad_root(self, int r, double d0, double d1, double lvl) noexcept:

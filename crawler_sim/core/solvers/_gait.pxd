@@ -52,7 +52,8 @@ ctypedef struct GaitData:
     int n_jumps
     double* jump_times      # (n_jumps,) sorted breakpoint times (of one period when periodic)
     # TABLE: per piece and linkage |jerk|, lo l', hi l', lo l'', hi l'' over the whole piece,
-    # (nlev, n, 5, nl), level q the extreme over 2^q pieces from each on (``range_run``); jjump
+    # (nlev, n, 5, nl), level q the extreme over 2^q pieces from each on (``run_extreme``, and
+    # the exact search's walk reads a record as the ranges over a run of pieces); jjump
     # counts over the pieces before each, (2 n + 1,) (two periods when periodic)
     double* stat
     int* jj_before
@@ -542,7 +543,7 @@ cdef inline int _table_span_far(const GaitData* g, double a, double b, int k0, d
 
 cdef inline double piece_rate(const double* r, double d) noexcept nogil:
     """l' [m/s] of a constant-jerk row r = (l0, v0, a0, jerk) at offset d [s] from its
-    origin (``gait_eval``, the ranges and the tables of pieces: one expression)."""
+    origin (``gait_eval`` and the tables of pieces: one expression)."""
     return r[1] + d * (r[2] + 0.5 * d * r[3])
 
 
@@ -572,41 +573,6 @@ cdef inline void piece_ranges(const double* row, int nl, double d0, double d1,
                 x = piece_rate(r, dv)
                 rg[j] = min(rg[j], x)
                 rg[nl + j] = max(rg[nl + j], x)
-
-
-cdef inline int gait_ranges(GaitData* g, double a, double b, double* rg) noexcept:
-    """The smallest and largest l' [m/s] and l'' [m/s^2] of each linkage over [a, b], into
-    ``rg`` (4, nl) rows lo l', hi l', lo l'', hi l'': exact (up to rounding) for a TABLE gait,
-    whose pieces are polynomials (l'' linear, l' quadratic: its ends and vertex): the two end
-    pieces from their coefficients, those between from the tables of whole pieces. Returns 1,
-    or 0 for the other kinds (no ranges)."""
-    cdef int j, k0, k1, count, f, nl = g.nl
-    cdef double d0, d1, e
-    if g.kind != TABLE:
-        return 0
-    for j in range(nl):
-        rg[j] = INFINITY
-        rg[nl + j] = -INFINITY
-        rg[2 * nl + j] = INFINITY
-        rg[3 * nl + j] = -INFINITY
-    count = table_span(g, a, b, &k0, &d0, &k1, &d1)
-    if count == 1:
-        piece_ranges(g.coef + k0 * nl * 4, nl, d0, d1, rg)
-        return 1
-    if count > g.n:
-        for f in range(1, 5):
-            table_run(g, 0, g.n, f, f % 2 == 0, rg + (f - 1) * nl)
-        return 1
-    # piece k0 from a to its end, piece k1 from its start to b, the count - 2 between whole
-    e = (g.knots[k0 + 1] - g.knots[k0] if g.period > 0.0
-         else g.starts[k0 + 1] - g.anchors[k0])
-    piece_ranges(g.coef + k0 * nl * 4, nl, d0, e, rg)
-    piece_ranges(g.coef + k1 * nl * 4, nl,
-                 0.0 if g.period > 0.0 else g.starts[k1] - g.anchors[k1], d1, rg)
-    if count > 2:
-        for f in range(1, 5):
-            table_run(g, k0 + 1, count - 2, f, f % 2 == 0, rg + (f - 1) * nl)
-    return 1
 
 
 cdef inline int gait_bounds(GaitData* g, double a, double b, double* jerk,

@@ -165,15 +165,6 @@ cdef class CompiledGait:
         ok = gait_bounds(&self.d, t0, t1, &j[0], &s[0])
         return jerk[:self.d.nl], (snap[:self.d.nl] if ok else None)
 
-    def ranges(self, double t0, double t1):
-        """(lo l', hi l', lo l'', hi l'') per linkage over [t0, t1] [m/s, m/s^2], shape (4, nl),
-        or None where the kind has no ranges (only TABLE gaits: ``gait_ranges``)."""
-        out = np.zeros((4, max(self.d.nl, 1)))
-        cdef double[:, ::1] o = out
-        if not gait_ranges(&self.d, t0, t1, &o[0, 0]):
-            return None
-        return out[:, :self.d.nl]
-
     # ------------------------------------------------------------------ the user's functions
     cdef int _fetch(self, double t, bint with_length) except -1:
         """The Python gait's l' and l'' (and l when asked) at t into ``_buf`` rows."""
