@@ -155,9 +155,12 @@ class Stepper:
 
 def _check_times(t_eval: ArrayLike, t_end: float) -> NDArray:
     t = np.asarray(t_eval, dtype=float).ravel()
-    if t.size == 0 or not np.isfinite(t).all():
+    first, last = (float(t[0]), float(t[-1])) if t.size else (math.nan, math.nan)
+    # sorted with finite ends means finite throughout (a NaN breaks the order): one pass
+    ordered = bool((t[1:] >= t[:-1]).all())
+    if not (math.isfinite(first) and math.isfinite(last)) or not (ordered or np.isfinite(t).all()):
         raise ValueError('t_eval must be a non-empty list of finite times in [0, t_end] s')
-    if t[0] < 0 or t[-1] > t_end or (t[1:] < t[:-1]).any():
+    if first < 0 or last > t_end or not ordered:
         raise ValueError(f't_eval must be sorted and within [0, {t_end}] s')
     return t
 

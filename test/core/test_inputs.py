@@ -167,7 +167,8 @@ def test_non_finite_initial_conditions_are_rejected_naming_them(name, kw):
         cs.simulate(_ok_crawler(), _ok_gait(), 1.0, **kw)
 
 
-@pytest.mark.parametrize('t_eval', [[], [0.0, 2.0], [0.5, 0.2], [-0.1, 0.5], [0.0, NAN]])
+@pytest.mark.parametrize('t_eval', [[], [0.0, 2.0], [0.5, 0.2], [-0.1, 0.5], [0.0, NAN],
+                                    [0.0, NAN, 0.5], [NAN], [0.0, INF], [0.0, 0.6, 0.5, 0.7]])
 def test_t_eval_outside_the_run_or_unsorted_is_rejected_naming_t_eval(t_eval):
     with pytest.raises(ValueError, match=r't_eval'):
         cs.simulate(_ok_crawler(), _ok_gait(), 1.0, t_eval=t_eval)
