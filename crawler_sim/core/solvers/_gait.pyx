@@ -488,7 +488,7 @@ cdef CompiledGait _python_gait(int kind, gait, int n_links, fns):
 
 
 def proxy(gait, int n_links, table, fns=None) -> CompiledGait:
-    """A Python gait without bounds, evaluated in the solvers from the Chebyshev pieces of
+    """A Python gait, evaluated in the solvers from the Chebyshev pieces of
     ``table`` (``proxy.ChebTable``, built as they reach new times); from Python (``values``,
     ``at``), the user's functions ``fns`` = (l, l', l'') (else ``gait.at``)."""
     cdef CompiledGait g = _python_gait(PROXY, gait, n_links, fns)
