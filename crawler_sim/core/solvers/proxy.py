@@ -370,7 +370,7 @@ class ChebTable:
         self._last_brk = bool(br[-1])
         # (concatenations and leading-axis slices stay C-contiguous, as the struct reads them)
         if not self.knots.size:         # a fresh table: the window's arrays as they are
-            self.knots = np.append(a, b[-1])
+            self.knots = np.concatenate((a, b[-1:]))
             self.coef, self.ncoef, self.bj, self.bs, self.rest = coef, ncoef, bj, bs, rest
         else:
             self.knots = np.concatenate([self.knots[:-1], a, b[-1:]])
