@@ -132,13 +132,20 @@ class Gait:
     def _compile(self):
         """A gait that is not built in: its Python ``at`` sampled into Chebyshev pieces
         (split at its ``breakpoints``, checked against its ``jerk_bound`` if it has one)."""
+        jerk = self.jerk_bound if type(self).jerk_bound is not Gait.jerk_bound else None
+        return self._sampled(lambda t: self.at(t)[2], lambda t: self.at(t)[:2],
+                             self.breakpoints, jerk)
+
+    def _sampled(self, accel, state, breaks, jerk, fns=None):
+        """The compiled form (kind PROXY) of a gait of Python functions: ``accel(t)`` its l'',
+        ``state(t)`` its (l, l'), ``breaks`` / ``jerk`` its breakpoints and |l'''| bounds
+        (callables of (t0, t1), or None), ``fns`` the (l, l', l'') callables Python reads
+        outside the pieces (else ``at``)."""
         from ..solvers._gait import proxy
         from ..solvers.proxy import ChebTable
-        jerk = self.jerk_bound if type(self).jerk_bound is not Gait.jerk_bound else None
-        table = ChebTable(lambda t: self.at(t)[2], lambda t: self.at(t)[:2], self.n_links,
-                          self.period, getattr(self, 'max_step', None), self.breakpoints,
-                          jerk)
-        return proxy(self, self.n_links, table)
+        table = ChebTable(accel, state, self.n_links, self.period,
+                          getattr(self, 'max_step', None), breaks, jerk)
+        return proxy(self, self.n_links, table, fns=fns)
 
     def __getstate__(self) -> dict:
         # the compiled form is rebuilt where the gait is used (a sweep sends gaits to workers)

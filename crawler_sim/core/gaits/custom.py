@@ -58,13 +58,10 @@ class Custom(Gait):
             self._jerk = jb
 
     def _compile(self):
-        from ..solvers._gait import proxy
-        from ..solvers.proxy import ChebTable
         fl, fv, fa = self._fns
-        table = ChebTable(fa, lambda t: (fl(t), fv(t)), self.n_links, self.period,
-                          self.max_step, self.breakpoints if self._breaks.size else None,
-                          self.jerk_bound if self._jerk is not None else None)
-        return proxy(self, self.n_links, table, fns=self._fns)
+        return self._sampled(fa, lambda t: (fl(t), fv(t)),
+                             self.breakpoints if self._breaks.size else None,
+                             self.jerk_bound if self._jerk is not None else None, fns=self._fns)
 
     def __call__(self, t: float | ArrayLike) -> Triple:
         if np.ndim(t) == 0:

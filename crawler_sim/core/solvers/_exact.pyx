@@ -66,6 +66,12 @@ cdef long MAX_STEPS = 10000000    # grid and narrowing steps of one search: a sa
 cdef int N_BUF = 256              # segment records per call
 
 
+cdef inline bint clear(double v, bint watched, double noise) noexcept nogil:
+    """A row's value v (or a lower bound of it) clear of an event: an unwatched row > 0, a
+    watched one (at zero to within its rounding ``noise``) >= -noise."""
+    return v > 0.0 or (watched and v >= -noise)
+
+
 cdef inline double dot(const double* W, int i, const double* x, int n) noexcept nogil:
     """Row i of the (., n) matrix W times x."""
     cdef double acc = 0.0
@@ -1027,7 +1033,7 @@ cdef class ExactCore:
         """Every unwatched row > 0 on an interval of length h with these end values and
         slopes: the best of five lower bounds, each rigorous where |g''| <= B2 (chord:
         min - B2 h^2 / 8; Taylor from either end, concave) or |g'| <= B1 (mean - B1 h / 2),
-        or from the gait's ranges of l' and l'' over the interval (``RL``, ``range_lower``)."""
+        or a TABLE gait's pieces walked over the interval (``RL``, ``range_lower``)."""
         cdef int r
         cdef double q, lo
         for r in range(nr):
@@ -1066,7 +1072,7 @@ cdef class ExactCore:
         (else halved towards x). Returns the end of [a, x] on which RL proves every row (b
         when all of [a, b] is; a when none of it)."""
         cdef int r, k, it, k2, nl = self.nl, q, q_try = 3, wait = 0
-        cdef double d, m, m2, hi, origin, nxt, x, y, lvl, lowest, te
+        cdef double d, m, m2, hi, origin, nxt, x, y, lvl, te
         cdef int hint = g.hint
         cdef bint ok
         cdef double* low = self.qd + 3 * nr
@@ -1121,8 +1127,8 @@ cdef class ExactCore:
                 # the first root of the rows that fail, then proven up to just before it
                 y = hi
                 for r in range(nr):
-                    lvl = -self.noise[r] if self.watch[r] else 0.0
-                    if not (low[r] > lvl or (self.watch[r] and low[r] == lvl)):
+                    if not clear(low[r], self.watch[r], self.noise[r]):
+                        lvl = -self.noise[r] if self.watch[r] else 0.0
                         y = min(y, origin + self.quad_root(r, x - origin, hi - origin, lvl))
                 y = x + (y - x) * (1.0 - 1e-6)
                 for it in range(8):
@@ -1149,8 +1155,7 @@ cdef class ExactCore:
         if stop:
             return x
         for r in range(nr):
-            lowest = self.RL[r]
-            if not (lowest > 0.0 or (self.watch[r] and lowest >= -self.noise[r])):
+            if not clear(self.RL[r], self.watch[r], self.noise[r]):
                 return a
         return b if x >= b else a
 
@@ -1178,9 +1183,9 @@ cdef class ExactCore:
                     u = min(e * rec[3 * nl + j], e * rec[4 * nl + j])
                     v += u
                     sz += fabs(u)
-            v -= 16.0 * 2.220446049250313e-16 * sz
+            v -= 16.0 * EPS * sz
             low[r] = v
-            if not (v > 0.0 or (self.watch[r] and v >= -self.noise[r])):
+            if not clear(v, self.watch[r], self.noise[r]):
                 ok = False
                 break
         return ok
@@ -1238,10 +1243,10 @@ cdef class ExactCore:
                 sb = q1 + 2.0 * q2 * d1
                 if sa < 0.0 < sb:
                     v = min(v, q0 - q1 * q1 / (4.0 * q2))
-            v -= 16.0 * 2.220446049250313e-16 * (
+            v -= 16.0 * EPS * (
                 fabs(c0[r]) + fabs(c1[r] * dt0) + sp0 + big * (fabs(c1[r]) + sp1 + big * sp2))
             low[r] = v
-            if not (v > 0.0 or (watch[r] and v >= -noise[r])):
+            if not clear(v, watch[r], noise[r]):
                 ok = False
             if store:
                 qd[r] = q0
@@ -1279,7 +1284,7 @@ cdef class ExactCore:
     cdef bint bad_any(self, int nr, const double* gv) noexcept:
         cdef int r
         for r in range(nr):
-            if (self.watch[r] and gv[r] < -self.noise[r]) or (not self.watch[r] and gv[r] <= 0.0):
+            if not clear(gv[r], self.watch[r], self.noise[r]):
                 return True
         return False
 
@@ -1300,7 +1305,7 @@ cdef class ExactCore:
         cdef int r, j, nl = self.nl, side = 0
         cdef double sc, a, h, m, w, f, fr, den, ms, b = INFINITY, sb = INFINITY, lim, lvl
         cdef double w0 = INFINITY, w1 = INFINITY, w2 = INFINITY
-        cdef bint have_b = False, saved = False, bad, settled, fixed, ahead, ranged
+        cdef bint have_b = False, saved = False, settled, fixed, ahead, ranged
         cdef double x2, by_range = NAN
         cdef long it, n_small = 0
         cdef double h_last = INFINITY
@@ -1325,8 +1330,8 @@ cdef class ExactCore:
         # maxima of its bins): each step is sized with its own interval's bounds too (a
         # TABLE's lookup walks its pieces: measured slower than the proof failures it saves)
         ahead = g.kind == SCALLOP
-        # the rows' exact minima over an interval (TABLE: piecewise quadratics): a step is
-        # doubled, before the gait is evaluated, while they prove every row on it
+        # the rows' lower bounds from the pieces (TABLE: piecewise quadratics): a step is
+        # walked over them, before the gait is evaluated, while they prove every row
         ranged = g.kind == TABLE
         for r in range(nr):
             self.RL[r] = -INFINITY
@@ -1348,9 +1353,7 @@ cdef class ExactCore:
                 if w < 0.5 * w0:
                     f = 2.0                 # no point proposed: halve
                     for r in range(nr):
-                        bad = (self.watch[r] and gb[r] < -self.noise[r]) or (
-                            not self.watch[r] and gb[r] <= 0.0)
-                        if not bad:
+                        if clear(gb[r], self.watch[r], self.noise[r]):
                             continue
                         # Newton's step from the end nearer the root (the row's slope there is
                         # exact): quadratic convergence, where the secant of the ends gains a
@@ -1431,7 +1434,7 @@ cdef class ExactCore:
                 continue
             if m - a > tol:
                 if not fixed:
-                    # (also after a step the ranges proved: the next step is sized with them)
+                    # (also after a step the walk proved: the next step is sized with them)
                     self.row_bounds(g, a, m, nr)
                 if ranged and m != by_range:
                     self.range_lower(g, a, m, t0, nr)
@@ -1496,9 +1499,8 @@ cdef class ExactCore:
             # a row crossed at b, or one falling through zero within 2 tol of it: events
             # within the root tolerance of each other are simultaneous (two bodies whose
             # velocities vanish together stay together, no sliver segment between them)
-            self.hit[r] = (self.watch[r] and gb[r] < -self.noise[r]) or (
-                not self.watch[r] and (gb[r] <= 0.0 or (db[r] < 0.0 and gb[r] <= -db[r] *
-                                                        (2.0 * tol))))
+            self.hit[r] = not clear(gb[r], self.watch[r], self.noise[r]) or (
+                not self.watch[r] and db[r] < 0.0 and gb[r] <= -db[r] * (2.0 * tol))
         t_out[0] = b
         return F_OK
 

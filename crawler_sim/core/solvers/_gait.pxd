@@ -484,22 +484,19 @@ cdef inline void run_extreme(const double* lev, int n, int nlev, int width, int 
         kk += w
 
 
-cdef inline void table_run(const GaitData* g, int i0, int count, int f, bint largest,
-                           double* out) noexcept nogil:
-    """Field f of a TABLE gait's ``stat`` over the ``count`` pieces from i0 on
-    (``run_extreme``)."""
-    run_extreme(g.stat + f * g.nl, g.n, g.nlev, 5 * g.nl, i0, count, largest, g.nl, out)
+cdef inline void table_jerk(const GaitData* g, int i0, int count, double* out) noexcept nogil:
+    """The largest |jerk| (field 0 of ``stat``) of a TABLE gait's ``count`` pieces from i0 on,
+    merged into out (``run_extreme``)."""
+    run_extreme(g.stat, g.n, g.nlev, 5 * g.nl, i0, count, True, g.nl, out)
 
 
-cdef inline int table_span(const GaitData* g, double a, double b, int* k0, double* d0,
-                           int* k1, double* d1) noexcept nogil:
+cdef inline int table_span(const GaitData* g, double a, double b, int* k0) noexcept nogil:
     """The pieces a TABLE gait's [a, b] touches (a piece starting at b or later is not): the
-    first, k0 (offset d0 of a from its origin), the last, k1 (offset d1 of b from its
-    origin), as indices mod n. Returns how many (more than n: every piece, more than once).
-    b is looked for in the next few pieces first (most intervals are short)."""
-    cdef double m0, m, o
+    first, k0 (index mod n), and how many (more than n: every piece, more than once). b is
+    looked for in the next few pieces first (most intervals are short)."""
+    cdef double d, m0, m
     cdef int k, count = 1
-    k0[0] = table_locate(g, a, d0, &m0)
+    k0[0] = table_locate(g, a, &d, &m0)
     k = k0[0]
     m = m0
     while True:
@@ -517,27 +514,20 @@ cdef inline int table_span(const GaitData* g, double a, double b, int* k0, doubl
             break                        # the last piece holds everything after it
         count += 1
         if count > 4:
-            return _table_span_far(g, a, b, k0[0], m0, k1, d1)
-    k1[0] = k
-    o = piece_start(g, k, m) if g.period > 0.0 else g.anchors[k]
-    d1[0] = b - o
+            return _table_span_far(g, b, k0[0], m0)
     return count
 
 
-cdef inline int _table_span_far(const GaitData* g, double a, double b, int k0, double m0,
-                                int* k1, double* d1) noexcept nogil:
-    """``table_span`` for a b beyond the next few pieces: b located by binary search."""
-    cdef double m1
-    cdef int u, hint = g.hint
-    k1[0] = table_locate(g, b, d1, &m1)
+cdef inline int _table_span_far(const GaitData* g, double b, int k0, double m0) noexcept nogil:
+    """``table_span``'s count for a b beyond the next few pieces: b located by binary
+    search."""
+    cdef double d1, m1
+    cdef int k1, u, hint = g.hint
+    k1 = table_locate(g, b, &d1, &m1)
     (<GaitData*>g).hint = hint      # the evaluations' piece (b lies far ahead of it)
-    u = <int>((m1 - m0) * g.n) + k1[0] - k0
-    if u > 0 and piece_start(g, k1[0], m1) >= b:
-        # b at the start of piece k1: the one before ends there (its offset, d1 from it)
-        k1[0] = k1[0] - 1 if k1[0] > 0 else g.n - 1
-        u -= 1
-        d1[0] = b - (piece_start(g, k1[0], m1 - (1.0 if k1[0] == g.n - 1 else 0.0))
-                     if g.period > 0.0 else g.anchors[k1[0]])
+    u = <int>((m1 - m0) * g.n) + k1 - k0
+    if u > 0 and piece_start(g, k1, m1) >= b:
+        u -= 1                      # b at the start of piece k1: that piece is not touched
     return u + 1
 
 
@@ -579,8 +569,8 @@ cdef inline int gait_bounds(GaitData* g, double a, double b, double* jerk,
                             double* snap) except -1:
     """Bounds of |l'''| and |l''''| per linkage on [a, b] (between breakpoints). Returns 1, or
     0 when l''' may jump inside (no snap bound: ``snap`` is then left undefined)."""
-    cdef int j, k, k0, k1, kk, nl = g.nl, nb, first, q, count
-    cdef double d, m, u0, x, st
+    cdef int j, k0, k1, nl = g.nl, nb, count
+    cdef double u0, x
     cdef bint rest
     if g.kind == FOURIER:
         for j in range(nl):
@@ -614,10 +604,10 @@ cdef inline int gait_bounds(GaitData* g, double a, double b, double* jerk,
     for j in range(nl):
         jerk[j] = 0.0
         snap[j] = 0.0
-    count = table_span(g, a, b, &k0, &d, &k1, &m)
+    count = table_span(g, a, b, &k0)
     if count > g.n:
-        table_run(g, 0, g.n, 0, True, jerk)
+        table_jerk(g, 0, g.n, jerk)
         return 0 if g.jj_before[g.n] > 0 else 1
-    table_run(g, k0, count, 0, True, jerk)
+    table_jerk(g, k0, count, jerk)
     # joins inside: the starts of the pieces after k0 (those after a), count - 1 of them
     return 0 if g.jj_before[k0 + count] - g.jj_before[k0 + 1] > 0 else 1

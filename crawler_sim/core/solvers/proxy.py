@@ -321,14 +321,14 @@ class ChebTable:
             if not k.size:
                 break
             lo, hi, mid = a[k], b[k + 1], b[k]
-            t = 0.5 * (lo + hi)[:, None] + 0.5 * (hi - lo)[:, None] * _U[None, :]
+            t = _nodes(lo, hi)
             right = t > mid[:, None]
             f = np.where(right[:, :, None], _series_at(c[k + 1], a[k + 1], b[k + 1], t),
                          _series_at(c[k], a[k], b[k], t))
             cc, last, _, tol = _gait.cheb_fit(np.ascontiguousarray(f), _DCT, lo, hi, scale)
             ok = last <= N - 3
             for side in (k, k + 1):     # the joined series at each piece's own nodes
-                ts = 0.5 * (a[side] + b[side])[:, None] + 0.5 * (b[side] - a[side])[:, None] * _U
+                ts = _nodes(a[side], b[side])
                 own = _series_at(c[side], a[side], b[side], ts)
                 off = np.abs(_series_at(cc, lo, hi, ts) - own)
                 ok &= (off <= tol[:, None, :]).all(axis=(1, 2))
@@ -391,7 +391,7 @@ class ChebTable:
         piece of width w has a slope up to 2 N^2 e / w; e: the rounding ``cheb_fit`` allows,
         or the noise floor a piece may keep) and 1e-9 of the bound. A ValueError names the
         first piece where l''' exceeds it."""
-        t = 0.5 * (a + b)[:, None] + 0.5 * (b - a)[:, None] * _U[None, :]
+        t = _nodes(a, b)
         jerk = np.abs(_series_at(np.moveaxis(coef[:, :, 3, :], 1, 2), a, b, t))  # (K, N+1, nl)
         acc = np.abs(coef[:, :, 2, :]).sum(axis=2)                               # (K, nl)
         err = (NOISE * acc + 64.0 * _EPS * np.maximum(self.scale, self._quiet)
@@ -412,6 +412,11 @@ class ChebTable:
                     "jerk_bound must bound |l'''| (or be left out)")
 
 
+def _nodes(a: NDArray, b: NDArray) -> NDArray:
+    """The Chebyshev nodes of the pieces [a, b] (K,): times (K, N + 1), from b down to a."""
+    return 0.5 * (a + b)[:, None] + 0.5 * (b - a)[:, None] * _U[None, :]
+
+
 def _series_at(c: NDArray, a: NDArray, b: NDArray, t: NDArray) -> NDArray:
     """Series ``c`` (K, N + 1, nl) of the pieces [a, b] (K,) at the times ``t`` (K, M):
     values (K, M, nl) (numpy's ``chebval``, piece by piece through broadcasting)."""
@@ -423,7 +428,7 @@ def _split_points(a: NDArray, b: NDArray, f: NDArray) -> NDArray:
     """Where to halve each unresolved piece: at the node where the slope of l'' turns far
     more than anywhere else (a kink or a jump of l''), else the middle. A split there narrows
     a kink by the nodes' spacing (about N / pi) rather than by 2."""
-    t = 0.5 * (a + b)[:, None] + 0.5 * (b - a)[:, None] * _U[None, ::-1]  # ascending
+    t = _nodes(a, b)[:, ::-1]                                               # ascending
     v = f[:, ::-1]                                                          # (K, N + 1, nl)
     with np.errstate(divide='ignore', invalid='ignore'):
         slope = np.diff(v, axis=1) / np.diff(t, axis=1)[:, :, None]
