@@ -220,17 +220,18 @@ cdef inline void proxy_piece(const GaitData* g, int k, double u, double* l, doub
     once for all series and linkages, by doubling (T_(m+i) = 2 T_m T_i - T_(m-i), each level
     from the one before, so the chain is log2(n) long, not n as in Clenshaw's recurrence,
     which made an evaluation three times a Fourier gait's), then one sum per series."""
-    cdef int j, i, m, nl = g.nl, nc = g.ncoef[k], st = g.stride
+    cdef int j, q, m, top, nl = g.nl, nc = g.ncoef[k], st = g.stride
     cdef const double* c
+    cdef double tm2
     cdef double T[64]
     T[0] = 1.0
     T[1] = u
     m = 1
     while m + 1 < nc:
-        for i in range(1, m + 1):
-            if m + i >= nc:
-                break
-            T[m + i] = 2.0 * T[m] * T[i] - T[m - i]
+        tm2 = 2.0 * T[m]             # held in a register (the stores below cannot alias it)
+        top = min(2 * m, nc - 1)
+        for q in range(m + 1, top + 1):
+            T[q] = tm2 * T[q - m] - T[2 * m - q]
         m *= 2
     for j in range(nl):
         c = g.coef + (k * nl + j) * 4 * st

@@ -688,9 +688,12 @@ def cheb_sample(fn, const double[::1] a, const double[::1] b, bl, br, const doub
     its end b first, its start a last, exactly); a node on a breakpoint (``bl``, ``br``: the
     piece starts / ends at one) read one float inside the piece, on the side it belongs to.
     Values are checked: nl entries each, finite. A piece's start that is the end of the piece
-    before it (no breakpoint between) takes that piece's value (one call, not two)."""
+    before it (no breakpoint between) takes that piece's value (one call, not two).
+    Returns (values, their largest magnitude per linkage (nl,))."""
     cdef Py_ssize_t K = a.shape[0], n1 = nodes.shape[0], k, i, j
     cdef double t, v
+    top_arr = np.zeros(nl)
+    cdef double[::1] top = top_arr
     cdef const unsigned char[::1] left = np.ascontiguousarray(bl, dtype=np.uint8)
     cdef const unsigned char[::1] right = np.ascontiguousarray(br, dtype=np.uint8)
     out = np.empty((K, n1, nl))
@@ -719,7 +722,44 @@ def cheb_sample(fn, const double[::1] a, const double[::1] b, bl, br, const doub
                 for j in range(nl):
                     o[k, i, j] = row[j]
             for j in range(nl):
-                if not isfinite(o[k, i, j]):
+                v = fabs(o[k, i, j])
+                if not isfinite(v):
                     raise ValueError(f'gait acceleration must be finite, got a non-finite '
                                      f'value at t = {t!r} s')
+                if v > top[j]:
+                    top[j] = v
+    return out, top_arr
+
+
+def cheb_states(fn, ts, int nl, first=None):
+    """The user's (l, l') (``fn`` of one float, returning the pair) at each time of the list
+    ``ts``: shape (len(ts), 2, nl), checked (nl entries each, finite); with ``first`` (2, nl)
+    given, that row comes first: shape (len(ts) + 1, 2, nl)."""
+    cdef Py_ssize_t n = len(ts), k, i, j, off = 0 if first is None else 1
+    out = np.empty((n + off, 2, nl))
+    cdef double[:, :, ::1] o = out
+    cdef double t
+    if off:
+        out[0] = first
+    for k in range(off, n + off):
+        t = ts[k - off]
+        x = fn(t)
+        if nl == 1 and type(x) is tuple and len(x) == 2 and type(x[0]) is float \
+                and type(x[1]) is float:
+            o[k, 0, 0] = <double>x[0]
+            o[k, 1, 0] = <double>x[1]
+        else:
+            try:
+                row = np.asarray(x, dtype=float).reshape(2, nl)
+            except ValueError:
+                raise ValueError(f'gait values must have {nl} entries (one per linkage)') \
+                    from None
+            for i in range(2):
+                for j in range(nl):
+                    o[k, i, j] = row[i, j]
+        for i in range(2):
+            for j in range(nl):
+                if not isfinite(o[k, i, j]):
+                    raise ValueError(f"gait {('length', 'velocity')[i]} must be finite, got "
+                                     f'a non-finite value at t = {t!r} s')
     return out

@@ -185,8 +185,8 @@ class ChebTable:
         """A table of the one instant t: constant series of the user's values there."""
         nl = self.nl
         st = self._states([t])
-        acc = self._sample(np.array([t]), np.array([t]), np.zeros(1, bool), np.zeros(1, bool),
-                           nodes=False)
+        acc, _ = self._sample(np.array([t]), np.array([t]), np.zeros(1, bool),
+                              np.zeros(1, bool), nodes=False)
         self.coef = np.zeros((1, nl, 4, L))
         self.coef[0, :, :2, 0] = st[0].T
         self.coef[0, :, 2, 0] = acc[0, 0]
@@ -197,20 +197,11 @@ class ChebTable:
         self.rest = np.array([not (st[0, 1].any() or acc.any())])
         self._end_state = st[0]
 
-    def _states(self, ts: list) -> NDArray:
-        """The user's (l, l') at the times ``ts``, shape (len(ts), 2, nl), checked."""
-        nl = self.nl
-        got = [self._state(x) for x in ts]
+    def _states(self, ts: list, first: NDArray | None = None) -> NDArray:
+        """The user's (l, l') at the times ``ts``, shape (len(ts), 2, nl), checked, after the
+        row ``first`` when given (``_gait.cheb_states``)."""
         self.calls += 2 * len(ts)
-        try:
-            st = np.asarray(got, dtype=float).reshape(len(got), 2, nl)
-        except ValueError:
-            raise ValueError(f'gait values must have {nl} entries (one per linkage)') from None
-        if not np.isfinite(st).all():
-            k, i = map(int, np.argwhere(~np.isfinite(st).all(axis=2))[0])
-            raise ValueError(f"gait {('length', 'velocity')[i]} must be finite, got a "
-                             f'non-finite value at t = {ts[k]!r} s')
-        return st
+        return _gait.cheb_states(self._state, ts, self.nl, first)
 
     def _set_spacing(self, start: float, stop: float) -> None:
         cands = [self.period / PER_PERIOD if self.period else None,
@@ -235,10 +226,13 @@ class ChebTable:
         lefts, rights, brk = [], [], []
         for x0, x1 in zip(edges[:-1], edges[1:]):
             n = min(max(1, math.ceil((x1 - x0) / (PIECE * self.spacing) - 1e-9)), WINDOW)
-            e = [x0 + (x1 - x0) * i / n for i in range(n)] + [x1]
-            lefts.extend(e[:-1])
-            rights.extend(e[1:])
-            brk.extend([False] * (n - 1) + [x1 in cuts])
+            e = x0 + (x1 - x0) * np.arange(n + 1.0) / n      # x0 + (x1 - x0) i / n
+            e[-1] = x1
+            lefts.append(e[:-1])
+            rights.append(e[1:])
+            r = np.zeros(n, bool)
+            r[-1] = x1 in cuts
+            brk.append(r)
         first_left = bool(self.knots.size and a == self.hi and self._last_brk)
         if self._end_state is None:
             self._end_state = self._states([a])[0]
@@ -247,7 +241,7 @@ class ChebTable:
         l0, v0 = np.abs(self._end_state)
         self._span = b - a
         self._quiet = (l0 + v0 * self._span) / self._span ** 2 if b > a else 0.0 * l0
-        pieces = self._happy(np.array(lefts), np.array(rights), np.array(brk, bool), first_left)
+        pieces = self._happy(*map(np.concatenate, (lefts, rights, brk)), first_left)
         if self.period or self.max_step:
             # a density the user asked for (a period's 1024 cells, or max_step's), not one
             # the function needs: join what one series holds (every join ends a segment)
@@ -257,19 +251,17 @@ class ChebTable:
     def _sample(self, a: NDArray, b: NDArray, bl: NDArray, br: NDArray,
                 nodes: bool = True) -> NDArray:
         """l'' at each piece's nodes, shape (K, N + 1, nl) (at a only, (K, 1, nl), without
-        ``nodes``; ``_gait.cheb_sample``)."""
-        out = _gait.cheb_sample(self._accel, a, b, bl, br, _U if nodes else _ONE, self.nl)
+        ``nodes``), and its largest magnitude per linkage (``_gait.cheb_sample``)."""
+        out, top = _gait.cheb_sample(self._accel, a, b, bl, br, _U if nodes else _ONE, self.nl)
         self.calls += out.shape[0] * out.shape[1]
-        return out
+        return out, top
 
     def _happy(self, a: NDArray, b: NDArray, br: NDArray, first_left: bool):
         """(a, b, right end a breakpoint, l'' series (K, N + 1, nl)) of the pieces, sorted;
         the unhappy ones halved until happy."""
-        bl = np.zeros(a.size, dtype=bool)
-        bl[1:] = br[:-1]
-        bl[0] = first_left
+        bl = np.concatenate(([first_left], br[:-1]))
         min_w = MIN_WIDTH * self.spacing
-        parent = np.full(a.size, np.inf)        # the tail of the piece each one halves
+        parent = None               # the tail of the piece each one halves (none at first)
         out, count = [], 0
         while a.size:
             count += a.size
@@ -278,18 +270,19 @@ class ChebTable:
                     f'gait acceleration (l\'\') could not be resolved on [{float(a.min())!r}, '
                     f'{float(b.max())!r}] s ({MAX_PIECES} pieces): is it continuous there? '
                     'List the times where it jumps in breakpoints=')
-            f = self._sample(a, b, bl, br)
-            self.scale = np.maximum(self.scale, np.abs(f).max(axis=(0, 1)))
+            f, top = self._sample(a, b, bl, br)
+            self.scale = np.maximum(self.scale, top)
             c, last, tail, _ = _gait.cheb_fit(f, _DCT, a, b,
                                               np.maximum(self.scale, self._quiet))
-            happy = last <= N - 3
-            if not out and happy.all():
+            if not out and last.max() <= N - 3:
                 return a, b, br, c     # the common window: every piece resolved at once
+            happy = last <= N - 3
             w = b - a
             tiny = w <= np.maximum(min_w, 64.0 * np.spacing(np.maximum(np.abs(a), np.abs(b))))
             # rounding of the user's arithmetic above ours: a tail at the noise floor that
             # halving no longer lowers (a smooth function's falls by orders at each halving)
-            noise = (tail <= NOISE) & (tail > 0.25 * parent)
+            noise = (tail <= NOISE) & (tail > 0.25 * parent) if parent is not None else \
+                np.zeros(a.size, bool)
             for k in np.nonzero(~happy & ~noise & tiny)[0].tolist():
                 self._refuse_jump(float(b[k]), f[k])
             ok = happy | noise | tiny
@@ -359,7 +352,7 @@ class ChebTable:
     def _append(self, a: NDArray, b: NDArray, br: NDArray, acc_c: NDArray) -> None:
         """The pieces' series of l and l' from the user's values at their starts, checked at
         their ends; the derivative series and the bounds."""
-        st = np.concatenate([self._end_state[None], self._states(b.tolist())])
+        st = self._states(b.tolist(), self._end_state)
         coef, ncoef, bj, bs, rest, ends, bad = _gait.cheb_series(
             acc_c, a, b, st, L, np.asarray(self._quiet, dtype=float), self._span)
         if bad is not None:
