@@ -558,14 +558,15 @@ def cheb_fit(const double[:, :, ::1] f, const double[:, ::1] dct, const double[:
 
 def cheb_series(const double[:, :, ::1] acc, const double[::1] a, const double[::1] b,
                 const double[:, :, ::1] states, int width, const double[::1] quiet,
-                double h):
+                double h, const double[:, ::1] grid):
     """The four series of each piece from its l'' series ``acc`` (K, N + 1, nl) and the
     user's (l, l') at its start, ``states`` (K + 1, 2, nl) (the last row: the end of the last
     piece): l' and l by integration from u = -1, l''' and l'''' by differentiation, in time
     units (d/dt = (2 / w) d/du).
 
-    Returns (coef (K, nl, 4, width), ncoef (K,), bj, bs (K, nl) = sums of |coefficients| of
-    l''' and l'''' (bounds on the piece: |T_k| <= 1), rest (K,), ends (K, 2, nl) = l and l'
+    Returns (coef (K, nl, 4, width), ncoef (K,), bj, bs (K, nl) = bounds of |l'''| and
+    |l''''| on each piece (``_sampled_bound`` at the points of ``grid`` (M, width): T_q at M
+    evenly spaced u from -1 to 1), rest (K,), ends (K, 2, nl) = l and l'
     of the series at each piece's end, mismatch: None, or (k, d, j) of the first end where
     the series' l (d = 0) or l' (d = 1) misses the user's (``states[k + 1]``) by more than
     1e-6 of the scales and the rounding of the user's arithmetic (64 eps of ``quiet`` [m/s^2]
@@ -585,7 +586,10 @@ def cheb_series(const double[:, :, ::1] acc, const double[::1] a, const double[:
     cdef double half, inv, v, sgn, s, amax, w, tol, eps = 2.220446049250313e-16
     cdef Py_ssize_t bad[3]
     cdef double* c
-    cdef double* snap = <double*>PyMem_Malloc(width * sizeof(double))
+    cdef double* snap = <double*>PyMem_Malloc(3 * width * sizeof(double))
+    cdef double* d5 = snap + width         # l^(5), l^(6): the bounds' second derivatives
+    cdef double* d6 = snap + 2 * width
+    cdef double gap = 2.0 / (grid.shape[0] - 1), h2
     if snap == NULL:
         raise MemoryError()
     bad[0] = -1
@@ -593,6 +597,7 @@ def cheb_series(const double[:, :, ::1] acc, const double[::1] a, const double[:
         for k in range(K):
             half = 0.5 * (b[k] - a[k])
             inv = 1.0 / half if half > 0.0 else 0.0
+            h2 = gap * gap / 8.0 * half * half      # d^2/du^2 = half^2 d^2/dt^2
             for j in range(nl):
                 c = &coef[k, j, 0, 0]
                 # series 2: l''
@@ -605,14 +610,10 @@ def cheb_series(const double[:, :, ::1] acc, const double[::1] a, const double[:
                 # series 3: l''' (derivative of series 2); l'''' only as a bound
                 _cheb_derive(c + 2 * width, c + 3 * width, width, inv)
                 _cheb_derive(c + 3 * width, snap, width, inv)
-                s = 0.0
-                for q in range(width):
-                    s += fabs(c[3 * width + q])
-                bj[k, j] = s
-                s = 0.0
-                for q in range(width):
-                    s += fabs(snap[q])
-                bs[k, j] = s
+                _cheb_derive(snap, d5, width, inv)
+                _cheb_derive(d5, d6, width, inv)
+                bj[k, j] = _sampled_bound(c + 3 * width, d5, width, grid, h2)
+                bs[k, j] = _sampled_bound(snap, d6, width, grid, h2)
                 amax = 0.0
                 for q in range(n1):
                     amax += fabs(acc[k, q, j])
@@ -667,6 +668,24 @@ cdef void _cheb_integrate(const double* c, double* out, Py_ssize_t n, double sca
     for q in range(n):
         out[q] *= scale
     out[0] += start
+
+
+cdef double _sampled_bound(const double* c, const double* c2, Py_ssize_t n,
+                           const double[:, ::1] grid, double h2) noexcept:
+    """A bound of |series c| on [-1, 1]: its largest magnitude at the points of ``grid``
+    ((M, n): T_q at M evenly spaced points) plus the error of the line through neighbouring
+    points, h2 max |c''| (h2 = h^2 / 8 times the scale that turns ``c2``, the series of the
+    second derivative in its own units, into d^2/du^2; max |c2| is at most the sum of its
+    |coefficients|, |T_q| <= 1), plus the rounding of the values (4 n eps of the sum of c's
+    |coefficients|). Never above that sum, itself a bound."""
+    cdef Py_ssize_t i, q, M = grid.shape[0]
+    cdef double s = 0.0, s2 = 0.0, top = 0.0
+    for q in range(n):
+        s += fabs(c[q])
+        s2 += fabs(c2[q])
+    for i in range(M):
+        top = max(top, fabs(cheb_dot(c, &grid[i, 0], <int>n)))
+    return min(s, top + h2 * s2 + 4.0 * n * 2.220446049250313e-16 * s)
 
 
 cdef void _cheb_derive(const double* c, double* out, Py_ssize_t n, double scale) noexcept:
