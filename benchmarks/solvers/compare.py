@@ -28,10 +28,13 @@ sampling into Chebyshev pieces (``core.solvers.proxy``), once per gait object, i
 * cold start: a fresh interpreter's ``import crawler_sim``, first exact and first implicit
   ``simulate`` (the compiled core is built at install: nothing compiles on first use).
 
-Timings are medians of ``repeats`` runs after one untimed warm-up run (each method alike:
-the first run of a process loads caches and allocator pools; the cold start is reported on its
-own), wall time (``perf_counter``) and CPU time (``process_time``: steadier on a shared
-machine).
+Timings are medians over at least ``repeats`` runs and at least ``MIN_TIMED`` seconds of
+runs (timeit's autorange: a 0.1 ms run is repeated a few thousand times, a 40 ms one five or
+six), after one untimed warm-up run, each method alike: the first runs of a process load
+caches, branch predictors and allocator pools, and a median of five 0.1 ms runs still carries
+that (the first scene's exact runs measured 0.12-0.13 ms so against 0.08 ms steady); the cold
+start is reported on its own. Wall time (``perf_counter``) and CPU time (``process_time``:
+steadier on a shared machine).
 """
 from __future__ import annotations
 
@@ -59,6 +62,7 @@ SCENES = {'m11_f05_1': ([1.0, 1.0], [0.5, 1.0], 1.0),
           'm12_f1_1': ([1.0, 2.0], [1.0, 1.0], 1.0),
           'm11_f5_10_5hz': ([1.0, 1.0], [5.0, 10.0], 5.0)}
 PERIODS = 10
+MIN_TIMED = 0.2         # s of timed runs per figure at least (short runs repeated more)
 COMMAND = 'python -m benchmarks.solvers compare'
 
 
@@ -77,14 +81,19 @@ def scene(name: str) -> tuple[Crawler, gaits.Gait, gaits.Gait, float]:
 
 
 def _timed(fn: Callable[[], Any], repeats: int) -> tuple[dict, Any]:
-    fn()                                  # warm-up, not timed (see the module doc)
+    """({wall, cpu: medians [s], runs: how many, spread: wall quartiles [s]}, fn's result)
+    over at least ``repeats`` runs and ``MIN_TIMED`` s of them (see the module doc)."""
+    fn()                                  # warm-up, not timed
     wall, cpu, out = [], [], None
-    for _ in range(max(repeats, 1)):
+    start = time.perf_counter()
+    while len(wall) < max(repeats, 1) or time.perf_counter() - start < MIN_TIMED:
         w0, c0 = time.perf_counter(), time.process_time()
         out = fn()
         cpu.append(time.process_time() - c0)
         wall.append(time.perf_counter() - w0)
-    return {'wall': statistics.median(wall), 'cpu': statistics.median(cpu), 'runs': wall}, out
+    q = statistics.quantiles(wall, n=4) if len(wall) > 1 else wall * 3
+    return {'wall': statistics.median(wall), 'cpu': statistics.median(cpu), 'runs': len(wall),
+            'spread': [q[0], q[2]]}, out
 
 
 def _implicit_x0(crawler: Crawler, gait: gaits.Gait, T: float, dt: float) -> float:
@@ -271,7 +280,8 @@ def compare_markdown(res: dict) -> list[str]:
     """The comparison as Markdown lines (tables and figures)."""
     lines = ['## Issue 14 comparison: exact vs LSODA on the penalised ODE, implicit method', '',
              f'Command: `{res["command"]}` (also part of `python -m benchmarks.solvers`). Medians of '
-             f'{res["repeats"]} runs after one warm-up run, wall (CPU) time; load average '
+             f'at least {res["repeats"]} runs and {MIN_TIMED:g} s of runs after one warm-up run '
+             '(short runs repeated more, as timeit does), wall (CPU) time; load average '
              f'{res["load_average"][0]:.2f} / {res["load_average"][-1]:.2f}. Errors against an '
              'independent event-driven two-body solver (`test/support/oracle.py`, '
              'events by scan and brentq): '
