@@ -36,6 +36,8 @@ def _check_positive(name: str, value, unit: str = 's') -> float:
 
 
 def _check_finite(name: str, value) -> float:
+    if type(value) is float and math.isfinite(value):
+        return value                # the common case, without the conversion
     try:
         x = float(value)
     except (TypeError, ValueError):
@@ -91,7 +93,7 @@ class Stepper:
                  max_step: float | None = None, keep_history: bool = False,
                  periodic_skip: bool = True) -> None:
         self.method = _check_method(method)
-        t0, x0, v0 = (_check_finite(k, v) for k, v in (('t0', t0), ('x0', x0), ('v0', v0)))
+        t0, x0, v0 = _check_finite('t0', t0), _check_finite('x0', x0), _check_finite('v0', v0)
         check_gait(gait, crawler, t0)
         self.crawler = crawler
         cls = METHODS[method]
