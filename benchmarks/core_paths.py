@@ -9,7 +9,11 @@
   on Scallop and bang-bang (PiecewiseParabolic.stroke) gaits, and the README's example;
 * first use: a fresh interpreter's first ``simulate`` of each gait kind and method.
 
-Each timing is the median of ``--repeats`` runs in this process.
+Each timing is a median in this process. The exact table's: rounds in which every gait runs in
+turn, once after the others (cold: "cold x", its tables and code out of the caches) and three
+times more (warm: the main figure, a gait run again as a loop or a sweep does), at least
+``--repeats`` rounds and 1 s of them, so its ratios do not move with the load drifting between
+runs; the others over ``--repeats`` runs after an untimed one.
 
     .venv/bin/python -m benchmarks.core_paths [--repeats 5] [--quick]
 """
@@ -31,13 +35,36 @@ from crawler_sim.core.solvers.exact import ExactSolver
 G = cs.gaits
 
 
+MIN_ROUNDS_S = 1.0      # s of timed rounds of a side-by-side table at least
+
+
 def _median(fn, repeats: int) -> float:
+    fn()                                  # warm-up, not timed
     out = []
     for _ in range(repeats):
         t0 = time.perf_counter()
         fn()
         out.append(time.perf_counter() - t0)
     return statistics.median(out)
+
+
+def _medians(fns: dict, repeats: int, block: int = 3) -> dict:
+    """{name: (warm, cold)} median times [s] of each of ``fns`` run side by side: rounds in
+    which each runs once after the others ran (cold: its tables and code left the caches),
+    then ``block`` times more (warm: a gait run again, as a sweep or a loop does), at least
+    ``repeats`` rounds and ``MIN_ROUNDS_S`` seconds of them. Ratios of medians so taken do
+    not move with the machine's load drifting between the runs they compare."""
+    times: dict = {k: ([], []) for k in fns}
+    start, rounds = time.perf_counter(), 0
+    while rounds < repeats or time.perf_counter() - start < MIN_ROUNDS_S:
+        for k, fn in fns.items():
+            warm, cold = times[k]
+            for i in range(block + 1):
+                t0 = time.perf_counter()
+                fn()
+                (warm if i else cold).append(time.perf_counter() - t0)
+        rounds += 1
+    return {k: (statistics.median(w), statistics.median(c)) for k, (w, c) in times.items()}
 
 
 def families(p: int, seconds: float = 20.0) -> dict:
@@ -82,7 +109,7 @@ def exact_per_event(p: int, repeats: int, periods: float) -> list[dict]:
     rng = np.random.default_rng(p)
     m = rng.uniform(0.5, 2.0, p)
     crawler = cs.Crawler(m, rng.uniform(0.5, 2.0, p) * m)
-    rows = []
+    rows, runs = [], {}
     for name, gait in families(p, periods).items():
         t_end = {'PiecewiseCubic': periods - 0.001, 'PiecewiseCubic 1 s': 0.999}.get(name,
                                                                                   periods)
@@ -91,19 +118,27 @@ def exact_per_event(p: int, repeats: int, periods: float) -> list[dict]:
         solver = ExactSolver(crawler, gait, periodic_skip=False)
         solver.advance(t_end)
         n_ev = max(len(solver.events), 1)
-        t = _median(lambda: cs.simulate(crawler, gait, t_end, t_eval=[0.0, t_end],
-                                        periodic_skip=False), repeats)
-        rows.append({'p': p, 'gait': name, 'events': n_ev, 'time_s': t,
-                     'us_per_event': 1e6 * t / n_ev, 'evals_per_event': solver.n_evals / n_ev})
-    base = next(r for r in rows if r['gait'] == 'Fourier')['us_per_event']
-    for r in rows:
-        r['ratio_vs_fourier'] = r['us_per_event'] / base
+        runs[name] = (lambda g=gait, te=t_end: cs.simulate(crawler, g, te, t_eval=[0.0, te],
+                                                           periodic_skip=False))
+        rows.append({'p': p, 'gait': name, 'events': n_ev,
+                     'evals_per_event': solver.n_evals / n_ev})
     # the fixed cost of one call: a run of 1 us of the Fourier gait (no event)
     four = families(p, 1.0)['Fourier']
-    rows.append({'p': p, 'gait': 'set-up', 'events': 0, 'time_s': _median(
-        lambda: cs.simulate(crawler, four, 1e-6, t_eval=[0.0, 1e-6], periodic_skip=False),
-        repeats), 'us_per_event': math.nan, 'evals_per_event': math.nan,
-        'ratio_vs_fourier': math.nan})
+    runs['set-up'] = lambda: cs.simulate(crawler, four, 1e-6, t_eval=[0.0, 1e-6],
+                                         periodic_skip=False)
+    times = _medians(runs, repeats)
+    for r in rows:
+        r['time_s'], r['cold_time_s'] = times[r['gait']]
+        r['us_per_event'] = 1e6 * r['time_s'] / r['events']
+    base = next(r for r in rows if r['gait'] == 'Fourier')
+    for r in rows:
+        r['ratio_vs_fourier'] = r['us_per_event'] / base['us_per_event']
+        r['cold_ratio_vs_fourier'] = (r['cold_time_s'] / r['events']) / (
+            base['cold_time_s'] / base['events'])
+    rows.append({'p': p, 'gait': 'set-up', 'events': 0, 'time_s': times['set-up'][0],
+                 'cold_time_s': times['set-up'][1], 'us_per_event': math.nan,
+                 'evals_per_event': math.nan, 'ratio_vs_fourier': math.nan,
+                 'cold_ratio_vs_fourier': math.nan})
     return rows
 
 
@@ -172,10 +207,11 @@ def main() -> None:
     for r in report['exact']:
         if r['gait'] == 'set-up':
             print(f"exact p={r['p']} set-up: a simulate call of 1 us, "
-                  f"{1e6 * r['time_s']:.1f} us")
+                  f"{1e6 * r['time_s']:.1f} us (cold {1e6 * r['cold_time_s']:.1f} us)")
             continue
         print(f"exact p={r['p']} {r['gait']:20s} {r['events']:6d} events "
               f"{r['us_per_event']:8.2f} us/event  x{r['ratio_vs_fourier']:.2f} vs Fourier  "
+              f"(cold x{r['cold_ratio_vs_fourier']:.2f})  "
               f"{r['evals_per_event']:5.1f} evaluations/event")
     for r in report['stepping']:
         print(f"{r['method']:8s} p={r['p']} {r['gait']:10s} {r['steps_per_s']:.3g} steps/s "
