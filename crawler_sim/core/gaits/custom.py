@@ -60,8 +60,9 @@ class Custom(Gait):
     def _compile(self):
         fl, fv, fa = self._fns
         return self._sampled(fa, lambda t: (fl(t), fv(t)),
-                             self.breakpoints if self._breaks.size else None,
-                             self.jerk_bound if self._jerk is not None else None, fns=self._fns)
+                             self._weak_method('breakpoints') if self._breaks.size else None,
+                             self._weak_method('jerk_bound') if self._jerk is not None else None,
+                             fns=self._fns)
 
     def __call__(self, t: float | ArrayLike) -> Triple:
         if np.ndim(t) == 0:

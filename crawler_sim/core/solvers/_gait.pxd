@@ -80,7 +80,7 @@ cdef class CompiledGait:
     cdef readonly object period         # [s] or None
     cdef object _keep                   # the arrays the struct points into
     # PROXY kind: the user's functions (read outside the pieces)
-    cdef object _gait                   # the Python gait
+    cdef object _gait                   # a weak reference to the Python gait
     cdef object _fns                    # (l, l', l'') callables of one float, or None
     cdef bint _scalar                   # the callables return floats (one linkage)
     cdef double[:, ::1] _buf            # rows l, l', l'' of the last evaluation

@@ -9,6 +9,7 @@ methods here, so the solvers and Python see one arithmetic.
 import contextlib
 import math
 import threading
+import weakref
 
 import numpy as np
 
@@ -172,7 +173,7 @@ cdef class CompiledGait:
         if t == self._t_rates and (not with_length or t == self._t_len):
             return 0
         if self._fns is None:
-            l, ld, ldd = self._gait.at(t)
+            l, ld, ldd = self._gait().at(t)
             for j, v in enumerate(_row(l, nl)):
                 self._buf[0, j] = v
             for j, v in enumerate(_row(ld, nl)):
@@ -474,7 +475,7 @@ cdef CompiledGait _python_gait(int kind, gait, int n_links, fns):
     g.d.constant = False
     g.n_links = n_links
     g.period = gait.period
-    g._gait = gait
+    g._gait = weakref.ref(gait)     # (the gait owns this form: no cycle, see Gait._compile)
     g._fns = fns
     g.lock = threading.Lock()
     g._buf = np.zeros((4, max(n_links, 1)))

@@ -316,6 +316,53 @@ def test_each_pieces_jerk_and_snap_bounds_hold_and_are_tight(seed):
                 assert got <= 1.5 * top, (q, j, top, got)
 
 
+class _Subclass(gaits.Gait):
+    """A user's Gait subclass (its own ``_eval``, breakpoints and jerk bound)."""
+
+    n_links = 1
+    period = None
+
+    def _eval(self, t):
+        return ((1 + 0.3 * np.sin(W * t))[:, None], (0.3 * W * np.cos(W * t))[:, None],
+                (-0.3 * W * W * np.sin(W * t))[:, None])
+
+    def breakpoints(self, t0, t1):
+        return np.array([x for x in (0.5,) if t0 < x < t1])
+
+    def jerk_bound(self, t0, t1):
+        return np.array([0.3 * W ** 3])
+
+
+@pytest.mark.parametrize('make', [
+    lambda: _sine(), lambda: gaits.Custom(*_sine()._fns, breakpoints=[0.5],
+                                          jerk_bound=lambda t0, t1: 0.3 * W ** 3),
+    lambda: gaits.Custom(*_sine()._fns, period=1.0), _Subclass], ids=[
+        'custom', 'custom_hints', 'custom_period', 'subclass'])
+def test_a_gait_and_its_compiled_form_are_freed_without_the_cyclic_collector(make):
+    # The compiled form of a Python gait (its pieces, the callables that read the user's
+    # functions) is owned by the gait; were it to refer back to the gait, each gait would be
+    # a cycle that only the cyclic collector frees, which a new gait per run then triggers
+    # often (a fresh Custom gait's run 280 -> 440 us in a process of 50,000 objects). With
+    # the collector off, a gait used by simulate and a Stepper is gone with its last name.
+    import gc
+    import weakref
+    c = cs.Crawler([1, 1], [0.5, 1])
+    gc.collect()
+    gc.disable()
+    try:
+        g = make()
+        cs.simulate(c, g, 2.0, t_eval=[0.0, 2.0])
+        st = cs.Stepper(c, g)
+        st.advance(1.0)
+        st.advance(1.5, g)
+        assert float(g.compiled().values(np.array([0.25]))[0][0, 0]) == pytest.approx(1.3)
+        ref = weakref.ref(g)
+        del g, st
+        assert ref() is None
+    finally:
+        gc.enable()
+
+
 @pytest.mark.parametrize('jerk', [None, 0.3 * W ** 3, lambda t0, t1: 0.3 * W ** 3])
 def test_a_run_calls_the_functions_once_per_cell_not_per_evaluation(jerk):
     # 10 periods, no period given: 256 cells (1/256 of the span), 33 nodes per 32 cells, two
