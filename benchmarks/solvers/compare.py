@@ -28,13 +28,15 @@ sampling into Chebyshev pieces (``core.solvers.proxy``), once per gait object, i
 * cold start: a fresh interpreter's ``import crawler_sim``, first exact and first implicit
   ``simulate`` (the compiled core is built at install: nothing compiles on first use).
 
-Timings are medians over at least ``repeats`` runs and at least ``MIN_TIMED`` seconds of
-runs (timeit's autorange: a 0.1 ms run is repeated a few thousand times, a 40 ms one five or
-six), after one untimed warm-up run, each method alike: the first runs of a process load
-caches, branch predictors and allocator pools, and a median of five 0.1 ms runs still carries
-that (the first scene's exact runs measured 0.12-0.13 ms so against 0.08 ms steady); the cold
-start is reported on its own. Wall time (``perf_counter``) and CPU time (``process_time``:
-steadier on a shared machine).
+Timings are medians after one untimed warm-up run, each method alike, over many runs: the
+first runs of a process load caches, branch predictors and allocator pools, and a median of
+five 0.1 ms runs still carries that (the first scene's exact runs measured 0.12-0.13 ms so
+against 0.08 ms steady). The exact and LSODA runs of a scene are timed side by side, in at
+least ``repeats`` rounds in which each runs in turn for ``MIN_TIMED`` / 4 s (a 0.1 ms run a few
+hundred times, a 40 ms one once or twice), so both sides of a ratio see the same load; other
+figures over at least ``repeats`` runs and ``MIN_TIMED`` seconds of them (timeit's
+autorange). The cold start is reported on its own. Wall time (``perf_counter``) and CPU time
+(``process_time``: steadier on a shared machine).
 """
 from __future__ import annotations
 
@@ -96,6 +98,39 @@ def _timed(fn: Callable[[], Any], repeats: int) -> tuple[dict, Any]:
             'spread': [q[0], q[2]]}, out
 
 
+def _timed_together(fns: dict, repeats: int) -> dict:
+    """{name: (timing as ``_timed``'s or {error}, the last result)} of ``fns`` timed side by
+    side: after one untimed run of each, rounds in which each runs, in turn, for at least
+    ``MIN_TIMED`` / 4 s (a 0.1 ms run a few hundred times, a 40 ms one once or twice), at
+    least ``repeats`` rounds. Both sides of a ratio then see the same load, however it
+    drifts during the run (timed apart, LSODA's median moved 38-67 ms between runs)."""
+    out: dict = {}
+    for k, fn in fns.items():
+        try:
+            out[k] = ({}, fn())
+        except Exception as exc:  # noqa: BLE001 (reported as the result of that solver)
+            out[k] = ({'error': f'{type(exc).__name__}: {exc}'}, None)
+    live = [k for k in fns if 'error' not in out[k][0]]
+    wall: dict = {k: [] for k in live}
+    cpu: dict = {k: [] for k in live}
+    for _ in range(max(repeats, 1)):
+        for k in live:
+            start = time.perf_counter()
+            while True:
+                w0, c0 = time.perf_counter(), time.process_time()
+                res = fns[k]()
+                cpu[k].append(time.process_time() - c0)
+                wall[k].append(time.perf_counter() - w0)
+                if time.perf_counter() - start >= MIN_TIMED / 4:
+                    break
+            out[k] = (out[k][0], res)
+    for k in live:
+        q = statistics.quantiles(wall[k], n=4) if len(wall[k]) > 1 else wall[k] * 3
+        out[k] = ({'wall': statistics.median(wall[k]), 'cpu': statistics.median(cpu[k]),
+                   'runs': len(wall[k]), 'spread': [q[0], q[2]]}, out[k][1])
+    return out
+
+
 def _implicit_x0(crawler: Crawler, gait: gaits.Gait, T: float, dt: float) -> float:
     s = ImplicitSolver(crawler, gait, dt=dt)
     s.advance(T)
@@ -137,21 +172,30 @@ def _scene_row(name: str, repeats: int, h_ref: float, say: Callable) -> dict:
                            'reference_richardson_correction': rich['richardson_correction'],
                            'reference_second_correction': rich['second_correction']}
     hz = SCENES[name][2]
+    w1 = float(crawler.masses[1] / crawler.total_mass)
+
+    def lsoda(max_step: float) -> Callable[[], Any]:
+        return lambda: seed_penalised_lsoda(crawler, builtin, T, grid, n=1e8, rtol=1e-10,
+                                            atol=1e-10, max_step=max_step)
     # the Custom gait made anew for every run: its sampling into Chebyshev pieces
-    # (``solvers.proxy``), once per gait object, is timed too
-    for label, make in (('exact_builtin', lambda: builtin), ('exact_custom', lambda: _custom(hz))):
-        try:
-            tm, tr = _timed(lambda: simulate(crawler, make(), T, t_eval=grid), repeats)
+    # (``solvers.proxy``), once per gait object, is timed too. The ratios' two sides are
+    # timed in the same rounds (``_timed_together``).
+    timed = _timed_together({
+        'exact_builtin': lambda: simulate(crawler, builtin, T, t_eval=grid),
+        'exact_custom': lambda: simulate(crawler, _custom(hz), T, t_eval=grid),
+        'lsoda': lsoda(math.inf), 'lsoda_max_step': lsoda(T / 1000)}, repeats)
+    for label in ('exact_builtin', 'exact_custom'):
+        tm, tr = timed[label]
+        if 'error' in tm:   # a failing solver is a result of the bench
+            row[label] = tm
+        else:
             row[label] = {**tm, 'err_x0': abs(float(tr.x[-1, 0]) - ref['x0']),
                           'err_com': float(np.max(np.abs(tr.com - ref['com'])))}
-        except Exception as exc:  # noqa: BLE001 (a failing solver is a result of the bench)
-            row[label] = {'error': f'{type(exc).__name__}: {exc}'}
         say(f'{name} {label}: {_fmt(row[label])}')
-    w1 = float(crawler.masses[1] / crawler.total_mass)
-    for label, max_step in (('lsoda', math.inf), ('lsoda_max_step', T / 1000)):
-        tm, x0 = _timed(lambda: seed_penalised_lsoda(crawler, builtin, T, grid, n=1e8,
-                                                     rtol=1e-10, atol=1e-10,
-                                                     max_step=max_step), repeats)
+    for label in ('lsoda', 'lsoda_max_step'):
+        tm, x0 = timed[label]
+        if 'error' in tm:
+            raise RuntimeError(f'{name} {label}: {tm["error"]}')
         com = x0 + w1 * builtin(grid)[0][:, 0]
         row[label] = {**tm, 'status': 'ok', 'err_x0': abs(float(x0[-1]) - ref['x0']),
                       'err_com': float(np.max(np.abs(com - ref['com'])))}
@@ -280,8 +324,8 @@ def compare_markdown(res: dict) -> list[str]:
     """The comparison as Markdown lines (tables and figures)."""
     lines = ['## Issue 14 comparison: exact vs LSODA on the penalised ODE, implicit method', '',
              f'Command: `{res["command"]}` (also part of `python -m benchmarks.solvers`). Medians of '
-             f'at least {res["repeats"]} runs and {MIN_TIMED:g} s of runs after one warm-up run '
-             '(short runs repeated more, as timeit does), wall (CPU) time; load average '
+             f'runs after one warm-up run, exact and LSODA side by side in {res["repeats"]} '
+             f'rounds of {MIN_TIMED / 4:g} s of runs each, wall (CPU) time; load average '
              f'{res["load_average"][0]:.2f} / {res["load_average"][-1]:.2f}. Errors against an '
              'independent event-driven two-body solver (`test/support/oracle.py`, '
              'events by scan and brentq): '
