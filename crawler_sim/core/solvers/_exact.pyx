@@ -1075,7 +1075,7 @@ cdef class ExactCore:
         cdef double d, m, m2, hi, origin, nxt, x, y, lvl, te
         cdef int hint = g.hint
         cdef bint ok
-        cdef double* low = self.qd + 3 * nr
+        cdef double* low = self.qd + 3 * self.nr     # (qd: four blocks of self.nr)
         for r in range(nr):
             self.RL[r] = INFINITY
         x = a
@@ -1197,9 +1197,10 @@ cdef class ExactCore:
         l'' = a0 + jerk d): its smallest value over offsets [d0, d1] (its ends and, when
         inside, its vertex) less 16 eps of the sizes of its terms (the combination's
         rounding), so that it bounds the exact row from below, into low (nr,); with
-        ``store`` the quadratics into ``qd`` (3, nr) (``quad_root``). Returns whether every
-        row is proven by it (unwatched > 0, watched >= -noise)."""
-        cdef int r, j, nl = self.nl
+        ``store`` the quadratics into ``qd`` (blocks of self.nr: where ``quad_root`` reads
+        them, whatever the number of rows). Returns whether every row is proven by it
+        (unwatched > 0, watched >= -noise)."""
+        cdef int r, j, nl = self.nl, stride = self.nr
         cdef double q0, q1, q2, x1, x2, v, sa, sb, big = max(fabs(d0), fabs(d1))
         cdef double p0 = 0.0, p1 = 0.0, p2 = 0.0, sp0 = 0.0, sp1 = 0.0, sp2 = 0.0
         cdef const double* c
@@ -1250,8 +1251,8 @@ cdef class ExactCore:
                 ok = False
             if store:
                 qd[r] = q0
-                qd[nr + r] = q1
-                qd[2 * nr + r] = q2
+                qd[stride + r] = q1
+                qd[2 * stride + r] = q2
         return ok
 
     cdef double quad_root(self, int r, double d0, double d1, double lvl) noexcept:
