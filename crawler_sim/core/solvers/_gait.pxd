@@ -477,9 +477,13 @@ cdef inline void run_extreme(const double* lev, int n, int nlev, int width, int 
         if kk > last:
             kk = last
         row = lev + (q * n + (kk if kk < n else kk - n)) * width
-        for j in range(nl):
-            if (row[j] > out[j]) if largest else (row[j] < out[j]):
-                out[j] = row[j]
+        # an unconditional select (maxsd / minsd), not a branch on the data
+        if largest:
+            for j in range(nl):
+                out[j] = row[j] if row[j] > out[j] else out[j]
+        else:
+            for j in range(nl):
+                out[j] = row[j] if row[j] < out[j] else out[j]
         if kk == last:
             break
         kk += w
