@@ -333,12 +333,14 @@ cdef inline int gait_eval(GaitData* g, double t, double* l, double* ld, double* 
     ft = g.freq * t
     th = 2.0 * M_PI * (ft - floor(ft))          # the phase in cycles first (large t)
     w = 2.0 * M_PI * g.freq
+    # one cosine and one sine of th for both kinds, taken together (the compiler makes them
+    # one sincos call; written in each branch, it did so for FOURIER only)
+    c1 = cos(th)
+    s1 = sin(th)
     if g.kind == SCALLOP:
         # sin phi = s sin x / D, cos phi = (cos x - c) / D, D = 1 - c cos x;
         # phi''' = -s c (cos x / D^2 - 2 c sin^2 x / D^3),
         # l''' = amp w^3 (cos phi (phi''' - phi'^3) - 3 sin phi phi' phi'')
-        c1 = cos(th)
-        s1 = sin(th)
         for j in range(nl):
             row = g.p1 + 6 * j
             amp = row[0]
@@ -363,8 +365,6 @@ cdef inline int gait_eval(GaitData* g, double t, double* l, double* ld, double* 
     # FOURIER: harmonics by the angle-addition recurrence from cos th, sin th (two
     # trigonometric calls per time instead of two per harmonic; rounding ~k eps)
     nk = g.nk
-    c1 = cos(th)
-    s1 = sin(th)
     for j in range(nl):
         if l != NULL:
             l[j] = 0.0
