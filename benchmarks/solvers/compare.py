@@ -93,9 +93,14 @@ def _timed(fn: Callable[[], Any], repeats: int) -> tuple[dict, Any]:
         out = fn()
         cpu.append(time.process_time() - c0)
         wall.append(time.perf_counter() - w0)
+    return _summary(wall, cpu), out
+
+
+def _summary(wall: list, cpu: list) -> dict:
+    """Medians of the wall and CPU times [s], how many runs, the wall times' quartiles."""
     q = statistics.quantiles(wall, n=4) if len(wall) > 1 else wall * 3
     return {'wall': statistics.median(wall), 'cpu': statistics.median(cpu), 'runs': len(wall),
-            'spread': [q[0], q[2]]}, out
+            'spread': [q[0], q[2]]}
 
 
 def _timed_together(fns: dict, repeats: int) -> dict:
@@ -125,9 +130,7 @@ def _timed_together(fns: dict, repeats: int) -> dict:
                     break
             out[k] = (out[k][0], res)
     for k in live:
-        q = statistics.quantiles(wall[k], n=4) if len(wall[k]) > 1 else wall[k] * 3
-        out[k] = ({'wall': statistics.median(wall[k]), 'cpu': statistics.median(cpu[k]),
-                   'runs': len(wall[k]), 'spread': [q[0], q[2]]}, out[k][1])
+        out[k] = (_summary(wall[k], cpu[k]), out[k][1])
     return out
 
 

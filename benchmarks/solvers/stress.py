@@ -534,7 +534,7 @@ def check_touching_force(periods: int = 3) -> CheckResult:
     if not err <= 1e-9:
         res.fail(f'positions off the analytic solution by {err:.2e} m')
     c, x1 = m0 * A * w ** 3 / 2.0, float(gait(0.0)[0][0])
-    band = (12.0 * 0.7 * 16.0 * np.finfo(float).eps * abs(x1) / c) ** 0.25
+    band = (12.0 * float(crawler.masses[1]) * 16.0 * np.finfo(float).eps * abs(x1) / c) ** 0.25
     _history_check(res, tr, [-1, 0], [], t_end, periods * band, 'exact')
     return res
 

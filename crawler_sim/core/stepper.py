@@ -36,8 +36,6 @@ def _check_positive(name: str, value, unit: str = 's') -> float:
 
 
 def _check_finite(name: str, value) -> float:
-    if type(value) is float and math.isfinite(value):
-        return value                # the common case, without the conversion
     try:
         x = float(value)
     except (TypeError, ValueError):

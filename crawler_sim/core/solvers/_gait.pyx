@@ -520,7 +520,10 @@ def cheb_fit(const double[:, :, ::1] f, const double[:, ::1] dct, const double[:
     cdef double[:, :, ::1] c = c_arr
     cdef Py_ssize_t[::1] last = last_arr
     cdef double[::1] tail = tail_arr
-    cdef double s, s0, s1, s2, s3, vs, local, jb, tol, w, tm, eps = 2.220446049250313e-16
+    cdef double s, vs, local, jb, tol, w, tm, eps = 2.220446049250313e-16
+    cdef double col[64]          # one linkage's values at the nodes, contiguous
+    if n1 > 64:
+        raise ValueError(f'cheb_fit: at most 64 nodes, got {n1}')
     for k in range(K):
         w = b[k] - a[k]
         tm = max(fabs(a[k]), fabs(b[k]))
@@ -530,21 +533,12 @@ def cheb_fit(const double[:, :, ::1] f, const double[:, ::1] dct, const double[:
                 local = max(local, fabs(f[k, i, j]))
             vs = max(scale[j], local)
             jb = 0.0
+            for i in range(n1):
+                col[i] = f[k, i, j]
             for q in range(n1):
-                # four partial sums: short dependency chains (one chain of n1 adds was most
-                # of a window's fit)
-                s0 = s1 = s2 = s3 = 0.0
-                i = 0
-                while i + 3 < n1:
-                    s0 += dct[q, i] * f[k, i, j]
-                    s1 += dct[q, i + 1] * f[k, i + 1, j]
-                    s2 += dct[q, i + 2] * f[k, i + 2, j]
-                    s3 += dct[q, i + 3] * f[k, i + 3, j]
-                    i += 4
-                while i < n1:
-                    s0 += dct[q, i] * f[k, i, j]
-                    i += 1
-                s = (s0 + s2) + (s1 + s3)
+                # ``cheb_dot``'s partial sums: short dependency chains (one chain of n1 adds
+                # was most of a window's fit)
+                s = cheb_dot(&dct[q, 0], col, <int>n1)
                 c[k, q, j] = s
                 jb += <double>(q * q) * fabs(s)
             jb = jb * 2.0 / w if w > 0.0 else 0.0

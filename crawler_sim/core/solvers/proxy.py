@@ -257,7 +257,7 @@ class ChebTable:
         self._append(*pieces)
 
     def _sample(self, a: NDArray, b: NDArray, bl: NDArray, br: NDArray,
-                nodes: bool = True) -> NDArray:
+                nodes: bool = True) -> tuple[NDArray, NDArray]:
         """l'' at each piece's nodes, shape (K, N + 1, nl) (at a only, (K, 1, nl), without
         ``nodes``), and its largest magnitude per linkage (``_gait.cheb_sample``)."""
         out, top = _gait.cheb_sample(self._accel, a, b, bl, br, _U if nodes else _ONE, self.nl)
@@ -269,7 +269,7 @@ class ChebTable:
         the unhappy ones halved until happy."""
         bl = np.concatenate(([first_left], br[:-1]))
         min_w = MIN_WIDTH * self.spacing
-        parent = None               # the tail of the piece each one halves (none at first)
+        parent = np.full(a.size, np.inf)        # the tail of the piece each one halves
         out, count = [], 0
         while a.size:
             count += a.size
@@ -289,8 +289,7 @@ class ChebTable:
             tiny = w <= np.maximum(min_w, 64.0 * np.spacing(np.maximum(np.abs(a), np.abs(b))))
             # rounding of the user's arithmetic above ours: a tail at the noise floor that
             # halving no longer lowers (a smooth function's falls by orders at each halving)
-            noise = (tail <= NOISE) & (tail > 0.25 * parent) if parent is not None else \
-                np.zeros(a.size, bool)
+            noise = (tail <= NOISE) & (tail > 0.25 * parent)
             for k in np.nonzero(~happy & ~noise & tiny)[0].tolist():
                 self._refuse_jump(float(b[k]), f[k])
             ok = happy | noise | tiny
