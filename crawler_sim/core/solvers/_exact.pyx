@@ -13,7 +13,9 @@
   relative velocity of two bodies stuck together (``rigid``);
 * search: the first zero of the rows, each interval proven free of events from bounds of
   |g''| and |g'| on that interval (the gait's jerk and snap bounds there, ``gait_bounds``) and
-  the rows' values and slopes at its ends; where a row falls nearly straight onto zero the
+  the rows' values and slopes at its ends (for a row of l' alone, whose curvature A1 . l''' is
+  known at each point, also a bound of |g'''| and a Taylor bound of third order:
+  ``cubic_low``, ``cubic_root``); where a row falls nearly straight onto zero the
   step goes just past the root Newton predicts, so the event is bracketed at once; the first
   bracketed zero narrowed (Newton from the nearer end, else the Illinois secant) to adjacent
   floats (``search``);
@@ -25,7 +27,7 @@ the caller drains them after each call. Units: s, m, m/s, N, N s.
 """
 import numpy as np
 
-from libc.math cimport fabs, floor, isfinite, nextafter, sqrt, INFINITY, NAN
+from libc.math cimport cbrt, fabs, floor, isfinite, nextafter, sqrt, INFINITY, NAN
 cimport cython
 from cpython.mem cimport PyMem_Calloc, PyMem_Free, PyMem_Malloc
 from cpython.buffer cimport (PyObject_GetBuffer, PyBuffer_Release, PyBUF_C_CONTIGUOUS,
@@ -79,6 +81,90 @@ cdef inline double dot(const double* W, int i, const double* x, int n) noexcept 
     for j in range(n):
         acc += W[i * n + j] * x[j]
     return acc
+
+
+cdef inline double quad_root(double g, double d, double c) noexcept nogil:
+    """The first zero after 0 of g + d x + c x^2 / 2 (g >= 0), in the forms without
+    cancellation: inf if there is none (a row at 0 that does not fall: 0 unless it rises)."""
+    cdef double q
+    if d <= 0.0:
+        q = d * d - 2.0 * c * g
+        if q < 0.0:                 # convex, no real zero
+            return INFINITY
+        q = sqrt(q)
+        if q - d > 0.0:
+            return 2.0 * g / (q - d)
+        return INFINITY if g > 0.0 else 0.0        # d = 0 and c g = 0: constant
+    if c >= 0.0:
+        return INFINITY
+    return (d + sqrt(d * d - 2.0 * c * g)) / -c
+
+
+cdef inline double cubic(double g, double d, double c, double b3, double x) noexcept nogil:
+    """L(x) = g + d x + c x^2 / 2 - b3 x^3 / 6: a row's Taylor lower bound of third order
+    (value g, slope d and curvature c at an end, |g'''| <= b3 on the interval)."""
+    return g + x * (d + x * (0.5 * c - x * (b3 / 6.0)))
+
+
+cdef inline double cubic_low(double g, double d, double c, double b3, double h) noexcept nogil:
+    """The smallest value of ``cubic`` on [0, h] (b3 >= 0): its ends, and its local minimum
+    where that lies inside (L' = d + c x - b3 x^2 / 2 = 0 with L'' > 0: only where d < 0 < c)."""
+    cdef double lo = min(g, cubic(g, d, c, b3, h)), q, x
+    if d < 0.0 and c > 0.0:
+        q = c * c + 2.0 * b3 * d
+        if q >= 0.0:
+            x = -2.0 * d / (c + sqrt(q))
+            if x < h:
+                lo = min(lo, cubic(g, d, c, b3, x))
+    return lo
+
+
+cdef double cubic_root(double g, double d, double c, double b3, double floor) noexcept nogil:
+    """The first positive zero of ``cubic`` (g > 0, b3 >= 0), from below, or ``floor`` (>= 0, a
+    step proven otherwise) where that is no shorter: a point x with L > 0 on [0, x). Within
+    1e-2 of the zero where L falls concavely onto it (after its local maximum or inflection s:
+    Newton's iterates from above, from the first zero of L's quadratic part, which L <= , or
+    Fujiwara's bound on the roots if lower, and the chord from s bracket it: a step needs no
+    more); Newton's first step from 0 where L falls convexly onto it (before its local minimum
+    or inflection); inf if L has no zero."""
+    cdef double s = 0.0, q, x, lo, hi, fl, fh
+    cdef int k
+    if not g > 0.0:
+        return floor
+    hi = quad_root(g, d, c)
+    if hi <= floor or b3 == 0.0:
+        return max(hi, floor)
+    if d < 0.0 and c > 0.0:
+        q = c * c + 2.0 * b3 * d
+        # the local minimum, else the inflection (L falls throughout)
+        x = -2.0 * d / (c + sqrt(q)) if q > 0.0 else c / b3
+        if cubic(g, d, c, b3, x) <= 0.0:
+            # Newton's first step from 0: short of the zero (``step`` then goes just past it)
+            return max(g / -d, floor)
+        s = (c + sqrt(q)) / b3 if q > 0.0 else x
+    elif d >= 0.0:                                      # the local maximum
+        q = sqrt(c * c + 2.0 * b3 * d)
+        s = (c + q) / b3 if c >= 0.0 else 2.0 * d / (q - c)
+    # from s (or the step proven otherwise, if further: where L <= 0 already, this bound
+    # cannot lengthen it) L falls: below the zero wherever L > 0
+    lo = max(s, floor)
+    fl = cubic(g, d, c, b3, lo)
+    if not fl > 0.0:
+        return floor
+    if hi > 4.0 * lo:
+        hi = min(hi, 2.0 * max(max(3.0 * fabs(c) / b3, sqrt(6.0 * fabs(d) / b3)),
+                               cbrt(3.0 * g / b3)))
+    fh = cubic(g, d, c, b3, hi)
+    for k in range(16):
+        if fh >= 0.0 and hi >= lo:      # on the zero, to rounding (L falls from s to there)
+            return max(hi, floor)
+        if not (fl > 0.0 and fh < 0.0 and hi > lo) or hi - lo <= 1e-2 * lo:
+            break
+        lo += fl * (hi - lo) / (fl - fh)
+        fl = cubic(g, d, c, b3, lo)
+        hi -= fh / (d + hi * (c - 0.5 * b3 * hi))
+        fh = cubic(g, d, c, b3, hi)
+    return max(lo, floor)
 
 
 cdef int _copy_into(object a, const void* src, Py_ssize_t nbytes) except -1:
@@ -438,6 +524,10 @@ cdef class ExactCore:
     cdef double* c1
     cdef double* B2
     cdef double* B1
+    cdef double* B3               # (nr,) |g'''| of a row of l' alone (inf for the others)
+    cdef double h_watch           # a step the watched rows' cubic bounds prove (``step``)
+    cdef double* hs               # (nr,) work of ``step``
+    cdef double h_free            # a step the watched rows need no proof for (``proven``)
     cdef double* noise
     cdef double* RL               # (nr,) each row's smallest value (``range_lower``)
     cdef double* jerk
@@ -447,7 +537,7 @@ cdef class ExactCore:
     cdef double* fmz
     cdef double* A1               # (nr, nl)
     cdef double* A2               # (nr, nl)
-    cdef double* wk               # (10, nr)
+    cdef double* wk               # (14, nr)
     cdef double* qd               # (4, nr) the rows' quadratics on a piece (``piece_lows``)
     cdef long* lab_kind
     cdef long* lab_body
@@ -479,7 +569,7 @@ cdef class ExactCore:
         nd = (p + p + 6 + p + p                       # K, ck_K, last_f, last_R, last_K0
               + 4 * p + 2 * p * nl                    # fp, fm, m_, grav, W, C
               + 8 * nl + 10 * p                       # l .. snap, e .. fmz
-              + 6 * nr + 2 * nr * nl + 14 * nr        # c0 .. noise, RL, A1, A2, wk, qd
+              + 8 * nr + 2 * nr * nl + 18 * nr        # c0 .. noise, RL, B3, hs, A1 .. qd
               + 6 * n_buf + 2 * p * n_buf + 2 * n_buf)    # sf, sR, sK0, et
         nb = (p + p + p + p + p + p + p               # contact zero cache_group ck_contact ck_zero
               + p + p + p + p + p                     # last_contact last_group free hits group
@@ -527,9 +617,11 @@ cdef class ExactCore:
         self.B1 = d; d += nr
         self.noise = d; d += nr
         self.RL = d; d += nr
+        self.B3 = d; d += nr
+        self.hs = d; d += nr
         self.A1 = d; d += nr * nl
         self.A2 = d; d += nr * nl
-        self.wk = d; d += 10 * nr
+        self.wk = d; d += 14 * nr
         self.qd = d; d += 4 * nr
         self.sf = d; d += 6 * n_buf
         self.sR = d; d += p * n_buf
@@ -940,10 +1032,11 @@ cdef class ExactCore:
 
     # ------------------------------------------------------------------ search
     cdef int row_bounds(self, GaitData* g, double a, double b, int nr) except -1:
-        """B2 (|g''|) and B1 (|g'|, force rows only) of each row on [a, b]."""
+        """B2 (|g''|), B1 (|g'|, force rows only) and B3 (|g'''|, rows of l' alone) of each
+        row on [a, b]."""
         cdef int r, j, nl = self.nl, has_snap
         cdef bint has1, has2
-        cdef double b2, b1, x1, x2
+        cdef double b2, b1, b3, x1, x2
         has_snap = gait_bounds(g, a, b, self.jerk, self.snap)
         for r in range(nr):
             b2 = 0.0
@@ -967,54 +1060,82 @@ cdef class ExactCore:
                     b2 = INFINITY
             self.B2[r] = b2
             self.B1[r] = b1 if (has2 and self.c1[r] == 0.0 and not has1) else INFINITY
+            # g'' = A1 . l''' is known at each point (``values``): |g'''| <= |A1| . snap
+            # (not on a TABLE whose jerk jumps: its pieces are walked exactly, ``table_walk``,
+            # and a cubic step sized on one piece, snap 0, overshoots the next)
+            b3 = INFINITY
+            if has_snap and not has2 and (g.kind != TABLE or g.jj_before[g.n] == 0):
+                b3 = 0.0
+                for j in range(nl):
+                    b3 += fabs(self.A1[(r) * self.nl + j]) * self.snap[j]
+            self.B3[r] = b3
         return 0
 
     cdef int values(self, GaitData* g, double t, double t0, int nr, double* gv,
-                    double* dg) except -1:
-        """The rows and their slopes at t."""
+                    double* dg, double* d2) except -1:
+        """The rows, their slopes and A1 . l''' (a row's curvature where it has no l'' term)
+        at t."""
         cdef int r, j, nl = self.nl
-        cdef double v, dv
+        cdef double v, dv, cv
         gait_rates(g, t, self.ld, self.ldd, self.ld3)
         for r in range(nr):
             v = self.c0[r] + self.c1[r] * (t - t0)
             dv = self.c1[r]
+            cv = 0.0
             for j in range(nl):
                 v += self.A1[(r) * self.nl + j] * self.ld[j] + self.A2[(r) * self.nl + j] * self.ldd[j]
                 dv += self.A1[(r) * self.nl + j] * self.ldd[j] + self.A2[(r) * self.nl + j] * self.ld3[j]
+                cv += self.A1[(r) * self.nl + j] * self.ld3[j]
             gv[r] = v
             dg[r] = dv
+            d2[r] = cv
         return 0
 
-    cdef double step(self, int nr, const double* ga, const double* da, double tol,
-                     double cap) noexcept:
-        """A step from a that ``proven`` accepts from a's value and slope alone (just inside
-        the first zero of each row's Taylor lower bound g + g' h - B2 h^2 / 2, or of
-        g - B1 h): near a simple root a Newton step from the left."""
-        cdef double h = INFINITY, gg, d, b2, q, ht, h1, hr
+    cdef double step(self, int nr, const double* ga, const double* da, const double* ca,
+                     double tol, double cap) noexcept:
+        """A step from a that ``proven`` accepts from a's values, slopes and curvatures alone
+        (just inside the first zero of each row's Taylor lower bounds g + g' h - B2 h^2 / 2,
+        g - B1 h, and g + g' h + g'' h^2 / 2 - B3 h^3 / 6 for a row of l' alone, whose g'' is
+        known): near a simple root a Newton step from the left. ``h_watch``: a step over which
+        the last bound proves every watched row >= -noise (0 if one has no such bound)."""
+        cdef double h = INFINITY, gg, d, b2, ht, hr, best
+        cdef double* hs = self.hs
         cdef bint watched = False
-        cdef int r
+        cdef int r, k, it
+        self.h_watch = INFINITY
         for r in range(nr):
+            hs[r] = INFINITY
             if self.watch[r]:
                 watched = True
+                if self.B3[r] < INFINITY and self.h_watch > 0.0:
+                    self.h_watch = min(self.h_watch, 0.9999 * cubic_root(
+                        ga[r] + self.noise[r], da[r], ca[r], self.B3[r], 0.0))
+                else:
+                    self.h_watch = 0.0
                 continue
             gg = max(ga[r], 0.0)
-            d = da[r]
             b2 = self.B2[r]
-            if b2 == INFINITY:
-                ht = 0.0
-            else:
-                # the positive root, in the form without cancellation
-                q = sqrt(d * d + 2.0 * b2 * gg)
-                if d <= 0.0:
-                    if q - d > 0.0:
-                        ht = 2.0 * gg / (q - d)
-                    else:          # d = 0 and b2 g = 0: a constant row is never crossed
-                        ht = INFINITY if gg > 0.0 else 0.0
-                else:
-                    ht = (d + q) / b2 if b2 > 0.0 else INFINITY
-            h1 = gg / self.B1[r] if self.B1[r] > 0.0 else INFINITY
-            hr = 0.9999 * max(ht, h1)
-            if d < 0.0 and gg > 0.0 and hr >= 0.8 * (gg / -d):
+            ht = 0.0 if b2 == INFINITY else quad_root(gg, da[r], -b2)
+            hs[r] = max(ht, gg / self.B1[r] if self.B1[r] > 0.0 else INFINITY)
+        # the rows in order of their second-order steps, each lengthened by its third-order
+        # one (the iterative part), while one may still be the shortest
+        for it in range(nr):
+            r = -1
+            best = INFINITY
+            for k in range(nr):
+                if hs[k] < best:
+                    best = hs[k]
+                    r = k
+            if r < 0 or 0.9999 * best >= h:
+                break
+            hs[r] = INFINITY
+            gg = max(ga[r], 0.0)
+            d = da[r]
+            ht = best
+            if self.B3[r] < INFINITY:
+                ht = cubic_root(gg, d, ca[r], self.B3[r], ht)
+            hr = 0.9999 * ht
+            if d < 0.0 and gg > 0.0 and 0.8 * (gg / -d) <= hr < (gg / -d) * (1.0 + 1e-3):
                 # falling onto zero, the rigorous step within 20 % of Newton's: the row is
                 # nearly straight here, so step just past the root it predicts and bracket
                 # the event (then narrowed) instead of creeping up on it from the left, one
@@ -1029,21 +1150,33 @@ cdef class ExactCore:
         return max(h, 64.0 * tol)
 
     cdef bint proven(self, int nr, double h, const double* ga, const double* gb,
-                     const double* da, const double* db) noexcept:
-        """Every unwatched row > 0 on an interval of length h with these end values and
-        slopes: the best of five lower bounds, each rigorous where |g''| <= B2 (chord:
-        min - B2 h^2 / 8; Taylor from either end, concave) or |g'| <= B1 (mean - B1 h / 2),
-        or a TABLE gait's pieces walked over the interval (``RL``, ``range_lower``)."""
+                     const double* da, const double* db, const double* ca,
+                     const double* cb) noexcept:
+        """Every unwatched row > 0 on an interval of length h with these end values, slopes
+        and curvatures: the best of seven lower bounds, each rigorous where |g''| <= B2 (chord:
+        min - B2 h^2 / 8; Taylor from either end, concave), |g'| <= B1 (mean - B1 h / 2) or
+        |g'''| <= B3 (Taylor of third order from either end, ``cubic_low``), or a TABLE gait's
+        pieces walked over the interval (``RL``, ``range_lower``). A watched row is seen at
+        the search points alone (``search`` keeps them dense) unless h > ``h_free`` and it
+        has a bound B3: then the third-order bounds must prove it >= -noise."""
         cdef int r
-        cdef double q, lo
+        cdef double q, lo, b3
         for r in range(nr):
+            b3 = self.B3[r]
             if self.watch[r]:
-                continue
+                if h <= self.h_free or b3 == INFINITY or max(
+                        cubic_low(ga[r], da[r], ca[r], b3, h),
+                        cubic_low(gb[r], -db[r], cb[r], b3, h)) >= -self.noise[r]:
+                    continue
+                return False
             q = self.B2[r] * (h * h)
             lo = max(min(ga[r], gb[r]) - q / 8.0, 0.5 * (ga[r] + gb[r]) - self.B1[r] * (h / 2.0))
             lo = max(lo, self.RL[r])
             lo = max(lo, min(ga[r], ga[r] + da[r] * h - q / 2.0))
             lo = max(lo, min(gb[r], gb[r] - db[r] * h - q / 2.0))
+            if lo <= 0.0 and b3 < INFINITY:
+                lo = max(cubic_low(ga[r], da[r], ca[r], b3, h),
+                         cubic_low(gb[r], -db[r], cb[r], b3, h))
             if lo <= 0.0:
                 return False
         return True
@@ -1303,16 +1436,20 @@ cdef class ExactCore:
         cdef double* ds = self.wk + 7 * self.nr
         cdef double* fa = self.wk + 8 * self.nr
         cdef double* fb = self.wk + 9 * self.nr
+        cdef double* ca = self.wk + 10 * self.nr      # g'' of the rows of l' alone
+        cdef double* cm = self.wk + 11 * self.nr
+        cdef double* cb = self.wk + 12 * self.nr
+        cdef double* cs = self.wk + 13 * self.nr
         cdef int r, j, nl = self.nl, side = 0
         cdef double sc, a, h, m, w, f, fr, den, ms, b = INFINITY, sb = INFINITY, lim, lvl
         cdef double w0 = INFINITY, w1 = INFINITY, w2 = INFINITY
         cdef bint have_b = False, saved = False, settled, fixed, ahead, ranged
-        cdef double x2, by_range = NAN
+        cdef double x2, by_range = NAN, rb_a = NAN, rb_b = NAN
         cdef long it, n_small = 0
         cdef double h_last = INFINITY
         for r in range(nr):
             self.hit[r] = 0
-        self.values(g, t0, t0, nr, ga, da)
+        self.values(g, t0, t0, nr, ga, da, ca)
         for r in range(nr):
             sc = fabs(self.c0[r]) + fabs(self.c1[r]) * (end - t0)
             for j in range(nl):
@@ -1338,11 +1475,12 @@ cdef class ExactCore:
             self.RL[r] = -INFINITY
         a = t0
         self.row_bounds(g, t0, min(end, t0 + cap), nr)
-        h = self.step(nr, ga, da, tol, cap)
+        h = self.step(nr, ga, da, ca, tol, cap)
         for r in range(nr):
             if self.watch[r]:
-                h = min(h, max(1e3 * tol, 1e-9 * (end - a)))
-                h_last = h
+                h_last = min(h, max(1e3 * tol, 1e-9 * (end - a)))
+                h = min(h, max(h_last, self.h_watch))
+                break
         lim = end
         for it in range(MAX_STEPS):
             by_range = NAN
@@ -1397,6 +1535,7 @@ cdef class ExactCore:
                         for r in range(nr):
                             gb[r] = gs[r]
                             db[r] = ds[r]
+                            cb[r] = cs[r]
                             lvl = -self.noise[r] if self.watch[r] else 0.0
                             fa[r] = ga[r] - lvl
                             fb[r] = gb[r] - lvl
@@ -1414,7 +1553,7 @@ cdef class ExactCore:
                     if x2 >= m or (x2 > a and x2 == lim):
                         m = x2
                         by_range = m
-            self.values(g, m, t0, nr, gm, dm)
+            self.values(g, m, t0, nr, gm, dm, cm)
             self.n_evals += 1
             for r in range(nr):
                 if not (isfinite(gm[r]) and isfinite(dm[r])):
@@ -1428,24 +1567,29 @@ cdef class ExactCore:
                 for r in range(nr):
                     gb[r] = gm[r]
                     db[r] = dm[r]
+                    cb[r] = cm[r]
                     lvl = -self.noise[r] if self.watch[r] else 0.0
                     fb[r] = gm[r] - lvl
                     fa[r] = (ga[r] - lvl) * (0.5 if side == -1 else 1.0)
                 side = -1
                 continue
             if m - a > tol:
-                if not fixed:
-                    # (also after a step the walk proved: the next step is sized with them)
+                if not fixed and not (a == rb_a and m <= rb_b):
+                    # (also after a step the walk proved: the next step is sized with them;
+                    # not again where the step was sized with its own interval's, ``ahead``)
                     self.row_bounds(g, a, m, nr)
+                rb_a = NAN
                 if ranged and m != by_range:
                     self.range_lower(g, a, m, t0, nr)
-                if m != by_range and not self.proven(nr, m - a, ga, gm, da, dm):
+                self.h_free = 2.0 * h_last
+                if m != by_range and not self.proven(nr, m - a, ga, gm, da, dm, ca, cm):
                     if have_b:           # scan [a, m] first, the bracket put aside
                         saved = True
                         sb = b
                         for r in range(nr):
                             gs[r] = gb[r]
                             ds[r] = db[r]
+                            cs[r] = cb[r]
                         have_b = False
                         lim = m
                     h = max(0.25 * (m - a), 0.5 * tol)
@@ -1459,6 +1603,7 @@ cdef class ExactCore:
             for r in range(nr):
                 ga[r] = gm[r]
                 da[r] = dm[r]
+                ca[r] = cm[r]
             if have_b:
                 for r in range(nr):
                     lvl = -self.noise[r] if self.watch[r] else 0.0
@@ -1480,19 +1625,22 @@ cdef class ExactCore:
                 if settled:
                     t_out[0] = a
                     return F_OK
-                h = self.step(nr, ga, da, tol, cap)
+                h = self.step(nr, ga, da, ca, tol, cap)
                 if ahead and h < end - a:
                     # the bounds of the step's own interval: a step sized with the bounds
                     # behind it fails its proof where the gait turns sharp ahead (they can
                     # only shrink the step, which the interval's bounds then still cover)
                     self.row_bounds(g, a, a + h, nr)
-                    h = min(h, self.step(nr, ga, da, tol, cap))
+                    rb_a = a
+                    rb_b = a + h
+                    h = min(h, self.step(nr, ga, da, ca, tol, cap))
                 for r in range(nr):
                     if self.watch[r]:
                         # a watched row is seen at the search points alone: they grow at most
                         # twofold from where it was last seen, so a row leaving zero slowly
-                        # (a body leaving rest at a tie) is seen leaving it, or dipping
-                        h = min(h, 2.0 * h_last)
+                        # (a body leaving rest at a tie) is seen leaving it, or dipping; or
+                        # further where every watched row's third-order bound proves it
+                        h = min(h, max(2.0 * h_last, self.h_watch))
                         break
         if not have_b:
             return F_NO_STEPS
@@ -1888,15 +2036,19 @@ cdef class ExactCore:
         hits = np.array(<unsigned char[:nr]>self.hit).astype(bool)
         return (tt if isfinite(tt) else INFINITY), hits, self.n_evals - n0
 
-    def taylor_step(self, ga, da, watch, B2, B1, double tol, double cap) -> float:
-        """The compiled ``step`` for rows with values ga and slopes da at a."""
+    def taylor_step(self, ga, da, watch, B2, B1, double tol, double cap, ca=None,
+                    B3=None) -> float:
+        """The compiled ``step`` for rows with values ga, slopes da and (rows of l' alone,
+        given B3) curvatures ca at a."""
         cdef int nr = len(ga), r
         cdef double[::1] g = np.asarray(ga, dtype=float), d = np.asarray(da, dtype=float)
+        cdef double[::1] c = np.zeros(nr) if ca is None else np.asarray(ca, dtype=float)
         for r in range(nr):
             self.watch[r] = bool(watch[r])
             self.B2[r] = B2[r]
             self.B1[r] = B1[r]
-        return self.step(nr, &g[0], &d[0], tol, cap)
+            self.B3[r] = INFINITY if B3 is None else B3[r]
+        return self.step(nr, &g[0], &d[0], &c[0], tol, cap)
 
     def row_minima(self, CompiledGait gait, double a, double b, double t0, c0, c1, A1, A2):
         """The compiled ``range_lower`` for rows c0 + c1 (t - t0) + A1 . l'(t) + A2 . l''(t)
@@ -1915,17 +2067,25 @@ cdef class ExactCore:
         self.range_lower(&gait.d, a, b, t0, nr)
         return np.array([self.RL[r] for r in range(nr)])
 
-    def proven_interval(self, double h, ga, gb, da, db, watch, B2, B1) -> bool:
-        """The compiled ``proven`` for an interval of length h."""
+    def proven_interval(self, double h, ga, gb, da, db, watch, B2, B1, ca=None, cb=None,
+                        B3=None, noise=None, double h_free=INFINITY) -> bool:
+        """The compiled ``proven`` for an interval of length h (curvatures ca, cb and B3 for
+        rows of l' alone; watched rows' noise, and the step ``h_free`` they need no proof
+        for)."""
         cdef int nr = len(ga), r
         cdef double[::1] a_ = np.asarray(ga, dtype=float), b_ = np.asarray(gb, dtype=float)
         cdef double[::1] c_ = np.asarray(da, dtype=float), d_ = np.asarray(db, dtype=float)
+        cdef double[::1] e_ = np.zeros(nr) if ca is None else np.asarray(ca, dtype=float)
+        cdef double[::1] f_ = np.zeros(nr) if cb is None else np.asarray(cb, dtype=float)
         for r in range(nr):
             self.watch[r] = bool(watch[r])
             self.B2[r] = B2[r]
             self.B1[r] = B1[r]
+            self.B3[r] = INFINITY if B3 is None else B3[r]
+            self.noise[r] = 0.0 if noise is None else noise[r]
             self.RL[r] = -INFINITY
-        return self.proven(nr, h, &a_[0], &b_[0], &c_[0], &d_[0])
+        self.h_free = h_free
+        return self.proven(nr, h, &a_[0], &b_[0], &c_[0], &d_[0], &e_[0], &f_[0])
 
 
 
