@@ -36,7 +36,7 @@ from libc.string cimport memcpy
 
 from crawler_sim.core.solvers._gait cimport (CompiledGait, GaitData, FOURIER, SCALLOP,
                                              TABLE, PROXY, gait_eval, gait_rates,
-                                             table_locate, piece_start,
+                                             table_locate, table_run, piece_start,
                                              gait_lengths, gait_bounds,
                                              gait_next_break, gait_is_constant)
 from crawler_sim.core.solvers._inclusion cimport inclusion
@@ -1216,8 +1216,11 @@ cdef class ExactCore:
         origin = x - d
         while x < b:
             if wait == 0 and x == piece_start(g, k, m):
-                # whole pieces from x's: the longest run of 2^q (q <= q_try) the ranges prove
+                # whole pieces from x's: the longest run of 2^q (q <= q_try) the ranges prove,
+                # an aligned block of the table (k a multiple of 2^q, within one period)
                 q = min(q_try, g.nlev - 1)
+                while q >= 1 and ((k & ((1 << q) - 1)) != 0 or k + (1 << q) > g.n):
+                    q -= 1
                 while q >= 1:
                     k2 = k + (1 << q)
                     m2 = m
@@ -1298,7 +1301,7 @@ cdef class ExactCore:
         extremes of l' and l'' over them (``stat`` level q: one record), less 16 eps of the
         sizes of its terms, into low (nr,). Returns whether every row is proven by it."""
         cdef int r, j, nl = self.nl
-        cdef const double* rec = g.stat + (q * g.n + k) * 5 * nl
+        cdef const double* rec = table_run(g, q, k)
         cdef double v, u, sz, e
         cdef bint ok = True
         for r in range(nr):

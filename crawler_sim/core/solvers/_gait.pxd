@@ -52,10 +52,13 @@ ctypedef struct GaitData:
     int n_jumps
     double* jump_times      # (n_jumps,) sorted breakpoint times (of one period when periodic)
     # TABLE: per piece and linkage |jerk|, lo l', hi l', lo l'', hi l'' over the whole piece,
-    # (nlev, n, 5, nl), level q the extreme over 2^q pieces from each on (``run_extreme``, and
-    # the exact search's walk reads a record as the ranges over a run of pieces); jjump
-    # counts over the pieces before each, (2 n + 1,) (two periods when periodic)
+    # records (5, nl) of aligned blocks: level q (from record lev_off[q] on) the extremes over
+    # pieces i 2^q .. (i + 1) 2^q - 1 (the last block clipped at n), about 2 n records in all
+    # (``table_run``: the exact search's walk reads one as the ranges over a run of pieces;
+    # ``table_jerk``); jjump counts over the pieces before each, (2 n + 1,) (two periods when
+    # periodic)
     double* stat
+    int lev_off[RANGE_LEVELS + 2]
     int* jj_before
     # derivative bounds: FOURIER constant (nl,); SCALLOP nb bins per period (nlev, nb, nl):
     # level q the largest of the 2^q bins from each bin on
@@ -463,7 +466,7 @@ cdef inline void run_extreme(const double* lev, int n, int nlev, int width, int 
     """The extreme (largest, else smallest) over ``count`` consecutive items from i0 on
     (indices mod n; i0 + count <= 2 n) of a table of range extremes, merged into out (nl,):
     ``lev`` the item 0, level 0 entry, ``width`` doubles per item, n items per level, level q
-    the extreme over the 2^q items from each on (SCALLOP's bins, TABLE's pieces). Runs of
+    the extreme over the 2^q items from each on (SCALLOP's bins). Runs of
     2^q items (the widest level within the run), the last one ending at the run's end: two
     lookups for runs up to 2^nlev items, one per 2^(nlev - 1) beyond."""
     cdef int q = 0, w, last, kk, j
@@ -489,10 +492,29 @@ cdef inline void run_extreme(const double* lev, int n, int nlev, int width, int 
         kk += w
 
 
+cdef inline const double* table_run(const GaitData* g, int q, int k) noexcept nogil:
+    """A TABLE gait's record (``stat``) of the block of 2^q pieces from piece k, a multiple
+    of 2^q (the last block of a level is clipped at n)."""
+    return g.stat + (g.lev_off[q] + (k >> q)) * 5 * g.nl
+
+
 cdef inline void table_jerk(const GaitData* g, int i0, int count, double* out) noexcept nogil:
-    """The largest |jerk| (field 0 of ``stat``) of a TABLE gait's ``count`` pieces from i0 on,
-    merged into out (``run_extreme``)."""
-    run_extreme(g.stat, g.n, g.nlev, 5 * g.nl, i0, count, True, g.nl, out)
+    """The largest |jerk| (field 0 of ``stat``) of a TABLE gait's ``count`` pieces from i0 on
+    (indices mod n, i0 + count <= 2 n), merged into out: the run cut into aligned blocks, at
+    each piece the widest that starts there and fits (a few lookups at either end, one per
+    2^(nlev - 1) pieces between)."""
+    cdef int i = i0, end = i0 + count, ii, q, j
+    cdef const double* row
+    while i < end:
+        ii = i if i < g.n else i - g.n
+        q = 0
+        while (q + 1 < g.nlev and (ii & ((2 << q) - 1)) == 0 and (2 << q) <= end - i
+               and ii + (2 << q) <= g.n):
+            q += 1
+        row = table_run(g, q, ii)
+        for j in range(g.nl):
+            out[j] = row[j] if row[j] > out[j] else out[j]
+        i += 1 << q
 
 
 cdef inline int table_span(const GaitData* g, double a, double b, int* k0) noexcept nogil:

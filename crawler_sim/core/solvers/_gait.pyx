@@ -298,8 +298,8 @@ def scallop(double freq, mean, rows, bins_jerk, bins_snap) -> CompiledGait:
     mean = _f64(mean)
     rows = np.asarray(rows, dtype=float)
     rows = _f64(np.column_stack([rows, np.cos(rows[:, 1]), np.sin(rows[:, 1])]))
-    bj = _range_levels(np.asarray(bins_jerk, dtype=float), 1.0, True)
-    bs = _range_levels(np.asarray(bins_snap, dtype=float), 1.0, True)
+    bj = _range_levels(np.asarray(bins_jerk, dtype=float), 1.0)
+    bs = _range_levels(np.asarray(bins_snap, dtype=float), 1.0)
     bj_all = _f64(bj[0].max(axis=0))
     bs_all = _f64(bs[0].max(axis=0))
     g._keep = (mean, rows, bj, bs, bj_all, bs_all)
@@ -320,12 +320,12 @@ def scallop(double freq, mean, rows, bins_jerk, bins_snap) -> CompiledGait:
     return g
 
 
-def _table_stats(coef, d0, d1, periodic):
+def _table_stats(coef, d0, d1):
     """Per piece and linkage over its whole extent (offsets d0 .. d1 from its origin):
     |jerk|, the smallest and largest l' (ends and vertex) and l'' (ends) (``piece_ranges``),
     shape (n, 5, nl); a piece without an end (the last of a table that is not periodic) or a
-    start (a first one from -inf) has unbounded ranges. Then ``_range_levels``: the extremes
-    over 2^q pieces from each on, so a run of pieces is a few lookups."""
+    start (a first one from -inf) has unbounded ranges. Then ``_aligned_levels``: the extremes
+    over aligned blocks of 2^q pieces, so a run of pieces is a few lookups."""
     cdef const double[:, :, ::1] c = coef
     cdef const double[::1] lo = _f64(d0), hi = _f64(d1)
     cdef Py_ssize_t n = c.shape[0], nl = c.shape[1], k, j
@@ -345,7 +345,7 @@ def _table_stats(coef, d0, d1, periodic):
             piece_ranges(&c[k, 0, 0], <int>nl, lo[k], hi[k], &rg[0])
         for j in range(4 * nl):
             st[k, 1 + j // nl, j % nl] = rg[j]
-    return _range_levels(st_arr, np.array([1.0, -1.0, 1.0, -1.0, 1.0])[:, None], periodic)
+    return _aligned_levels(st_arr, np.array([1.0, -1.0, 1.0, -1.0, 1.0])[:, None])
 
 
 def _counts_before(flags):
@@ -360,16 +360,60 @@ def _counts_before(flags):
     return out
 
 
-def _range_levels(st, sign, bint periodic):
-    """Items (n, ...) -> (levels, n, ...): level q holds the extreme of the 2^q items from each
-    on, the largest where ``sign`` (broadcast over an item) is +1, the smallest where -1;
-    wrapping around when ``periodic``, else clipped at the last item. So the extreme over any
-    run of items is a few lookups (``run_extreme``): a Scallop's bins of bounds, a table's
-    pieces (built with every gait that has them: loops, not array calls, for small tables)."""
-    st = _f64(st)
-    cdef Py_ssize_t n = st.shape[0], w = st.size // max(n, 1), q, k, k2, c, sh, L = 1
+def _n_levels(Py_ssize_t n):
+    """Levels of range extremes over n items: runs of up to 2^RANGE_LEVELS, and not past n."""
+    cdef Py_ssize_t L = 1
     while L <= RANGE_LEVELS and (1 << L) <= n:
         L += 1
+    return L
+
+
+def _aligned_levels(st, sign):
+    """Items (n, ...) -> (records (R, ...), level offsets (L,)): level q, from record
+    offsets[q] on, holds the extremes of the items i 2^q .. (i + 1) 2^q - 1 (the last block
+    clipped at n), the largest where ``sign`` (broadcast over an item) is +1, the smallest
+    where -1; about 2 n records in all (a table's pieces: ``table_run``, ``table_jerk``; the
+    overlapping levels of ``_range_levels`` take n records per level, 3.5 times the memory,
+    which a long table's walk reads from out of the caches)."""
+    st = _f64(st)
+    cdef Py_ssize_t n = st.shape[0], w = st.size // max(n, 1), q, i, c, lo, hi, cnt, prev
+    cdef Py_ssize_t L = _n_levels(n)
+    offsets = np.zeros(L, dtype=np.intc)
+    cnt = n
+    for q in range(1, L):
+        offsets[q] = offsets[q - 1] + cnt
+        cnt = (cnt + 1) // 2
+    out_arr = np.empty((int(offsets[L - 1]) + cnt,) + st.shape[1:])
+    flat = out_arr.reshape(out_arr.shape[0], w)
+    flat[:n] = st.reshape(n, w)
+    cdef double[:, ::1] o = flat
+    cdef const int[::1] off = offsets
+    cdef const double[::1] sg = _f64(np.broadcast_to(sign, st.shape[1:]).reshape(-1))
+    cdef double x, y
+    prev = n
+    for q in range(1, L):
+        cnt = (prev + 1) // 2
+        for i in range(cnt):
+            lo = off[q - 1] + 2 * i
+            hi = lo + 1 if 2 * i + 1 < prev else lo
+            for c in range(w):
+                x = o[lo, c]
+                y = o[hi, c]
+                o[off[q] + i, c] = ((x if x >= y else y) if sg[c] > 0.0
+                                    else (x if x <= y else y))
+        prev = cnt
+    return out_arr, offsets
+
+
+def _range_levels(st, sign):
+    """Items (n, ...) of one period -> (levels, n, ...): level q holds the extreme of the 2^q
+    items from each on (wrapping around), the largest where ``sign`` (broadcast over an item)
+    is +1, the smallest where -1. So the extreme over any run of items is two lookups
+    (``run_extreme``): a Scallop's bins of bounds (built with every such gait: loops, not
+    array calls, for small tables)."""
+    st = _f64(st)
+    cdef Py_ssize_t n = st.shape[0], w = st.size // max(n, 1), q, k, k2, c, sh
+    cdef Py_ssize_t L = _n_levels(n)
     out_arr = np.empty((L,) + st.shape)
     cdef double[:, :, ::1] o = out_arr.reshape(L, n, w)
     cdef const double[::1] sg = _f64(np.broadcast_to(sign, st.shape[1:]).reshape(-1))
@@ -381,7 +425,7 @@ def _range_levels(st, sign, bint periodic):
         for k in range(n):
             k2 = k + sh
             if k2 >= n:
-                k2 = k2 - n if periodic else n - 1
+                k2 -= n
             for c in range(w):
                 x = o[q - 1, k, c]
                 y = o[q - 1, k2, c]
@@ -436,7 +480,7 @@ def table(coef, *, starts=None, anchors=None, knots=None, period=None,
     rest = np.ascontiguousarray(np.all(coef[:, :, 1:] == 0.0, axis=(1, 2)))
     jump_times = _f64(starts_[jumps])
     ends = knots[1:] if periodic else np.append(starts_[1:], np.inf)
-    stat = _table_stats(coef, starts_ - origins, ends - origins, periodic)
+    stat, lev_off = _table_stats(coef, starts_ - origins, ends - origins)
     jj_before = _counts_before(jj)
     g._keep = (coef, knots if periodic else starts_, origins, jumps, jj, rest, jump_times,
                stat, jj_before)
@@ -450,7 +494,9 @@ def table(coef, *, starts=None, anchors=None, knots=None, period=None,
     g.d.n_jumps = jump_times.size
     g.d.jump_times = _dptr(jump_times)
     g.d.stat = _dptr(stat)
-    g.d.nlev = stat.shape[0]
+    g.d.nlev = lev_off.size
+    for q in range(lev_off.size):
+        g.d.lev_off[q] = lev_off[q]
     cdef int[::1] jb = jj_before
     g.d.jj_before = &jb[0]
     if periodic:
