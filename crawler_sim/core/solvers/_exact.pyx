@@ -526,7 +526,6 @@ cdef class ExactCore:
     cdef double* B1
     cdef double* B3               # (nr,) |g'''| of a row of l' alone (inf for the others)
     cdef double h_watch           # a step the watched rows' cubic bounds prove (``step``)
-    cdef double* hs               # (nr,) work of ``step``
     cdef double h_free            # a step the watched rows need no proof for (``proven``)
     cdef double* noise
     cdef double* RL               # (nr,) each row's smallest value (``range_lower``)
@@ -569,7 +568,7 @@ cdef class ExactCore:
         nd = (p + p + 6 + p + p                       # K, ck_K, last_f, last_R, last_K0
               + 4 * p + 2 * p * nl                    # fp, fm, m_, grav, W, C
               + 8 * nl + 10 * p                       # l .. snap, e .. fmz
-              + 8 * nr + 2 * nr * nl + 18 * nr        # c0 .. noise, RL, B3, hs, A1 .. qd
+              + 7 * nr + 2 * nr * nl + 18 * nr        # c0 .. noise, RL, B3, A1 .. qd
               + 6 * n_buf + 2 * p * n_buf + 2 * n_buf)    # sf, sR, sK0, et
         nb = (p + p + p + p + p + p + p               # contact zero cache_group ck_contact ck_zero
               + p + p + p + p + p                     # last_contact last_group free hits group
@@ -618,7 +617,6 @@ cdef class ExactCore:
         self.noise = d; d += nr
         self.RL = d; d += nr
         self.B3 = d; d += nr
-        self.hs = d; d += nr
         self.A1 = d; d += nr * nl
         self.A2 = d; d += nr * nl
         self.wk = d; d += 14 * nr
@@ -1098,13 +1096,11 @@ cdef class ExactCore:
         g - B1 h, and g + g' h + g'' h^2 / 2 - B3 h^3 / 6 for a row of l' alone, whose g'' is
         known): near a simple root a Newton step from the left. ``h_watch``: a step over which
         the last bound proves every watched row >= -noise (0 if one has no such bound)."""
-        cdef double h = INFINITY, gg, d, b2, ht, hr, best
-        cdef double* hs = self.hs
+        cdef double h = INFINITY, gg, d, b2, ht, hr
         cdef bint watched = False
-        cdef int r, k, it
+        cdef int r
         self.h_watch = INFINITY
         for r in range(nr):
-            hs[r] = INFINITY
             if self.watch[r]:
                 watched = True
                 if self.B3[r] < INFINITY and self.h_watch > 0.0:
@@ -1114,26 +1110,15 @@ cdef class ExactCore:
                     self.h_watch = 0.0
                 continue
             gg = max(ga[r], 0.0)
-            b2 = self.B2[r]
-            ht = 0.0 if b2 == INFINITY else quad_root(gg, da[r], -b2)
-            hs[r] = max(ht, gg / self.B1[r] if self.B1[r] > 0.0 else INFINITY)
-        # the rows in order of their second-order steps, each lengthened by its third-order
-        # one (the iterative part), while one may still be the shortest
-        for it in range(nr):
-            r = -1
-            best = INFINITY
-            for k in range(nr):
-                if hs[k] < best:
-                    best = hs[k]
-                    r = k
-            if r < 0 or 0.9999 * best >= h:
-                break
-            hs[r] = INFINITY
-            gg = max(ga[r], 0.0)
             d = da[r]
-            ht = best
-            if self.B3[r] < INFINITY:
-                ht = cubic_root(gg, d, ca[r], self.B3[r], ht)
+            b2 = self.B2[r]
+            ht = 0.0 if b2 == INFINITY else quad_root(gg, d, -b2)
+            ht = max(ht, gg / self.B1[r] if self.B1[r] > 0.0 else INFINITY)
+            if (0.9999 * ht < h and self.B3[r] < INFINITY
+                    and cubic_low(gg, d, ca[r], self.B3[r], 2.0 * ht) > 0.0):
+                # a row that may set the step, whose third-order bound proves twice it: that
+                # bound's zero, from there (a smaller gain is not worth the root's iterations)
+                ht = cubic_root(gg, d, ca[r], self.B3[r], 2.0 * ht)
             hr = 0.9999 * ht
             if d < 0.0 and gg > 0.0 and 0.8 * (gg / -d) <= hr < (gg / -d) * (1.0 + 1e-3):
                 # falling onto zero, the rigorous step within 20 % of Newton's: the row is
