@@ -20,8 +20,10 @@ shrinks. Every join of two pieces is reported as a breakpoint, so the solvers ne
 continuous across one.
 
 Sampling density (what the build can see): pieces are 32 cells wide and a cell is
-``T / 1024`` for a periodic gait, ``max_step / 8`` when one is given, else 1/256 of what is
-left of the span being integrated (never finer than before), as the bound scan it replaces:
+``T / 1024`` for a periodic gait, ``max_step / 8`` when one is given, else 1/256 of the run
+so far (from the first span's start to the end of the one being integrated: a run streamed in
+short steps is sampled as the same run in one call is, a piece per step at most, not eight
+pieces of 1/256 of each step; never finer than before), as the bound scan it replaces:
 33 points per 32 cells (the points crowd at the ends: the widest gap is pi / 2 cells). A
 feature narrower than that between two points is not seen; a sharp one that a point touches
 makes its piece unhappy and is resolved by halving where it is. A periodic gait is sampled
@@ -137,6 +139,7 @@ class ChebTable:
         self._last_brk = False          # knots[-1] is a breakpoint
         self._quiet = np.zeros(nl)      # see ``_build`` [m/s^2]
         self._span = 0.0                # length of the window being built [s]
+        self._origin = math.nan         # start of the first span since the table began [s]
 
     @property
     def lo(self) -> float:
@@ -218,9 +221,13 @@ class ChebTable:
         if cands:
             self.spacing = min(cands)
         elif stop > start or math.isinf(self.spacing):
-            # 1/FIRST of what is left of the span, never finer than before: a long run on a
-            # gait object that served a short one first costs what a fresh one does
-            grid = max(stop - start, 1e-300) / FIRST
+            # 1/FIRST of the run so far (from the first span's start to this one's end: a
+            # run streamed in short steps is sampled as the same run in one call is, not at
+            # 1/FIRST of each step), never finer than before: a long run on a gait object
+            # that served a short one first costs what a fresh one does
+            if math.isnan(self._origin):
+                self._origin = start
+            grid = max(stop - min(self._origin, start), 1e-300) / FIRST
             self.spacing = grid if math.isinf(self.spacing) else max(self.spacing, grid)
 
     def _build(self, a: float, b: float) -> None:
