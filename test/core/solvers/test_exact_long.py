@@ -91,5 +91,5 @@ def test_a_1e7_s_periodic_run_with_1001_samples_does_not_grow_memory(compiled):
     short, long_ = map(float, out.stdout.split()[-2:])
     # growth only: the baseline depends on the environment (numba's import and cache load
     # alone take ~130 MB; under colcon's test environment the process starts far higher).
-    # Measured by hand (benchmarks/exact_speed.py's machine): 38 MB whole process without numba.
+    # Measured by hand (this machine): 38 MB whole process without numba.
     assert long_ - short < 50.0, (short, long_)
