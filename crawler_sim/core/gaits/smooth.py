@@ -88,8 +88,6 @@ class Fourier(BuiltinGait):
         return fourier(self.frequency, self.mean, self.cos, self.sin)
 
 
-#: most values of one array of ``Scallop._cauchy`` (8,192 doubles: 64 KiB)
-_BLOCK_VALUES = 8192
 #: bins per group of ``Scallop._bounds``' Cauchy estimates
 _GROUP = 8
 
@@ -176,115 +174,34 @@ class Scallop(BuiltinGait):
         """Rigorous bounds of |l'''| [m/s^3] and |l''''| [m/s^4] on each bin [t0, t1] (arrays
         (B,)), per linkage: (B, n_links) each.
 
-        Each is the smaller of two bounds that hold: Cauchy's estimate (``_cauchy``), and the
-        derivative's exact values at the bin's ends (``_derivatives``, with their rounding
-        error) plus the error of the chord between them, h^2 / 8 times a bound of the
-        derivative two orders higher (again Cauchy's, but multiplied by h^2 / 8 its looseness
-        hardly matters). Cauchy's estimate alone runs 46-184 times above the true maximum
-        where the stroke is not sharp (r >= 0.05), the other 1.0-2.7 times, and the event
-        search's steps shrink with the bound (5 times a Fourier gait's evaluations).
+        Each is the smaller of two bounds that hold: Cauchy's estimate, and the derivative's
+        exact values at the bin's ends (with their rounding error) plus the error of the
+        chord between them, h^2 / 8 times a bound of the derivative two orders higher (again
+        Cauchy's, but multiplied by h^2 / 8 its looseness hardly matters). Cauchy's estimate
+        alone runs 46-184 times above the true maximum where the stroke is not sharp (r >=
+        0.05), the other 1.0-2.7 times, and the event search's steps shrink with the bound (5
+        times a Fourier gait's evaluations).
+
+        Cauchy: l = mean + amplitude f(x), f(x) = s sin x / (1 - c cos x), x = w t + phase -
+        pi r, is analytic off the poles x = 2 pi k (+ pi when c < 0) +- i rho0, cosh rho0 =
+        1 / |c|. On a disc of radius rho around a real point, |s sin z| <= s cosh rho and,
+        with z' = z (or z + pi when c < 0), 1 - c cos z = 2 |c| sin((z' + i rho0) / 2)
+        sin((z' - i rho0) / 2) and |sin u|^2 = sin^2 Re u + sinh^2 Im u give |1 - c cos z| >=
+        2 |c| (min sin^2(Re z' / 2) + sinh^2(max(rho0 - rho, 0) / 2)); then |f^(n)| <= n!
+        max|f| / rho^n, the best of a range of radii kept.
+        The values at the ends: from f D = s sin x differentiated n times (Leibniz), f^(n) =
+        (s sin^(n) x - sum_{k<n} C(n, k) f^(k) D^(n-k)) / D, with D^(m) = -c cos^(m) x for m
+        >= 1; the error of f^(n): 8 eps times the sum of the magnitudes of its terms, plus
+        the errors of the f^(k) it uses, all over |D|. Both in ``_gait.scallop_bins``.
         """
         # Cauchy's estimates per group of 8 bins (a group's bound holds on each of its bins):
         # they are a bin's bound only where the chord's is worse, and the chord's error term
-        # carries them times h^2 / 8; most of the tables' cost otherwise
-        n = t0.size
-        first = np.arange(0, n, _GROUP)
-        last = np.minimum(first + _GROUP - 1, n - 1)
-        c3, c4, c5, c6 = (c[np.arange(n) // _GROUP] for c in
-                          self._cauchy((3, 4, 5, 6), t0[first], t1[last], n_radii=7))
-        w = self._w
-        amp = np.abs(self.amplitude)
-        x = w * np.concatenate([t0, t1[-1:]])[:, None] + self.phase - math.pi * self.asymmetry
-        f, err = self._derivatives(x, 4)
-        h2 = (w * (t1 - t0))[:, None] ** 2 / 8.0            # in x: (w h)^2 / 8
-        out = []
-        for n, cn, cn2 in ((3, c3, c5), (4, c4, c6)):
-            top = np.abs(f[n]) + err[n]                       # |f^(n)| at the bin ends
-            ends = np.maximum(top[:-1], top[1:]) * amp * w ** n
-            # the bound of order n + 2 carries amp w^(n + 2) and the x-width squared is
-            # (w h)^2: divide by w^2
-            chord = (ends + h2 * cn2 / w ** 2) * (1.0 + 1e-12)
-            out.append(np.minimum(cn, chord))
-        return out[0], out[1]
-
-    def _derivatives(self, x: NDArray[np.float64], n_max: int
-                     ) -> tuple[list[NDArray[np.float64]], list[NDArray[np.float64]]]:
-        """f, f', ..., f^(n_max) at x, for f(x) = s sin x / D(x), D = 1 - c cos x (l = mean +
-        amplitude f), and a bound of each one's rounding error: from f D = s sin x
-        differentiated n times (Leibniz), f^(n) = (s sin^(n) x - sum_{k<n} C(n, k) f^(k)
-        D^(n-k)) / D, with D^(m) = -c cos^(m) x for m >= 1 and sin^(n) x = sin(x + n pi / 2).
-        The error of f^(n): 8 eps times the sum of the magnitudes of its terms, plus the
-        errors of the f^(k) it uses, all over |D|."""
-        c, s = self._c, self._s
-        eps = np.finfo(float).eps
-        cx, sx = np.cos(x), np.sin(x)
-        sin_n = (sx, cx, -sx, -cx)          # sin^(n) x = sin(x + n pi / 2), n mod 4
-        cos_n = (cx, -sx, -cx, sx)
-        D = 1.0 - c * cx
-        Dm = [D] + [-c * cos_n[m % 4] for m in range(1, n_max + 1)]
-        f: list[NDArray[np.float64]] = []
-        err: list[NDArray[np.float64]] = []
-        for n in range(n_max + 1):
-            acc = s * sin_n[n % 4]
-            mag = np.abs(acc) + abs(s)                # sin's own rounding
-            prop = np.zeros_like(x)
-            for k in range(n):
-                term = math.comb(n, k) * f[k] * Dm[n - k]
-                acc = acc - term
-                mag = mag + np.abs(term)
-                prop = prop + math.comb(n, k) * err[k] * np.abs(Dm[n - k])
-            f.append(acc / D)
-            err.append((8.0 * eps * mag + prop) / np.abs(D))
-        return f, err
-
-    def _cauchy(self, orders: tuple[int, ...], t0, t1,
-                n_radii: int = 19) -> list[NDArray[np.float64]]:
-        """Rigorous bounds of |d^n l / dt^n| on [t0, t1] by Cauchy's estimate, per linkage,
-        for each n of ``orders``.
-
-        l = mean + amplitude f(x), f(x) = s sin x / (1 - c cos x), x = w t + phase - pi r, is
-        analytic off the poles x = 2 pi k (+ pi when c < 0) +- i rho0, cosh rho0 = 1 / |c|. On
-        a disc of radius rho around a real point: |s sin z| <= s cosh rho and, with z' = z (or
-        z + pi when c < 0), 1 - c cos z = 2 |c| sin((z' + i rho0) / 2) sin((z' - i rho0) / 2)
-        and |sin u|^2 = sin^2 Re u + sinh^2 Im u give |1 - c cos z| >= 2 |c| (min sin^2(Re z'
-        / 2) + sinh^2(max(rho0 - rho, 0) / 2)). Then |f^(n)| <= n! max|f| / rho^n; the best
-        of a range of radii is kept. Local: small far from the fast phase of a sharp stroke.
-        ``t0``, ``t1``: floats, or arrays of shape (B,) (then each result is (B, n_links)).
-
-        Many radii at once, as arrays (radius, bin, linkage), and the orders from the same lower
-        bound of |1 - c cos z|: a new gait's tables are most of a sweep scene's set-up.
-        """
-        c, s, w = self._c, self._s, self._w
-        amp = np.abs(self.amplitude)
-        if abs(c) < 1e-12:        # r = 1/2: a plain cosine stroke
-            return [np.broadcast_to(amp * w ** n * (1.0 + 1e-12), np.shape(t0) + amp.shape).copy()
-                    for n in orders]
-        rho0 = math.acosh(1.0 / abs(c))
-        t0, t1 = np.asarray(t0, float)[..., None], np.asarray(t1, float)[..., None]
-        x0 = w * t0 + self.phase - math.pi * self.asymmetry + (math.pi if c < 0 else 0.0)
-        span = w * (t1 - t0)
-        radii = np.concatenate([rho0 * np.linspace(0.05, 0.95, n_radii),
-                                [0.25, 0.5, 1.0, 2.0, 3.0]])
-        best = [np.full(np.broadcast_shapes(x0.shape, span.shape), math.inf) for _ in orders]
-        # radii in blocks whose arrays stay well under 128 KiB: glibc maps larger ones anew each
-        # time where the trim threshold is fixed (Dask's workers set MALLOC_TRIM_THRESHOLD_),
-        # and the page faults then cost more than the arithmetic
-        block = max(1, _BLOCK_VALUES // max(1, int(np.prod(best[0].shape))))
-        for k0 in range(0, radii.size, block):
-            rs = radii[k0:k0 + block]
-            rho = rs.reshape((-1,) + (1,) * x0.ndim)
-            lo = 0.5 * (x0 - rho)                  # Re(z') / 2 ranges over [lo, lo + width]
-            width = 0.5 * (span + 2.0 * rho)
-            contains = np.ceil(lo / math.pi) * math.pi <= lo + width
-            m = np.where(contains, 0.0, np.minimum(np.sin(lo) ** 2, np.sin(lo + width) ** 2))
-            sinh2 = np.array([math.sinh(max(rho0 - r, 0.0) / 2.0) ** 2 for r in rs.tolist()])
-            den = 2.0 * abs(c) * (m + sinh2.reshape(rho.shape))
-            safe = np.where(den > 0, den, 1.0)
-            for b, n in zip(best, orders):
-                # per radius as the formula reads (n! s cosh rho / den / rho^n), then the best
-                scale = np.array([math.factorial(n) * s * math.cosh(r) for r in rs.tolist()])
-                pw = np.array([r ** n for r in rs.tolist()]).reshape(rho.shape)
-                bound = np.where(den > 0, scale.reshape(rho.shape) / safe / pw, math.inf)
-                np.minimum(b, bound.min(axis=0), out=b)
-        # 1 + 1e-12: the bound is computed in floats
-        return [amp * w ** n * b * (1.0 + 1e-12) for b, n in zip(best, orders)]
+        # carries them times h^2 / 8; the best of 7 radii inside the poles' distance and 5
+        # beyond it (compiled: ``_gait.scallop_bins``)
+        from ..solvers._gait import scallop_bins
+        c = self._c
+        rho0 = math.acosh(1.0 / abs(c)) if abs(c) >= 1e-12 else 0.0
+        radii = np.concatenate([rho0 * np.linspace(0.05, 0.95, 7), [0.25, 0.5, 1.0, 2.0, 3.0]])
+        return scallop_bins(c, self._s, self._w, self.amplitude, self.phase,
+                            math.pi * self.asymmetry, np.asarray(t0, dtype=float),
+                            np.asarray(t1, dtype=float), radii, _GROUP)

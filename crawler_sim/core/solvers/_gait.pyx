@@ -13,7 +13,8 @@ import weakref
 
 import numpy as np
 
-from libc.math cimport fabs, isfinite, nextafter, INFINITY, NAN
+from libc.math cimport (acosh, ceil, cos, cosh, fabs, isfinite, nextafter, pow, sin, sinh,
+                        INFINITY, M_PI, NAN)
 from cpython.mem cimport PyMem_Malloc, PyMem_Free
 
 __all__ = ['CompiledGait', 'fourier', 'scallop', 'table', 'proxy']
@@ -287,6 +288,134 @@ def fourier(double freq, mean, cos_c, sin_c) -> CompiledGait:
     g.n_links = nl
     g.period = 1.0 / freq
     return g
+
+
+
+# n! (n <= 6) and C(n, k) (n, k <= 4, at 5 n + k) for ``scallop_bins``
+cdef double _FACT[7]
+cdef double _COMB[25]
+for _n in range(7):
+    _FACT[_n] = math.factorial(_n)
+for _n in range(5):
+    for _k in range(_n + 1):
+        _COMB[5 * _n + _k] = math.comb(_n, _k)
+
+
+def scallop_bins(double c, double s, double w, amp, phase, double pa, t0, t1, radii,
+                 int group):
+    """A Scallop's bounds of |l'''| [m/s^3] and |l''''| [m/s^4] on each bin [t0, t1] (arrays
+    (B,)), per linkage: two arrays (B, nl) (``Scallop._bounds`` documents the method; l =
+    mean + amp f(x), f = s sin x / (1 - c cos x), x = w t + phase - pa, c = cos(pi r), s =
+    sin(pi r), pa = pi r). Each is the smaller of Cauchy's estimate, per group of ``group``
+    bins over the ``radii`` [rad], and the derivative's values at the bin's ends (Leibniz on
+    f D = s sin x, with a bound of their rounding) plus the chord's error, h^2 / 8 times
+    Cauchy's bound two orders higher. Loops, not array calls: a new gait's tables were most
+    of a sweep scene's and an optimiser candidate's set-up (0.6 ms in numpy)."""
+    cdef const double[::1] A = _f64(amp), P = _f64(phase), T0 = _f64(t0), T1 = _f64(t1)
+    cdef const double[::1] R = _f64(radii)
+    cdef Py_ssize_t nb = T0.shape[0], nl = A.shape[0], ng = (nb + group - 1) // group
+    cdef Py_ssize_t g, i, j, k, n, o, q, nr = R.shape[0]
+    cdef double rho0, x0, span, lo, width, m, sh, den, r, x, cx, sx, D, acc, mag, prop, term
+    cdef double cb, h2, ends, chord, a3, a4
+    cdef double best[4]
+    cdef double f[5]
+    cdef double err[5]
+    cdef double Dm[5]
+    cdef double sn[4]
+    cdef double cs[4]
+    cdef double EPS_ = 2.220446049250313e-16
+    cauchy = np.empty((4, ng, nl))
+    cdef double[:, :, ::1] C = cauchy
+    top_arr = np.empty((2, nb + 1, nl))
+    cdef double[:, :, ::1] top = top_arr
+    jerk_arr = np.empty((nb, nl))
+    snap_arr = np.empty((nb, nl))
+    cdef double[:, ::1] J = jerk_arr
+    cdef double[:, ::1] S = snap_arr
+    # Cauchy's estimates of orders 3 .. 6, per group of bins; what depends on the radius
+    # alone once per radius (n! s cosh rho, rho^n, sinh^2 of the poles' distance less rho)
+    rho0 = acosh(1.0 / fabs(c)) if fabs(c) >= 1e-12 else 0.0
+    per_r = np.empty((nr, 9))
+    cdef double[:, ::1] PR = per_r
+    for q in range(nr):
+        r = R[q]
+        sh = sinh(max(rho0 - r, 0.0) / 2.0)
+        PR[q, 0] = sh * sh
+        for o in range(4):
+            PR[q, 1 + o] = _FACT[3 + o] * s * cosh(r)
+            PR[q, 5 + o] = pow(r, 3.0 + o)
+    for g in range(ng):
+        lo = T0[g * group]
+        r = T1[min(g * group + group - 1, nb - 1)]
+        span = w * (r - lo)
+        for j in range(nl):
+            if fabs(c) < 1e-12:           # r = 1/2: a plain cosine stroke
+                for o in range(4):
+                    C[o, g, j] = fabs(A[j]) * pow(w, 3.0 + o) * (1.0 + 1e-12)
+                continue
+            x0 = w * lo + P[j] - pa + (M_PI if c < 0.0 else 0.0)
+            for o in range(4):
+                best[o] = INFINITY
+            for q in range(nr):
+                r = R[q]
+                x = 0.5 * (x0 - r)                    # Re(z') / 2 over [x, x + width]
+                width = 0.5 * (span + 2.0 * r)
+                if ceil(x / M_PI) * M_PI <= x + width:
+                    m = 0.0
+                else:
+                    cx = sin(x)
+                    sx = sin(x + width)
+                    m = min(cx * cx, sx * sx)
+                den = 2.0 * fabs(c) * (m + PR[q, 0])
+                if den > 0.0:
+                    for o in range(4):
+                        best[o] = min(best[o], PR[q, 1 + o] / den / PR[q, 5 + o])
+            for o in range(4):
+                C[o, g, j] = fabs(A[j]) * pow(w, 3.0 + o) * best[o] * (1.0 + 1e-12)
+    # f''' and f'''' at the bins' ends, with their rounding
+    for i in range(nb + 1):
+        for j in range(nl):
+            x = w * (T0[i] if i < nb else T1[nb - 1]) + P[j] - pa
+            cx = cos(x)
+            sx = sin(x)
+            sn[0] = sx
+            sn[1] = cx
+            sn[2] = -sx
+            sn[3] = -cx
+            cs[0] = cx
+            cs[1] = -sx
+            cs[2] = -cx
+            cs[3] = sx
+            D = 1.0 - c * cx
+            Dm[0] = D
+            for k in range(1, 5):
+                Dm[k] = -c * cs[k % 4]
+            for n in range(5):
+                acc = s * sn[n % 4]
+                mag = fabs(acc) + fabs(s)
+                prop = 0.0
+                for k in range(n):
+                    cb = _COMB[5 * n + k]
+                    term = cb * f[k] * Dm[n - k]
+                    acc = acc - term
+                    mag = mag + fabs(term)
+                    prop = prop + cb * err[k] * fabs(Dm[n - k])
+                f[n] = acc / D
+                err[n] = (8.0 * EPS_ * mag + prop) / fabs(D)
+            top[0, i, j] = fabs(f[3]) + err[3]
+            top[1, i, j] = fabs(f[4]) + err[4]
+    for i in range(nb):
+        g = i // group
+        h2 = (w * (T1[i] - T0[i])) ** 2 / 8.0
+        for j in range(nl):
+            a3 = fabs(A[j])
+            ends = max(top[0, i, j], top[0, i + 1, j]) * a3 * pow(w, 3.0)
+            chord = (ends + h2 * C[2, g, j] / pow(w, 2.0)) * (1.0 + 1e-12)
+            J[i, j] = min(C[0, g, j], chord)
+            ends = max(top[1, i, j], top[1, i + 1, j]) * a3 * pow(w, 4.0)
+            chord = (ends + h2 * C[3, g, j] / pow(w, 2.0)) * (1.0 + 1e-12)
+            S[i, j] = min(C[1, g, j], chord)
+    return jerk_arr, snap_arr
 
 
 def scallop(double freq, mean, rows, bins_jerk, bins_snap) -> CompiledGait:
