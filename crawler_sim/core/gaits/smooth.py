@@ -199,9 +199,6 @@ class Scallop(BuiltinGait):
         # carries them times h^2 / 8; the best of 7 radii inside the poles' distance and 5
         # beyond it (compiled: ``_gait.scallop_bins``)
         from ..solvers._gait import scallop_bins
-        c = self._c
-        rho0 = math.acosh(1.0 / abs(c)) if abs(c) >= 1e-12 else 0.0
-        radii = np.concatenate([rho0 * np.linspace(0.05, 0.95, 7), [0.25, 0.5, 1.0, 2.0, 3.0]])
-        return scallop_bins(c, self._s, self._w, self.amplitude, self.phase,
+        return scallop_bins(self._c, self._s, self._w, self.amplitude, self.phase,
                             math.pi * self.asymmetry, np.asarray(t0, dtype=float),
-                            np.asarray(t1, dtype=float), radii, _GROUP)
+                            np.asarray(t1, dtype=float), _GROUP, 7)

@@ -1250,7 +1250,7 @@ cdef class ExactCore:
                 for r in range(nr):
                     if not clear(low[r], self.watch[r], self.noise[r]):
                         lvl = -self.noise[r] if self.watch[r] else 0.0
-                        y = min(y, origin + self.quad_root(r, x - origin, hi - origin, lvl))
+                        y = min(y, origin + self.piece_root(r, x - origin, hi - origin, lvl))
                 y = x + (y - x) * (1.0 - 1e-6)
                 for it in range(8):
                     if y <= x:
@@ -1318,7 +1318,7 @@ cdef class ExactCore:
         l'' = a0 + jerk d): its smallest value over offsets [d0, d1] (its ends and, when
         inside, its vertex) less 16 eps of the sizes of its terms (the combination's
         rounding), so that it bounds the exact row from below, into low (nr,); with
-        ``store`` the quadratics into ``qd`` (blocks of self.nr: where ``quad_root`` reads
+        ``store`` the quadratics into ``qd`` (blocks of self.nr: where ``piece_root`` reads
         them, whatever the number of rows). Returns whether every row is proven by it
         (unwatched > 0, watched >= -noise)."""
         cdef int r, j, nl = self.nl, stride = self.nr
@@ -1376,28 +1376,19 @@ cdef class ExactCore:
                 qd[2 * stride + r] = q2
         return ok
 
-    cdef double quad_root(self, int r, double d0, double d1, double lvl) noexcept:
-        """The first offset in [d0, d1] where row r's quadratic (``piece_lows``) comes down
-        to ``lvl`` (its smallest point when rounding leaves it no root there)."""
+    cdef double piece_root(self, int r, double d0, double d1, double lvl) noexcept:
+        """The first offset in [d0, d1] where row r's quadratic (``piece_lows``: q0 + q1 d +
+        q2 d^2 in offsets d from the piece's origin) comes down to ``lvl``: its Taylor form
+        at d0 to its first zero (``quad_root``); where it has no real zero, its vertex when
+        inside (its smallest point: rounding left it no root there); else d1."""
         cdef double q0 = self.qd[r] - lvl, q1 = self.qd[self.nr + r], q2 = self.qd[2 * self.nr + r]
-        cdef double disc, sq, u, r1, r2, best = d1, dv
-        if q0 + d0 * (q1 + d0 * q2) <= 0.0:
+        cdef double g = q0 + d0 * (q1 + d0 * q2), x, dv
+        if g <= 0.0:
             return d0
-        if q2 == 0.0:
-            if q1 < 0.0:
-                best = min(d1, -q0 / q1)
-            return max(best, d0)
-        disc = q1 * q1 - 4.0 * q2 * q0
-        if disc >= 0.0:
-            sq = sqrt(disc)
-            u = -0.5 * (q1 + (sq if q1 >= 0.0 else -sq))
-            r1 = u / q2
-            r2 = q0 / u if u != 0.0 else INFINITY
-            for dv in (r1, r2):
-                if d0 < dv < best:
-                    best = dv
-            return best
-        if q2 > 0.0:                   # no root: the vertex, its smallest point
+        x = quad_root(g, q1 + 2.0 * q2 * d0, 2.0 * q2)
+        if x < INFINITY:
+            return min(d0 + x, d1)
+        if q2 > 0.0:
             dv = -q1 / (2.0 * q2)
             if d0 < dv < d1:
                 return dv

@@ -301,22 +301,22 @@ for _n in range(5):
         _COMB[5 * _n + _k] = math.comb(_n, _k)
 
 
-def scallop_bins(double c, double s, double w, amp, phase, double pa, t0, t1, radii,
-                 int group):
+def scallop_bins(double c, double s, double w, amp, phase, double pa, t0, t1, int group,
+                 int n_radii):
     """A Scallop's bounds of |l'''| [m/s^3] and |l''''| [m/s^4] on each bin [t0, t1] (arrays
     (B,)), per linkage: two arrays (B, nl) (``Scallop._bounds`` documents the method; l =
     mean + amp f(x), f = s sin x / (1 - c cos x), x = w t + phase - pa, c = cos(pi r), s =
     sin(pi r), pa = pi r). Each is the smaller of Cauchy's estimate, per group of ``group``
-    bins over the ``radii`` [rad], and the derivative's values at the bin's ends (Leibniz on
+    bins, the best of ``n_radii`` radii evenly from 0.05 to 0.95 of the poles' distance and 5
+    beyond it, and the derivative's values at the bin's ends (Leibniz on
     f D = s sin x, with a bound of their rounding) plus the chord's error, h^2 / 8 times
     Cauchy's bound two orders higher. Loops, not array calls: a new gait's tables were most
     of a sweep scene's and an optimiser candidate's set-up (0.6 ms in numpy)."""
     cdef const double[::1] A = _f64(amp), P = _f64(phase), T0 = _f64(t0), T1 = _f64(t1)
-    cdef const double[::1] R = _f64(radii)
     cdef Py_ssize_t nb = T0.shape[0], nl = A.shape[0], ng = (nb + group - 1) // group
-    cdef Py_ssize_t g, i, j, k, n, o, q, nr = R.shape[0]
+    cdef Py_ssize_t g, i, j, k, n, o, q, nr = n_radii + 5
     cdef double rho0, x0, span, lo, width, m, sh, den, r, x, cx, sx, D, acc, mag, prop, term
-    cdef double cb, h2, ends, chord, a3, a4
+    cdef double cb, h2, ends, chord, a3, step
     cdef double best[4]
     cdef double f[5]
     cdef double err[5]
@@ -335,6 +335,13 @@ def scallop_bins(double c, double s, double w, amp, phase, double pa, t0, t1, ra
     # Cauchy's estimates of orders 3 .. 6, per group of bins; what depends on the radius
     # alone once per radius (n! s cosh rho, rho^n, sinh^2 of the poles' distance less rho)
     rho0 = acosh(1.0 / fabs(c)) if fabs(c) >= 1e-12 else 0.0
+    radii = np.empty(nr)
+    cdef double[::1] R = radii
+    step = (0.95 - 0.05) / (n_radii - 1)          # as numpy.linspace(0.05, 0.95, n_radii)
+    for q in range(n_radii):
+        R[q] = rho0 * (0.95 if q == n_radii - 1 else q * step + 0.05)
+    for q in range(5):
+        R[n_radii + q] = (0.25, 0.5, 1.0, 2.0, 3.0)[q]
     per_r = np.empty((nr, 9))
     cdef double[:, ::1] PR = per_r
     for q in range(nr):
