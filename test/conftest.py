@@ -1,8 +1,9 @@
 """Shared test set-up: an isolated ROS environment per session and a colcon-built install.
 
 The ROS variables are set here, at import, before any test module imports rclpy: a
-session-unique ``ROS_DOMAIN_ID`` (so parallel runs on one host do not see each other), discovery
-limited to this host, and rclpy's message field checks switched on.
+``ROS_DOMAIN_ID`` that no other test session on this host holds (claimed with a lock file held
+for the session's life, test/support/domains.py: parallel runs on one host never see each
+other), discovery limited to this host, and rclpy's message field checks switched on.
 """
 from __future__ import annotations
 
@@ -14,25 +15,14 @@ import sys
 
 import pytest
 
-os.environ['ROS_DOMAIN_ID'] = str(os.getpid() % 100 + 1)
+from test.support.domains import session_domain_id
+
+os.environ['ROS_DOMAIN_ID'] = str(session_domain_id())
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ['ROS_PYTHON_CHECK_FIELDS'] = '1'
 
 REPO = Path(__file__).resolve().parents[1]
 VENV = Path(sys.prefix)
-
-_domain_counter = [0]
-
-
-def next_domain_id() -> int:
-    """A domain id for one in-process test: distinct from the session's and from each other."""
-    base = int(os.environ['ROS_DOMAIN_ID'])
-    while True:
-        _domain_counter[0] += 1
-        domain = (base + _domain_counter[0]) % 100 + 1
-        if domain != base:
-            return domain
-
 
 @pytest.fixture(scope='session')
 def colcon_install(tmp_path_factory) -> Path:

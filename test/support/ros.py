@@ -24,20 +24,8 @@ from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from crawler_sim.ros.sim_node import SimNode
+from test.support.domains import next_domain_id     # noqa: F401 - ids no other session holds
 from test.support.spinning import Spinning
-
-_domain_counter = [0]
-
-
-def next_domain_id() -> int:
-    """A domain id for one in-process test: distinct from the session's (conftest.py) and from
-    each other."""
-    base = int(os.environ['ROS_DOMAIN_ID'])
-    while True:
-        _domain_counter[0] += 1
-        domain = (base + _domain_counter[0]) % 100 + 1
-        if domain != base:
-            return domain
 
 
 DEADLINE = 10.0   # wall s for any single wait (discovery, a service call)
