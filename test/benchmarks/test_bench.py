@@ -9,7 +9,7 @@ import pytest
 
 from crawler_sim import Crawler, gaits, simulate
 from benchmarks.solvers import load_bench_scenes, run_bench
-from benchmarks.solvers import compare, metrics
+from benchmarks.solvers import metrics
 from benchmarks.solvers.baselines import make_ode, rate_function, run_baseline
 from benchmarks.solvers.scenes import make_gait, scene_from_dict
 from benchmarks.solvers.workprec import SERIES
@@ -119,15 +119,17 @@ def test_quick_bench_includes_the_issue_14_comparison(quick):
         assert float(row['exact_builtin']['err_com']) < 1e-10, name
         assert row['implicit']['slope'] >= 0.9, (name, row['implicit'])
         for key in ('exact_builtin', 'lsoda'):
-            # timed side by side: `repeats` rounds of MIN_TIMED / 4 s of runs of each (the
-            # median times the runs: about that total, half of it at least)
+            # timed side by side: at least one run of each in each of `repeats` rounds (a
+            # count; how long the runs took is a figure, printed, never asserted: a loaded
+            # machine stretches it, issue 37)
             assert row[key]['runs'] >= cmp['repeats'] >= 2
-            assert row[key]['runs'] * row[key]['wall'] >= (
-                0.5 * cmp['repeats'] * compare.MIN_TIMED / 4), (name, key, row[key])
+            assert math.isfinite(row[key]['wall']) and row[key]['wall'] > 0, (name, key)
+            print(f"\n{name} {key}: {row[key]['runs']} runs x {row[key]['wall'] * 1e6:.1f} us")
     assert cmp['implicit_speed']['steps'] > 0 and cmp['implicit_speed']['steps_per_s'] > 0
     cold = cmp['cold_start']
     for key in ('import', 'first_exact', 'first_implicit'):
-        assert 0 < cold[key] < 300, key
+        assert math.isfinite(cold[key]) and cold[key] > 0, key
+    print(f'cold start: {cold}')
     md = (out / 'bench.md').read_text(encoding='utf-8')
     assert '## Issue 14 comparison' in md and cmp['command'] in md
     assert any(k.startswith('implicit error slope') for k in data['floors'])
