@@ -10,6 +10,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .dense import DenseOutput
 from .gaits import Gait, _positive as positive
 from .model import Crawler
 from .solvers.exact import ExactSolver
@@ -196,9 +197,13 @@ def simulate(crawler: Crawler, gait: Gait, t_end: float, method: str = 'exact', 
     solver.check_span(gait, t_end, st._options)
     times = None if t_eval is None else _check_times(t_eval, t_end)
     times, out, info = solver.simulate(t_end, times, include_events, dt)
+    # the exact run's pieces stay with its Trajectory: state_at evaluates them (dense output)
+    dense = (DenseOutput(crawler, solver.gait, solver.segments, (0.0, solver.t),
+                         tol=solver.tol, max_step=solver.max_step)
+             if method == 'exact' else None)
     return Trajectory(t=times, x=out['x'], v=out['v'], friction=out['friction'],
                       contact=np.asarray(out['contact'], dtype=np.int8),
                       linkage_force=out['linkage_force'], impulse=out['impulse'],
                       lengths=out['lengths'], rates=out['rates'],
                       events=_events(solver.events), indeterminate=out['indeterminate'],
-                      crawler=crawler, method=method, info=info)
+                      crawler=crawler, method=method, info=info, dense=dense)

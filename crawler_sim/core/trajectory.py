@@ -6,12 +6,15 @@ import warnings
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from functools import partial
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from .model import Crawler
+
+if TYPE_CHECKING:      # dense imports the solvers, which import this module
+    from .dense import DenseOutput
 
 __all__ = ['Event', 'EventLog', 'Trajectory', 'State']
 
@@ -127,6 +130,8 @@ class State(NamedTuple):
     ``x``, ``v``, ``friction``, ``contact`` have shape (p,); ``lengths``, ``rates``,
     ``linkage_force`` shape (p-1,). Units: s, m, m/s, N. ``indeterminate`` is True when several
     bodies stick together and only their total friction is determined (MODEL.md section 2.5).
+    ``Trajectory.state_at`` of N times returns the same fields with a leading time axis:
+    ``t`` (N,), ``x`` (N, p), ..., ``indeterminate`` (N,) bool.
     """
 
     t: float
@@ -163,6 +168,9 @@ class Trajectory:
         repeated periods once (memory independent of t_end)
     indeterminate : (N,) bool, several bodies stuck together (friction split not unique)
     crawler, method : what produced it; ``info`` holds solver figures (segments, steps, bounds).
+    dense : what :meth:`state_at` evaluates: the closed-form pieces of an exact run and the
+        gait they read (``crawler_sim.core.dense.DenseOutput``, set by ``simulate``); None for
+        "implicit" and "penalty" runs.
     """
 
     t: NDArray[np.float64]
@@ -179,6 +187,7 @@ class Trajectory:
     crawler: Crawler
     method: str
     info: dict = field(default_factory=dict)
+    dense: DenseOutput | None = field(default=None, repr=False)
 
     @property
     def state(self) -> NDArray[np.int8]:
@@ -205,21 +214,97 @@ class Trajectory:
         X = self.com
         return float(X[-1] - X[0])
 
-    def mean_speed(self, period: float | None = None) -> float:
-        """Mean centre-of-mass speed [m/s].
+    def state_at(self, t: float | ArrayLike) -> State:
+        """The exact state at time(s) ``t`` [s] of an exact run (dense output).
 
-        With ``period`` (e.g. the gait period), the displacement over the last whole period
-        divided by it: the steady speed after the initial transient. Without it, over the run.
-        The centre of mass at t_end - period is found exactly when that time is a sample, else
-        by linear interpolation between samples.
+        Parameters
+        ----------
+        t : float, or array of shape (N,), in any order, inside the integrated span [0, t_end]
+            (the run's, even where ``t_eval`` sampled less of it).
+
+        Returns
+        -------
+        State
+            For a float, the state at t (arrays of shape (p,) and (p-1,)). For an array, the
+            same fields with a leading axis of N: ``t`` (N,), ``x``, ``v``, ``friction``,
+            ``contact`` (N, p), ``linkage_force``, ``lengths``, ``rates`` (N, p-1),
+            ``indeterminate`` (N,).
+
+        The closed form between events, inside periodically skipped periods too: the values a
+        run sampled at t gives (``simulate(..., t_eval=[t])``), bit for bit, with no
+        interpolation and no new integration (``crawler_sim.core.dense``). At an event time,
+        the state a sample at that time holds. It reads the gait the run used, which the
+        Trajectory keeps; a gait of Python functions through the pieces it was sampled into
+        during the run (its functions are not called again).
+
+        Raises
+        ------
+        RuntimeError
+            For "implicit" and "penalty" runs: they keep no interpolant of their steps (sample
+            them with ``simulate(..., t_eval=...)``, which lands a step on every time), and for
+            a Trajectory without dense output (built by hand, or unpickled when its gait could
+            not be pickled).
+        ValueError
+            If a time is not finite or lies outside [0, t_end].
+        """
+        if self.dense is None:
+            why = (f'method {self.method!r} keeps no interpolant of its steps'
+                   if self.method != 'exact' else 'this Trajectory holds no dense output '
+                   '(only simulate sets it)')
+            raise RuntimeError(f"state_at is the exact method's dense output: {why}; sample "
+                               'the run at the times you need with simulate(..., t_eval=...)')
+        times = np.asarray(t, dtype=float)
+        if times.ndim > 1:
+            raise ValueError(f't must be a float or a 1-d array of times [s], got shape '
+                             f'{times.shape}')
+        flat = times.reshape(-1)
+        lo, hi = self.dense.span
+        if flat.size and not (np.isfinite(flat).all() and lo <= flat.min()
+                              and flat.max() <= hi):
+            bad = flat[~(np.isfinite(flat) & (flat >= lo) & (flat <= hi))][0]
+            raise ValueError(f't must be finite and within the run [{lo!r}, {hi!r}] s, got '
+                             f'{float(bad)!r}')
+        order = np.argsort(flat, kind='stable')
+        out = self.dense.sample(flat[order])
+        back = np.empty_like(order)
+        back[order] = np.arange(order.size)
+        f = {k: np.asarray(v)[back] for k, v in out.items()}
+        contact = f['contact'].astype(np.int8)
+        ind = f['indeterminate'].astype(bool)
+        if times.ndim == 0:
+            return State(float(times), f['x'][0], f['v'][0], f['friction'][0], contact[0],
+                         f['linkage_force'][0], f['lengths'][0], f['rates'][0], bool(ind[0]))
+        return State(flat.copy(), f['x'], f['v'], f['friction'], contact, f['linkage_force'],
+                     f['lengths'], f['rates'], ind)
+
+    def _com_at(self, t: float) -> float:
+        """Centre of mass X(t) [m]: a sample's when t is one, else the exact dense output; for
+        an "implicit" or "penalty" run, linear between samples (the O(dt) schemes' own
+        interpolant when the samples are their steps)."""
+        k = int(np.searchsorted(self.t, t))
+        if k < self.t.size and self.t[k] == t:
+            return float(self.com[k])
+        if self.dense is not None or self.method == 'exact':
+            m = self.crawler.masses
+            return float(self.state_at(t).x @ (m / m.sum()))
+        return float(np.interp(t, self.t, self.com))
+
+    def mean_speed(self, period: float | None = None) -> float:
+        """Mean centre-of-mass speed [m/s] (positive forward).
+
+        With ``period`` [s] (e.g. the gait period), the displacement over the last whole
+        period [t_end - period, t_end] divided by it: the steady speed after the initial
+        transient. Without it, over the run. For an exact run the centre of mass at
+        t_end - period is exact (a sample, or :meth:`state_at`); for "implicit" and "penalty"
+        it is interpolated linearly between samples (first order, as the schemes are).
         """
         X = self.com
         if period is None:
             return float((X[-1] - X[0]) / (self.t[-1] - self.t[0]))
         if not period > 0 or period > self.t[-1] - self.t[0]:
             raise ValueError(f'period must be in (0, {self.t[-1] - self.t[0]}] s, got {period!r}')
-        t_start = self.t[-1] - period
-        return float((X[-1] - np.interp(t_start, self.t, X)) / period)
+        t_start = float(self.t[-1] - period)
+        return float((X[-1] - self._com_at(t_start)) / period)
 
     @property
     def stick_fraction(self) -> NDArray[np.float64]:

@@ -3,13 +3,14 @@ dissipated energy, cost of transport, actuator peak force and the verify() figur
 
 Transient detection
 -------------------
-The centre of mass X is read exactly at the period boundaries t_k = k T (they are samples of
-the run), giving the displacement of every period d_k = X(t_k) - X(t_{k-1}), k = 1..N. The run
-is steady from period k0 on when every later d_k agrees with the last one, d_N, to
-``STEADY_RTOL`` times the stroke's scale (the largest linkage excursion or |d|). The transient
-is then k0 periods long; the figures below are taken over the steady window [t_k0, t_N]. When
-fewer than ``MIN_STEADY`` periods agree (no steady state yet, or a steady state that repeats
-only every few periods) ``steady`` is False and the window is the last half of the run.
+The centre of mass X is read exactly at the period boundaries t_k = k T (an exact run's dense
+output, ``Trajectory.state_at``; another method's samples there), giving the displacement of
+every period d_k = X(t_k) - X(t_{k-1}), k = 1..N. The run is steady from period k0 on when
+every later d_k agrees with the last one, d_N, to ``STEADY_RTOL`` times the stroke's scale (the
+largest linkage excursion or |d|). The transient is then k0 periods long; the figures below are
+taken over the steady window [t_k0, t_N]. When fewer than ``MIN_STEADY`` periods agree (no
+steady state yet, or a steady state that repeats only every few periods) ``steady`` is False
+and the window is the last half of the run.
 
 Energy
 ------
@@ -86,6 +87,19 @@ def _stuck_time(tr: Trajectory, a: float, b: float) -> np.ndarray:
     return stuck
 
 
+def _boundaries(tr: Trajectory, bounds: np.ndarray, idx: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """(X, t) at the period boundaries k T, shape (N + 1,) each [m, s]. An exact run's X is
+    exact at the boundaries themselves (``Trajectory.state_at``: its samples sit on them only
+    to the rounding of the sample grid, or of the node's tick grid); another run's X is its
+    samples' (``idx``) at their own times."""
+    if tr.dense is None:
+        return tr.com[idx], tr.t[idx]
+    t_b = np.clip(bounds, tr.t[0], tr.t[-1])     # the run's ends, where they round apart
+    m = tr.crawler.masses
+    return tr.state_at(t_b).x @ (m / m.sum()), t_b
+
+
 def run_figures(tr: Trajectory, period: float, periods: int) -> dict[str, Any]:
     """The sweep figures of a run of ``periods`` whole periods [s] sampled at the boundaries."""
     c = tr.crawler
@@ -94,14 +108,14 @@ def run_figures(tr: Trajectory, period: float, periods: int) -> dict[str, Any]:
     idx[-1] = tr.t.size - 1
     if np.any(np.abs(tr.t[idx] - bounds) > 1e-9 * period):
         raise ValueError('the run is not sampled at the period boundaries')
-    X = tr.com
+    X_b, t_b = _boundaries(tr, bounds, idx)
     scale = float(np.ptp(tr.lengths)) if tr.lengths.size else 0.0
-    k0, steady = steady_window(X[idx], scale)
+    k0, steady = steady_window(X_b, scale)
     i0, i1 = int(idx[k0]), int(idx[-1])
-    t0, t1 = float(tr.t[i0]), float(tr.t[i1])
+    t0, t1 = float(t_b[k0]), float(t_b[-1])
     window = t1 - t0
     n_win = periods - k0
-    dx = float(X[i1] - X[i0])
+    dx = float(X_b[-1] - X_b[k0])
     speed = dx / window
     seg = np.diff(tr.x[i0:i1 + 1], axis=0)
     dissipated = float(np.sum(c.friction * np.maximum(seg, 0.0).sum(axis=0)

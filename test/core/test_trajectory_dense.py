@@ -1,0 +1,256 @@
+"""Dense output of exact runs (``Trajectory.state_at``) and the figures read from it.
+
+Expected values never come from ``state_at`` itself: they are samples of other runs taken at
+exactly those times (``simulate(..., t_eval=[..., t])``), runs without the periodic skip (every
+period integrated, not shifted), a ``Stepper`` advanced to t (its state at the end of the
+integration), or sums over whole periods that the physics fixes (a steady crawl moves by the
+same displacement every period).
+"""
+from __future__ import annotations
+
+import gc
+import math
+import pickle
+import weakref
+
+import numpy as np
+import pytest
+
+import crawler_sim as cs
+from crawler_sim.core import gaits
+
+# The README's first example at the frequency of issue 39: t_end - period is not a sample of the
+# default grid, and 25 of its 27 periods are skipped (one stored block)
+CRAWLER = cs.Crawler(masses=[0.5, 1.0], mu=0.3)
+F = 1.37
+T_END = 20.0
+
+
+def _scallop(f: float = F) -> gaits.Scallop:
+    return gaits.Scallop(mean=0.1, amplitude=0.02, frequency=f, asymmetry=0.2)
+
+
+def _com(crawler: cs.Crawler, x: np.ndarray) -> np.ndarray:
+    m = crawler.masses
+    return x @ (m / m.sum())
+
+
+FIELDS = ('x', 'v', 'friction', 'contact', 'linkage_force', 'lengths', 'rates')
+
+
+@pytest.fixture(scope='module')
+def run():
+    tr = cs.simulate(CRAWLER, _scallop(), T_END)
+    assert tr.info['skipped_periods'] > 10        # the times below fall in a skipped block
+    return tr
+
+
+def test_state_at_equals_a_run_sampled_there(run):
+    # inside the first integrated periods, inside the skipped block, in the last integrated
+    # period, at an event (inside the block), at both ends
+    ev = [e.time for e in run.events if 5.0 < e.time < 6.0][0]
+    times = np.sort([0.0, 0.3, 1.1, 7.77, ev, 13.3, 19.5, T_END])
+    ref = cs.simulate(CRAWLER, run.dense.gait, T_END, t_eval=times)
+    got = run.state_at(times)
+    for k, t in enumerate(times):
+        one = run.state_at(float(t))
+        assert one.t == t
+        for name in FIELDS:
+            assert np.max(np.abs(getattr(one, name) - getattr(ref, name)[k]), initial=0) <= 1e-13
+            np.testing.assert_array_equal(getattr(got, name)[k], getattr(one, name))
+        assert one.indeterminate == bool(ref.indeterminate[k])
+
+
+def test_state_at_inside_skipped_periods_equals_integrating_them(run):
+    """The block's samples are the template period shifted by whole displacements; a run
+    without the skip integrates every period: the same states to rounding."""
+    times = np.array([2.0, 7.77, 13.3, 18.9])
+    full = cs.simulate(CRAWLER, run.dense.gait, T_END, t_eval=times, periodic_skip=False)
+    assert full.info['skipped_periods'] == 0
+    got = run.state_at(times)
+    assert np.abs(got.x - full.x).max() < 1e-12
+    assert np.abs(got.v - full.v).max() < 1e-12
+    np.testing.assert_array_equal(got.contact, full.contact)
+    # and a Stepper integrated up to each time (its state at the end of the span)
+    for t, x in zip(times, got.x):
+        st = cs.Stepper(CRAWLER, run.dense.gait)
+        st.advance(float(t))
+        assert np.abs(st.state.x - x).max() < 1e-12
+
+
+def test_state_at_vector_shapes_and_order(run):
+    times = np.array([13.3, 0.5, 19.0, 0.5])          # unsorted, repeated
+    s = run.state_at(times)
+    p = CRAWLER.p
+    assert s.x.shape == s.v.shape == s.friction.shape == s.contact.shape == (4, p)
+    assert s.lengths.shape == s.rates.shape == s.linkage_force.shape == (4, p - 1)
+    assert s.indeterminate.shape == (4,) and s.indeterminate.dtype == bool
+    assert s.contact.dtype == np.int8
+    np.testing.assert_array_equal(s.t, times)
+    for k, t in enumerate(times):
+        np.testing.assert_array_equal(s.x[k], run.state_at(float(t)).x)
+    # the gait's own lengths at those times (a periodic gait: up to the shift's rounding)
+    np.testing.assert_allclose(s.lengths, run.dense.gait(times)[0], rtol=0, atol=1e-15)
+    assert run.state_at(np.empty(0)).x.shape == (0, p)
+
+
+def test_state_at_several_chunks_no_period():
+    """A three-body Fourier run long enough for several calls of the compiled loop (their
+    records joined in one table), no period skipped."""
+    crawler = cs.Crawler(masses=[1.0, 0.4, 0.7], mu=[0.3, 0.5, 0.2])
+    g = gaits.Fourier([0.1, 0.12], ([[0.02, 0.004], [0.015, 0.0]], [[0.0, 0.003], [0.01, 0.002]]),
+                      2.3)
+    tr = cs.simulate(crawler, g, 60.0, periodic_skip=False)
+    assert len(tr.events) > 300
+    rng = np.random.default_rng(7)
+    times = np.sort(rng.uniform(0, 60.0, 25))
+    ref = cs.simulate(crawler, g, 60.0, t_eval=times, periodic_skip=False)
+    got = tr.state_at(times)
+    for name in FIELDS:
+        assert np.abs(getattr(got, name) - getattr(ref, name)).max() <= 1e-13
+
+
+def test_state_at_bad_times(run):
+    for bad in (math.nan, math.inf, -1e-3, T_END * (1 + 1e-12), [1.0, math.nan]):
+        with pytest.raises(ValueError, match=r't must be finite and within the run \[0.0, 20.0\]'):
+            run.state_at(bad)
+    with pytest.raises(ValueError, match='1-d array'):
+        run.state_at(np.ones((2, 2)))
+
+
+@pytest.mark.parametrize('method', ['implicit', 'penalty'])
+def test_state_at_refused_for_stepping_methods(method):
+    tr = cs.simulate(CRAWLER, _scallop(), 2.0, method, dt=1e-3,
+                     penalty=1e3 if method == 'penalty' else None)
+    assert tr.dense is None
+    with pytest.raises(RuntimeError, match=f"method '{method}' keeps no interpolant"):
+        tr.state_at(1.0)
+
+
+def test_mean_speed_is_the_exact_window(run):
+    """Issue 39: the README's example at 1.37 Hz. The window's start t_end - T is not a
+    sample: the figure must equal a run sampled there (it was interpolated: 6.6e-4 off)."""
+    T = 1.0 / F
+    assert not np.any(run.t == T_END - T)
+    ref = cs.simulate(CRAWLER, run.dense.gait, T_END, t_eval=[T_END - T, T_END])
+    exact = (ref.com[1] - ref.com[0]) / T
+    assert run.mean_speed(T) == pytest.approx(exact, rel=1e-12, abs=0)
+    interpolated = (run.com[-1] - np.interp(T_END - T, run.t, run.com)) / T
+    assert abs(interpolated - exact) > 1e-4 * abs(exact)    # what the test would catch
+    # the crawl is steady: the last period moves as much as any late whole period does
+    late = cs.simulate(CRAWLER, run.dense.gait, T_END, t_eval=[10 * T, 11 * T])
+    assert run.mean_speed(T) == pytest.approx((late.com[1] - late.com[0]) / T, rel=1e-9)
+
+
+def test_mean_speed_derivative_in_frequency():
+    """Central differences of the figure against those of runs integrated without the skip and
+    sampled exactly at t_end - T: the same derivative (it had the wrong sign when interpolated,
+    issue 39)."""
+    def figure(f):
+        return cs.simulate(CRAWLER, _scallop(f), T_END).mean_speed(1.0 / f)
+
+    def window(f):
+        T = 1.0 / f
+        ref = cs.simulate(CRAWLER, _scallop(f), T_END, t_eval=[T_END - T, T_END],
+                          periodic_skip=False)
+        return (ref.com[1] - ref.com[0]) / T
+
+    h = 1e-4
+    d_fig = (figure(F + h) - figure(F - h)) / (2 * h)
+    d_ref = (window(F + h) - window(F - h)) / (2 * h)
+    assert d_ref > 0
+    assert d_fig == pytest.approx(d_ref, rel=1e-6)
+
+
+def test_mean_speed_implicit_interpolates():
+    tr = cs.simulate(CRAWLER, _scallop(), 3.0, 'implicit', dt=1e-3, t_eval=np.linspace(0, 3, 31))
+    T = 1.0 / F
+    expected = (tr.com[-1] - np.interp(3.0 - T, tr.t, tr.com)) / T
+    assert tr.mean_speed(T) == expected
+
+
+def test_pickle_keeps_dense_output(run):
+    back = pickle.loads(pickle.dumps(run))
+    np.testing.assert_array_equal(back.state_at(13.3).x, run.state_at(13.3).x)
+    assert back.mean_speed(1.0 / F) == run.mean_speed(1.0 / F)
+
+
+def test_pickle_of_an_unpicklable_gait_drops_dense_output():
+    w = 2 * math.pi
+    g = gaits.Custom(lambda t: np.array([0.1 + 0.02 * math.sin(w * t)]),
+                     lambda t: np.array([0.02 * w * math.cos(w * t)]),
+                     lambda t: np.array([-0.02 * w * w * math.sin(w * t)]), period=1.0)
+    tr = cs.simulate(CRAWLER, g, 3.0)
+    back = pickle.loads(pickle.dumps(tr))            # it pickled before dense output too
+    np.testing.assert_array_equal(back.x, tr.x)
+    with pytest.raises(RuntimeError, match='its gait \\(Custom\\) could not be pickled'):
+        back.state_at(1.0)
+
+
+def test_custom_gait_functions_not_called_again():
+    """state_at reads the pieces the gait was sampled into during the run: functions that
+    later fail (or change) do not change it."""
+    w = 2 * math.pi
+    broken = []
+
+    def check():
+        if broken:
+            raise RuntimeError('gone')
+
+    def length(t):
+        check()
+        return np.array([0.1 + 0.02 * math.sin(w * t)])
+
+    def ld(t):
+        check()
+        return np.array([0.02 * w * math.cos(w * t)])
+
+    def ldd(t):
+        check()
+        return np.array([-0.02 * w * w * math.sin(w * t)])
+
+    g = gaits.Custom(length, ld, ldd, period=1.0)
+    tr = cs.simulate(CRAWLER, g, 7.3)
+    times = np.array([0.3, 5.55, 7.3])
+    ref = cs.simulate(CRAWLER, g, 7.3, t_eval=times)
+    broken.append(True)
+    got = tr.state_at(times)
+    assert np.abs(got.x - ref.x).max() <= 1e-13
+
+
+def test_dense_output_freed_by_reference_counting():
+    """No reference cycle: the gait goes with the last Trajectory that holds it, with the
+    cyclic collector off (the project frees gaits by reference counting, ``Gait._weak``)."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        g = _scallop()
+        ref = weakref.ref(g)
+        tr = cs.simulate(CRAWLER, g, T_END)
+        tr.state_at([1.0, 13.3])
+        del g
+        assert ref() is not None          # the Trajectory keeps what state_at needs
+        del tr
+        assert ref() is None
+    finally:
+        if was:
+            gc.enable()
+
+
+def test_run_figures_exact_at_period_boundaries():
+    """The sweep's speed of an exact run equals the window sampled exactly at k0 T and N T,
+    also when its sample grid misses the boundaries by up to 1e-9 T (the node's tick grid)."""
+    from crawler_sim.sweep.metrics import run_figures
+
+    g = _scallop()
+    T, periods = g.period, 12
+    t_end = periods * T
+    grid = np.linspace(0.0, t_end, periods * 8 + 1)
+    grid[1:-1] += 0.5e-9 * T * np.sin(np.arange(grid.size - 2))   # off the boundaries
+    tr = cs.simulate(CRAWLER, g, t_end, t_eval=np.sort(grid))
+    fig = run_figures(tr, T, periods)
+    k0 = fig['transient_periods']
+    ref = cs.simulate(CRAWLER, g, t_end, t_eval=[k0 * T, t_end])
+    exact = (ref.com[1] - ref.com[0]) / (t_end - k0 * T)
+    assert fig['mean_speed'] == pytest.approx(exact, rel=1e-12, abs=0)
+    assert fig['displacement_per_period'] == pytest.approx(exact * T, rel=1e-12, abs=0)
