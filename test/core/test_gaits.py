@@ -481,6 +481,12 @@ BAD = {
     'cubic l0 nan': (lambda: Cubic(0.0, [0.1, math.nan], 0.0, 0.0, 0.0), 'l0'),
     'call with 2-D times': (lambda: Sinusoid(0.1, 0.01, 1.0)(np.zeros((2, 2))), 't must'),
     'breakpoints t1 < t0': (lambda: _closed().breakpoints(1.0, 0.0), 't1'),
+    'custom breakpoints nan': (lambda: Custom(*_custom()._fns, breakpoints=[0.5, math.nan]),
+                               'breakpoints'),
+    'custom breakpoints text': (lambda: Custom(*_custom()._fns, breakpoints=['soon']),
+                                'breakpoints'),
+    'custom breakpoints 2-D': (lambda: Custom(*_custom()._fns, breakpoints=[[0.5, 1.0]]),
+                               'breakpoints'),
 }
 
 
@@ -718,3 +724,104 @@ def test_table_bounds_and_row_minima_over_any_interval_match_the_pieces_it_touch
             c0s = c0 - rows.min(axis=0) + lift * span
             low = core.row_minima(cg, a, b, t0, c0s, c1, A1, A2)
             assert np.all((low > 0) == proven), (a, b, lift, low)
+
+
+# ------------------------------------------------------------------ Custom breakpoints (issue 37)
+
+def _bang_bang_fmod():
+    """Issue 37's bang-bang stroke written the way a user writes it: l'' = +a, -a, -b, +b over
+    one period T, the phase taken with math.fmod. Returns (the Custom gait's callables, T, the
+    jump times within one period (0 excluded, T included), and the same stroke as the built-in
+    PiecewiseParabolic, the independent twin: its closed form is not sampled)."""
+    te, tc, d = math.sqrt(4 / 3), 4.0, 1.0
+    a, b = 4 * d / te ** 2, 4 * d / tc ** 2
+    widths, acc = [te / 2, te / 2, tc / 2, tc / 2], [a, -a, -b, b]
+    T = te + tc
+    tb = np.concatenate([[0.0], np.cumsum(widths)])
+    v0 = np.concatenate([[0.0], np.cumsum(np.array(acc) * np.diff(tb))])[:-1]
+    l0 = np.concatenate([[1.0], 1.0 + np.cumsum(v0 * np.diff(tb)
+                                                + 0.5 * np.array(acc) * np.diff(tb) ** 2)])[:-1]
+
+    def piece(t):
+        tt = math.fmod(t, T)
+        k = min(int(np.searchsorted(tb, tt, side='right')) - 1, 3)
+        return k, tt - tb[k]
+
+    def length(t):
+        k, s = piece(t)
+        return l0[k] + v0[k] * s + 0.5 * acc[k] * s * s
+
+    def velocity(t):
+        k, s = piece(t)
+        return v0[k] + acc[k] * s
+
+    def acceleration(t):
+        return acc[piece(t)[0]]
+
+    twin = PiecewiseParabolic(tb, acc, 1.0, 0.0)
+    return (length, velocity, acceleration), T, tb[1:], twin
+
+
+def _twin_gap(fns, breaks, T, periods=2):
+    """Largest |x(t) - x_twin(t)| [m] over a run of whole periods (the Custom gait against the
+    built-in twin, same crawler, same samples)."""
+    from crawler_sim import Crawler, simulate
+    cr = Crawler(masses=[1.0, 1.0], friction=[3.0, 1.0])
+    grid = np.linspace(0.0, periods * T, 41)
+    got = simulate(cr, Custom(*fns, breakpoints=breaks), periods * T, t_eval=grid)
+    _, _, _, twin = _bang_bang_fmod()
+    want = simulate(cr, twin, periods * T, t_eval=grid)
+    return float(np.abs(got.x - want.x).max()), got
+
+
+def test_a_custom_stroke_run_for_whole_periods_needs_no_breakpoint_at_its_end():
+    # every interior jump listed (exact floats), the run ends at 2 T where l'' jumps back to
+    # +a: a jump at the run's end is not an event (it was refused, naming t_end)
+    fns, T, jumps, _ = _bang_bang_fmod()
+    breaks = [k * T + x for k in range(2) for x in jumps][:-1]
+    gap, tr = _twin_gap(fns, breaks, T)
+    assert tr.t[-1] == 2 * T
+    # the twin's jump times are its own arithmetic (k T + t_k): a few ulps from the user's,
+    # which move x by (jump of l'') x (a few 1e-15 s) x t at most
+    assert gap <= 1e-12, gap
+
+
+@pytest.mark.parametrize('digits', [15, 16])
+def test_custom_breakpoints_rounded_to_15_significant_digits_match_the_jumps(digits):
+    # the jumps computed as k T + t_k and printed to 15 (or 16) significant digits: a few ulps
+    # from where the user's fmod switches (it was refused one ulp off)
+    fns, T, jumps, _ = _bang_bang_fmod()
+    breaks = [float(f'{k * T + x:.{digits - 1}e}') for k in range(2) for x in jumps][:-1]
+    exact = [k * T + x for k in range(2) for x in jumps][:-1]
+    assert breaks != exact                       # the premise: some are off
+    gap, _ = _twin_gap(fns, breaks, T)
+    assert gap <= 1e-12, gap
+
+
+def test_a_run_that_starts_on_a_jump_of_a_custom_gait_needs_no_breakpoint_there():
+    from crawler_sim import Crawler, Stepper
+    fns, T, jumps, twin = _bang_bang_fmod()
+    cr = Crawler(masses=[1.0, 1.0], friction=[3.0, 1.0])
+    t0 = float(jumps[0])                         # l'' jumps from +a to -a here
+    rest = [x for x in jumps[1:]] + [T + x for x in jumps]
+    got = Stepper(cr, Custom(*fns, breakpoints=rest[:-1]), t0=t0)
+    want = Stepper(cr, twin, t0=t0)
+    for t in (t0 + 0.3, T, 2 * T):
+        got.advance(t)
+        want.advance(t)
+        assert np.abs(got.state.x - want.state.x).max() <= 1e-12, t
+
+
+def test_a_jump_off_every_listed_breakpoint_is_refused_naming_the_nearest():
+    # a listed time 1e-9 s from the jump (far beyond the rounding of a time): refused, and
+    # the message names the listed value nearest to the jump and how far off it is
+    from crawler_sim import Crawler, simulate
+    fns, T, jumps, _ = _bang_bang_fmod()
+    listed = [float(jumps[0]) + 1e-9] + [float(x) for x in jumps[1:3]]
+    g = Custom(*fns, breakpoints=listed)
+    with pytest.raises(ValueError) as err:
+        simulate(Crawler(masses=[1.0, 1.0], friction=[3.0, 1.0]), g, 0.99 * T)
+    msg = str(err.value)
+    assert 'jumps by' in msg and 'breakpoints=' in msg
+    assert f'{listed[0]!r}' in msg, msg              # the nearest listed value
+    assert f'{float(jumps[0])!r}' in msg, msg        # the jump, to the ulp

@@ -22,11 +22,19 @@ import weakref
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['Gait', 'BuiltinGait', 'CLOSURE_RTOL']
+__all__ = ['Gait', 'BuiltinGait', 'CLOSURE_RTOL', 'BREAK_ULPS']
 
 Triple = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
 
 _EMPTY = np.empty(0)
+
+# A jump of l'' within this many float spacings of a listed breakpoint's time (or of a run's
+# start or end) is at that time: the rounding of a time computed as k T + t_k, or printed to
+# 15 significant digits, is a few. The sampler of a Python gait (``solvers.proxy``) and
+# ``verify`` read l'' this far inside a piece that starts or ends there; l'' moves by at most
+# |l'''| times it, half the rounding the sampler's fit allows on each coefficient for a time of
+# size |t| (eps |t| |l'''|, a node's error spread over N = 32 coefficients).
+BREAK_ULPS = 16
 
 # Relative tolerance on the closure of a periodic PiecewiseParabolic stroke, and on the velocities
 # at breakpoints that are snapped to exactly zero (so rests are exact).
@@ -107,7 +115,8 @@ class Gait:
        arrays (l [m], l' [m/s], l'' [m/s^2]) of shape (N, n_links), without a Python loop over t.
     3. l and l' must be continuous in t. If l'' jumps, override ``breakpoints`` so that it
        returns every jump time in the open interval (t0, t1), sorted; the exact solver relies
-       on it.
+       on it. A returned time is that of a jump within ``BREAK_ULPS`` float spacings of it (the
+       rounding of a time computed as k T + t_k); a jump at a run's start or end needs none.
     4. Optionally override ``is_constant`` (rest intervals the solver can skip). It must return
        True only when l' == 0 and l'' == 0 on all of [t0, t1].
     5. Optionally override ``jerk_bound``: the pieces the gait is sampled into are checked

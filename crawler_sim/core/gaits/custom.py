@@ -7,7 +7,7 @@ from typing import Callable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .base import Gait, Triple, _positive
+from .base import Gait, Triple, _finite, _positive
 
 
 class Custom(Gait):
@@ -18,8 +18,12 @@ class Custom(Gait):
 
     Optional hints for the exact solver (the more it knows, the less it must assume):
 
-    - ``breakpoints``: times where l'' jumps, so events there are placed without searching
-      (times where only l''' jumps may be listed too: each side is then sampled apart);
+    - ``breakpoints`` [s]: times where l'' jumps, so events there are placed without
+      searching (times where only l''' jumps may be listed too: each side is then sampled
+      apart). A listed time is that of a jump within ``BREAK_ULPS`` (16) float spacings of it
+      (times computed as k T + t_k, or printed to 15 significant digits, are that close); a
+      jump at the run's start or end needs none. An unlisted jump is refused, naming its time
+      (to the float) and the nearest listed one;
     - ``period`` [s]: the gait repeats with this period (enables the periodic skip; the gait
       is sampled over one period);
     - ``jerk_bound`` [m/s^3]: an upper bound of |l'''| (float, one per linkage, or a callable
@@ -48,7 +52,11 @@ class Custom(Gait):
         self.n_links = int(np.atleast_1d(np.asarray(length(0.0), dtype=float)).size)
         self.period = None if period is None else _positive('period', period, 's')
         self.max_step = None if max_step is None else _positive('max_step', max_step, 's')
-        self._breaks = np.sort(np.asarray(breakpoints if breakpoints is not None else [], float))
+        breaks = _finite('breakpoints', [] if breakpoints is None else breakpoints)
+        if breaks.ndim > 1:
+            raise ValueError(f'breakpoints must be a 1-D list of finite times [s], got shape '
+                             f'{breaks.shape}')
+        self._breaks = np.sort(breaks.reshape(-1))
         if jerk_bound is None or callable(jerk_bound):
             self._jerk = jerk_bound
         else:

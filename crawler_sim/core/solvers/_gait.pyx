@@ -888,12 +888,23 @@ cdef void _cheb_derive(const double* c, double* out, Py_ssize_t n, double scale)
         out[q] *= scale
 
 
+cdef inline double one_sided(double x, double other, double ulps) noexcept:
+    """x moved ``ulps`` float spacings of |x| towards ``other`` (the piece's other end), at most
+    to the piece's middle: where a piece that starts or ends on a breakpoint reads l''."""
+    cdef double h = ulps * (nextafter(fabs(x), INFINITY) - fabs(x))
+    cdef double mid = 0.5 * (x + other)
+    if other > x:
+        return x + h if x + h < mid else mid
+    return x - h if x - h > mid else mid
+
+
 def cheb_sample(fn, const double[::1] a, const double[::1] b, bl, br, const double[::1] nodes,
-                int nl):
+                int nl, double ulps):
     """The user's l'' (``fn`` of one float) at each piece's nodes: shape (K, len(nodes), nl),
     node i of piece k at its centre + half its width times ``nodes[i]`` (from +1 down to -1:
     its end b first, its start a last, exactly); a node on a breakpoint (``bl``, ``br``: the
-    piece starts / ends at one) read one float inside the piece, on the side it belongs to.
+    piece starts / ends at one) read ``ulps`` float spacings of its time inside the piece, on
+    the side it belongs to (``one_sided``: a jump that close to a listed time is that one).
     Values are checked: nl entries each, finite. A piece's start that is the end of the piece
     before it (no breakpoint between) takes that piece's value (one call, not two).
     Returns (values, their largest magnitude per linkage (nl,))."""
@@ -913,9 +924,9 @@ def cheb_sample(fn, const double[::1] a, const double[::1] b, bl, br, const doub
                     o[k, i, j] = o[k - 1, 0, j]
                 continue
             if i == 0:
-                t = nextafter(b[k], -INFINITY) if right[k] else b[k]
+                t = one_sided(b[k], a[k], ulps) if right[k] else b[k]
             elif i == n1 - 1:
-                t = nextafter(a[k], INFINITY) if left[k] else a[k]
+                t = one_sided(a[k], b[k], ulps) if left[k] else a[k]
             else:
                 t = 0.5 * (a[k] + b[k]) + 0.5 * (b[k] - a[k]) * nodes[i]
             x = fn(t)

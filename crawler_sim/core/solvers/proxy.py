@@ -36,7 +36,10 @@ user's samples): every join ends a segment of the solver, and a sine's period sa
 pieces is one series.
 
 l'' that jumps (a contract breach: jumps must be listed in ``breakpoints=``) keeps a piece
-unhappy down to ``MIN_WIDTH`` of a cell: the jump is refused with its time. l''' that jumps
+unhappy down to ``MIN_WIDTH`` of a cell: the jump is refused with its time (to the float, by
+halving) and the listed time nearest to it. A piece that starts or ends on a breakpoint, or on
+a window's end (a run may start or end on a jump), reads l'' there ``BREAK_ULPS`` float
+spacings inside (``_gait.one_sided``), so a listed time matches a jump that close. l''' that jumps
 (l'' with a kink) is legal: where the slope of the samples turns far more than elsewhere, the
 piece is split where the lines through the samples on either side meet, which is the kink of
 a kinked line (list such times in ``breakpoints=`` and each side is one polynomial at once).
@@ -57,6 +60,7 @@ import numpy as np
 from numpy.polynomial.chebyshev import chebval
 from numpy.typing import NDArray
 
+from ..gaits.base import BREAK_ULPS
 from . import _gait
 
 __all__ = ['ChebTable', 'N', 'L']
@@ -136,7 +140,6 @@ class ChebTable:
         self.rest = np.zeros(0, dtype=bool)
         self.periodic = False
         self._end_state = None          # (l, l') at knots[-1], shape (2, nl)
-        self._last_brk = False          # knots[-1] is a breakpoint
         self._quiet = np.zeros(nl)      # see ``_build`` [m/s^2]
         self._span = 0.0                # length of the window being built [s]
         self._origin = math.nan         # start of the first span since the table began [s]
@@ -246,9 +249,12 @@ class ChebTable:
             lefts.append(e[:-1])
             rights.append(e[1:])
             r = np.zeros(n, bool)
-            r[-1] = x1 in cuts
+            r[-1] = True                # a breakpoint, or the window's end
             brk.append(r)
-        first_left = bool(self.knots.size and a == self.hi and self._last_brk)
+        # the window's ends are read as one-sided limits too (``BREAK_ULPS`` inside): a run
+        # may start or end on a jump of l'' (a stroke run for whole periods), which is no event,
+        # and a window's end is a join of pieces, which the solver takes as a breakpoint anyway
+        first_left = True
         if self._end_state is None:
             self._end_state = self._states([a])[0]
         # the l'' that moves l by its own size over the window [m/s^2]: 64 eps of it is
@@ -267,7 +273,8 @@ class ChebTable:
                 nodes: bool = True) -> tuple[NDArray, NDArray]:
         """l'' at each piece's nodes, shape (K, N + 1, nl) (at a only, (K, 1, nl), without
         ``nodes``), and its largest magnitude per linkage (``_gait.cheb_sample``)."""
-        out, top = _gait.cheb_sample(self._accel, a, b, bl, br, _U if nodes else _ONE, self.nl)
+        out, top = _gait.cheb_sample(self._accel, a, b, bl, br, _U if nodes else _ONE, self.nl,
+                                     BREAK_ULPS)
         self.calls += out.shape[0] * out.shape[1]
         return out, top
 
@@ -298,7 +305,7 @@ class ChebTable:
             # halving no longer lowers (a smooth function's falls by orders at each halving)
             noise = (tail <= NOISE) & (tail > 0.25 * parent)
             for k in np.nonzero(~happy & ~noise & tiny)[0].tolist():
-                self._refuse_jump(float(b[k]), f[k])
+                self._refuse_jump(float(a[k]), float(b[k]), f[k])
             ok = happy | noise | tiny
             out.append((a[ok], b[ok], br[ok], c[ok]))
             split = ~ok
@@ -352,16 +359,34 @@ class ChebTable:
             a, b, br, c = a[keep], b[keep], br[keep], c[keep]
         return a, b, br, c
 
-    def _refuse_jump(self, b: float, f: NDArray) -> None:
-        """A narrowest piece whose l'' still differs across it by a sizeable share of its
-        scale: l'' jumps there (ValueError naming ``breakpoints=``); a kink passes."""
+    def _refuse_jump(self, a: float, b: float, f: NDArray) -> None:
+        """A narrowest piece [a, b] whose l'' still differs across it by a sizeable share of
+        its scale: l'' jumps there (ValueError naming ``breakpoints=``, the jump's time to the
+        float and the listed time nearest to it); a kink passes."""
         d = f[0] - f[N]
         j = int(np.argmax(np.abs(d)))
         if abs(d[j]) > _JUMP * self.scale[j] and abs(d[j]) > 1e-9 * self._quiet[j]:
+            # the first float on the far side: halving [a, b] (tens of calls, once)
+            lo, hi = a, b
+            while lo < 0.5 * (lo + hi) < hi:
+                mid = 0.5 * (lo + hi)
+                v = float(np.asarray(self._accel(mid), dtype=float).reshape(-1)[j])
+                self.calls += 1
+                lo, hi = (mid, hi) if abs(v - f[N, j]) <= abs(v - f[0, j]) else (lo, mid)
+            w = max(self._span, b - a)
+            listed = (np.asarray(self._breaks(hi - w, hi + w), dtype=float)
+                      if self._breaks is not None else np.zeros(0))
+            if listed.size:
+                near = float(listed[np.argmin(np.abs(listed - hi))])
+                where = (f'the nearest listed breakpoint, {near!r} s, is {hi - near:.3g} s '
+                         f'from it')
+            else:
+                where = f'none is listed within {w:.3g} s of it'
             raise ValueError(
                 f"gait acceleration (l'') of linkage {j} jumps by {d[j]:.6g} m/s^2 at "
-                f"t = {b!r} s: a Custom gait must list the times where l'' jumps in "
-                "breakpoints= (l'' must be continuous between breakpoints)")
+                f"t = {hi!r} s ({where}): a Custom gait must list the times where l'' jumps in "
+                f"breakpoints=, each within {BREAK_ULPS} float spacings of its jump (l'' must "
+                "be continuous between breakpoints)")
 
     def _append(self, a: NDArray, b: NDArray, br: NDArray, acc_c: NDArray) -> None:
         """The pieces' series of l and l' from the user's values at their starts, checked at
@@ -374,7 +399,6 @@ class ChebTable:
         if self._jerk is not None:
             self._check_jerk(a, b, coef)
         self._end_state = st[-1]
-        self._last_brk = bool(br[-1])
         # (concatenations and leading-axis slices stay C-contiguous, as the struct reads them)
         if not self.knots.size:         # a fresh table: the window's arrays as they are
             self.knots = np.concatenate((a, b[-1:]))
