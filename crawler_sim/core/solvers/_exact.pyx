@@ -1523,7 +1523,11 @@ cdef class ExactCore:
                         continue
                     t_out[0] = INFINITY
                     return F_OK
-                m = min(a + h, lim)
+                # at least the next float: a step below the float spacing at a (the floors
+                # 64 tol and tol / 2 are under it past t = 512 s at tol 1e-13; an eighth of a
+                # span of a few floats) would leave a + h == a, a point that makes no progress
+                # (the search then ran out of steps)
+                m = min(max(a + h, nextafter(a, INFINITY)), lim)
                 if ranged:
                     # the rows' minima walked piece by piece from a, up to the first piece
                     # where one may fail (there, to just before its quadratic's first root):
@@ -1552,7 +1556,9 @@ cdef class ExactCore:
                     fa[r] = (ga[r] - lvl) * (0.5 if side == -1 else 1.0)
                 side = -1
                 continue
-            if m - a > tol:
+            # proven, unless within tol of a or its next float (nothing finer to resolve:
+            # event times are known to tol or one float spacing, the module's guarantee)
+            if m - a > tol and m > nextafter(a, INFINITY):
                 if not fixed and not (a == rb_a and m <= rb_b):
                     # (also after a step the walk proved: the next step is sized with them;
                     # not again where the step was sized with its own interval's, ``ahead``)

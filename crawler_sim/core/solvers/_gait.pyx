@@ -784,7 +784,10 @@ def cheb_series(const double[:, :, ::1] acc, const double[::1] a, const double[:
     try:
         for k in range(K):
             half = 0.5 * (b[k] - a[k])
-            inv = 1.0 / half if half > 0.0 else 0.0
+            # d/dt = (1 / half) d/du, at most the largest float: a piece of a few floats near
+            # 0 (a first step of 1e-310 s) has 1 / half = inf, and inf times the zero series
+            # the fit leaves there (``cheb_fit``: nothing above the rounding) made NaN
+            inv = min(1.0 / half, 1.7976931348623157e308) if half > 0.0 else 0.0
             h2 = gap * gap / 8.0 * half * half      # d^2/du^2 = half^2 d^2/dt^2
             for j in range(nl):
                 c = &coef[k, j, 0, 0]

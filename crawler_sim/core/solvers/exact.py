@@ -133,15 +133,21 @@ class ExactSolver:
         core.tscale = gp if gp else (self.max_step or 1.0)
         core.cap = self._cap()
         self.status, self.message = 'ok', ''
+        cg = self._cg
+        # the span a gait of Python functions is built in (``drive`` sets it): a call that
+        # fails puts it back, or the next run's first reading (inside the failed span) would
+        # build the failing window again, and the gait object would stay broken
+        span = (cg.span_lo, cg.span_hi)
         while core.t < t1:
             core.seg_base = len(self.segments) if self.keep_segments else 0
             core.ev_base = len(self.events)
             core.save()
             try:
-                with self._cg.lock:       # a Custom gait's state is shared by its solvers
-                    status = core.drive(self._cg, t1, T)
+                with cg.lock:             # a Custom gait's state is shared by its solvers
+                    status = core.drive(cg, t1, T)
             except BaseException as exc:        # the user's gait raised: nothing of the call
                 core.restore()
+                cg.span_lo, cg.span_hi = span
                 self.status, self.message = 'error', str(exc)
                 raise
             if status in (_exact.REACHED, _exact.FULL, _exact.PERIODIC):
@@ -150,6 +156,7 @@ class ExactSolver:
                 self._period_boundary(core.k_at, T, t1)
             elif status not in (_exact.REACHED, _exact.FULL):
                 core.restore()
+                cg.span_lo, cg.span_hi = span
                 self._fail(status, t1)
 
     def _fail(self, status: int, t1: float) -> None:

@@ -77,6 +77,7 @@ _JUMP = 1e-3            # l'' differing across a narrowest piece by this share o
 NOISE = 1e-8            # a tail (over the piece's values) this small that splitting keeps: noise
 MAX_PIECES = 100_000    # most pieces sampled in one build
 _EPS = np.finfo(float).eps
+_BIG = np.finfo(float).max
 
 _U = np.cos(np.pi * np.arange(N + 1) / N)                # nodes, from +1 down to -1
 _ONE = np.array([1.0])                                   # the one node of an instant
@@ -158,9 +159,23 @@ class ChebTable:
         span starts inside the table, else a fresh table from the span's start (from t
         outside the span); a window at a time, never
         past ``span_hi`` when t is inside the span (the user's functions are evaluated
-        where the solver integrates)."""
+        where the solver integrates). A build that raises (the user's function, a refused
+        gait) leaves the table as it was: the gait serves later runs as a fresh one would."""
         if self.periodic or (self.knots.size and self.lo <= t <= self.hi):
             return
+        # every field is replaced, never changed in place (arrays are concatenated or sliced
+        # anew): a shallow copy is the table's whole state
+        saved = dict(self.__dict__)
+        try:
+            self._ensure(t, span_lo, span_hi)
+        except BaseException:
+            calls = self.calls
+            self.__dict__.clear()
+            self.__dict__.update(saved)
+            self.calls = calls          # (the user's functions were called: counted)
+            raise
+
+    def _ensure(self, t: float, span_lo: float, span_hi: float) -> None:
         if self.knots.size and self.hi < t and self.lo <= span_lo <= self.hi:
             start = self.hi
             self._forget(span_lo)
@@ -261,7 +276,7 @@ class ChebTable:
         # below what the user's arithmetic resolves (a tanh step's flat tails are quantised)
         l0, v0 = np.abs(self._end_state)
         self._span = b - a
-        self._quiet = (l0 + v0 * self._span) / self._span ** 2 if b > a else 0.0 * l0
+        self._quiet = _quiet(l0, v0, self._span)
         pieces = self._happy(*map(np.concatenate, (lefts, rights, brk)), first_left)
         if self.period or self.max_step:
             # a density the user asked for (a period's 1024 cells, or max_step's), not one
@@ -441,6 +456,18 @@ class ChebTable:
                     f"is {float(bound[j]):.6g} m/s^3, but the gait's l''' reaches "
                     f"{float(jerk[k, i, j]):.6g} m/s^3 at t = {float(t[k, i])!r} s: "
                     "jerk_bound must bound |l'''| (or be left out)")
+
+
+def _quiet(l0: NDArray, v0: NDArray, h: float) -> NDArray:
+    """The l'' [m/s^2] that moves l by its own size over a window of h [s], (|l| + |l'| h) /
+    h^2 per linkage (0 for an empty window), at most the largest float: for a window of a few
+    floats near 0 (a first step of 1e-200 s) it overflows, and an infinite scale made the
+    checks' tolerances inf * 0 = NaN, which refused every value."""
+    if not h > 0.0:
+        return 0.0 * l0
+    with np.errstate(over='ignore', divide='ignore', invalid='ignore'):
+        q = (l0 + v0 * h) / h ** 2
+    return np.minimum(np.nan_to_num(q, nan=_BIG, posinf=_BIG), _BIG)
 
 
 def _nodes(a: NDArray, b: NDArray) -> NDArray:
