@@ -6,6 +6,7 @@ import warnings
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from functools import partial
+from itertools import islice
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -110,6 +111,7 @@ class EventLog(Sequence):
 #: an Event from a (time, body, old, new) tuple at C speed
 new_event = partial(tuple.__new__, Event)
 _REPS = 4096       # periods of a repeated block generated at once (bounded memory)
+_CHUNK = 1 << 16   # events read at once by Trajectory.sliding_distance (bounded memory)
 
 
 def _repeated(template: list, n: int, T: float) -> Iterator[Event]:
@@ -352,23 +354,97 @@ class Trajectory:
         stuck += np.where(state == 0, t1 - last, 0.0)
         return stuck / (t1 - t0) if t1 > t0 else (state == 0).astype(float)
 
+    def sliding_distance(self, start: float | None = None, end: float | None = None
+                         ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Distance each body slides forward and backward over [start, end] [m] (default: the
+        run), two arrays of shape (p,), each >= 0.
+
+        Between two consecutive event times a body keeps its direction or stays stuck (a
+        reversal is an event), so over each interval between nodes its travel is the positive
+        or the negative part of its displacement. For an exact run the nodes are the samples,
+        every event and the window's ends (read with :meth:`state_at`): exact. Otherwise (no
+        dense output) they are the samples in [start, end]: exact when every event time is a
+        sample (the default samples of "exact"), else a lower bound to the sampling step.
+        """
+        t = self.t
+        a = float(t[0]) if start is None else float(start)
+        b = float(t[-1]) if end is None else float(end)
+        if not t[0] <= a <= b <= t[-1]:
+            raise ValueError(f'the window [{start}, {end}] s must lie inside the run '
+                             f'[{t[0]}, {t[-1]}] s')
+        p = self.x.shape[1]
+        fwd, back = np.zeros(p), np.zeros(p)
+        i0, i1 = int(np.searchsorted(t, a, 'left')), int(np.searchsorted(t, b, 'right'))
+        exact = self.dense is not None
+        prev = self.state_at(a).x if exact and t[i0] != a else self.x[i0]
+
+        def add(xs: NDArray) -> None:
+            nonlocal prev
+            if len(xs):
+                d = np.diff(xs, axis=0, prepend=prev[None])
+                fwd[:] += np.maximum(d, 0.0).sum(axis=0)
+                back[:] += np.maximum(-d, 0.0).sum(axis=0)
+                prev = xs[-1]
+        k = i0
+        if exact:
+            # the events in (a, b), a chunk at a time (a long periodic run holds millions),
+            # merged with the samples up to the chunk's last event
+            it = iter(self.events)
+            while True:
+                ev = np.fromiter((e.time for e in islice(it, _CHUNK)), float)
+                inside = ev[(ev > a) & (ev < b)]
+                if inside.size:
+                    j = max(k, int(np.searchsorted(t, inside[-1], 'right')))
+                    times = np.concatenate([inside, t[k:j]])
+                    xs = np.concatenate([self.state_at(inside).x, self.x[k:j]])
+                    add(xs[np.argsort(times, kind='stable')])
+                    k = j
+                if ev.size < _CHUNK or ev[-1] >= b:
+                    break
+        add(self.x[k:i1])
+        if exact and t[i1 - 1] != b:
+            add(self.state_at(b).x[None])
+        return fwd, back
+
     @property
     def dissipated_energy(self) -> float:
         """Energy dissipated by friction, integral of -sum_i friction_i v_i dt [J] (>= 0).
 
-        Trapezoidal rule over the samples: exact in stick (zero power) and accurate to the
-        sampling step elsewhere.
+        Each body's friction is constant while it slides one way, so this is
+        sum_i friction_i * forward_i + friction_backward_i * backward_i over the distances
+        of :meth:`sliding_distance`: exact for an exact run. For "implicit" and "penalty",
+        the trapezoidal rule over the samples (exact in stick, accurate to the step
+        elsewhere).
         """
-        return _trapezoid(-np.sum(self.friction * self.v, axis=1), self.t)
+        if self.method != 'exact':
+            return _trapezoid(-np.sum(self.friction * self.v, axis=1), self.t)
+        fwd, back = self.sliding_distance()
+        c = self.crawler
+        return float(c.friction @ fwd + c.friction_backward @ back)
 
     @property
     def actuator_work(self) -> float:
-        """Work done by the linkages, integral of sum_j linkage_force_j l_j' dt [J]."""
-        return _trapezoid(np.sum(self.linkage_force * self.rates, axis=1), self.t)
+        """Work done by the linkages, integral of sum_j linkage_force_j l_j' dt [J].
+
+        For an exact run from the energy balance, which holds exactly (the linkage forces'
+        power on the bodies is sum_j linkage_force_j l_j'): the kinetic energy gained plus
+        :attr:`dissipated_energy` minus the work of gravity along the slope, all exact. For
+        "implicit" and "penalty", the trapezoidal rule over the samples.
+        """
+        if self.method != 'exact':
+            return _trapezoid(np.sum(self.linkage_force * self.rates, axis=1), self.t)
+        c = self.crawler
+        kinetic = 0.5 * c.masses @ (self.v[-1] ** 2 - self.v[0] ** 2)
+        gravity = c.gravity_forces @ (self.x[-1] - self.x[0])
+        return float(kinetic + self.dissipated_energy - gravity)
 
     @property
     def positive_actuator_work(self) -> float:
-        """Integral of the positive part of the actuator power [J] (motors do not regenerate)."""
+        """Integral of the positive part of the actuator power [J] (motors do not regenerate).
+
+        The trapezoidal rule over the samples, also for an exact run (its samples are exact,
+        the quadrature is not: the power's sign changes are not events).
+        """
         power = np.sum(self.linkage_force * self.rates, axis=1)
         return _trapezoid(np.maximum(power, 0.0), self.t)
 

@@ -14,10 +14,11 @@ and the window is the last half of the run.
 
 Energy
 ------
-Between two consecutive samples (the event times are samples) each body slides one way or
-sticks, and its friction force is constant while it slides, so the energy it dissipates is
-exactly f_i^+ (forward travel) + f_i^- (backward travel): no quadrature error for the exact
-method. The actuator's positive work is the trapezoidal integral of max(G l', 0) over the samples.
+Between two consecutive events each body slides one way or sticks, and its friction force is
+constant while it slides, so the energy it dissipates is exactly f_i^+ (forward travel) + f_i^-
+(backward travel) (``Trajectory.sliding_distance``: exact for the exact method, every event
+read from its dense output). The actuator's positive work is the trapezoidal integral of
+max(G l', 0) over the samples.
 """
 from __future__ import annotations
 
@@ -117,9 +118,8 @@ def run_figures(tr: Trajectory, period: float, periods: int) -> dict[str, Any]:
     n_win = periods - k0
     dx = float(X_b[-1] - X_b[k0])
     speed = dx / window
-    seg = np.diff(tr.x[i0:i1 + 1], axis=0)
-    dissipated = float(np.sum(c.friction * np.maximum(seg, 0.0).sum(axis=0)
-                              + c.friction_backward * np.maximum(-seg, 0.0).sum(axis=0)))
+    fwd, back = tr.sliding_distance(t0, t1)
+    dissipated = float(c.friction @ fwd + c.friction_backward @ back)
     power = np.maximum(np.sum(tr.linkage_force[i0:i1 + 1] * tr.rates[i0:i1 + 1], axis=1), 0.0)
     tt = tr.t[i0:i1 + 1]
     pos_work = float(np.sum(0.5 * (power[1:] + power[:-1]) * np.diff(tt)))

@@ -254,3 +254,53 @@ def test_run_figures_exact_at_period_boundaries():
     exact = (ref.com[1] - ref.com[0]) / (t_end - k0 * T)
     assert fig['mean_speed'] == pytest.approx(exact, rel=1e-12, abs=0)
     assert fig['displacement_per_period'] == pytest.approx(exact * T, rel=1e-12, abs=0)
+
+
+def _gauss_integrals(crawler, g, t_end, events):
+    """(dissipated, actuator work) [J] by 8-point Gauss-Legendre quadrature of the sampled
+    powers on every interval between events (cut to <= 0.01 s): the powers are smooth there
+    and no node lies on an event, where they jump. An independent run sampled at the nodes."""
+    edges = np.union1d([0.0, t_end], [e.time for e in events])
+    cuts = [np.linspace(a, b, int(np.ceil((b - a) / 0.01)) + 1) for a, b in zip(edges, edges[1:])
+            if b > a]
+    lo = np.concatenate([c[:-1] for c in cuts])
+    hi = np.concatenate([c[1:] for c in cuts])
+    u, w = np.polynomial.legendre.leggauss(8)
+    nodes = (0.5 * (lo + hi)[:, None] + 0.5 * (hi - lo)[:, None] * u).ravel()
+    weights = (0.5 * (hi - lo)[:, None] * w).ravel()
+    order = np.argsort(nodes)
+    s = cs.simulate(crawler, g, t_end, t_eval=nodes[order])
+    diss = -np.sum(s.friction * s.v, axis=1) @ weights[order]
+    work = np.sum(s.linkage_force * s.rates, axis=1) @ weights[order]
+    return float(diss), float(work)
+
+
+def test_energy_figures_exact_on_a_slope():
+    """dissipated_energy (sliding distances at every event) and actuator_work (the energy
+    balance) against Gauss quadrature between events; the trapezoid over the default samples
+    was 0.6 % and 1.9 % off."""
+    crawler = cs.Crawler(masses=[0.5, 1.0], mu=0.3, slope=0.1)
+    g = _scallop()
+    tr = cs.simulate(crawler, g, T_END)
+    diss, work = _gauss_integrals(crawler, g, T_END, tr.events)
+    assert tr.dissipated_energy == pytest.approx(diss, rel=1e-10)
+    assert tr.actuator_work == pytest.approx(work, rel=1e-10)
+    # the same figures from a run sampled on a coarse grid without its events
+    coarse = cs.simulate(crawler, g, T_END, t_eval=np.linspace(0.0, T_END, 77))
+    assert coarse.dissipated_energy == pytest.approx(diss, rel=1e-10)
+    assert coarse.actuator_work == pytest.approx(work, rel=1e-10)
+
+
+def test_sliding_distance_of_a_light_body_dragged_by_a_stuck_heavy_one():
+    """Body 1 (friction 5.9 N) never moves; body 0 follows the stroke, 2 A forward and 2 A back
+    per period (the hand case of test_sweep_metrics), on any window of whole periods, here read
+    between samples that are not period boundaries."""
+    crawler = cs.Crawler(masses=[1.0, 1.0], mu=[0.3, 0.6])
+    g = gaits.Scallop(mean=0.1, amplitude=0.02, frequency=1.0, asymmetry=0.5)
+    tr = cs.simulate(crawler, g, 8.0, t_eval=np.linspace(0.0, 8.0, 23))
+    fwd, back = tr.sliding_distance(1.25, 6.25)       # five whole periods
+    np.testing.assert_allclose(fwd, [5 * 0.04, 0.0], rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(back, [5 * 0.04, 0.0], rtol=1e-12, atol=1e-15)
+    assert tr.dissipated_energy == pytest.approx(0.3 * 9.81 * 4 * 0.02 * 8, rel=1e-12)
+    with pytest.raises(ValueError, match='inside the run'):
+        tr.sliding_distance(-1.0, 2.0)
