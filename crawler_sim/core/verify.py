@@ -21,14 +21,21 @@ state, and checked on a sub-grid of every piece between events:
   [-sum_C f_minus, sum_C f_plus] (a missed slip or a late release leaves it);
 * at the next sample the replayed state equals the sampled one (``shooting``): a wrong mode or a
   shifted event changes the velocity the closed form reaches.
+
+Every check is judged beyond the rounding of the quantities it compares, estimated from their
+sizes (``verify``: positions of ~1 m, times of ~1e4 s, a sampled gait's pieces), so a correct
+run passes at any amplitude, frequency or horizon; a wrong history differs by far more.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import NDArray
 
+from .gaits.base import BREAK_ULPS
 from .model import kinematics
 from .trajectory import Trajectory
 
@@ -38,9 +45,19 @@ if TYPE_CHECKING:
 __all__ = ['VerifyReport', 'verify']
 
 
+_EPS = float(np.finfo(float).eps)
+
+# A comparison's rounding allowance: this many roundings (eps) of the largest terms it combines
+# (module doc). A correct run's differences are a few; a wrong event moves them by orders more.
+ROUNDING = 16
+SAMPLED = 64       # a sampled gait's pieces hold its values to 64 eps (``solvers.proxy``)
+
+
 @dataclass(frozen=True)
 class VerifyReport:
-    """Worst violations over the samples; ``*_rel`` are scaled to be dimensionless.
+    """Worst violations over the samples. The plain fields are the largest raw differences;
+    each ``*_rel`` is the largest part of a difference beyond the rounding of the quantities it
+    compares (``verify``), over the check's scale (dimensionless; ``ok`` compares them).
 
     momentum [N s]: worst momentum-balance residual; scale M max(|V|, |v_i|) + (|F_ext| + sum f) T.
     friction_bound [N]: worst excess of a reported ground force beyond its interval; scale max f.
@@ -48,7 +65,8 @@ class VerifyReport:
     stuck_velocity [m/s]: largest |v| of a body reported stuck (creep), at the samples and, with
     the gait, at the start of every claimed stick; scale max|v|.
     contact [-]: number of samples whose contact state contradicts the velocity sign by more
-    than 1e-9 max|v| (rounding at an event time is allowed).
+    than 1e-9 max|v| plus a velocity's rounding (rounding at an event time is allowed), or whose
+    sliding body does not feel its Coulomb force.
     slide_sign [m/s]: (gait known) largest velocity of a body claimed sliding one way but moving
     the other, between samples; scale max|v|.
     required_force [N]: (gait known) largest excess of the friction a stuck body (or cluster)
@@ -101,70 +119,119 @@ def verify(trajectory: Trajectory, gait: Gait | None = None, *,
     present) switches on the kinematic checks, which flag missed, shifted or wrong events; each
     piece between events is checked at ``substeps`` points. They hold to rounding for the exact
     method; the time-stepping methods ("implicit", "penalty") show their O(dt) error in them.
+
+    Every difference is judged beyond the rounding of what it compares (``ROUNDING`` eps of the
+    largest terms): a time of size |t| is only known to eps |t|, so a velocity is known to eps
+    (max|v| + |t| a), a = (|F_ext| + sum f) / M + max|e''| the largest acceleration, a position
+    to eps (max|x| + |t| max|v|), a required force to eps (its scale + |t| M max|e'''|); the
+    replay between two samples adds the rounding of each of its steps, and the impulses that of
+    their sums over the events. A correct run at any amplitude, frequency or horizon then reads
+    0 where its differences are rounding (a 1e-9 m stroke at x ~ 1 m, a run of 1e5 s).
     """
     tr = trajectory
     c = tr.crawler
     M = c.total_mass
-    fp, fm = c.friction, c.friction_backward
+    fp, fm, fext = c.friction, c.friction_backward, c.external_force
+    t, v, R = tr.t, tr.v, tr.friction
     V = tr.com_velocity
-    dt = tr.t - tr.t[0]
+    dt = t - t[0]
     K = tr.impulse - tr.impulse[0]
-    mom = M * (V - V[0]) - c.external_force * dt - K.sum(axis=1)
+    mom = M * (V - V[0]) - fext * dt - K.sum(axis=1)
     f_max = float(max(fp.max(), fm.max(), 1e-300))
-    v_max = float(max(np.abs(tr.v).max(), 1e-300))
+    v_max = float(max(np.abs(v).max(), 1e-300))
     # momentum scale: the largest body momentum the gait or friction can produce
-    mom_scale = M * max(float(np.abs(V).max()), v_max) + (abs(c.external_force) +
+    mom_scale = M * max(float(np.abs(V).max()), v_max) + (abs(fext) +
                                                           fp.sum() + fm.sum()) * float(dt[-1])
-    R, v = tr.friction, tr.v
+    if gait is None:
+        gait = tr.info.get('gait') if isinstance(tr.info, dict) else None
+    kin = _kinematic(tr, gait, max(int(substeps), 1)) if gait is not None and t.size >= 2 else {}
+    v_max = max(v_max, kin.get('v_scale', 0.0))
+    u = ROUNDING * _EPS
+    t_abs = float(np.abs(t).max())
+    a_scale = max(_sampled_acceleration(tr), kin.get('a_scale', 0.0))
+    dv = u * (v_max + a_scale * t_abs)      # a velocity's rounding (a time known to eps |t|)
+    # the impulses are sums over the events (rounding grows like the root of their number)
+    n_sums = 1.0 + math.sqrt(len(tr.events))
+    mom_floor = u * (M * (np.abs(V) + abs(V[0]) + a_scale * t_abs) + abs(fext) * np.abs(dt)
+                     + n_sums * (np.abs(tr.impulse).sum(axis=1) + np.abs(tr.impulse[0]).sum()))
     excess = np.maximum(np.maximum(R - fm, -fp - R), 0.0)
     phi = fp * np.maximum(v, 0.0) + fm * np.maximum(-v, 0.0)
     gap = np.maximum(phi + R * v, 0.0)
-    tiny = 1e-9 * v_max
+    tiny = 1e-9 * v_max + dv
     # a contact state that contradicts the velocity, or the force: a body claimed sliding feels
     # its Coulomb force (-f_plus forward, +f_minus backward), even where its velocity is zero
     # (the instant it starts or stops)
     free = (fp == 0) & (fm == 0)
     coulomb = np.where(tr.contact > 0, -fp, fm)
-    wrong_force = (tr.contact != 0) & ~free & (np.abs(R - coulomb) > 1e-9 * f_max)
+    wrong_force = (tr.contact != 0) & ~free & (np.abs(R - coulomb) > 1e-9 * f_max + u * f_max)
     contact_bad = int(np.sum(((tr.contact > 0) & (v < -tiny)) | ((tr.contact < 0) & (v > tiny))
                              | wrong_force))
-    stuck_v = float(np.abs(np.where(tr.contact == 0, v, 0.0)).max())
-    rel = np.maximum.reduce([np.abs(mom) / mom_scale, excess.max(axis=1) / f_max,
-                             gap.max(axis=1) / (f_max * v_max)])
-    t_worst = float(tr.t[int(np.argmax(rel))])
-    worst_sample = float(rel.max())
-    kin = {}
-    if gait is None:
-        gait = tr.info.get('gait') if isinstance(tr.info, dict) else None
-    if gait is not None and tr.t.size >= 2:
-        kin = _kinematic(tr, gait, max(int(substeps), 1))
-        v_max = max(v_max, kin['v_scale'])
+    stuck_abs = np.abs(np.where(tr.contact == 0, v, 0.0)).max(axis=1)
+    beyond = {'momentum': np.maximum(np.abs(mom) - mom_floor, 0.0) / mom_scale,
+              'friction_bound': np.maximum(excess.max(axis=1) - u * f_max, 0.0) / f_max,
+              # a stuck body's velocity is rounding, and so is its gap (f + |R|) |v|
+              'complementarity': np.maximum(gap.max(axis=1) - 2.0 * f_max * dv, 0.0)
+              / (f_max * v_max),
+              'stuck_velocity': np.maximum(stuck_abs - dv, 0.0) / v_max}
+    rel = {key: float(val.max()) for key, val in beyond.items()}
+    worst_sample = max(rel.values())
+    key = max(beyond, key=lambda k: rel[k])
+    t_worst = float(t[int(np.argmax(beyond[key]))])
+    stuck_v = float(stuck_abs.max())
+    if kin:
         stuck_v = max(stuck_v, kin['stuck_velocity'])
+        rel['stuck_velocity'] = max(rel['stuck_velocity'], kin['beyond']['stuck_velocity'] / v_max)
         if kin['rel_worst'] > worst_sample:
             t_worst = kin['t_worst']
     T = float(max(dt[-1], 1e-300))
     f_scale = kin.get('f_scale', f_max)
-    return VerifyReport(momentum=float(np.abs(mom).max()),
-                        momentum_rel=float(np.abs(mom).max() / mom_scale),
+    beyond_kin = kin.get('beyond', {})
+    return VerifyReport(momentum=float(np.abs(mom).max()), momentum_rel=rel['momentum'],
                         friction_bound=float(excess.max()),
-                        friction_bound_rel=float(excess.max() / f_max),
+                        friction_bound_rel=rel['friction_bound'],
                         complementarity=float(gap.max()),
-                        complementarity_rel=float(gap.max() / (f_max * v_max)),
-                        stuck_velocity=stuck_v, stuck_velocity_rel=stuck_v / v_max,
+                        complementarity_rel=rel['complementarity'],
+                        stuck_velocity=stuck_v, stuck_velocity_rel=rel['stuck_velocity'],
                         contact=contact_bad, t_worst=t_worst,
                         slide_sign=kin.get('slide_sign', 0.0),
-                        slide_sign_rel=kin.get('slide_sign', 0.0) / v_max,
+                        slide_sign_rel=beyond_kin.get('slide_sign', 0.0) / v_max,
                         required_force=kin.get('required_force', 0.0),
-                        required_force_rel=kin.get('required_force', 0.0) / f_scale,
+                        required_force_rel=beyond_kin.get('required_force', 0.0) / f_scale,
                         shooting=kin.get('shooting', 0.0),
-                        shooting_rel=kin.get('shooting', 0.0) / v_max,
+                        shooting_rel=beyond_kin.get('shooting', 0.0) / v_max,
                         shooting_position=kin.get('shooting_position', 0.0),
-                        shooting_position_rel=kin.get('shooting_position', 0.0) / (v_max * T),
+                        shooting_position_rel=beyond_kin.get('shooting_position', 0.0)
+                        / (v_max * T),
                         kinematic=bool(kin))
 
 
+def _sampled_acceleration(tr: Trajectory) -> float:
+    """The largest acceleration [m/s^2] the samples show: the centre's under the whole friction
+    and F_ext, plus the bodies' mean acceleration between samples far enough apart for their
+    velocities' difference not to be rounding (the gait's own e'' adds to it when known)."""
+    c = tr.crawler
+    a = (abs(c.external_force) + float(c.friction.sum() + c.friction_backward.sum())) / \
+        c.total_mass
+    h = np.diff(tr.t)
+    wide = h > 1e6 * _EPS * np.maximum(np.abs(tr.t[1:]), 1e-300)
+    if wide.any():
+        a += float((np.abs(np.diff(tr.v, axis=0))[wide] / h[wide, None]).max())
+    return a
+
+
+def _inside(t: NDArray[np.float64], other: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Piece ends ``t`` moved ``BREAK_ULPS`` float spacings towards the pieces' other ends
+    ``other`` (at most to their middles): l'' read there belongs to the piece, also beside a
+    breakpoint listed within that rounding of its jump (as the sampler reads it)."""
+    h = BREAK_ULPS * np.spacing(np.abs(t))
+    mid = 0.5 * (t + other)
+    return np.where(other > t, np.minimum(t + h, mid), np.maximum(t - h, mid))
+
+
 def _kinematic(tr: Trajectory, gait, n_sub: int) -> dict:
-    """Replay the claimed contact history between samples against the gait's kinematics."""
+    """Replay the claimed contact history between samples against the gait's kinematics: the
+    largest raw difference of each check, and (``beyond``) the largest part beyond its
+    rounding, which the replay carries along its steps (``verify``)."""
     c = tr.crawler
     m, M = c.masses, c.total_mass
     fp, fm, fext = c.friction, c.friction_backward, c.external_force
@@ -189,34 +256,54 @@ def _kinematic(tr: Trajectory, gait, n_sub: int) -> dict:
     b_pts = cuts[1:]
     frac = (np.arange(n_sub) + 0.5) / n_sub
     sub = a_pts[:, None] + (b_pts - a_pts)[:, None] * frac[None, :]
-    # piece start (right limit), midpoints, and the end's left limit (one ulp before it, so a
-    # gait breakpoint at the end reads the piece's own l'')
-    end = np.nextafter(b_pts, -np.inf)[:, None]
-    pts = np.concatenate([a_pts[:, None], sub, np.maximum(end, a_pts[:, None])], axis=1)
+    # each piece read just inside its ends (``_inside``), so a gait breakpoint there reads the
+    # piece's own l''
+    pts = np.concatenate([_inside(a_pts, b_pts)[:, None], sub, _inside(b_pts, a_pts)[:, None]],
+                         axis=1)
     l, ld, ldd = (np.asarray(arr, float) for arr in gait(pts.ravel()))
     e, ed, edd = (arr.reshape(pts.shape + (c.p,)) for arr in kinematics(m, l, ld, ldd))
     le, lde, _ = (np.asarray(arr, float) for arr in gait(t))
     e_s, ed_s, _ = kinematics(m, le, lde, lde)
     v_scale = float(max(np.abs(tr.v).max(), np.abs(ed).max(), 1e-300))
     f_scale = float(max(fp.max(), fm.max()) + abs(fext) + M * np.abs(edd).max()) or 1e-300
+    # rounding scales: the largest acceleration (the centre's under friction and F_ext, plus
+    # e''), e''' (for the required force; from the gait's bound or the points of each piece,
+    # which lie on one side of every breakpoint), the largest |x|
+    a_scale = (abs(fext) + float(fp.sum() + fm.sum())) / M + float(np.abs(edd).max())
+    j_scale = _jerk_scale(gait, float(t[0]), float(t[-1]), pts, edd)
+    x_abs = float(max(np.abs(tr.x).max(), np.abs(e).max()))
+    u = ROUNDING * _EPS
+    # a gait's lengths are known to eps |l|, so over its time scale (its period, else the run)
+    # its rates to eps |l| / tau and its l'' to eps |l| / tau^2; a gait of Python functions is
+    # sampled to 64 times that (``solvers.proxy``, cheb_fit's rounding: a 1e-9 m stroke of a
+    # 1 m linkage is resolved to about 1e-6 of its l'')
+    tau = float(getattr(gait, 'period', None) or 0.0) or max(float(t[-1] - t[0]), 1e-300)
+    l_rate = float(np.abs(l).max()) / tau * (SAMPLED if _sampled(gait) else 1.0)
     sample_of = np.searchsorted(t, a_pts, side='right') - 1     # sample at or before each piece
-    worst = dict(slide_sign=(0.0, 0.0), required_force=(0.0, 0.0), shooting=(0.0, 0.0),
-                 shooting_position=(0.0, 0.0), stuck_velocity=(0.0, 0.0))
+    keys = ('slide_sign', 'required_force', 'shooting', 'shooting_position', 'stuck_velocity')
+    worst = dict.fromkeys(keys, 0.0)
+    beyond = {key: (0.0, 0.0) for key in keys}
     scale = dict(slide_sign=v_scale, required_force=f_scale, shooting=v_scale,
                  shooting_position=v_scale * max(float(t[-1] - t[0]), 1e-300),
                  stuck_velocity=v_scale)
 
-    def note(key: str, value: float, when: float) -> None:
-        if value > worst[key][0]:
-            worst[key] = (float(value), float(when))
+    def note(key: str, value: float, floor: float, when: float) -> None:
+        worst[key] = max(worst[key], float(value))
+        if value - floor > beyond[key][0]:
+            beyond[key] = (float(value - floor), float(when))
 
     free = (fp == 0) & (fm == 0)
     X = V = None
+    rx = rv = 0.0               # the replayed X's and V's rounding so far [m], [m/s]
     cur_sample = -1
     for k, (ta, tb, s) in enumerate(zip(a_pts, b_pts, modes)):
         if sample_of[k] != cur_sample and t[sample_of[k]] == ta:
             cur_sample = sample_of[k]
             X, V = float(X_s[cur_sample]), float(V_s[cur_sample])
+            rx, rv = u * x_abs, u * v_scale
+        # a velocity, a position and a force read at a time of size |t| (known to eps |t|)
+        t_abs = max(abs(float(ta)), abs(float(tb)))
+        dv_t = u * (v_scale + a_scale * t_abs + l_rate)
         # a sliver between an event and a breakpoint within the root tolerance of each other
         # (1e-12 s: 10 times the exact method's default tol) holds no violation worth the name:
         # which side of the breakpoint its l'' is read on is rounding
@@ -228,37 +315,66 @@ def _kinematic(tr: Trajectory, gait, n_sub: int) -> dict:
         slide = np.nonzero((s != 0) & ~free)[0]
         force = np.where(free, 0.0, np.where(s > 0, fp, -fm))   # friction F_i of a sliding body
         taus = pts[k]
+        dtb = tb - ta
         if stuck.size == 0:
             acc = (fext - float(force.sum())) / M
             if slide.size and not sliver:
                 Vt = V + acc * (taus - ta)
                 vel = Vt[:, None] + ed[k][:, slide]
-                note('slide_sign', float(np.max(-s[slide] * vel)), ta)
-            dtb = tb - ta
+                note('slide_sign', float(np.max(-s[slide] * vel)), rv + dv_t, ta)
+            rx += u * (abs(X) + abs(V) * dtb + abs(acc) * dtb * dtb + v_scale * t_abs)
+            rv += u * (abs(V) + abs(acc) * dtb) + dv_t
             X, V = X + V * dtb + 0.5 * acc * dtb * dtb, V + acc * dtb
         else:
             j = int(stuck[0])
             if not sliver:
-                note('stuck_velocity', abs(V + ed[k, 0, j]), ta)
+                note('stuck_velocity', abs(V + ed[k, 0, j]), rv + dv_t, ta)
                 rel_v = ed[k][:, stuck] - ed[k][:, [j]]
-                note('stuck_velocity', float(np.abs(rel_v).max()), ta)
+                note('stuck_velocity', float(np.abs(rel_v).max()), dv_t, ta)
                 if slide.size:
                     vel = ed[k][:, slide] - ed[k][:, [j]]
-                    note('slide_sign', float(np.max(-s[slide] * vel)), ta)
+                    note('slide_sign', float(np.max(-s[slide] * vel)), dv_t, ta)
                 F = fext - float(force[slide].sum()) + M * edd[k][:, j]
                 up, dn = float(fp[stuck].sum()), float(fm[stuck].sum())
-                note('required_force', float(np.max(np.maximum(F - up, -dn - F))), ta)
+                note('required_force', float(np.max(np.maximum(F - up, -dn - F))),
+                     u * (f_scale + M * (j_scale * t_abs + l_rate / tau)), ta)
             # closed form to tb: x_j stays put, V = -e_j'(tb)
             ltb, ldtb, _ = (np.asarray(arr, float) for arr in gait(np.array([tb])))
             etb, edtb, _ = kinematics(m, ltb, ldtb, ldtb)
             X = X - (float(etb[0, j]) - float(e[k, 0, j]))
             V = -float(edtb[0, j])
+            rx += u * (abs(X) + x_abs + v_scale * t_abs)
+            rv = dv_t
         kb = sample_of[k] + 1
         if kb < t.size and t[kb] == tb:
-            note('shooting', abs(V - V_s[kb]), tb)
-            note('shooting_position', float(np.max(np.abs(X + e_s[kb] - tr.x[kb]))), tb)
-    out = {key: val for key, (val, _) in worst.items()}
-    rels = {key: worst[key][0] / scale[key] for key in worst}
+            note('shooting', abs(V - V_s[kb]), rv + dv_t, tb)
+            note('shooting_position', float(np.max(np.abs(X + e_s[kb] - tr.x[kb]))),
+                 rx + u * (x_abs + v_scale * t_abs), tb)
+    rels = {key: beyond[key][0] / scale[key] for key in keys}
     key = max(rels, key=rels.get)
-    out.update(v_scale=v_scale, f_scale=f_scale, rel_worst=rels[key], t_worst=worst[key][1])
-    return out
+    return dict(worst, beyond={key: val for key, (val, _) in beyond.items()}, v_scale=v_scale,
+                f_scale=f_scale, a_scale=a_scale, rel_worst=rels[key], t_worst=beyond[key][1])
+
+
+def _sampled(gait) -> bool:
+    """Whether the solvers read ``gait`` from sampled pieces (a gait of Python functions)."""
+    from .solvers.proxy import ChebTable
+    compiled = getattr(gait, 'compiled', None)
+    return callable(compiled) and isinstance(getattr(compiled(), 'table', None), ChebTable)
+
+
+def _jerk_scale(gait, t0: float, t1: float, pts: NDArray[np.float64],
+                edd: NDArray[np.float64]) -> float:
+    """A scale of |e'''| [m/s^3] on [t0, t1]: the gait's ``jerk_bound`` (e''' is l''' weighted
+    by mass shares, each at most 1) where it gives one, else twice the largest slope of e''
+    between the points of a piece (on one side of every breakpoint) far enough apart for the
+    difference of e'' not to be rounding."""
+    bound = gait.jerk_bound(t0, t1) if hasattr(gait, 'jerk_bound') else None
+    if bound is not None and np.all(np.isfinite(bound)):
+        return float(np.sum(bound))
+    h = np.diff(pts, axis=1)
+    wide = h > 1e6 * _EPS * np.maximum(np.abs(pts[:, 1:]), 1e-300)
+    if not wide.any():
+        return 0.0
+    slope = np.abs(np.diff(edd, axis=1)).max(axis=2)[wide] / h[wide]
+    return 2.0 * float(slope.max())
