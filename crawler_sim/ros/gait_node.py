@@ -30,6 +30,11 @@ namespace) for its number of linkages and length limits, waiting up to ``wait_fo
 ``gait_file`` gives its own. Every parameter is checked at start: a bad value, a parameter the
 node does not have (``-p frequncy:=1.0``) or an argument outside ``--ros-args`` ends the node
 with one line naming it and its allowed range (exit code 1, 2 for arguments).
+
+A message it cannot read (a /clock message or a parameter request rclpy fails to convert) is
+skipped, counted and reported (a WARN line and a ``/diagnostics`` status ``<node>: input`` at
+most once per second), and SIGINT/SIGTERM stop it between two callbacks, exit code 0
+(``crawler_sim.ros.rejections``).
 """
 from __future__ import annotations
 
@@ -51,6 +56,7 @@ from crawler_sim.core import gaits
 from crawler_sim.core.plant.config import MAX_BODIES
 from crawler_sim.core.plant.streams import MODES, Stream, trajectory_points
 from crawler_sim.ros.messages import float64_array_msg, linkage_names, stamp_from_ns
+from crawler_sim.ros.rejections import spin, stop_on_signals, UnreadableInput
 from crawler_sim.core.simtime import to_seconds
 
 __all__ = ['GaitNode', 'GaitSettings', 'PARAMETERS', 'make_gait', 'main']
@@ -241,6 +247,8 @@ class GaitNode(Node):
         what = v['gait_file'] or {k: v[k] for k in _GAIT_PARAMETERS}
         self.get_logger().info(f'playing {what} on {self.gait.n_links} linkage(s), {topic} at '
                                f'{self._rate} Hz ({"preloaded" if self._preload else self.mode})')
+        # last: _ask_sim spins the node in an executor of its own for a while
+        self.unreadable = UnreadableInput(self)
 
     @property
     def t0_ns(self) -> int | None:
@@ -352,7 +360,7 @@ def main(args: list[str] | None = None) -> None:
     node = None
     try:
         node = GaitNode(argv)
-        rclpy.spin(node)
+        spin(node.unreadable.executor, stop_on_signals())
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception as exc:
@@ -365,6 +373,7 @@ def main(args: list[str] | None = None) -> None:
             raise
     finally:
         if node is not None:
+            node.unreadable.executor.shutdown(timeout_sec=1.0)
             node.destroy_node()
         rclpy.try_shutdown()
 

@@ -54,6 +54,11 @@ start_paused : bool
 Service ``~/pause`` (std_srvs/SetBool): true pauses, false resumes; paused time does not count,
 so the spacing of the messages is kept.
 
+A recorded message that cannot be deserialised, and a request rclpy cannot convert, are skipped,
+counted and reported (a WARN line and a ``/diagnostics`` status ``<node>: input`` at most once
+per second, ``crawler_sim.ros.rejections``); the rest plays on. SIGINT/SIGTERM stop it between
+two messages.
+
 Exit codes: 0 at the end of the bag (or on SIGINT/SIGTERM), 2 for a missing or unreadable bag or
 invalid parameters (one line on stderr, no traceback).
 """
@@ -65,6 +70,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from importlib import import_module
 import sys
+import threading
 import time
 from typing import Any, Callable
 
@@ -89,6 +95,7 @@ from crawler_sim.bag.schema import message_class, parse_qos_yaml
 from crawler_sim.bag import topics as T
 from crawler_sim.bag.topics import SCENE, split_topic
 from crawler_sim.ros.messages import ns_from_stamp, stamp_from_ns
+from crawler_sim.ros.rejections import stop_on_signals, UnreadableInput
 from crawler_sim.core.simtime import NS_PER_S, to_ns, to_seconds
 
 __all__ = ['ReplayError', 'ReplayNode', 'Recording', 'Track', 'read_bag', 'publish_period_ns',
@@ -367,6 +374,8 @@ class ReplayNode(Node):
         self.clock_pub = (self.create_publisher(Clock, T.CLOCK.node_name, 10)
                           if self.get_parameter('publish_clock').value else None)
         self.create_service(SetBool, '~/pause', self._on_pause)
+        self.stop = threading.Event()     # set: stop between two messages (main: by a signal)
+        self.unreadable = UnreadableInput(self)
         log.info(f'playing {len(self.rec.log_times) - self.first} messages on '
                  f'{len(self.pubs)} topics from {path} (rate {self.rate}, loop {self.loop})')
 
@@ -390,19 +399,21 @@ class ReplayNode(Node):
         shifted by k * :attr:`loop_ns` of sim time; see the module docstring)."""
         if self.wait_for > 0:
             self.get_logger().info(f'waiting for {self.wait_for} subscriber(s) per topic')
-            while not all(p.get_subscription_count() >= self.wait_for
-                          for p in self.all_publishers()):
+            while not self.stop.is_set() and not all(
+                    p.get_subscription_count() >= self.wait_for for p in self.all_publishers()):
                 executor.spin_once(timeout_sec=0.05)
         self._t0 = time.monotonic()
         loop_pass = 0
         while True:
             self.play_once(executor, loop_pass * self.loop_ns)
-            if not self.loop:
+            if not self.loop or self.stop.is_set():
                 break
             loop_pass += 1
             # a pass shorter than MAX_WAIT_SLICE of wall time (one batch at a high rate) is
             # stretched to it, so that a loop is never a hot loop; sim time is unaffected
             self._t0 += max(0.0, MAX_WAIT_SLICE - to_seconds(self.loop_ns) / self.rate)
+        if self.stop.is_set():
+            return
         deadline = Duration(seconds=ACK_TIMEOUT)
         for pub in self.all_publishers():     # let reliable subscribers get the last messages
             pub.wait_for_all_acked(deadline)
@@ -415,7 +426,7 @@ class ReplayNode(Node):
         wall time of pass 0's start point (moved on by pauses): one schedule for every pass, so
         the seam between two passes lasts the sim-time step / rate, as any other spacing.
         """
-        rec, rate, log = self.rec, self.rate, self.get_logger()
+        rec, rate, stop = self.rec, self.rate, self.stop
         if self._t0 is None:
             self._t0 = time.monotonic()
         i, n = self.first, len(rec.log_times)
@@ -424,9 +435,11 @@ class ReplayNode(Node):
             while True:
                 if self.paused:              # paused time does not count
                     paused_at = time.monotonic()
-                    while self.paused:
+                    while self.paused and not stop.is_set():
                         executor.spin_once(timeout_sec=MAX_WAIT_SLICE)
                     self._t0 += time.monotonic() - paused_at
+                if stop.is_set():
+                    return
                 left = (self._t0 + to_seconds(t_ns + offset_ns - self.begin_ns) / rate
                         - time.monotonic())
                 if left <= 0.0:
@@ -439,8 +452,9 @@ class ReplayNode(Node):
                 try:
                     msg = deserialize_message(rec.data[i], rec.tracks[topic].cls)
                 except Exception as exc:  # noqa: BLE001 - damaged data: skip the message
-                    log.warning(f'{topic}: cannot deserialize the message at {t_ns} ns: {exc}',
-                                throttle_duration_sec=1.0)
+                    self.unreadable.note(topic, f'the recorded message #{i} (log time {t_ns} '
+                                         f'ns) cannot be deserialised ({type(exc).__name__}: '
+                                         f'{exc}); skipped')
                 else:
                     self.pubs[topic].publish(shift_stamps(msg, offset_ns))
                 i += 1
@@ -454,8 +468,8 @@ def main(args: list[str] | None = None) -> None:
     code = 0
     try:
         node = ReplayNode()
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
+        executor = node.unreadable.executor
+        stop_on_signals(node.stop)
         node.play(executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

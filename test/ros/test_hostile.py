@@ -4,23 +4,36 @@ thread (as in ``main``); the floods come over DDS from an observer node. Floors:
 0 non-finite outputs, every bad parameter set refused with the old value kept, and the node
 still takes a valid command afterwards. Speed under flood is a benchmark figure
 (benchmarks/node.py), not asserted here.
+
+Then messages a node cannot read (issue 38 item 8), for every node: skipped, counted and
+reported, never the end of the node; and gait_node stopped by a signal while it takes /clock.
 """
 from __future__ import annotations
 
 import math
+import os
+import signal
+import struct
 import threading
 
 from builtin_interfaces.msg import Duration
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 import numpy as np
 from nav_msgs.msg import Odometry
 import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Float32, Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from crawler_sim.ros.messages import ns_from_stamp
-from test.support.ros import Harness
+from crawler_sim.bag import BagWriter
+from crawler_sim.ros.messages import ns_from_stamp, stamp_from_ns
+from crawler_sim.ros.rejections import UnreadableInput
+from test.support.ros import diagnostics_values, Harness, next_domain_id, Proc
 
 N_COMMANDS = 1500
 N_TRAJECTORIES = 150
@@ -156,3 +169,137 @@ def test_floods_huge_trajectories_and_bad_parameters_crash_nothing(live):
     for m in odom:
         assert math.isfinite(m.pose.pose.position.x) and math.isfinite(m.twist.twist.linear.x)
     assert len(states) > 50
+
+
+# ------------------------------------------------------------------ messages a node cannot read
+#: the largest float32: rclpy's field check (ROS_PYTHON_CHECK_FIELDS=1, set by conftest.py)
+#: bounds a float32 by 3.402823466e+38, below it, so the message cannot be converted and
+#: take_message raises "RuntimeError: Unable to convert call argument '0' to Python object"
+FLT_MAX = struct.unpack('<f', struct.pack('<I', 0x7F7FFFFF))[0]
+UNCONVERTIBLE_FLOAT32 = b'\x00\x01\x00\x00' + struct.pack('<f', FLT_MAX)
+
+
+def _until(executor, cond, what: str, timeout: float = 30.0) -> None:
+    import time
+    end = time.monotonic() + timeout
+    while not cond():
+        assert time.monotonic() < end, f'timed out after {timeout} s waiting for {what}'
+        executor.spin_once(timeout_sec=0.05)
+
+
+def _input_statuses(msgs: list, name: str) -> list:
+    return [s for m in msgs for s in m.status if s.name == name]
+
+
+def test_a_message_rclpy_cannot_convert_is_skipped_counted_and_reported():
+    """The executor gait_node and replay_node spin (``rejections.SkippingExecutor``), over real
+    DDS: three messages rclpy cannot convert are skipped (rclpy's executor raised out of the
+    spin, and the node died), counted and reported (WARN, /diagnostics); the next valid message
+    is delivered."""
+    assert os.environ['ROS_PYTHON_CHECK_FIELDS'] == '1'
+    ctx = Context()
+    saved = os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE')
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'OFF'      # this process only
+    try:
+        rclpy.init(context=ctx, domain_id=next_domain_id())
+    finally:
+        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = saved or 'LOCALHOST'
+    node = Node('listener', context=ctx)
+    talker = Node('talker', context=ctx)
+    try:
+        got: list[Float32] = []
+        node.create_subscription(Float32, 'level', got.append, 10)
+        unreadable = UnreadableInput(node)
+        ex = unreadable.executor
+        ex.add_node(talker)
+        diags: list[DiagnosticArray] = []
+        talker.create_subscription(DiagnosticArray, '/diagnostics', diags.append, 10)
+        pub = talker.create_publisher(Float32, 'level', 10)
+        _until(ex, lambda: pub.get_subscription_count() and talker.count_publishers(
+            '/diagnostics'), 'discovery')
+        for _ in range(3):
+            pub.publish(UNCONVERTIBLE_FLOAT32)
+        pub.publish(Float32(data=1.5))
+        _until(ex, lambda: got and unreadable.count == 3 and _input_statuses(
+            diags, '/listener: input'), 'the valid message and the report')
+        assert [m.data for m in got] == [1.5]
+        status = _input_statuses(diags, '/listener: input')[0]
+        assert status.level == DiagnosticStatus.WARN
+        assert 'cannot be converted' in status.message and '/level' in status.message
+        values = {kv.key: kv.value for kv in status.values}
+        assert values['unreadable_messages'] == '1'
+        assert 1 <= unreadable.log.lines <= 3
+    finally:
+        unreadable.executor.shutdown()
+        talker.destroy_node()
+        node.destroy_node()
+        rclpy.shutdown(context=ctx)
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
+def test_gait_node_taking_a_flood_of_clock_stops_cleanly_on_a_signal(ament_env, peer, tmp_path,
+                                                                     sig):
+    """Issue 38 item 8: SIGINT landed while rclpy converted a /clock message for gait_node;
+    the KeyboardInterrupt became "RuntimeError: Unable to convert call argument '0'" and the
+    node exited with a traceback. A signal now only sets a flag the spin loop checks."""
+    pub = peer.node.create_publisher(Clock, '/clock', 10)
+    cmds: list[Float64MultiArray] = []
+    peer.node.create_subscription(Float64MultiArray, 'linkage_cmd', cmds.append, 100)
+    gait = Proc(tmp_path, ament_env, 'gait_node', '-p', 'use_sim_time:=true', '-p',
+                'n_links:=1', '-p', 'rate:=1000.0')
+    t_ns = [0]
+
+    def tick() -> bool:
+        t_ns[0] += 1_000_000
+        pub.publish(Clock(clock=stamp_from_ns(t_ns[0])))
+        return False
+    try:
+        peer.until(lambda: pub.get_subscription_count() >= 1, 'gait_node on /clock')
+        peer.until(lambda: tick() or len(cmds) >= 5, 'gait_node to follow /clock')
+        for _ in range(2000):
+            tick()
+        gait.popen.send_signal(sig)
+        for _ in range(2000):
+            tick()
+        code = gait.popen.wait(timeout=30.0)     # one signal: a second may land after rclpy
+    finally:                                     # restored the default handlers at shutdown
+        gait.kill()
+    gait.err.seek(0)
+    err = gait.err.read()
+    assert code == 0 and 'Traceback' not in err, err
+
+
+def test_replay_node_skips_reports_and_plays_past_a_message_it_cannot_deserialise(
+        ament_env, peer, tmp_path):
+    bag = tmp_path / 'bag'
+    w = BagWriter(bag)
+    for k, t in enumerate((1, 2, 3)):
+        if k == 1:      # a JointState cut short: rclpy cannot deserialise it
+            w.write('/body_states', 'sensor_msgs/msg/JointState', b'\x00\x01\x00\x00\x01',
+                    t * 100_000_000)
+            continue
+        msg = JointState(name=['body_0'], position=[0.1 * t])
+        msg.header.stamp = stamp_from_ns(t * 100_000_000)
+        w.write('/body_states', 'sensor_msgs/msg/JointState', msg, t * 100_000_000)
+    w.close()
+    states: list[JointState] = []
+    diags: list[DiagnosticArray] = []
+    peer.node.create_subscription(JointState, '/body_states', states.append, 10)
+    peer.node.create_subscription(DiagnosticArray, '/diagnostics', diags.append, 10)
+    peer.node.create_subscription(Clock, '/clock', lambda msg: None, 10)
+    proc = Proc(tmp_path, ament_env, 'replay_node', '-p', f'bag:={bag}', '-p',
+                'wait_for_subscribers:=1')
+    try:
+        peer.until(lambda: len(states) == 2 and _input_statuses(diags, '/replay_node: input'),
+                   'the two readable states and the report')
+        peer.until(lambda: proc.popen.poll() is not None, 'replay_node to exit at the end')
+        code, err = proc.stop()
+    finally:
+        proc.kill()
+    assert code == 0 and 'Traceback' not in err, err
+    assert [m.position[0] for m in states] == pytest.approx([0.1, 0.3])
+    status = _input_statuses(diags, '/replay_node: input')[0]
+    assert status.level == DiagnosticStatus.WARN
+    values = diagnostics_values(DiagnosticArray(status=[status]))
+    assert values['unreadable_messages'] == '1' and 'cannot be deserialised' in status.message
+    assert 'cannot be deserialised' in err       # the WARN line
