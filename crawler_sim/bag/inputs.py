@@ -6,19 +6,27 @@ points of an applied trajectory are the ``linkage_trajectory`` message recorded 
 time, in the same order. Bags written before that journal existed hold only ``linkage_cmd`` and
 ``linkage_trajectory``: :func:`load_inputs` then returns those (``journaled`` False), and a run
 with parameter changes or resets cannot be repeated from them.
+
+Every journal entry is checked before it is used (a bag is a file anyone can write): a JSON
+object, ``kind`` one of ``KINDS``, ``seq`` an integer >= 0, and the field its kind needs
+(``lengths`` a list, ``values`` an object, ``points`` an integer >= -1, with the trajectory it
+names readable on ``linkage_trajectory``); the values in them are checked where they are applied
+(``crawler_sim.core.plant.replay``). A malformed entry raises ``JournalError``: one line naming
+the bag, the message (its index in the journal, in log-time order, and its sim time) and the
+field.
 """
 from __future__ import annotations
 
 import json
 import os
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from crawler_sim.core.plant.replay import Input, KINDS
+from crawler_sim.core.plant.config import _short
+from crawler_sim.core.plant.replay import Input, input_name, JournalError, KINDS
 from . import trajarrays
-from .errors import BagError
 from .mcapfile import Batch, scan
 from .reader import bag_files
 from .topics import LINKAGE_CMD, LINKAGE_TRAJECTORY, PLANT_INPUTS, normalize_namespace
@@ -60,8 +68,9 @@ def _raw(path: Path, keep) -> dict[str, list[tuple[int, bytes]]]:
 def load_inputs(path: os.PathLike | str, namespace: str = '') -> RecordedInputs:
     """The plant inputs recorded in the bag at ``path`` for the robot in ``namespace``.
 
-    Raises :class:`BagError` naming the message when a journal entry or a trajectory cannot be
-    decoded, or when the journal names more trajectories than were recorded.
+    Raises ``JournalError`` (a ValueError) naming the message and the field when a journal
+    entry or a trajectory cannot be decoded or is malformed, or when the journal names a
+    trajectory that was not recorded; :class:`BagError` when the file cannot be read.
     """
     ns = normalize_namespace(namespace)
 
@@ -83,53 +92,80 @@ def _string(data: bytes) -> str:
     return data[8:8 + n - 1].decode('utf-8')
 
 
+#: the field each kind of journal entry needs: (name, what it must be, check)
+_FIELDS: dict[str, tuple[str, str, Any]] = {
+    'command': ('lengths', 'a list of lengths [m]', lambda x: isinstance(x, list)),
+    'configure': ('values', 'an object of parameter values', lambda x: isinstance(x, dict)),
+    'reset': ('values', 'an object of parameter values', lambda x: isinstance(x, dict)),
+    'trajectory': ('points', 'an integer >= -1 (-1: not recorded)',
+                   lambda x: isinstance(x, int) and not isinstance(x, bool) and x >= -1),
+}
+
+
+def _entry(path, name: str, data: bytes) -> dict:
+    """The journal entry in the CDR ``data`` of the message ``name``, its fields checked."""
+    try:
+        entry = json.loads(_string(data))
+    except (ValueError, RecursionError) as exc:      # UnicodeDecodeError is a ValueError
+        raise JournalError(f'{path}: {name} is not a JSON journal entry ({exc})') from None
+    if not isinstance(entry, dict):
+        raise JournalError(f'{path}: {name} must be a JSON object, got {_short(entry)}')
+    kind = entry.get('kind')
+    if not isinstance(kind, str) or kind not in KINDS:
+        raise JournalError(f'{path}: {name}: kind must be one of {", ".join(KINDS)}, got '
+                           f'{_short(kind)}')
+    seq = entry.setdefault('seq', 0)
+    if isinstance(seq, bool) or not isinstance(seq, int) or seq < 0:
+        raise JournalError(f'{path}: {name}: seq must be an integer >= 0, got {_short(seq)}')
+    if kind in _FIELDS:
+        field, what, ok = _FIELDS[kind]
+        if field not in entry:
+            raise JournalError(f'{path}: {name}: a {kind} entry needs {field} ({what})')
+        if not ok(entry[field]):
+            raise JournalError(f'{path}: {name}: {field} must be {what}, got '
+                               f'{_short(entry[field])}')
+    return entry
+
+
 def _from_journal(path, journal: list[tuple[int, bytes]],
                   trajectories: list[tuple[int, bytes]]) -> list[Input]:
+    journal = sorted(journal, key=lambda row: row[0])     # stable: file order within a time
     entries = []
-    for t_ns, data in journal:
-        try:
-            entry = json.loads(_string(data))
-            kind = entry['kind']
-            seq = int(entry.get('seq', 0))
-        except (ValueError, KeyError, TypeError, UnicodeDecodeError) as exc:
-            raise BagError(f'{path}: plant_inputs message at t = {to_seconds(t_ns)} s cannot be '
-                           'read '
-                           f'({exc})') from None
-        if kind not in KINDS:
-            raise BagError(f'{path}: plant_inputs message at t = {to_seconds(t_ns)} s has kind '
-                           f'{kind!r} (expected one of {", ".join(KINDS)})')
-        entries.append((t_ns, seq, kind, entry))
+    for index, (t_ns, data) in enumerate(journal):
+        entry = _entry(path, input_name(index, t_ns), data)
+        entries.append((t_ns, entry['seq'], index, entry))
     entries.sort(key=lambda e: (e[0], e[1]))
     out: list[Input] = []
     k = 0
-    for t_ns, _seq, kind, entry in entries:
+    for t_ns, _seq, index, entry in entries:
+        kind = entry['kind']
+        name = input_name(index, t_ns)
         payload = None
         if kind == 'command':
-            payload = [float(x) for x in entry['lengths']]
+            payload = entry['lengths']           # its numbers are checked where applied
         elif kind in ('configure', 'reset'):
             payload = entry['values']
         elif kind == 'trajectory':
-            if entry.get('points', 0) < 0:
-                raise BagError(f'{path}: the trajectory applied at t = {to_seconds(t_ns)} s was '
-                               'not '
-                               'recorded (given in Python, not as a message)')
+            if entry['points'] < 0:
+                raise JournalError(f'{path}: {name}: the trajectory applied then was not '
+                                   'recorded (points -1: given in Python, not as a message)')
             while k < len(trajectories) and trajectories[k][0] < t_ns:
                 k += 1              # a message without a journal entry: not applied
             if k >= len(trajectories) or trajectories[k][0] != t_ns:
-                raise BagError(f'{path}: the trajectory applied at t = {to_seconds(t_ns)} s is '
-                               'missing from linkage_trajectory')
-            payload = _trajectory(path, *trajectories[k])
+                raise JournalError(f'{path}: {name}: the trajectory applied then is missing '
+                                   'from linkage_trajectory')
+            payload = _trajectory(path, name, trajectories[k][1])
             k += 1
-        out.append(Input(t_ns, kind, payload))
+        out.append(Input(t_ns, kind, payload, index))
     return out
 
 
-def _trajectory(path, t_ns: int, data: bytes):
+def _trajectory(path, name: str, data: bytes):
     try:
         return trajarrays.parse(data)
     except trajarrays.TrajectoryFormatError as exc:
-        raise BagError(f'{path}: linkage_trajectory at t = {to_seconds(t_ns)} s cannot be read '
-                       f'({exc})') from None
+        raise JournalError(f'{path}: {name}: its linkage_trajectory message cannot be read '
+                           f'({exc})') from None
 
 
 def _from_topics(path, commands: list[tuple[int, bytes]],
@@ -146,7 +182,9 @@ def _from_topics(path, commands: list[tuple[int, bytes]],
         values = dec.columns()['data']
         for (t_ns, _), row in zip(commands, values):
             out.append(Input(t_ns, 'command', [float(x) for x in row if not np.isnan(x)]))
-    out.extend(Input(t_ns, 'trajectory', _trajectory(path, t_ns, data))
-               for t_ns, data in trajectories)
+    out.extend(Input(t_ns, 'trajectory',
+                     _trajectory(path, f'linkage_trajectory message #{k} (t = '
+                                 f'{to_seconds(t_ns):.9f} s)', data))
+               for k, (t_ns, data) in enumerate(trajectories))
     out.sort(key=lambda e: e.t_ns)
     return out

@@ -7,6 +7,7 @@ floor; the crafted files are 1 MB, and before the fix they asked for > 1 GB.
 """
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 import signal
@@ -271,3 +272,86 @@ def test_a_bag_closed_before_its_first_state_loads_as_an_empty_run_with_its_scen
         run = load(tmp_path / 'early')
     assert len(run) == 0 and run.p == 2 and run.x.shape == (0, 2)
     assert run.scene['masses'] == [1.0, 2.0]
+
+
+# ------------------------------------------------------------------ malformed journal entries
+# (issue 38 item 6) a sim_node bag whose ~/plant_inputs holds one malformed entry at t = 0:
+# `crawler-sim replay` refuses it (exit 2) in one line naming the message and the field, never
+# "internal error". The same bag with the node's own entry replays with zero difference.
+
+def _cmd(lengths) -> str:
+    return json.dumps({'seq': 1, 'kind': 'command', 'lengths': lengths})
+
+
+def _values(**changes) -> str:
+    from crawler_sim.core.plant.config import PlantConfig
+    values = {**PlantConfig.defaults().values, **changes}
+    return json.dumps({'seq': 1, 'kind': 'configure', 'values': values})
+
+
+MALFORMED_ENTRIES = {
+    'lengths a number': (_cmd(5), 'lengths must be a list'),
+    'a command without lengths': ('{"seq": 1, "kind": "command"}', 'needs lengths'),
+    'lengths of strings': (_cmd(['x']), 'lengths must be a list of numbers'),
+    'lengths true': (_cmd([True]), 'lengths must be a list of numbers'),
+    'a NaN length': (_cmd([float('nan')]), 'not finite'),
+    'an infinite length': (_cmd([float('inf')]), 'not finite'),
+    'a length of 1e308 m': (_cmd([1e308]), 'outside [min_length, max_length]'),
+    'two lengths for one linkage': (_cmd([0.1, 0.1]), 'expected 1 lengths'),
+    'no length': (_cmd([]), 'expected 1 lengths'),
+    'trajectory points "x"': ('{"seq": 1, "kind": "trajectory", "points": "x"}',
+                              'points must be an integer'),
+    'a trajectory without points': ('{"seq": 1, "kind": "trajectory"}', 'needs points'),
+    'a trajectory not in the bag': ('{"seq": 1, "kind": "trajectory", "points": 3}',
+                                    'missing from linkage_trajectory'),
+    'configure values null': ('{"seq": 1, "kind": "configure", "values": null}',
+                              'values must be an object'),
+    'reset values a list': ('{"seq": 1, "kind": "reset", "values": [1, 2]}',
+                            'values must be an object'),
+    'configure values empty': ('{"seq": 1, "kind": "configure", "values": {}}',
+                               'configure values: the recorded parameters lack'),
+    'a negative mass': (_values(masses=[0.5, -1.0]), 'masses'),
+    'masses a string': (_values(masses='heavy'), 'masses'),
+    'a NaN gravity': (_values(gravity=float('nan')), 'gravity'),
+    'an unknown method': (_values(method=['exact']), 'method must be one of'),
+    'an unknown kind': ('{"seq": 1, "kind": "teleport"}', 'kind must be one of'),
+    'no kind': ('{"seq": 1, "lengths": [0.1]}', 'kind must be one of'),
+    'seq a string': ('{"seq": "1", "kind": "pause"}', 'seq must be an integer'),
+    'not JSON': ('{"seq": 1, "kind": ', 'not a JSON journal entry'),
+    'a JSON list': ('[1, 2, 3]', 'must be a JSON object'),
+    'nested 100000 deep': ('[' * 100_000 + ']' * 100_000, 'not a JSON journal entry'),
+    'not UTF-8': (b'{"kind": "\xff\xfe"}', 'not a JSON journal entry'),
+}
+
+
+def test_the_journal_bag_as_the_node_writes_it_replays_with_zero_difference(tmp_path, capsys):
+    from crawler_sim.cli import main
+    bag = crafted.node_bag(tmp_path / 'good')
+    assert main(['replay', str(bag)]) == 0
+    assert 'match' in capsys.readouterr().out
+
+
+@pytest.mark.parametrize('case', MALFORMED_ENTRIES)
+def test_a_malformed_journal_entry_is_refused_in_one_line_naming_the_message_and_field(
+        tmp_path, capsys, case):
+    from crawler_sim.cli import main
+    entry, field = MALFORMED_ENTRIES[case]
+    bag = crafted.node_bag(tmp_path / 'bad', [(0, entry)])
+    code = main(['replay', str(bag)])
+    err = capsys.readouterr().err
+    errors = [line for line in err.splitlines() if line.startswith('crawler-sim: error:')]
+    assert code == 2, err
+    assert len(errors) == 1 and 'internal error' not in err, err
+    assert 'plant_inputs message #0 (t = 0.000000000 s)' in errors[0], errors[0]
+    assert field in errors[0], errors[0]
+
+
+def test_a_malformed_entry_later_in_the_journal_is_named_by_its_index_and_time(tmp_path,
+                                                                             capsys):
+    from crawler_sim.cli import main
+    journal = [*crafted.GOOD_JOURNAL, (50_000_000, '{"seq": 2, "kind": "pause"}'),
+               (50_000_000, '{"seq": 3, "kind": "resume"}'), (100_000_000, _cmd([0.1, 0.2]))]
+    bag = crafted.node_bag(tmp_path / 'bad', journal)
+    assert main(['replay', str(bag)]) == 2
+    err = capsys.readouterr().err
+    assert 'plant_inputs message #3 (t = 0.100000000 s): command lengths: expected 1' in err

@@ -4,6 +4,9 @@ Each builder writes one file that a careless reader turns into a huge allocation
 duplicated data (issue 11, point 6), and returns its path. Records are packed here by hand (not
 with the mcap library, whose writer refuses to produce such files): opcode u8, content length
 u64, then the fields in spec order; strings and byte arrays carry a u32 length.
+
+:func:`node_bag` is the other kind: a well-formed sim_node bag (the package's own writer) whose
+``~/plant_inputs`` journal holds whatever entries a test gives it (issue 38 item 6).
 """
 from __future__ import annotations
 
@@ -169,4 +172,43 @@ FILES: dict[str, Callable[[Path], Path]] = {
     'message_flood': message_flood, 'huge_lengths': huge_lengths,
 }
 
-__all__ = ['FILES', 'fifo', 'fifo_in_bag', 'joint_state_cdr', 'repeated_metadata']
+
+
+def string_cdr(text: str | bytes) -> bytes:
+    """CDR of a ``std_msgs/msg/String`` holding ``text`` (bytes: as they are, even if they are
+    not UTF-8)."""
+    data = text.encode() if isinstance(text, str) else text
+    return b'\x00\x01\x00\x00' + struct.pack('<I', len(data) + 1) + data + b'\x00'
+
+
+#: the journal of :func:`node_bag`'s run: one command at t = 0, as sim_node writes it
+GOOD_JOURNAL: list[tuple[int, str | bytes]] = [
+    (0, '{"seq": 1, "kind": "command", "lengths": [0.12]}')]
+
+
+def node_bag(path: Path, journal: list[tuple[int, str | bytes]] | None = None,
+             until_ns: int = 200_000_000) -> Path:
+    """A sim_node bag of the default plant (the node's parameters as its scene) driven by
+    one command of 0.12 m at t = 0 for ``until_ns`` [ns]: the states the plant's engine gives
+    (``core.plant.replay``, what the node publishes), recorded with the node's topics by the
+    package's writer, and on ``/crawler_sim/plant_inputs`` the ``journal`` entries (sim time
+    [ns], JSON text or raw bytes) instead of :data:`GOOD_JOURNAL`."""
+    from crawler_sim.bag import Recorder
+    from crawler_sim.bag.topics import PLANT_INPUTS
+    from crawler_sim.core.plant.config import PlantConfig
+    from crawler_sim.core.plant.replay import Input, replay
+
+    values = dict(PlantConfig.defaults().values)
+    snaps = replay(values, [Input(0, 'command', [0.12])], until_ns)
+    with Recorder(path, scene=values, flush_interval=None) as rec:
+        for t_ns, entry in GOOD_JOURNAL if journal is None else journal:
+            rec.writer.write(PLANT_INPUTS.name(''), PLANT_INPUTS.type, string_cdr(entry), t_ns)
+        for t_ns, x, v in zip(snaps.t_ns, snaps.x, snaps.v):
+            zeros = [0.0] * len(x)
+            rec.record_state(t_ns / 1e9, x, v, zeros, [0] * len(x), zeros[1:], zeros[1:],
+                             zeros[1:])
+    return path
+
+
+__all__ = ['FILES', 'GOOD_JOURNAL', 'fifo', 'fifo_in_bag', 'joint_state_cdr', 'node_bag',
+           'repeated_metadata', 'string_cdr']

@@ -11,6 +11,12 @@ decodes the messages into :class:`Input`.
 Snapshots are taken where the node publishes: at the start, at every publish tick and after
 every reset (the node publishes the state it resets to, at the same sim time as the tick
 before: two samples may share a time, and are told apart by their order).
+
+A recorded input is checked before it is used (a bag is a file anyone can write): a command's
+lengths (as many as the plant has linkages then, finite, within the range any ``min_length`` /
+``max_length`` allows), a trajectory's points, the parameter values of a configure or reset
+(``PlantConfig.from_values``). One that fails raises :class:`JournalError`, one line naming the
+input (its index in the journal and its sim time) and the field.
 """
 from __future__ import annotations
 
@@ -20,25 +26,41 @@ from typing import Any, Callable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
-from .config import PARAMETERS, PlantConfig
+from .config import PARAMETERS, PlantConfig, _short
 from .engine import Engine
-from .inputs import TrajectoryArrays, check_trajectory
+from .inputs import TrajectoryArrays, check_command, check_trajectory
 from ..simtime import to_seconds
 
-__all__ = ['Input', 'Snapshots', 'replay', 'KINDS']
+__all__ = ['Input', 'JournalError', 'Snapshots', 'replay', 'KINDS', 'input_name']
 
 KINDS = ('command', 'trajectory', 'configure', 'reset', 'pause', 'resume', 'sync')
+#: the lengths [m] a recorded command may hold: what any min_length / max_length allows
+LENGTH_RANGE = (PARAMETERS['min_length'][2][0], PARAMETERS['max_length'][2][1])
+
+
+class JournalError(ValueError):
+    """A recorded plant input that cannot be used (malformed, or not an input the node could
+    have applied). The message is one line naming the input (its index in the journal and
+    its sim time) and the field: the bag is refused, as bad input, not a failure of the work."""
+
+
+def input_name(index: int, t_ns: int) -> str:
+    """How an error names the journal's message ``index`` (0-based, in log-time order) at
+    sim time ``t_ns`` [ns]."""
+    return f'plant_inputs message #{index} (t = {to_seconds(t_ns):.9f} s)'
 
 
 class Input(NamedTuple):
     """One plant input as recorded: at sim time ``t_ns`` [ns] (a tick boundary), ``kind``
     (one of :data:`KINDS`) and its payload: target lengths [m] (command), the points
     (trajectory, as received: :class:`TrajectoryArrays`, or None for "stop"), the plant's
-    parameter values (configure, reset), None otherwise."""
+    parameter values (configure, reset), None otherwise. ``index``: its message's index in
+    the recorded journal (-1: not from a journal; errors then count the inputs given)."""
 
     t_ns: int
     kind: str
     payload: Any = None
+    index: int = -1
 
 
 @dataclass
@@ -107,7 +129,8 @@ def replay(values: Mapping[str, Any], inputs: Sequence[Input], until_ns: int, *,
     first = inputs[pending[0]] if pending else None
     if (first is not None and first.kind == 'reset' and from_ns is not None
             and t0_ns < first.t_ns <= from_ns):
-        values, t0_ns = first.payload, first.t_ns
+        values = _values(first, pending[0], method).values
+        t0_ns = first.t_ns
         pending = pending[1:]
     engine = Engine(plant_config(values, method).engine_config(), t0_ns)
     snaps = Snapshots()
@@ -116,7 +139,7 @@ def replay(values: Mapping[str, Any], inputs: Sequence[Input], until_ns: int, *,
     reported = 0
     while True:
         while i < n and inputs[pending[i]].t_ns <= engine.t_ns:
-            _apply(engine, inputs[pending[i]], method, snaps)
+            _apply(engine, inputs[pending[i]], pending[i], method, snaps)
             i += 1
         if engine.t_ns >= until_ns:
             break
@@ -137,16 +160,24 @@ def replay(values: Mapping[str, Any], inputs: Sequence[Input], until_ns: int, *,
     return snaps
 
 
-def _apply(engine: Engine, item: Input, method: str | None, snaps: Snapshots) -> None:
+def _name(item: Input, k: int) -> str:
+    """The input's name in an error: its journal message, else its place among the inputs."""
+    if item.index >= 0:
+        return input_name(item.index, item.t_ns)
+    return f'input #{k} (t = {to_seconds(item.t_ns):.9f} s)'
+
+
+def _apply(engine: Engine, item: Input, k: int, method: str | None, snaps: Snapshots) -> None:
+    """Apply ``item`` (the ``k``-th input given) once it has been checked."""
     kind, payload = item.kind, item.payload
     if kind == 'command':
-        engine.command(payload)
+        engine.command(_lengths(engine, item, k))
     elif kind == 'trajectory':
-        engine.trajectory(None if payload is None else _prepared(engine, payload))
+        engine.trajectory(None if payload is None else _prepared(engine, item, k))
     elif kind == 'configure':
-        engine.reconfigure(plant_config(payload, method).engine_config())
+        engine.reconfigure(_values(item, k, method).engine_config())
     elif kind == 'reset':
-        engine.reset(plant_config(payload, method).engine_config())
+        engine.reset(_values(item, k, method).engine_config())
         snaps.take(engine)
     elif kind == 'pause':
         engine.pause()
@@ -155,18 +186,56 @@ def _apply(engine: Engine, item: Input, method: str | None, snaps: Snapshots) ->
     elif kind == 'sync':
         engine.sync()
     else:
-        raise ValueError(f'unknown plant input {kind!r} at t = {to_seconds(item.t_ns)} s '
-                         f'(expected one of {", ".join(KINDS)})')
+        raise JournalError(f'{_name(item, k)}: kind must be one of {", ".join(KINDS)}, got '
+                           f'{_short(kind)}')
 
 
-def _prepared(engine: Engine, tr: TrajectoryArrays):
+def _lengths(engine: Engine, item: Input, k: int) -> list[float]:
+    """A recorded command's lengths [m], checked: one number per linkage of the plant now,
+    finite, within :data:`LENGTH_RANGE` (the node checked them against the limits of the
+    moment it took them, which a parameter change in the same tick may have moved since)."""
+    data = item.payload
+    if (not isinstance(data, (list, tuple))
+            or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in data)):
+        raise JournalError(f'{_name(item, k)}: command lengths must be a list of numbers [m], '
+                           f'got {_short(data)}')
+    lengths = [float(x) for x in data]
+    n_links = engine.cfg.crawler.p - 1
+    reason = check_command(lengths, n_links, *LENGTH_RANGE)
+    if reason is None and not all(math.isfinite(x) for x in lengths):
+        reason = 'every length is NaN (not a command the node applies)'
+    if reason is not None:
+        raise JournalError(f'{_name(item, k)}: command lengths: {reason}')
+    return lengths
+
+
+def _values(item: Input, k: int, method: str | None) -> PlantConfig:
+    """The plant configuration of a recorded configure or reset, checked as the node checks a
+    parameter change (``PlantConfig.from_values``: the message names the parameter)."""
+    if not isinstance(item.payload, Mapping):
+        raise JournalError(f'{_name(item, k)}: {item.kind} values must be a mapping of the '
+                           f'parameters, got {_short(item.payload)}')
+    try:
+        return plant_config(item.payload, method)
+    except (ValueError, TypeError) as exc:
+        raise JournalError(f'{_name(item, k)}: {item.kind} values: {exc}') from None
+
+
+def _prepared(engine: Engine, item: Input, k: int):
     """A recorded trajectory as the node applied it: it passed the node's checks when it
     arrived, so only its structure is checked again (the limits may have changed since)."""
+    tr = item.payload
+    if not isinstance(tr, TrajectoryArrays):
+        raise JournalError(f'{_name(item, k)}: trajectory points must be trajectory arrays, '
+                           f'got {_short(tr)}')
     n_links = engine.cfg.crawler.p - 1
     reason, prepared = check_trajectory(tr, n_links, -math.inf, math.inf, engine.t_ns,
                                         math.inf)
+    if reason is None and len(prepared.tfs_ns):      # (no point: hold, nothing to check)
+        try:
+            engine.check_trajectory(prepared)
+        except ValueError as exc:
+            reason = str(exc)
     if reason is not None:
-        raise ValueError(f'recorded trajectory at t = {to_seconds(engine.t_ns)} s cannot be '
-                         'applied: '
-                         f'{reason}')
+        raise JournalError(f'{_name(item, k)}: the trajectory cannot be applied: {reason}')
     return prepared
