@@ -510,6 +510,9 @@ def _exit_code(exc: BaseException) -> int:
     spec = sys.modules.get('crawler_sim.sweep.spec')
     if spec is not None and isinstance(exc, spec.SpecError):
         return EXIT_USAGE
+    journal = sys.modules.get('crawler_sim.core.plant.replay')
+    if journal is not None and isinstance(exc, journal.JournalError):   # a recorded input
+        return EXIT_USAGE
     if isinstance(exc, UsageError) or (scene is not None and isinstance(exc, scene.SceneError)):
         return EXIT_USAGE
     return EXIT_FAILURE
