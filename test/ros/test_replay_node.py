@@ -124,16 +124,15 @@ def test_replay_publishes_every_message_in_order_with_its_timing_and_clock(
     times = sorted({t for t, _ in CMDS} | {t for t, _ in STATES})
     assert [ns_from_stamp(m.clock) for m in clock.msgs] == [ns(t) for t in times]
     # paced at `rate`: the wall span of the commands is their log-time span / RATE, not the
-    # span at rate 1 (RATE times longer). Jitter from a busy host shifts single arrivals, so
-    # the check is the span within +-50 % (no wall-clock tolerance of a few ms)
+    # span at rate 1 (RATE times longer). A figure, printed, not asserted: a busy host delays
+    # single arrivals by tenths of a second (issue 37: no wall-clock assertion in the tests)
     expect = np.array([(t - CMDS[0][0]) / RATE for t, _ in CMDS])
     got = np.array(cmds.wall) - cmds.wall[0]
-    print(f'\nreplay pacing: arrivals off the schedule by <= {np.max(np.abs(got - expect)):.3f} s')
-    assert 0.5 * expect[-1] < got[-1] < 1.5 * expect[-1], (got, expect)
     clock_got = np.array(clock.wall) - clock.wall[0]
     clock_expect = np.array([(t - times[0]) / RATE for t in times])
-    assert 0.5 * clock_expect[-1] < clock_got[-1] < 1.5 * clock_expect[-1], (clock_got,
-                                                                             clock_expect)
+    print(f'\nreplay pacing: commands over {got[-1]:.3f} s (schedule {expect[-1]:.3f} s, off it '
+          f'by <= {np.max(np.abs(got - expect)):.3f} s), /clock over {clock_got[-1]:.3f} s '
+          f'(schedule {clock_expect[-1]:.3f} s)')
 
 
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
