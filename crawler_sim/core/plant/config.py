@@ -193,7 +193,7 @@ class PlantConfig:
         if len(pen) not in (1, p) or not all(lo_n <= n <= hi_n for n in pen):
             raise ValueError(f'penalty must have 1 or {p} entries, each in [{lo_n:g}, '
                              f'{hi_n:g}] N s/m, got {_short(pen)}')
-        if v['method'] not in METHODS:
+        if not isinstance(v['method'], str) or v['method'] not in METHODS:   # (a recorded list)
             raise ValueError(f'method must be one of {", ".join(METHODS)}, got {v["method"]!r}')
         lo, hi = v['min_length'], v['max_length']
         if not lo < hi:

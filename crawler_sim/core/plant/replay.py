@@ -203,7 +203,7 @@ def _lengths(engine: Engine, item: Input, k: int) -> list[float]:
     n_links = engine.cfg.crawler.p - 1
     reason = check_command(lengths, n_links, *LENGTH_RANGE)
     if reason is None and not all(math.isfinite(x) for x in lengths):
-        reason = 'every length is NaN (not a command the node applies)'
+        reason = 'the lengths are not finite (all NaN: "no command", never applied)'
     if reason is not None:
         raise JournalError(f'{_name(item, k)}: command lengths: {reason}')
     return lengths
