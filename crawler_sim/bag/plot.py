@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .errors import BagError
+from .files import OutputRefused, check_output, write_atomically
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -91,24 +92,49 @@ def figure(run: Run | Trajectory, title: str | None = None) -> Figure:
     return fig
 
 
-def save(fig: Figure, out_png: os.PathLike | str, dpi: int = 120) -> Path:
-    """Write ``fig`` to ``out_png``; :class:`BagError` naming the file if it cannot."""
-    out = Path(out_png)
+def figure_output(out: os.PathLike | str) -> tuple[Path, str]:
+    """``(Path(out), format)`` of a figure file: the format its suffix names (PNG without one),
+    checked before any drawing. :class:`crawler_sim.bag.files.OutputRefused` naming ``out``
+    for a format matplotlib cannot write or an output that may not be written
+    (:func:`crawler_sim.bag.files.check_output`: an input, a directory...)."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    out = check_output(out)
+    fmt = out.suffix[1:].lower() or 'png'
+    formats = FigureCanvasBase.get_supported_filetypes()
+    if fmt not in formats:
+        raise OutputRefused(f'{out}: cannot draw a figure as {fmt!r}; use a file name ending '
+                            f'in one of {", ".join("." + f for f in sorted(formats))}')
+    return out, fmt
+
+
+def save(fig: Figure, out: os.PathLike | str, dpi: int = 120) -> Path:
+    """Write ``fig`` to the file ``out`` (every figure of the package is saved here) and return
+    its path: exactly the file named (matplotlib would append ``.png`` to a name without a
+    suffix), in the format of :func:`figure_output`, through
+    :func:`crawler_sim.bag.files.write_atomically` (never through a link, the old file whole
+    until the new one is). :class:`crawler_sim.bag.files.OutputRefused` as
+    :func:`figure_output`; :class:`BagError` naming the file if it cannot be written."""
+    out, fmt = figure_output(out)
     try:
-        fig.savefig(out, dpi=dpi)
+        return write_atomically(out, lambda fh: fig.savefig(fh, format=fmt, dpi=dpi))
     except OSError as exc:
-        raise BagError(f'cannot write {out}: {exc.strerror or exc}') from None
-    return out
+        raise BagError(f'{out}: {exc.strerror or exc}') from None
 
 
 def plot(path: os.PathLike | str, out_png: os.PathLike | str, *,
          namespace: str | None = None, dpi: int = 120) -> Path:
     """Plot the run in bag ``path`` to ``out_png`` and return that path.
 
-    The panels of :func:`figure`.
+    The panels of :func:`figure`. The output is checked (:func:`figure_output`, with ``path``
+    as the input: not the bag, nor inside its folder) before the bag is read.
     Raises :class:`BagError` for unreadable bags or a bag without states.
     """
-    run = load(path, namespace=namespace)
-    if len(run) == 0:
-        raise BagError(f'{path}: no states to plot')
-    return save(figure(run), out_png, dpi)
+    from .files import reading
+
+    with reading(path):
+        figure_output(out_png)
+        run = load(path, namespace=namespace)
+        if len(run) == 0:
+            raise BagError(f'{path}: no states to plot')
+        return save(figure(run), out_png, dpi)

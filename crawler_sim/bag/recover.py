@@ -26,6 +26,7 @@ from mcap.records import Channel, Schema
 import numpy as np
 
 from .errors import BagError
+from .files import reading
 from .mcapfile import Batch, Scan, check_magic, scan
 from .reader import bag_files
 from .writer import ROSBAG2_METADATA, BagWriter
@@ -103,8 +104,10 @@ def recover(src: os.PathLike | str, dst: os.PathLike | str | None = None) -> Rec
     for file in files:
         check_magic(file)            # before the destination is made
     # small chunks: the per-chunk state (buffer, message index lists) stays well under the size
-    # of even a 1 MB source file; no flush thread (a recovery is written in one go)
-    writer = BagWriter(dst_path, chunk_size=RECOVER_CHUNK, flush_interval=None)
+    # of even a 1 MB source file; no flush thread (a recovery is written in one go); never
+    # the source, nor inside its bag folder (OutputRefused)
+    with reading(src_path):
+        writer = BagWriter(dst_path, chunk_size=RECOVER_CHUNK, flush_interval=None)
     result = RecoverResult(dst_path, writer.mcap_path)
     try:
         for file in files:

@@ -72,6 +72,7 @@ import yaml
 from . import schema as schemas
 from .cdr import Trimmer
 from .errors import BagError
+from .files import OPEN_NEW, OutputRefused, check_new_folder, write_text
 from .mcapwriter import McapWriter
 from .naming import claim_directory
 from .topics import SCENE, SCENE_METADATA
@@ -176,7 +177,7 @@ class _Stats:
 def _default_open(path: Path) -> BinaryIO:
     """A new file (never overwriting one), opened read-write: if it is removed while recording,
     its bytes can still be read back from this descriptor (see :meth:`BagWriter._restore`)."""
-    fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_EXCL | getattr(os, 'O_CLOEXEC', 0), 0o666)
+    fd = os.open(path, os.O_RDWR | OPEN_NEW, 0o666)        # never through a planted link
     return open(fd, 'wb')
 
 
@@ -275,7 +276,7 @@ class BagWriter:
         try:
             self._stream = (_opener or _default_open)(self.mcap_path)
         except OSError as exc:
-            self.path.rmdir()
+            _remove_empty(self.path)         # left as it is if something was put in it
             raise BagError(f'cannot create {self.mcap_path}: {exc.strerror or exc}') from None
         self._fileno = _fileno(self._stream)
         self._writer = McapWriter(self._stream, chunk_size=chunk_size, compression='zstd')
@@ -502,12 +503,11 @@ class BagWriter:
     # ------------------------------------------------------------ internals
 
     def _make_directory(self) -> None:
-        if self.path.exists() or self.path.is_symlink():
-            raise BagError(f'{self.path} exists already, not overwriting')
+        check_new_folder(self.path)      # not an input, nothing there (OutputRefused)
         try:
             self.path.mkdir(parents=True, exist_ok=False)
         except FileExistsError:
-            raise BagError(f'{self.path} exists already, not overwriting') from None
+            raise OutputRefused(f'{self.path} exists already, not overwriting') from None
         except OSError as exc:
             raise BagError(f'cannot create bag directory {self.path}: {exc.strerror}') from None
 
@@ -721,8 +721,7 @@ class BagWriter:
             self._stream.flush()              # the buffered tail into the (removed) file first
             size = os.fstat(fileno).st_size
             directory, target = _reclaim(self.path, self.file_name)
-            fd = os.open(target, os.O_RDWR | os.O_CREAT | os.O_EXCL
-                         | getattr(os, 'O_CLOEXEC', 0), 0o666)
+            fd = os.open(target, os.O_RDWR | OPEN_NEW, 0o666)
         except OSError as exc:
             self._stopped(f'recording stopped: {old} is gone ({what} during the recording) '
                           f'and cannot be written again ({exc.strerror or exc}); the {count} '
@@ -767,12 +766,13 @@ class BagWriter:
             return
         try:
             self._write_metadata_yaml()
-        except OSError as exc:
+        except (OSError, BagError) as exc:      # BagError: e.g. a folder planted in its place
             where = (f'{self.mcap_path} is complete and reads on its own (crawler_sim.bag.load, '
                      'rosbags, ros2 bag play FILE.mcap)' if self.mcap_path.exists()
                      else f'{self.mcap_path} no longer exists either')
+            reason = getattr(exc, 'strerror', None) or exc
             self._report(f'metadata.yaml could not be written in {self.path} '
-                         f'({exc.strerror or exc}); {where}')
+                         f'({reason}); {where}')
 
     def _close_stream(self) -> None:
         stream, self._stream = getattr(self, '_stream', None), None
@@ -815,13 +815,9 @@ class BagWriter:
         return {ROSBAG2_METADATA_KEY: _yaml(self._bag_metadata())}
 
     def _write_metadata_yaml(self) -> None:
-        text = _yaml({'rosbag2_bagfile_information': self._bag_metadata()})
-        tmp = self.path / '.metadata.yaml.tmp'
-        with open(tmp, 'w', encoding='utf-8') as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, self.path / 'metadata.yaml')
+        # atomically, never through a link planted in the bag folder (crawler_sim.bag.files)
+        write_text(self.path / 'metadata.yaml',
+                   _yaml({'rosbag2_bagfile_information': self._bag_metadata()}))
 
 
 _FAILED = object()

@@ -3,9 +3,11 @@ export live in `sweep_commands`). The benchmarks are not user commands: they run
 checkout (``python -m benchmarks.solvers``, see benchmarks/).
 
 Exit codes: 0 success; 1 the work failed (solver failure, unreadable or damaged bag, write
-error, replay mismatch); 2 bad input (usage, missing file, invalid scene or YAML); 130
-interrupted. Every error is one line on stderr, ``crawler-sim: error: ...``
-(``--debug`` shows the traceback instead). Progress goes to stderr, results to stdout.
+error, replay mismatch); 2 bad input (usage, missing file, invalid scene or YAML) or a refused
+output (one of the command's inputs, inside an input bag folder, a directory, an existing bag:
+`crawler_sim.bag.files`); 130 interrupted. Every error is one line on stderr,
+``crawler-sim: error: ...`` (``--debug`` shows the traceback instead). Progress goes to
+stderr, results to stdout.
 
 Heavy modules (the bag, matplotlib) are imported inside the subcommands, so
 ``crawler-sim --help`` does not need ROS or matplotlib.
@@ -225,17 +227,33 @@ def _as_node(scene: Any, as_node: dict) -> Any:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
+    from ..bag.files import reading
+
+    source = _existing(args.scene)
+    with reading(source):
+        return _simulate(args, source)
+
+
+def _simulate(args: argparse.Namespace, source: Path) -> int:
+    from ..bag.files import check_new_folder
     from ..core.scene import load_scene
 
-    scene = load_scene(_existing(args.scene))
+    scene = load_scene(source)
     penalty = args.penalty
     if args.method == 'penalty' and penalty is None and scene.run.penalty is None:
         from ..core.plant.config import PARAMETERS
         penalty = PARAMETERS['penalty'][0][0]          # sim_node's default regularisation
         _info(f'method penalty: n = {penalty:g} N s/m (sim_node\'s default; --penalty N)')
     scene = scene.with_run(method=args.method, t_end=args.t_end, dt=args.dt, penalty=penalty)
-    if args.out and Path(args.out).exists():       # fail before a long run, not after it
-        raise UsageError(f'{args.out} exists already, not overwriting')
+    # the outputs are checked before a long run, not after it
+    if args.out:
+        check_new_folder(args.out)
+    if args.plot:
+        from ..bag.plot import figure_output
+        if args.out and _inside(Path(args.plot), Path(args.out)):
+            raise UsageError(f'--plot {args.plot}: lies inside the bag folder --out '
+                             f'{args.out}; a bag holds its recording only')
+        figure_output(args.plot)
     r = scene.run
     as_node = None
     if args.as_node:
@@ -396,19 +414,28 @@ def _cmd_info(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _inside(path: Path, folder: Path) -> bool:
+    """True if ``path`` is ``folder`` or lies inside it (by name: ``folder`` need not exist)."""
+    here, there = Path(os.path.abspath(path)), Path(os.path.abspath(folder))
+    return here == there or there in here.parents
+
+
 def _cmd_plot(args: argparse.Namespace) -> int:
     path = _existing(args.bag, 'bag')
     from ..bag import plot
 
-    plot(path, args.output)
-    print(args.output)
+    print(plot(path, args.output))        # the file written, exactly as named
     return EXIT_OK
 
 
 def _cmd_recover(args: argparse.Namespace) -> int:
     source = _existing(args.source, 'bag or MCAP file')
     from ..bag import recover
+    from ..bag.files import check_new_folder, reading
+    from ..bag.recover import default_destination
 
+    with reading(source):                 # before any reading: not the source, nor inside it
+        check_new_folder(args.output or default_destination(source))
     with _Progress(f'recovering {args.source}'):
         res = recover(source, args.output)
     topics = ', '.join(f'{name} {n}' for name, n in res.topics.items()) or 'none'
@@ -428,7 +455,8 @@ def build_parser() -> argparse.ArgumentParser:
         prog=PROG, description='Simulate friction-based crawling robots; record, inspect, '
         'plot, replay and recover runs; sweep and optimise gaits.',
         epilog='exit codes: 0 ok, 1 the work failed (solver, bag, replay mismatch), '
-        '2 bad input (usage, missing file, invalid scene), 130 interrupted',
+        '2 bad input (usage, missing file, invalid scene) or a refused output (an input, '
+        'inside an input bag, a directory, an existing bag), 130 interrupted',
         formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--debug', action='store_true',
                         help='show the full traceback on errors')
@@ -508,7 +536,10 @@ def _version() -> str:
 def _exit_code(exc: BaseException) -> int:
     scene = sys.modules.get('crawler_sim.core.scene')
     spec = sys.modules.get('crawler_sim.sweep.spec')
+    files = sys.modules.get('crawler_sim.bag.files')     # loaded by every command that writes
     if spec is not None and isinstance(exc, spec.SpecError):
+        return EXIT_USAGE
+    if files is not None and isinstance(exc, files.OutputRefused):
         return EXIT_USAGE
     journal = sys.modules.get('crawler_sim.core.plant.replay')
     if journal is not None and isinstance(exc, journal.JournalError):   # a recorded input
@@ -525,8 +556,10 @@ def _describe(exc: BaseException) -> str:
         return f'{where}{exc.strerror}'
     if isinstance(exc, ImportError):
         return f'a part of crawler_sim this command needs is missing: {exc}'
-    known = (UsageError, ValueError, RuntimeError, ArithmeticError)
-    if isinstance(exc, known) or type(exc).__name__ == 'BagError':
+    errors = sys.modules.get('crawler_sim.bag.errors')
+    known = (UsageError, ValueError, RuntimeError, ArithmeticError) + (
+        (errors.BagError,) if errors is not None else ())
+    if isinstance(exc, known):
         return str(exc) or type(exc).__name__
     return f'internal error ({type(exc).__name__}: {exc}); rerun with --debug for the traceback'
 

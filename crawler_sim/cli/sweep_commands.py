@@ -45,14 +45,30 @@ def _spec_of(path: Path) -> Any:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    EXIT_OK, UsageError, _existing, _info, _print_table = _cli()
-    from ..sweep import sweep
-    from ..sweep.tables import write_table
+    from ..bag.files import reading
 
-    spec = _spec_of(_existing(args.spec))
+    source = _cli()[2](args.spec)
+    with reading(source):                 # no output may be the spec (or results) it runs
+        return _sweep(args, source)
+
+
+def _sweep(args: argparse.Namespace, source: Path) -> int:
+    EXIT_OK, UsageError, _existing, _info, _print_table = _cli()
+    from ..bag.files import OutputRefused, check_output
+    from ..sweep import sweep
+    from ..sweep.tables import table_files, write_table
+
+    spec = _spec_of(source)
     fmt = 'csv' if args.csv else 'parquet'
     out = Path(args.output or f'sweep_{spec.name}.{fmt}')
+    for file in table_files(out, fmt):    # before the sweep runs, not after
+        check_output(file)
     checkpoint = Path(args.checkpoint) if args.checkpoint else out.with_name(out.name + '.chunks')
+    if not args.checkpoint and checkpoint.is_symlink():
+        # a folder the sweep makes beside its output is not followed through a planted link
+        # (a folder the user names with --checkpoint is, as given)
+        raise OutputRefused(f'{checkpoint}: the default checkpoint folder is a link; remove it '
+                            'or name a folder with --checkpoint')
     if checkpoint.exists():
         _info(f'resuming from {checkpoint} (finished chunks are not recomputed)')
     client = _client(args.scheduler)
@@ -88,29 +104,48 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
     bag = _existing(args.bag, 'bag')
     out, fmt = (args.parquet, 'parquet') if args.parquet else (args.csv, 'csv')
-    samples, events = export_bag(bag, out, fmt)
+    samples, events = export_bag(bag, out, fmt)   # every output checked before any is written
     print(samples)
     print(events)
     return EXIT_OK
 
 
 def _cmd_optimize(args: argparse.Namespace) -> int:
+    from ..bag.files import reading
+
+    source = _cli()[2](args.scene)
+    with reading(source):                 # no output may be the scene it optimises
+        return _optimize(args, source)
+
+
+def _optimize(args: argparse.Namespace, source: Path) -> int:
     EXIT_OK, UsageError, _existing, _info, _print_table = _cli()
     import yaml
 
     from dataclasses import replace
 
+    from ..bag.files import check_output, write_text
     from ..core.actuator import ActuatorLimits
     from ..core.scene import load_scene, scene_to_dict
     from ..sweep.optimize import STREAM, gait_node_params, optimize, sim_node_params
+    from ..sweep.tables import table_files
 
-    scene = load_scene(_existing(args.scene))
+    scene = load_scene(source)
     limits = ActuatorLimits(args.bandwidth, args.max_speed, args.max_acceleration)
     stream = replace(STREAM, rate=args.play_rate, duration=args.play_seconds)
     out = Path(args.output)
     stem = out.with_suffix('')
     scene_file = stem.with_name(stem.name + '_scene.yaml')
     sim_file = stem.with_name(stem.name + '_sim.yaml')
+    # every output checked before the optimiser runs (minutes), not after it
+    for file in (out, scene_file) + ((sim_file,) if args.score == 'node' else ()):
+        check_output(file)
+    if args.history:
+        from ..bag.plot import figure_output
+        figure_output(args.history)
+    if args.history_table:
+        for file in table_files(args.history_table):
+            check_output(file)
     client = _client(args.scheduler)
     try:
         res = optimize(scene, objective=args.objective, family_name=args.family,
@@ -147,12 +182,12 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
             f'#       ros2 run crawler_sim gait_node --ros-args --params-file {out.name}\n'
             if args.score == 'node' else
             f'# play: ros2 run crawler_sim gait_node --ros-args --params-file {out.name}\n')
-    scene_file.write_text(header + yaml.safe_dump({'scene': best_scene}, sort_keys=False))
+    write_text(scene_file, header + yaml.safe_dump({'scene': best_scene}, sort_keys=False))
     node = gait_node_params(res, str(scene_file.resolve()))
-    out.write_text(header + play + yaml.safe_dump(node, sort_keys=False))
+    write_text(out, header + play + yaml.safe_dump(node, sort_keys=False))
     sim = sim_node_params(res)
     if sim is not None:
-        sim_file.write_text(header + play + yaml.safe_dump(sim, sort_keys=False))
+        write_text(sim_file, header + play + yaml.safe_dump(sim, sort_keys=False))
     if args.history:
         from ..sweep.figures import optimize_history
         optimize_history(res, args.history)

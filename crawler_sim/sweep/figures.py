@@ -1,5 +1,6 @@
 """Figures of sweeps and optimisations: a speed map over two swept parameters, and the
-optimiser's history. matplotlib (Agg) is imported inside the functions."""
+optimiser's history. matplotlib (Agg) is imported inside the functions; the figures are written
+by `crawler_sim.bag.plot.save` (the package's one way to write a figure)."""
 from __future__ import annotations
 
 import os
@@ -8,6 +9,8 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+
+from ..bag.plot import save
 
 __all__ = ['speed_map', 'optimize_history']
 
@@ -53,8 +56,10 @@ def speed_map(df: pd.DataFrame, x: str, y: str, path: str | os.PathLike, *,
     path = Path(path)
     if own:
         fig.tight_layout()
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
+        try:
+            save(fig, path, dpi=110)
+        finally:
+            plt.close(fig)
     return path
 
 
@@ -97,7 +102,7 @@ def optimize_history(result: Any, path: str | os.PathLike) -> Path:
     a2.legend(fontsize='small')
     fig.suptitle(f'optimise {result.family.name} stroke: {result.objective}', fontsize='medium')
     fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    try:
+        return save(fig, path, dpi=110)
+    finally:
+        plt.close(fig)

@@ -143,7 +143,7 @@ class Checkpoint:
                 raise SpecError(f'{self.dir}: checkpoint of another sweep spec; use another '
                                 'directory or delete it')
         else:
-            write_atomically(stamp, lambda tmp: tmp.write_text(data, encoding='utf-8'))
+            write_atomically(stamp, lambda fh: fh.write(data.encode('utf-8')))
 
     def _path(self, index: int) -> Path:
         return self.dir / f'chunk_{index:06d}.parquet'
@@ -163,7 +163,7 @@ class Checkpoint:
     def save(self, index: int, df: pd.DataFrame) -> None:
         """Write chunk ``index`` atomically: a killed run never leaves half a chunk, a failed
         write (full disk) no temporary file, and the OSError names the chunk's path."""
-        write_atomically(self._path(index), lambda tmp: df.to_parquet(tmp, index=False))
+        write_atomically(self._path(index), lambda fh: df.to_parquet(fh, index=False))
 
 
 def bar(label: str) -> Progress:

@@ -15,27 +15,31 @@ CSV a JSON file beside it, ``<name>.csv.json`` (the CSV itself is plain: ``pd.re
 ``np.genfromtxt`` read it as is). :func:`read_table` restores it into ``attrs`` (also from the
 first line ``# crawler_sim: {JSON}`` of CSV files written before).
 
-Files are written through :func:`write_atomically`: a temporary ``<name>.tmp`` beside the file,
-renamed over it once complete. A failed write (a full disk, an unwritable directory) removes the
-temporary file and raises an OSError naming the file, e.g. ``out.parquet: cannot write: No space
-left on device``.
+Files are written through :func:`crawler_sim.bag.files.write_atomically` (the package's one
+way to write a file, re-exported here): a temporary file created exclusively beside the output,
+never through a link, renamed over it once complete; an output that is one of the command's
+inputs is refused. A failed write (a full disk, an unwritable directory) removes the temporary
+file and raises an OSError naming the file, e.g. ``out.parquet: cannot write: No space left on
+device``. Every file of a table (the CSV and its sidecar) is checked before the first is
+written.
 """
 from __future__ import annotations
 
-import errno
+import io
 import json
 import os
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from .. import __version__
+from ..bag.files import OutputRefused, check_output, write_atomically
 from ..core.trajectory import Trajectory
 
 __all__ = ['trajectory_frames', 'run_frames', 'frames', 'write_table', 'read_table',
-           'export_bag', 'write_atomically', 'FORMATS']
+           'export_bag', 'export_paths', 'table_files', 'write_atomically', 'FORMATS']
 
 FORMATS = ('parquet', 'csv')
 _META_KEY = 'crawler_sim'
@@ -107,50 +111,24 @@ def frames(obj: Any) -> tuple[pd.DataFrame, pd.DataFrame]:
     return run_frames(obj)
 
 
-def _format(path: Path, fmt: str | None) -> str:
+def _format(path: Path, fmt: str | None, error: type[Exception] = ValueError) -> str:
+    """The table format of ``path``; ``error`` (an output's: OutputRefused) if there is none."""
     fmt = fmt or path.suffix.lstrip('.').lower()
     if fmt not in FORMATS:
-        raise ValueError(f'{path}: format must be one of {", ".join(FORMATS)} (from the '
+        raise error(f'{path}: format must be one of {", ".join(FORMATS)} (from the '
                          f'suffix .parquet or .csv, or given), got {fmt!r}')
     return fmt
 
 
-def write_atomically(path: str | os.PathLike, write: Callable[[Path], Any]) -> Path:
-    """Write ``path`` by calling ``write(tmp)`` on ``<path>.tmp`` beside it, then renaming that
-    over ``path``: the old file stays whole until the new one is complete.
-
-    If ``write`` or the rename fails, or is interrupted, the temporary file is removed; an
-    OSError (a full disk, an unwritable directory) is raised again as an OSError of the same
-    errno whose ``filename`` is ``path`` (pyarrow's name neither the file nor the cause plainly).
-    """
-    path = Path(path)
-    tmp = path.with_name(path.name + '.tmp')
-    try:
-        write(tmp)
-        tmp.replace(path)
-    except BaseException as exc:
-        try:
-            tmp.unlink(missing_ok=True)
-        except OSError:
-            pass                # e.g. the directory does not exist: there is no tmp either
-        if isinstance(exc, OSError):
-            raise _naming(exc, path) from exc
-        raise
-    return path
-
-
-def _naming(exc: OSError, path: Path) -> OSError:
-    """An OSError like ``exc`` (same errno, so the same subclass) that names ``path``."""
-    code = exc.errno or errno.EIO
-    reason = os.strerror(exc.errno) if exc.errno else str(exc).splitlines()[0]
-    return OSError(code, f'cannot write: {reason}', str(path))
-
-
 def write_table(df: pd.DataFrame, path: str | os.PathLike, fmt: str | None = None) -> Path:
     """Write ``df`` to Parquet or CSV (``fmt`` or the suffix) with its ``attrs['crawler_sim']``,
-    atomically (:func:`write_atomically`; OSError naming ``path`` if it cannot be written)."""
+    atomically (:func:`write_atomically`; OSError naming ``path`` if it cannot be written,
+    :class:`crawler_sim.bag.files.OutputRefused` for an output that may not be written: both
+    files of a CSV table are checked before either is written)."""
     path = Path(path)
-    fmt = _format(path, fmt)
+    fmt = _format(path, fmt, OutputRefused)
+    for file in table_files(path, fmt):
+        check_output(file)
     meta = json.dumps(df.attrs.get(_META_KEY, {'version': __version__}), sort_keys=True,
                       default=str)
     if fmt == 'parquet':
@@ -160,13 +138,21 @@ def write_table(df: pd.DataFrame, path: str | os.PathLike, fmt: str | None = Non
         table = pa.Table.from_pandas(df)
         table = table.replace_schema_metadata({**(table.schema.metadata or {}),
                                                _META_KEY.encode(): meta.encode()})
-        return write_atomically(path, lambda tmp: pq.write_table(table, tmp))
+        return write_atomically(path, lambda fh: pq.write_table(table, fh))
 
-    def write_csv(tmp: Path) -> None:
-        with open(tmp, 'w', encoding='utf-8', newline='') as fh:
-            df.to_csv(fh, float_format='%.17g')       # 17 digits: floats read back exactly
-    write_atomically(_sidecar(path), lambda tmp: tmp.write_text(meta + '\n', encoding='utf-8'))
+    def write_csv(fh: io.BufferedIOBase) -> None:
+        text = io.TextIOWrapper(fh, encoding='utf-8', newline='')
+        df.to_csv(text, float_format='%.17g')       # 17 digits: floats read back exactly
+        text.flush()
+        text.detach()                               # the writer closes the file itself
+    write_atomically(_sidecar(path), lambda fh: fh.write((meta + '\n').encode('utf-8')))
     return write_atomically(path, write_csv)
+
+
+def table_files(path: str | os.PathLike, fmt: str | None = None) -> list[Path]:
+    """Every file :func:`write_table` writes for ``path``: the table, and a CSV's sidecar."""
+    path = Path(path)
+    return [path, _sidecar(path)] if _format(path, fmt) == 'csv' else [path]
 
 
 def _sidecar(path: Path) -> Path:
@@ -200,11 +186,26 @@ def read_table(path: str | os.PathLike) -> pd.DataFrame:
 
 def export_bag(bag: str | os.PathLike, out: str | os.PathLike, fmt: str | None = None
                ) -> tuple[Path, Path]:
-    """Write a bag's samples to ``out`` and its events next to it (``<stem>_events<suffix>``)."""
+    """Write a bag's samples to ``out`` and its events next to it (``<stem>_events<suffix>``).
+
+    Every output file is checked (:func:`crawler_sim.bag.files.check_output`, with ``bag`` as
+    the input) before the bag is read or anything is written."""
+    from ..bag.files import reading
+
+    out = Path(out)
+    fmt = _format(out, fmt, OutputRefused)
+    events_path = export_paths(out, fmt)[1]
+    with reading(bag):
+        for file in table_files(out, fmt) + table_files(events_path, fmt):
+            check_output(file)
+        samples, events = frames(bag)
+        write_table(samples, out, fmt)
+        write_table(events.set_index('t'), events_path, fmt)
+    return out, events_path
+
+
+def export_paths(out: str | os.PathLike, fmt: str | None = None) -> tuple[Path, Path]:
+    """The two tables :func:`export_bag` writes for ``out``: samples and events."""
     out = Path(out)
     fmt = _format(out, fmt)
-    samples, events = frames(bag)
-    events_path = out.with_name(f'{out.stem}_events.{fmt}')
-    write_table(samples, out, fmt)
-    write_table(events.set_index('t'), events_path, fmt)
-    return out, events_path
+    return out, out.with_name(f'{out.stem}_events.{fmt}')

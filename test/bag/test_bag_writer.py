@@ -31,6 +31,12 @@ def record(path: Path, n: int, **options) -> dict:
     return a
 
 
+def messages(mcap: Path) -> int:
+    """Messages of a complete MCAP file (the reader fails on a cut one)."""
+    with open(mcap, 'rb') as f:
+        return sum(1 for _ in NonSeekingReader(f).iter_messages())
+
+
 # ---------------------------------------------------------------- never overwrite
 
 def test_recording_into_an_existing_directory_refuses_and_writes_nothing(tmp_path):
@@ -51,6 +57,49 @@ def test_recording_onto_an_existing_file_refuses_and_leaves_it_unchanged(tmp_pat
                                  if k != 'masses'})
     assert target.read_bytes() == b'precious'
     assert sorted(p.name for p in tmp_path.iterdir()) == ['run']
+
+
+@pytest.mark.parametrize('planted', ['.metadata.yaml.tmp', 'metadata.yaml'])
+@pytest.mark.parametrize('how', ['create', 'path'])
+def test_a_link_planted_in_the_bag_folder_is_not_written_through_at_close(tmp_path, planted,
+                                                                          how):
+    """Issue 38: anyone who can write to a shared record folder planted a link at the bag's
+    metadata temporary (a fixed name), and the close overwrote what it points to."""
+    victim = tmp_path / 'victim.txt'
+    victim.write_bytes(b'the user\'s file')
+    writer = (BagWriter.create(tmp_path / 'records', 'run', flush_interval=None)
+              if how == 'create' else BagWriter(tmp_path / 'run', flush_interval=None))
+    (writer.path / planted).symlink_to(victim)
+    writer.write('/joint_states', JOINT_STATE, joint_state(1), 10)
+    writer.close()
+    assert writer.error is None and writer.problems == []
+    assert victim.read_bytes() == b'the user\'s file'
+    meta = writer.path / 'metadata.yaml'
+    assert meta.is_file() and not meta.is_symlink() and 'message_count: 1' in meta.read_text()
+    assert messages(writer.mcap_path) == 1
+
+
+def test_a_link_planted_at_the_recording_file_is_refused_not_followed(tmp_path):
+    victim = tmp_path / 'victim.txt'
+    victim.write_bytes(b'the user\'s file')
+
+    def planting_opener(path: Path):
+        path.symlink_to(victim)                 # planted between mkdir and open
+        from crawler_sim.bag.writer import _default_open
+        return _default_open(path)
+
+    with pytest.raises(BagError, match='cannot create'):
+        BagWriter(tmp_path / 'run', _opener=planting_opener)
+    assert victim.read_bytes() == b'the user\'s file'
+
+
+def test_a_folder_planted_at_metadata_yaml_is_a_reported_problem_not_an_error(tmp_path):
+    writer = BagWriter(tmp_path / 'run', flush_interval=None)
+    (writer.path / 'metadata.yaml').mkdir()
+    with pytest.warns(RuntimeWarning, match='metadata.yaml could not be written'):
+        writer.close()
+    assert writer.error is None and len(writer.problems) == 1
+    assert messages(writer.mcap_path) == 0                  # the .mcap reads on its own
 
 
 # ---------------------------------------------------------------- disk full

@@ -1,8 +1,9 @@
 """A full disk or an unwritable output: an error naming the file, and no temporary file left.
 
-A real "No space left on device" comes from /dev/full: the file that a write goes through
-(``<name>.tmp``, the documented temporary beside the output) is made a symlink to it, so the
-kernel fails the write exactly as on a full disk.
+A real "No space left on device" comes from /dev/full: the temporary file a write of the output
+goes through (`crawler_sim.bag.files`, created beside it under a random name that nothing can
+plant a link at) has /dev/full put behind its descriptor, so the kernel fails the write exactly
+as on a full disk.
 """
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ import pandas as pd
 import pytest
 
 from crawler_sim import cli
+from crawler_sim.bag import files
 from crawler_sim.sweep import spec_from_dict
 from crawler_sim.sweep.runner import Checkpoint
 from crawler_sim.sweep.tables import read_table, write_table
@@ -34,11 +36,32 @@ SPEC_YAML = '''sweep:
 '''
 
 
+FULL: set[str] = set()             # outputs whose next write finds the disk full
+
+
+@pytest.fixture(autouse=True)
+def _full_disk(monkeypatch):
+    """Writes of the outputs in FULL go to /dev/full (through the temporary's descriptor)."""
+    real = files._temporary
+    FULL.clear()
+
+    def temporary(folder_fd: int, name: str):
+        tmp, fd, made = real(folder_fd, name)
+        target = os.path.join(os.readlink(f'/proc/self/fd/{folder_fd}'), name)
+        if target in FULL:                  # once: the next write of that output has room
+            FULL.discard(target)
+            dev = os.open('/dev/full', os.O_WRONLY)
+            os.dup2(dev, fd)
+            os.close(dev)
+        return tmp, fd, made
+
+    monkeypatch.setattr(files, '_temporary', temporary)
+
+
 def full(path: Path) -> Path:
-    """Make the temporary file of ``path`` a door to /dev/full; returns it."""
-    tmp = path.with_name(path.name + '.tmp')
-    tmp.symlink_to('/dev/full')
-    return tmp
+    """Make the disk full for the next write of the output ``path``; returns ``path``."""
+    FULL.add(os.path.realpath(path))
+    return path
 
 
 def leftovers(directory: Path) -> list[str]:
@@ -61,9 +84,8 @@ def test_a_table_on_a_full_disk_is_an_error_naming_it_and_the_old_file_stays(tmp
 def test_a_table_in_an_unwritable_place_is_an_error_naming_it(tmp_path):
     (tmp_path / 'file').write_text('not a directory')
     path = tmp_path / 'file' / 'out.parquet'
-    with pytest.raises(NotADirectoryError) as info:
+    with pytest.raises(files.OutputRefused, match=f'{path}: the folder .* is not a folder'):
         write_table(FRAME, path)
-    assert info.value.filename == str(path)
     assert leftovers(tmp_path) == [] and (tmp_path / 'file').read_text() == 'not a directory'
 
 
