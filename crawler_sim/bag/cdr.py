@@ -38,7 +38,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import NDArray
 
-from .schema import message_class
+from .rosmsg import deserialize, field_types, serialize
 
 ENCAPSULATION = 4
 _ROW_BYTES = 256 << 10          # bytes of message rows copied at once by Decoder.add
@@ -153,8 +153,7 @@ class _Walker:
 
     def message(self, path: str, type_str: str) -> None:
         pkg, _, name = type_str.rpartition('/')
-        cls = message_class(f'{pkg.split("/")[0]}/msg/{name}')
-        for name, sub in cls.get_fields_and_field_types().items():
+        for name, sub in field_types(f'{pkg.split("/")[0]}/msg/{name}').items():
             self.element(f'{path}.{name}' if path else name, sub)
 
 
@@ -235,11 +234,11 @@ def field_value(msg: Any, path: str) -> Any:
 
 
 def _slow(data: bytes, type_name: str, paths: Sequence[str]) -> dict[str, NDArray]:
-    """Fields ``paths`` of one message through rclpy (UndecodableMessage if it fails)."""
-    from rclpy.serialization import deserialize_message
+    """Fields ``paths`` of one message through rclpy, or rosbags without ROS
+    (:func:`crawler_sim.bag.rosmsg.deserialize`; UndecodableMessage if it fails)."""
     try:
-        msg = deserialize_message(data, message_class(type_name))
-    except Exception as exc:  # noqa: BLE001 - rclpy raises its own RMWError types
+        msg = deserialize(data, type_name)
+    except Exception as exc:  # noqa: BLE001 - rclpy and rosbags raise their own types
         raise UndecodableMessage(f'undecodable {type_name} message ({exc})') from None
     out = {}
     for path in paths:
@@ -409,8 +408,9 @@ class Encoder:
 
     Parameters
     ----------
-    prototype : rclpy message
-        A message with the final shape: strings, sequence lengths and every field not listed in
+    prototype : message
+        An rclpy message, or without ROS the typestore's (:mod:`crawler_sim.bag.rosmsg`), with
+        the final shape: strings, sequence lengths and every field not listed in
         ``groups`` are taken from it, for every message encoded.
     type_name : str
         ``pkg/msg/Type`` of the prototype.
@@ -438,15 +438,16 @@ class Encoder:
         The prototype's serialisation with its padding bytes zeroed.
     """
 
-    __slots__ = ('type_name', 'groups', 'template', 'encode')
+    __slots__ = ('type_name', 'groups', 'template', 'encode', 'fields')
 
     def __init__(self, prototype: Any, type_name: str, groups: Sequence[Sequence[str]]) -> None:
-        from rclpy.serialization import serialize_message
-        data = serialize_message(prototype)
+        data = serialize(prototype, type_name)
         lay = layout(data, type_name)
         self.type_name = type_name
         self.groups = tuple(tuple(g) for g in groups)
         self.template = template = _zero_padding(data, lay)
+        self.fields = {path: lay.fields[path] for group in self.groups for path in group
+                       if path in lay.fields}
         fmt, pos = '<', 0
         constants: dict[str, bytes] = {}     # name in the generated code -> constant bytes
         arguments = []                       # pack's arguments, in the generated code
@@ -476,6 +477,37 @@ class Encoder:
             raise LayoutError(f'{type_name}: {exc}') from None
         if again != template:
             raise LayoutError(f'{type_name}: the template does not round-trip')
+
+    def rows(self, columns: Mapping[str, Any], n: int) -> NDArray[np.uint8]:
+        """``n`` messages at once, as rows of an ``(n, len(template))`` byte array: row ``i``
+        is what :attr:`encode` returns for the values of row ``i`` of ``columns``.
+
+        ``columns`` maps each path of :attr:`groups` to an array of shape ``(n,)`` or
+        ``(n, count)`` (its count of values per message, as in the prototype). The rows of a
+        run differ only in numbers, so each field is one strided copy of its column into the
+        template's rows (no per-message work): the columnar form of :attr:`encode`, used to
+        record whole offline runs. ``ValueError`` for a path that is not in :attr:`groups` or
+        a column of the wrong shape.
+        """
+        out = np.empty((n, len(self.template)), dtype=np.uint8)
+        out[:] = np.frombuffer(self.template, dtype=np.uint8)
+        missing = set(self.fields) - set(columns)
+        if missing:
+            raise ValueError(f'{self.type_name}: no column for {", ".join(sorted(missing))}')
+        for path, values in columns.items():
+            if path not in self.fields:
+                raise ValueError(f'{self.type_name}: {path} is not a field of the encoder')
+            offset, count, dtype = self.fields[path]
+            arr = np.asarray(values)
+            if arr.shape not in ((n, count), (n,) if count == 1 else (n, count)):
+                raise ValueError(f'{self.type_name}: column {path} has shape {arr.shape}, '
+                                 f'expected ({n}, {count})')
+            # numbers packed little-endian as struct packs them (a float column to an integer
+            # field would be truncated there too; the callers pass the field's own type)
+            col = np.ascontiguousarray(arr.reshape(n, count), dtype=np.dtype(dtype))
+            width = col.dtype.itemsize * count
+            out[:, offset:offset + width] = col.view(np.uint8).reshape(n, width)
+        return out
 
 
 def _packer(pack: Any, count: int, arguments: list[str], constants: dict[str, bytes]) -> Any:

@@ -2,7 +2,8 @@
 
 Topics are matched by suffix (``/body_states``, ``/crawler1/body_states``...), see
 :mod:`crawler_sim.bag.topics`. The hot topics are decoded by :class:`crawler_sim.bag.cdr.Decoder`
-(vectorized, checked against rclpy), chunk by chunk while the file is scanned.
+(vectorized, checked against rclpy, or rosbags without ROS), chunk by chunk while the file is
+scanned.
 
 Module size: about 520 lines, over the ~400 guide: the chunk scan, the per-topic decoders and
 the memory budget all read one scan state (splitting them would pass it around in pieces).
@@ -27,7 +28,7 @@ from .cdr import Decoder
 from .clock import NS_PER_S, to_seconds
 from .errors import BagError
 from .mcapfile import Batch, Scan, scan
-from .schema import message_class
+from .rosmsg import deserialize
 from .topics import (APPLIED_COMMAND, BODY_STATES, CONTACT_STATES, EVENTS, JOINT_STATES,
                      LINKAGE_CMD, SCENE, SCENE_METADATA, normalize_namespace, split_topic)
 
@@ -422,9 +423,8 @@ def _stamps_ns(series: _Series) -> NDArray[np.int64]:
 def _names(series: _Series | None) -> tuple[str, ...]:
     if series is None or series.first is None:
         return ()
-    from rclpy.serialization import deserialize_message
     try:
-        return tuple(deserialize_message(series.first, message_class(series.type)).name)
+        return tuple(deserialize(series.first, series.type).name)
     except Exception:  # noqa: BLE001 - names are informative only
         return ()
 
@@ -432,9 +432,8 @@ def _names(series: _Series | None) -> tuple[str, ...]:
 def _scene(stores: list[dict[str, _TopicData]], scans: list[Scan], ns: str) -> dict[str, Any]:
     series = _merged(stores, SCENE.name(ns))
     if series is not None and series.first is not None and series.type == SCENE.type:
-        from rclpy.serialization import deserialize_message
         try:
-            text = deserialize_message(series.first, message_class(SCENE.type)).data
+            text = deserialize(series.first, SCENE.type).data
             value = yaml.safe_load(text)
             if isinstance(value, dict):
                 return value

@@ -108,6 +108,11 @@ def _typestore() -> Any:
     return get_typestore(Stores.ROS2_JAZZY)
 
 
+def typestore() -> Any:
+    """rosbags' Jazzy typestore (public name of the cached store; None without rosbags)."""
+    return _typestore()
+
+
 def _not_found(type_name: str, what: str) -> BagError:
     pkg = split_type(type_name)[0]
     return BagError(

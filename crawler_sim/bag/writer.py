@@ -75,6 +75,7 @@ from .errors import BagError
 from .files import OPEN_NEW, OutputRefused, check_new_folder, write_text
 from .mcapwriter import McapWriter
 from .naming import claim_directory
+from .rosmsg import ros_class, serialize
 from .topics import SCENE, SCENE_METADATA
 
 ROS_DISTRO = 'jazzy'
@@ -500,6 +501,47 @@ class BagWriter:
         with self._lock:
             return self._add(entry, data, log_time, publish_time, sequence)
 
+    # ------------------------------------------------------------ columnar API (offline runs)
+
+    def channel(self, topic: str, type_name: str) -> tuple[int, Trimmer | None]:
+        """Register ``topic`` (schema and channel, as :meth:`write` does) if new; its MCAP
+        channel id and the trimmer its messages go through, for :meth:`write_records`."""
+        with self._lock:
+            entry = self._topic(topic, schemas.canonical_type(type_name))
+            return entry.channel_id, entry.trimmer
+
+    def write_records(self, records: Any, channel_ids: Any, log_times: Any, sizes: Any) -> bool:
+        """Write many Message records already laid out (:func:`crawler_sim.bag.mcapwriter.
+        message_records`, on channels from :meth:`channel`), in file order: the bytes
+        :meth:`write` of each message in turn writes (scene message included). False once
+        recording has stopped."""
+        if self._closed:
+            raise RuntimeError(f'{self.path}: write_records() after close()')
+        channel_ids = np.asarray(channel_ids, dtype=np.int64)
+        log_times = np.asarray(log_times, dtype=np.int64)
+        if len(log_times) and log_times.min() < 0:
+            raise ValueError(f'log times must be >= 0 (MCAP times are unsigned), got '
+                             f'{int(log_times.min())}')
+        with self._lock:
+            if self.error is not None or not len(channel_ids):
+                return self.error is None
+            if self._scene_pending:
+                self._write_scene(int(log_times[0]))
+            if self._guard(self._writer.add_records, records, channel_ids, log_times,
+                           sizes) is _FAILED:
+                return False
+            self._dirty = True
+            counts = np.bincount(channel_ids)
+            for entry in self._unique_topics():
+                if entry.channel_id < len(counts):
+                    entry.count += int(counts[entry.channel_id])
+            stats = self._stats
+            stats.count += len(log_times)
+            low, high = int(log_times.min()), int(log_times.max())
+            stats.start = low if stats.start is None else min(stats.start, low)
+            stats.end = high if stats.end is None else max(stats.end, high)
+        return True
+
     # ------------------------------------------------------------ internals
 
     def _make_directory(self) -> None:
@@ -538,7 +580,7 @@ class BagWriter:
                           {'offered_qos_profiles': schemas.qos_yaml(qos),
                            'topic_type_hash': type_hash})
         entry = _Topic(topic, canonical, _id(cid), qos, type_hash,
-                       schemas.message_class(canonical), trimmer=Trimmer(canonical))
+                       ros_class(canonical), trimmer=Trimmer(canonical))
         self._topics[topic] = entry
         return entry
 
@@ -567,8 +609,7 @@ class BagWriter:
             if entry.cls is not None and type(msg) is not entry.cls:
                 raise ValueError(f'{entry.name}: message of type {schemas.type_of(msg)}, '
                                  f'expected {entry.type}')
-            from rclpy.serialization import serialize_message
-            data = serialize_message(msg)
+            data = serialize(msg, entry.type)       # rclpy's, or rosbags' without ROS
         return data if entry.trimmer is None else entry.trimmer.trim(data)
 
     def _write_scene(self, t_ns: int) -> None:

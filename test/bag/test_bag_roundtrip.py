@@ -336,3 +336,84 @@ def test_commands_fall_back_to_the_applied_command_topic(tmp_path):
     assert_array_equal(to_ns(run.commands.t), [10_000_000, 30_000_000])
     assert_array_equal(run.commands.values, [[0.1], [0.30000000000000004]])
     assert run.contact.shape == (4, 0) and np.isnan(run.lengths).all()
+
+
+# ------------------------------------------------------------------ columnar offline recording
+# Issue 43: recording an offline run cost about 1,000 times the run. record_arrays now encodes
+# whole runs column by column (crawler_sim.bag.cdr.Encoder.rows) and writes the records in
+# chunk-sized blocks (McapWriter.add_records): the same file as a loop of Recorder calls.
+
+def _record_by_loop(path: Path, a: dict, commands, events, scene, masses, **options) -> None:
+    """What record_arrays did before: one Recorder call per command, event and state."""
+    from crawler_sim.bag import Recorder
+    cmd_t, cmd_v = commands
+    pending = sorted([(tc, 0, i) for i, tc in enumerate(cmd_t)]
+                     + [(e[0], 1, e[1:]) for e in events], key=lambda it: (it[0], it[1]))
+
+    def write(item) -> None:
+        if item[1] == 0:
+            rec.record_command(item[0], cmd_v[item[2]])
+        else:
+            rec.record_event(item[0], *item[2])
+    with Recorder(path, scene=scene, masses=masses, flush_interval=None, **options) as rec:
+        k = 0
+        for i in range(len(a['t'])):
+            while k < len(pending) and pending[k][0] <= a['t'][i]:
+                write(pending[k])
+                k += 1
+            rec.record_state(a['t'][i], a['x'][i], a['v'][i], a['friction'][i],
+                             a['contact'][i], a['lengths'][i], a['rates'][i],
+                             a['linkage_force'][i])
+        for item in pending[k:]:
+            write(item)
+
+
+@pytest.mark.parametrize('batch', [1, 7, 4096])
+@pytest.mark.parametrize('chunk_size', [5000, 1 << 20])
+def test_columnar_recording_writes_the_file_a_loop_of_recorder_calls_writes(
+        tmp_path, arrays, batch, chunk_size, monkeypatch):
+    """Byte for byte (.mcap and metadata.yaml), with commands and events before the first
+    state, at a state's time, between states and after the last, across chunk boundaries and
+    however the steps are batched."""
+    from crawler_sim.bag import recorder
+    monkeypatch.setattr(recorder, 'BATCH', batch)
+    a = dict(arrays)
+    masses = a.pop('masses')
+    t = a['t']
+    commands = (np.array([0.0, t[0], t[3], t[3], 0.5 * (t[9] + t[10]), t[-1] + 1.0]),
+                np.arange(6.0 * (P - 1)).reshape(6, P - 1))
+    events = [(0.0, 0, 0, 1), (t[3], 1, 0, 1), (t[100] - 1e-9, 2, 1, -1), (t[-1] + 2.0, 0, 1, 0)]
+    columnar, loop = tmp_path / 'columnar' / 'run', tmp_path / 'loop' / 'run'
+    record_arrays(columnar, **a, commands=commands, events=events, scene=SCENE,
+                  masses=masses, chunk_size=chunk_size)
+    _record_by_loop(loop, a, commands, events, SCENE, masses, chunk_size=chunk_size)
+    data = (columnar / 'run_0.mcap').read_bytes()
+    assert len(data) > 50_000 and data == (loop / 'run_0.mcap').read_bytes()
+    assert (columnar / 'metadata.yaml').read_text() == (loop / 'metadata.yaml').read_text()
+    if chunk_size == 5000:
+        with open(columnar / 'run_0.mcap', 'rb') as f:
+            assert len(make_reader(f).get_summary().chunk_indexes) > 20
+
+
+def test_offline_messages_are_the_bytes_the_node_publishes_and_records(bag, arrays):
+    """Every state message of an offline bag equals what sim_node's encoder
+    (crawler_sim.ros.messages.OutputEncoder) makes of the same state: padding zero, so the
+    bytes of serialize_message of a built message (uninitialised padding) are not used."""
+    messages = pytest.importorskip('crawler_sim.ros.messages')
+    from types import SimpleNamespace
+    enc = messages.OutputEncoder()
+    a = arrays
+    want: dict[str, list[bytes]] = {topic: [] for topic in STATE_TOPICS}
+    for i in range(N):
+        st = SimpleNamespace(**{k: a[k][i] for k in ('x', 'v', 'friction', 'contact', 'lengths',
+                                                     'rates', 'linkage_force')})
+        t_ns = to_ns(a['t'][i])
+        for topic in STATE_TOPICS:
+            want[topic].append(enc.encode(topic[1:], st, t_ns, a['masses']))
+    got: dict[str, list[bytes]] = {topic: [] for topic in STATE_TOPICS}
+    with open(bag / 'run_0.mcap', 'rb') as f:
+        for _, channel, message in make_reader(f).iter_messages(log_time_order=False):
+            if channel.topic in got:
+                got[channel.topic].append(message.data)
+    for topic in STATE_TOPICS:
+        assert got[topic] == want[topic], topic
