@@ -240,12 +240,12 @@ class OptimizeResult:
 def _mapper(client: Any, workers: int) -> tuple[Callable, Callable[[], None]]:
     """A map(func, iterable) for the evaluations and a function that releases it."""
     if client is not None:
-        from .cluster import check_workers
+        from .cluster import check_workers, gather
         check_workers(client)
 
         def dask_map(func: Callable, xs: Iterable) -> list:
             futures = client.map(func.evaluate, [list(map(float, x)) for x in xs], pure=False)
-            return client.gather(futures)
+            return gather(client, futures)      # every wait with a deadline (cluster.py)
         return dask_map, lambda: None
     if workers > 1:
         import multiprocessing

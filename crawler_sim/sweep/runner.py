@@ -8,7 +8,10 @@ DataFrame bit for bit.
 
 With a ``checkpoint`` directory every finished chunk is written there as Parquet as soon as it
 arrives, and a later run of the same spec reads finished chunks instead of recomputing them
-(resuming after an interruption). The directory holds the spec; another spec is refused.
+(resuming after an interruption). The directory holds the spec; another spec is refused. Each
+chunk carries its identity (spec digest, scene range, rows, a digest of its values) and every
+finished chunk is verified before anything is computed: one that does not match is refused
+naming its file, never dropped or counted twice (`crawler_sim.sweep.checkpoint`).
 
 Local worker processes die with the driver: each arms the Linux parent-death signal (SIGKILL)
 when it starts, so a driver killed by SIGTERM or SIGKILL takes them with it, and a driver that is
@@ -29,8 +32,6 @@ import json
 import math
 import multiprocessing
 import os
-from pathlib import Path
-import re
 import signal
 import sys
 import time
@@ -40,9 +41,9 @@ import pandas as pd
 
 from .. import __version__
 from ..core.scene import SceneError
+from .checkpoint import Checkpoint, CheckpointError
 from .metrics import FIGURES, scene_figures
-from .spec import SpecError, SweepSpec, spec_from_dict
-from .tables import write_atomically
+from .spec import SweepSpec, spec_from_dict
 
 __all__ = ['sweep', 'run_chunk', 'chunk_params', 'chunk_len', 'n_chunks', 'assemble',
            'metadata', 'Progress', 'Checkpoint']
@@ -51,21 +52,19 @@ Progress = Callable[[int, int], None]
 
 
 def n_chunks(spec: SweepSpec) -> int:
-    """Number of chunks of ``spec``."""
-    return max(1, math.ceil(len(spec) / spec.chunk_size))
+    """Number of chunks of ``spec`` (`SweepSpec.n_chunks`)."""
+    return spec.n_chunks
 
 
 def chunk_len(spec: SweepSpec, index: int) -> int:
     """Number of scenes of chunk ``index`` (the last chunk may be short)."""
-    return max(0, min(spec.chunk_size, len(spec) - index * spec.chunk_size))
+    return len(spec.chunk_scenes(index))
 
 
 def chunk_params(spec: SweepSpec, index: int) -> list[dict]:
     """The parameter sets of chunk ``index`` (scenes index * chunk_size onwards), each computed
     from its scene index: O(chunk_size) wherever the chunk lies in the spec."""
-    start = index * spec.chunk_size
-    stop = min(start + spec.chunk_size, len(spec))
-    return [spec.param_set(k) for k in range(start, stop)]
+    return [spec.param_set(k) for k in spec.chunk_scenes(index)]
 
 
 def _row(spec: SweepSpec, scene_index: int, params: dict) -> dict:
@@ -125,45 +124,6 @@ def assemble(spec: SweepSpec, frames: Iterable[pd.DataFrame]) -> pd.DataFrame:
 def metadata(spec: SweepSpec) -> dict:
     """What re-runs a sweep: the spec as plain data and the package version."""
     return {'kind': 'sweep', 'version': __version__, 'spec': spec.to_dict()}
-
-
-_CHUNK_NAME = re.compile(r'^chunk_(\d+)\.parquet$')
-
-
-class Checkpoint:
-    """Finished chunks of one spec as Parquet files in a directory (see the module doc)."""
-
-    def __init__(self, directory: str | os.PathLike, spec: SweepSpec) -> None:
-        self.dir = Path(directory)
-        self.dir.mkdir(parents=True, exist_ok=True)
-        stamp = self.dir / 'spec.json'
-        data = json.dumps(spec.to_dict(), sort_keys=True)
-        if stamp.exists():
-            if stamp.read_text(encoding='utf-8') != data:
-                raise SpecError(f'{self.dir}: checkpoint of another sweep spec; use another '
-                                'directory or delete it')
-        else:
-            write_atomically(stamp, lambda fh: fh.write(data.encode('utf-8')))
-
-    def _path(self, index: int) -> Path:
-        return self.dir / f'chunk_{index:06d}.parquet'
-
-    def done(self, index: int) -> bool:
-        return self._path(index).exists()
-
-    def finished(self) -> set[int]:
-        """Indices of the finished chunks, from one listing of the directory (not one stat per
-        chunk: a spec of a billion scenes has millions of chunks)."""
-        names = (e.name for e in os.scandir(self.dir))
-        return {int(m.group(1)) for m in map(_CHUNK_NAME.match, names) if m}
-
-    def load(self, index: int) -> pd.DataFrame:
-        return pd.read_parquet(self._path(index))
-
-    def save(self, index: int, df: pd.DataFrame) -> None:
-        """Write chunk ``index`` atomically: a killed run never leaves half a chunk, a failed
-        write (full disk) no temporary file, and the OSError names the chunk's path."""
-        write_atomically(self._path(index), lambda fh: df.to_parquet(fh, index=False))
 
 
 def bar(label: str) -> Progress:
@@ -306,10 +266,10 @@ def sweep(spec: SweepSpec | dict | str | os.PathLike, *, client: Any = None,
     total_chunks, total = n_chunks(spec), len(spec)
     report = bar(f'sweep {spec.name}') if progress is True else progress or None
     store = Checkpoint(checkpoint, spec) if checkpoint is not None else None
-    finished = {i for i in store.finished() if i < total_chunks} if store is not None else set()
     # a checkpointed spec of more than _IN_MEMORY_SCENES keeps its chunks on disk only
     on_disk = store is not None and total > _IN_MEMORY_SCENES
     frames: dict[int, pd.DataFrame] = {}
+    finished = _verified(store, frames, on_disk) if store is not None else set()
     done = [sum(chunk_len(spec, i) for i in finished)]     # scenes finished
 
     def on_done(i: int, df: pd.DataFrame) -> None:
@@ -326,10 +286,42 @@ def sweep(spec: SweepSpec | dict | str | os.PathLike, *, client: Any = None,
     todo = (i for i in range(total_chunks) if i not in finished)
     n_todo = total_chunks - len(finished)
     if n_todo:
+        if store is not None:
+            store.check_writable()
         if client is not None:
-            from .cluster import run_on_client
-            run_on_client(client, spec, todo, on_done)
+            from .cluster import ClusterError, run_on_client
+            try:
+                run_on_client(client, spec, todo, on_done)
+            except ClusterError as exc:
+                # the chunks written so far stay: say where, and that a rerun resumes there
+                kept = (f'; {len(store.finished())} finished chunks are kept in {store.dir}: '
+                        'run the same command again to resume' if store is not None else '')
+                raise ClusterError(f'{exc}{kept}') from None
         else:
             _local(spec, todo, n_todo, workers or os.cpu_count() or 1, on_done)
     return assemble(spec, (frames[i] if i in frames else store.load(i)    # type: ignore
                            for i in range(total_chunks)))
+
+
+def _verified(store: Checkpoint, frames: dict[int, pd.DataFrame], on_disk: bool) -> set[int]:
+    """Indices of the checkpoint's chunks, each verified (`Checkpoint.load`) before anything is
+    computed; kept in ``frames`` unless ``on_disk``. Every chunk that fails is named in one
+    CheckpointError (the first in full, then the others' file names)."""
+    bad: list[tuple[int, CheckpointError]] = []
+    found = store.finished()
+    for i in found:
+        try:
+            df = store.load(i)
+        except CheckpointError as exc:
+            bad.append((i, exc))
+            continue
+        if not on_disk:
+            frames[i] = df
+    if bad:
+        first = str(bad[0][1])
+        if len(bad) > 1:
+            others = ', '.join(store.path(i).name for i, _ in bad[1:4])
+            first += (f' (and {len(bad) - 1} other chunks fail: {others}'
+                      f'{", ..." if len(bad) > 4 else ""})')
+        raise CheckpointError(first)
+    return set(found)

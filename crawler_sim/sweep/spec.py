@@ -352,6 +352,17 @@ class SweepSpec:
             return math.prod(len(v) for v in self.grid.values())
         return int(self.random.get('n', 1)) if self.random else 1
 
+    @property
+    def n_chunks(self) -> int:
+        """Number of chunks of ``chunk_size`` scenes in spec order (the last may be short)."""
+        return max(1, -(-len(self) // self.chunk_size))
+
+    def chunk_scenes(self, index: int) -> range:
+        """The scene indices of chunk ``index``: ``chunk_size`` of them from
+        ``index * chunk_size`` (fewer in the last chunk, none past it)."""
+        start = index * self.chunk_size
+        return range(start, max(start, min(start + self.chunk_size, len(self))))
+
     def param_set(self, k: int) -> dict:
         """The parameter values (dotted path -> value) of scene ``k``, 0 <= k < len(self),
         computed from k alone: O(number of parameters) whatever k."""

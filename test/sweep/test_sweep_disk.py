@@ -17,7 +17,7 @@ import pytest
 from crawler_sim import cli
 from crawler_sim.bag import files
 from crawler_sim.sweep import spec_from_dict
-from crawler_sim.sweep.runner import Checkpoint
+from crawler_sim.sweep.checkpoint import STAMP, Checkpoint
 from crawler_sim.sweep.tables import read_table, write_table
 
 pytestmark = pytest.mark.skipif(not os.path.exists('/dev/full'), reason='needs /dev/full')
@@ -93,12 +93,12 @@ def test_a_checkpoint_chunk_on_a_full_disk_is_an_error_naming_it(tmp_path):
     spec = spec_from_dict({'base': {'crawler': {'masses': [1.0, 1.0], 'mu': 0.3},
                                     'gait': {'type': 'scallop', 'mean': 0.1, 'amplitude': 0.02,
                                              'frequency': 1.0, 'asymmetry': 0.5}}})
-    stamp = full(tmp_path / 'spec.json')
+    stamp = full(tmp_path / STAMP)
     with pytest.raises(OSError) as info:
         Checkpoint(tmp_path, spec)
     # no half-written stamp, which a later run would take for the stamp of another spec
-    assert info.value.filename == str(tmp_path / 'spec.json') and not stamp.exists()
-    assert not (tmp_path / 'spec.json').exists()
+    assert info.value.filename == str(tmp_path / STAMP) and not stamp.exists()
+    assert not (tmp_path / STAMP).exists()
     store = Checkpoint(tmp_path, spec)
     chunk = tmp_path / 'chunk_000004.parquet'
     full(chunk)
