@@ -33,6 +33,7 @@ PROG = 'crawler-sim'
 METHODS = ('exact', 'implicit', 'penalty')   # crawler_sim.METHODS, without importing the core
 EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 REPLAY_TOL = 1e-9      # default replay tolerance on positions [m] and velocities [m/s]
+AS_NODE_MODES = ('preload', 'trajectory', 'command')    # how gait_node plays a gait
 
 
 class UsageError(Exception):
@@ -73,6 +74,16 @@ def _non_negative_int(text: str) -> int:
         raise argparse.ArgumentTypeError(f'must be an integer >= 0, got {text!r}') from None
     if n < 0:
         raise argparse.ArgumentTypeError(f'must be an integer >= 0, got {text!r}')
+    return n
+
+
+def _positive_int(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'must be an integer >= 1, got {text!r}') from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f'must be an integer >= 1, got {text!r}')
     return n
 
 
@@ -330,7 +341,7 @@ def _replay_scene(run: Any, method: str | None) -> tuple[Any, Any, str]:
     scene = scene_from_dict({k: v for k, v in run.scene.items() if k in keys})
     scene = scene.with_run(method=method)
     t = np.asarray(run.t, dtype=float)
-    as_node = run.scene.get('as_node')
+    as_node = _recorded_as_node(run)
     tr = _as_node(scene, as_node) if as_node else scene.simulate()
     # compare in the recorded ns base: every stamp a sample of the run (also a truncated bag)
     from ..bag.clock import rows_at_ns
@@ -341,10 +352,31 @@ def _replay_scene(run: Any, method: str | None) -> tuple[Any, Any, str]:
     longer = scene.with_run(t_end=max(float(t[-1]), scene.run.t_end))
     if as_node:
         tr = _as_node(longer, as_node)
-        return (np.column_stack([np.interp(t, tr.t, tr.x[:, i]) for i in range(tr.p)]),
-                np.column_stack([np.interp(t, tr.t, tr.v[:, i]) for i in range(tr.p)]), what)
+        p = tr.x.shape[1]
+        return (np.column_stack([np.interp(t, tr.t, tr.x[:, i]) for i in range(p)]),
+                np.column_stack([np.interp(t, tr.t, tr.v[:, i]) for i in range(p)]), what)
     tr = longer.simulate(t_eval=t)
     return tr.x, tr.v, what
+
+
+def _recorded_as_node(run: Any) -> dict | None:
+    """How an offline bag's run was driven (``simulate --as-node``: ``mode`` and ``rate``), or
+    None; a malformed record is refused input (UsageError naming the bag and the field)."""
+    as_node = run.scene.get('as_node')
+    if as_node is None:
+        return None
+    where = f'{run.path}: scene.as_node'
+    if not isinstance(as_node, dict):
+        raise UsageError(f'{where}: must be a mapping with mode and rate, got '
+                         f'{type(as_node).__name__}')
+    mode, rate = as_node.get('mode'), as_node.get('rate')
+    if not isinstance(mode, str) or mode not in AS_NODE_MODES:
+        raise UsageError(f'{where}.mode: must be one of {", ".join(AS_NODE_MODES)}, got '
+                         f'{mode!r}')
+    if (isinstance(rate, bool) or not isinstance(rate, (int, float))
+            or not (math.isfinite(rate) and rate > 0)):
+        raise UsageError(f'{where}.rate: must be a finite number > 0 [Hz], got {rate!r}')
+    return {'mode': mode, 'rate': float(rate)}
 
 
 def _replay(run: Any, method: str | None, tol: float) -> dict:
@@ -486,7 +518,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--out', metavar='BAG_DIR', help='record the run to a new bag directory')
     p.add_argument('--plot', metavar='PNG', help='write a plot of the run')
     p.add_argument('--json', action='store_true', help='print the figures as JSON')
-    p.add_argument('--as-node', choices=('preload', 'trajectory', 'command'),
+    p.add_argument('--as-node', choices=AS_NODE_MODES,
                    help='run it as sim_node does when gait_node plays the gait: one preloaded '
                    'trajectory, streamed trajectories, or set-points on linkage_cmd (the '
                    "node's actuator and tick grid, without ROS)")
@@ -521,7 +553,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help='where to write the recovered bag (default: next to the source)')
 
     from .sweep_commands import register       # sweep, optimize, export
-    register(add, _positive, _non_negative_int)
+    register(add, _positive, _non_negative_int, _positive_int)
     return parser
 
 
@@ -551,9 +583,11 @@ def _exit_code(exc: BaseException) -> int:
 
 def _describe(exc: BaseException) -> str:
     """One line for the user. Expected errors show their message; others their type too."""
-    if isinstance(exc, OSError) and exc.strerror:
+    if isinstance(exc, OSError):          # a file that could not be read or written
         where = f'{exc.filename}: ' if exc.filename else ''
-        return f'{where}{exc.strerror}'
+        return f'{where}{exc.strerror or exc or type(exc).__name__}'
+    if isinstance(exc, MemoryError):
+        return 'not enough memory for this command (a smaller run, sweep or bag needs less)'
     if isinstance(exc, ImportError):
         return f'a part of crawler_sim this command needs is missing: {exc}'
     errors = sys.modules.get('crawler_sim.bag.errors')

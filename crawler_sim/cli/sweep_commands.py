@@ -31,16 +31,24 @@ def _client(address: str | None) -> Any:
 
 
 def _spec_of(path: Path) -> Any:
-    """A spec from a sweep YAML file, or from the metadata of a sweep's Parquet/CSV results."""
+    """A spec from a sweep YAML file, or from the metadata of a sweep's Parquet/CSV results;
+    SpecError (a refused input, exit 2) naming the file otherwise."""
     from ..sweep import load_spec, spec_from_dict
+    from ..sweep.spec import SpecError
     from ..sweep.tables import read_table
 
     if path.suffix.lower() in ('.parquet', '.csv'):
-        meta = read_table(path).attrs.get('crawler_sim', {})
+        try:
+            meta = read_table(path).attrs.get('crawler_sim', {})
+        except ValueError as exc:           # names the file and why it cannot be read
+            raise SpecError(str(exc)) from None
         if meta.get('kind') != 'sweep' or 'spec' not in meta:
-            raise ValueError(f'{path}: holds no sweep spec in its metadata (not written by '
-                             'crawler-sim sweep)')
-        return spec_from_dict(meta['spec'])
+            raise SpecError(f'{path}: holds no sweep spec in its metadata (not written by '
+                            'crawler-sim sweep)')
+        try:
+            return spec_from_dict(meta['spec'])
+        except SpecError as exc:
+            raise SpecError(f'{path}: {exc}') from None
     return load_spec(path)
 
 
@@ -221,8 +229,10 @@ def _optimize(args: argparse.Namespace, source: Path) -> int:
 
 
 def register(add: Add, positive: Callable[[str], float],
-             non_negative_int: Callable[[str], int]) -> None:
-    """Add the sweep, optimize and export subcommands through ``add`` (build_parser's helper)."""
+             non_negative_int: Callable[[str], int],
+             positive_int: Callable[[str], int]) -> None:
+    """Add the sweep, optimize and export subcommands through ``add`` (build_parser's helper);
+    ``positive``, ``non_negative_int`` and ``positive_int`` are its argument types."""
     p = add('sweep', _cmd_sweep, 'run a parameter sweep and write one row per scene',
             'Simulate every scene of SPEC.yaml (a grid or a random sample over scene and gait '
             'parameters, see config/sweeps/) and write mean speed, displacement per period, '
@@ -255,7 +265,8 @@ def register(add: Add, positive: Callable[[str], float],
                    help='speed (maximise) or cot (minimise cost of transport); default speed')
     p.add_argument('--family', choices=('scallop', 'stroke', 'fourier'), default='scallop',
                    help='stroke family (default scallop; gait_node plays every family)')
-    p.add_argument('--harmonics', type=int, default=3, metavar='K', help='fourier harmonics')
+    p.add_argument('--harmonics', type=positive_int, default=3, metavar='K',
+                   help='fourier harmonics')
     p.add_argument('--max-speed', type=positive, default=0.5, metavar='V',
                    help="largest |l'| [m/s] (sim_node's actuator_max_speed, default 0.5)")
     p.add_argument('--max-acceleration', type=positive, default=5.0, metavar='A',
@@ -269,11 +280,15 @@ def register(add: Add, positive: Callable[[str], float],
                    help='trajectory samples per second gait_node sends (default 100)')
     p.add_argument('--play-seconds', type=positive, default=600.0, metavar='S',
                    help='length of the preloaded trajectory gait_node sends (default 600)')
-    p.add_argument('--periods', type=int, default=12, metavar='N', help='periods per run')
-    p.add_argument('--maxiter', type=int, default=15, metavar='N', help='generations')
-    p.add_argument('--popsize', type=int, default=8, metavar='N', help='population factor')
+    p.add_argument('--periods', type=positive_int, default=12, metavar='N',
+                   help='periods per run')
+    p.add_argument('--maxiter', type=non_negative_int, default=15, metavar='N',
+                   help='generations')
+    p.add_argument('--popsize', type=positive_int, default=8, metavar='N',
+                   help='population factor')
     p.add_argument('--seed', type=non_negative_int, default=0, metavar='N', help='random seed')
-    p.add_argument('--workers', type=int, default=1, metavar='N', help='local processes')
+    p.add_argument('--workers', type=positive_int, default=1, metavar='N',
+                   help='local processes')
     p.add_argument('--scheduler', metavar='ADDRESS', help='evaluate on a Dask scheduler')
     p.add_argument('-o', '--output', default='best_gait.yaml', metavar='OUT',
                    help='gait_node parameter file (default best_gait.yaml)')

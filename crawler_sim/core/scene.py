@@ -376,7 +376,7 @@ def _run(spec: Any, p: int) -> RunOptions:
     path = 'scene.run'
     d = _mapping(path, {} if spec is None else spec, _RUN_KEYS)
     method = d.get('method', 'exact')
-    if method not in METHODS:
+    if not isinstance(method, str) or method not in METHODS:     # a list is unhashable
         raise SceneError(f'{path}.method: unknown method {method!r}; expected one of '
                          f'{", ".join(METHODS)}')
     penalty = d.get('penalty')

@@ -152,7 +152,7 @@ def write_table(df: pd.DataFrame, path: str | os.PathLike, fmt: str | None = Non
 def table_files(path: str | os.PathLike, fmt: str | None = None) -> list[Path]:
     """Every file :func:`write_table` writes for ``path``: the table, and a CSV's sidecar."""
     path = Path(path)
-    return [path, _sidecar(path)] if _format(path, fmt) == 'csv' else [path]
+    return [path, _sidecar(path)] if _format(path, fmt, OutputRefused) == 'csv' else [path]
 
 
 def _sidecar(path: Path) -> Path:
@@ -161,27 +161,54 @@ def _sidecar(path: Path) -> Path:
 
 
 def read_table(path: str | os.PathLike) -> pd.DataFrame:
-    """Read a table written by :func:`write_table`, with ``attrs['crawler_sim']`` restored."""
+    """Read a table written by :func:`write_table`, with ``attrs['crawler_sim']`` restored.
+
+    ValueError naming the file (or its sidecar) if it cannot be read as one: not Parquet/CSV,
+    not UTF-8, metadata that is not a JSON object."""
     path = Path(path)
     fmt = _format(path, None)
-    if fmt == 'parquet':
-        import pyarrow.parquet as pq
+    try:
+        if fmt == 'parquet':
+            import pyarrow.parquet as pq
 
-        table = pq.read_table(path)
-        df = table.to_pandas()
-        raw = (table.schema.metadata or {}).get(_META_KEY.encode())
-        meta = json.loads(raw) if raw else {}
-    else:
-        with open(path, encoding='utf-8') as fh:
-            first = fh.readline()
-            meta = json.loads(first[len(_CSV_PREFIX):]) if first.startswith(_CSV_PREFIX) else {}
-            if not meta:                # the current layout: a plain CSV and its sidecar
-                fh.seek(0)
-                side = _sidecar(path)
-                meta = json.loads(side.read_text(encoding='utf-8')) if side.is_file() else {}
-            df = pd.read_csv(fh, index_col=0)
+            table = pq.read_table(path)
+            df = table.to_pandas()
+            raw = (table.schema.metadata or {}).get(_META_KEY.encode())
+            meta = _metadata(raw, f'{path}: its {_META_KEY} metadata') if raw else {}
+        else:
+            with open(path, encoding='utf-8') as fh:
+                first = fh.readline()
+                meta = (_metadata(first[len(_CSV_PREFIX):], f'{path}: its first line')
+                        if first.startswith(_CSV_PREFIX) else {})
+                if not meta:                # the current layout: a plain CSV and its sidecar
+                    fh.seek(0)
+                    side = _sidecar(path)
+                    meta = (_metadata(side.read_bytes(), str(side)) if side.is_file()
+                            else {})
+                df = pd.read_csv(fh, index_col=0)
+    except _Unreadable as exc:
+        raise ValueError(str(exc)) from None
+    except ValueError as exc:       # pyarrow, pandas, UTF-8: their messages name no file
+        reason = (str(exc).splitlines() or [type(exc).__name__])[0]
+        raise ValueError(f'{path}: not a {fmt} table crawler_sim can read ({reason})') from None
     df.attrs[_META_KEY] = meta
     return df
+
+
+class _Unreadable(Exception):
+    """Metadata that is not what :func:`write_table` writes (the message names where)."""
+
+
+def _metadata(raw: str | bytes, where: str) -> dict:
+    """The metadata JSON object of a table, else :class:`_Unreadable` naming ``where``."""
+    try:
+        meta = json.loads(raw)
+    except ValueError as exc:               # JSONDecodeError, UnicodeDecodeError
+        raise _Unreadable(f'{where}: not the JSON metadata of a table ({exc})') from None
+    if not isinstance(meta, dict):
+        raise _Unreadable(f'{where}: the metadata must be a JSON object, got '
+                          f'{type(meta).__name__}')
+    return meta
 
 
 def export_bag(bag: str | os.PathLike, out: str | os.PathLike, fmt: str | None = None
