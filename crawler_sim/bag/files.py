@@ -40,7 +40,7 @@ from typing import IO, Any, Callable, Iterator
 from .errors import BagError
 
 __all__ = ['OutputRefused', 'reading', 'check_output', 'check_new_folder', 'write_atomically',
-           'write_text', 'temporary_target', 'OPEN_NEW']
+           'write_text', 'open_new', 'temporary_target', 'OPEN_NEW']
 
 #: flags of every file crawler_sim creates: a new file, never an existing one, never a link
 OPEN_NEW = (os.O_CREAT | os.O_EXCL | getattr(os, 'O_NOFOLLOW', 0)
@@ -292,6 +292,16 @@ def _write_in(folder_fd: int, path: Path, write: Callable[[IO[bytes]], Any]) -> 
     finally:
         if fd is not None:
             os.close(fd)
+
+
+def open_new(path: os.PathLike | str, *, readable: bool = False) -> IO[bytes]:
+    """A new file at ``path`` opened for writing (and reading with ``readable``), for what is
+    written as it happens and cannot wait for a rename (a recording, a process's log): created
+    exclusively, never an existing file and never through a link (FileExistsError), checked
+    with :func:`check_output` first."""
+    path = check_output(path)
+    fd = os.open(path, (os.O_RDWR if readable else os.O_WRONLY) | OPEN_NEW, 0o666)
+    return open(fd, 'wb')
 
 
 def write_text(path: os.PathLike | str, text: str) -> Path:

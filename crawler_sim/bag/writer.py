@@ -72,7 +72,7 @@ import yaml
 from . import schema as schemas
 from .cdr import Trimmer
 from .errors import BagError
-from .files import OPEN_NEW, OutputRefused, check_new_folder, write_text
+from .files import OPEN_NEW, OutputRefused, check_new_folder, open_new, write_text
 from .mcapwriter import McapWriter
 from .naming import claim_directory
 from .rosmsg import ros_class, serialize
@@ -178,8 +178,7 @@ class _Stats:
 def _default_open(path: Path) -> BinaryIO:
     """A new file (never overwriting one), opened read-write: if it is removed while recording,
     its bytes can still be read back from this descriptor (see :meth:`BagWriter._restore`)."""
-    fd = os.open(path, os.O_RDWR | OPEN_NEW, 0o666)        # never through a planted link
-    return open(fd, 'wb')
+    return open_new(path, readable=True)      # never an existing file, never through a link
 
 
 @dataclass
@@ -276,9 +275,10 @@ class BagWriter:
             self._make_directory()
         try:
             self._stream = (_opener or _default_open)(self.mcap_path)
-        except OSError as exc:
+        except (OSError, BagError) as exc:    # BagError: e.g. a folder planted in its place
             _remove_empty(self.path)         # left as it is if something was put in it
-            raise BagError(f'cannot create {self.mcap_path}: {exc.strerror or exc}') from None
+            reason = getattr(exc, 'strerror', None) or exc
+            raise BagError(f'cannot create {self.mcap_path}: {reason}') from None
         self._fileno = _fileno(self._stream)
         self._writer = McapWriter(self._stream, chunk_size=chunk_size, compression='zstd')
         self._last_flush = self._last_check = self._clock()

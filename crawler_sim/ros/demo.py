@@ -28,6 +28,7 @@ import time
 import numpy as np
 
 from crawler_sim.bag import topics as T
+from crawler_sim.bag.files import open_new
 from crawler_sim.ros.workspace import executable, share, workspace_env
 from crawler_sim.core.simtime import from_stamp, to_ns, to_seconds
 
@@ -38,7 +39,7 @@ class _Child:
     def __init__(self, name: str, args: list[str], env: dict, log: Path) -> None:
         self.name = name
         self.log = log
-        self._file = open(log, 'w')
+        self._file = open_new(log)       # never an existing file, never through a link
         self.popen = subprocess.Popen([str(executable(name)), '--ros-args', *args], env=env,
                                       stdout=self._file, stderr=subprocess.STDOUT)
 

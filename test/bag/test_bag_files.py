@@ -242,3 +242,27 @@ def test_reading_blocks_nest_and_end(tmp_path):
             check_output(a)                          # still an input of the outer block
         check_output(b)
     check_output(a)
+
+
+# ---------------------------------------------------------------- files written as they happen
+
+@pytest.mark.parametrize('planted', ['link', 'dangling link', 'file'])
+def test_a_new_stream_file_never_opens_what_is_there(out_dir, victim, planted):
+    path = out_dir / 'sim_node.log'
+    if planted == 'file':
+        path.write_bytes(b'an earlier log')
+    else:
+        path.symlink_to(victim if planted == 'link' else out_dir / 'nowhere')
+    before = snapshot(out_dir)
+    with pytest.raises(FileExistsError):
+        files.open_new(path)
+    assert snapshot(out_dir) == before and victim.read_bytes() == b'years of work'
+
+
+def test_a_new_stream_file_is_written_and_read_back(out_dir):
+    with files.open_new(out_dir / 'a.log', readable=True) as fh:
+        fh.write(b'line\n')
+        fh.flush()
+        assert os.pread(fh.fileno(), 5, 0) == b'line\n'
+    with reading(out_dir / 'a.log'), pytest.raises(OutputRefused):
+        files.open_new(out_dir / 'a.log')

@@ -93,6 +93,16 @@ def test_a_link_planted_at_the_recording_file_is_refused_not_followed(tmp_path):
     assert victim.read_bytes() == b'the user\'s file'
 
 
+def test_a_folder_planted_at_the_recording_file_is_refused_in_one_line(tmp_path):
+    def planting_opener(path: Path):
+        path.mkdir()                            # planted between mkdir and open
+        from crawler_sim.bag.writer import _default_open
+        return _default_open(path)
+
+    with pytest.raises(BagError, match='cannot create .*run_0.mcap: .*is a directory'):
+        BagWriter(tmp_path / 'run', _opener=planting_opener)
+
+
 def test_a_folder_planted_at_metadata_yaml_is_a_reported_problem_not_an_error(tmp_path):
     writer = BagWriter(tmp_path / 'run', flush_interval=None)
     (writer.path / 'metadata.yaml').mkdir()
