@@ -22,9 +22,10 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 # The array-level builders live with the bag (offline recording needs them without the node).
 from ..bag.cdr import Encoder, LayoutError
-from ..bag.msgs import (BASE_FRAME, ODOM_FRAME, body_names, body_states, centre_of_mass,
-                        contact_states, event_msg, float64_array_msg, joint_state, joint_states,
-                        linkage_names, ns_from_stamp, odometry, stamp_from_ns)
+from ..bag.msgs import (BASE_FRAME, JOINT_GROUPS, ODOM_FRAME, ODOM_GROUPS, STAMP, body_names,
+                        body_states, centre_of_mass, contact_states, event_msg,
+                        float64_array_msg, joint_state, joint_states, linkage_names,
+                        ns_from_stamp, odometry, stamp_from_ns)
 from crawler_sim.bag import topics as T
 from crawler_sim.core.trajectory import State
 from crawler_sim.core.simtime import split_ns
@@ -203,9 +204,8 @@ class Row:
 
 #: the topic (and so the ROS type) of each kind of message :class:`OutputEncoder` makes
 ENCODED = {**T.OUTPUTS, 'applied_command': T.APPLIED_COMMAND, 'linkage_cmd': T.LINKAGE_CMD}
-_STAMP = ('header.stamp.sec', 'header.stamp.nanosec')
-_JOINTS = (_STAMP, ('position',), ('velocity',), ('effort',))
-_ODOM = (_STAMP, ('pose.pose.position.x',), ('twist.twist.linear.x',))
+# the changing fields of each shape: one definition, shared with offline recording (bag.msgs)
+_STAMP, _JOINTS, _ODOM = STAMP, JOINT_GROUPS, ODOM_GROUPS
 _MISSING = object()
 
 
