@@ -108,7 +108,8 @@ class VerifyReport:
         return self.worst <= tol and self.contact == 0
 
 
-SLIVER = 1e-12     # [s] a piece this short beside a breakpoint is not checked (see _kinematic)
+EVENT_TOL = 1e-13  # [s] the exact method's default event-time tolerance (``Stepper`` tol)
+SLIVER = 10 * EVENT_TOL   # [s] a piece this short beside a breakpoint or between events: unchecked
 
 
 def verify(trajectory: Trajectory, gait: Gait | None = None, *,
@@ -121,12 +122,16 @@ def verify(trajectory: Trajectory, gait: Gait | None = None, *,
     method; the time-stepping methods ("implicit", "penalty") show their O(dt) error in them.
 
     Every difference is judged beyond the rounding of what it compares (``ROUNDING`` eps of the
-    largest terms): a time of size |t| is only known to eps |t|, so a velocity is known to eps
-    (max|v| + |t| a), a = (|F_ext| + sum f) / M + max|e''| the largest acceleration, a position
-    to eps (max|x| + |t| max|v|), a required force to eps (its scale + |t| M max|e'''|); the
-    replay between two samples adds the rounding of each of its steps, and the impulses that of
-    their sums over the events. A correct run at any amplitude, frequency or horizon then reads
-    0 where its differences are rounding (a 1e-9 m stroke at x ~ 1 m, a run of 1e5 s).
+    largest terms): an event's time is only known to eps |t| and the exact method's tolerance
+    ``EVENT_TOL`` (dt), so a velocity is known to eps max|v| + a dt, a = (|F_ext| + sum f) / M +
+    max|e''| the largest acceleration, a position to eps max|x| + max|v| dt, a required force to
+    eps (its scale) + M max|e'''| dt; a gait's rates to eps |l| / tau (tau its period, else the
+    run; 64 times that for a gait sampled into pieces); the replay between two samples adds the
+    rounding of each of its steps, and the impulses that of their sums over the events. Pieces
+    inside a run of events closer than ``SLIVER`` (modes flipped and back within the event
+    tolerance) are not checked, their velocity change counted as rounding. A correct run at any
+    amplitude, frequency or horizon then reads 0 where its differences are rounding (a 1e-9 m
+    stroke at x ~ 1 m, a run of 1e5 s).
     """
     tr = trajectory
     c = tr.crawler
@@ -149,10 +154,11 @@ def verify(trajectory: Trajectory, gait: Gait | None = None, *,
     u = ROUNDING * _EPS
     t_abs = float(np.abs(t).max())
     a_scale = max(_sampled_acceleration(tr), kin.get('a_scale', 0.0))
-    dv = u * (v_max + a_scale * t_abs)      # a velocity's rounding (a time known to eps |t|)
+    # a velocity's rounding: an event's time is known to eps |t| and the search's tolerance
+    dv = u * v_max + a_scale * (u * t_abs + EVENT_TOL)
     # the impulses are sums over the events (rounding grows like the root of their number)
     n_sums = 1.0 + math.sqrt(len(tr.events))
-    mom_floor = u * (M * (np.abs(V) + abs(V[0]) + a_scale * t_abs) + abs(fext) * np.abs(dt)
+    mom_floor = M * dv + u * (M * (np.abs(V) + abs(V[0])) + abs(fext) * np.abs(dt)
                      + n_sums * (np.abs(tr.impulse).sum(axis=1) + np.abs(tr.impulse[0]).sum()))
     excess = np.maximum(np.maximum(R - fm, -fp - R), 0.0)
     phi = fp * np.maximum(v, 0.0) + fm * np.maximum(-v, 0.0)
@@ -254,6 +260,12 @@ def _kinematic(tr: Trajectory, gait, n_sub: int) -> dict:
         modes.append(state.copy())
     a_pts = cuts[:-1]
     b_pts = cuts[1:]
+    # pieces inside a run of events less than SLIVER apart (see ``sliver`` below)
+    prev_ev = np.searchsorted(ev_t, a_pts, side='right') - 1
+    next_ev = np.searchsorted(ev_t, b_pts, side='left')
+    inside = (prev_ev >= 0) & (next_ev < ev_t.size)
+    flips = np.zeros(a_pts.size, bool)
+    flips[inside] = ev_t[next_ev[inside]] - ev_t[prev_ev[inside]] <= SLIVER
     frac = (np.arange(n_sub) + 0.5) / n_sub
     sub = a_pts[:, None] + (b_pts - a_pts)[:, None] * frac[None, :]
     # each piece read just inside its ends (``_inside``), so a gait breakpoint there reads the
@@ -302,13 +314,16 @@ def _kinematic(tr: Trajectory, gait, n_sub: int) -> dict:
             X, V = float(X_s[cur_sample]), float(V_s[cur_sample])
             rx, rv = u * x_abs, u * v_scale
         # a velocity, a position and a force read at a time of size |t| (known to eps |t|)
-        t_abs = max(abs(float(ta)), abs(float(tb)))
-        dv_t = u * (v_scale + a_scale * t_abs + l_rate)
-        # a sliver between an event and a breakpoint within the root tolerance of each other
-        # (1e-12 s: 10 times the exact method's default tol) holds no violation worth the name:
-        # which side of the breakpoint its l'' is read on is rounding
-        sliver = tb - ta <= SLIVER and (np.any(np.abs(breaks - ta) <= SLIVER)
-                                          or np.any(np.abs(breaks - tb) <= SLIVER))
+        # (and the event search's tolerance): an event moved by dt_t moves V by a dt_t
+        dt_t = u * max(abs(float(ta)), abs(float(tb))) + EVENT_TOL
+        dv_t = u * (v_scale + l_rate) + a_scale * dt_t
+        # a sliver (1e-12 s: 10 times the exact method's default tol) beside a breakpoint, or
+        # inside a run of events that close (modes flipped and back within the event search's
+        # tolerance, as where several bodies switch at one instant, or a sampled gait's
+        # velocity touches zero), holds no violation worth the name: its mode, or the side of
+        # the breakpoint its l'' is read on, is rounding, and so is its velocity change (a h)
+        sliver = flips[k] or (tb - ta <= SLIVER and (np.any(np.abs(breaks - ta) <= SLIVER)
+                                                      or np.any(np.abs(breaks - tb) <= SLIVER)))
         # a frictionless body feels no friction whatever its claimed contact state (solvers
         # need not report its events): it is free, never part of a stick, no sign to check
         stuck = np.nonzero((s == 0) & ~free)[0]
@@ -322,8 +337,8 @@ def _kinematic(tr: Trajectory, gait, n_sub: int) -> dict:
                 Vt = V + acc * (taus - ta)
                 vel = Vt[:, None] + ed[k][:, slide]
                 note('slide_sign', float(np.max(-s[slide] * vel)), rv + dv_t, ta)
-            rx += u * (abs(X) + abs(V) * dtb + abs(acc) * dtb * dtb + v_scale * t_abs)
-            rv += u * (abs(V) + abs(acc) * dtb) + dv_t
+            rx += u * (abs(X) + abs(V) * dtb + abs(acc) * dtb * dtb) + v_scale * dt_t
+            rv += u * (abs(V) + abs(acc) * dtb) + dv_t + (a_scale * dtb if sliver else 0.0)
             X, V = X + V * dtb + 0.5 * acc * dtb * dtb, V + acc * dtb
         else:
             j = int(stuck[0])
@@ -337,19 +352,19 @@ def _kinematic(tr: Trajectory, gait, n_sub: int) -> dict:
                 F = fext - float(force[slide].sum()) + M * edd[k][:, j]
                 up, dn = float(fp[stuck].sum()), float(fm[stuck].sum())
                 note('required_force', float(np.max(np.maximum(F - up, -dn - F))),
-                     u * (f_scale + M * (j_scale * t_abs + l_rate / tau)), ta)
+                     u * (f_scale + M * l_rate / tau) + M * j_scale * dt_t, ta)
             # closed form to tb: x_j stays put, V = -e_j'(tb)
             ltb, ldtb, _ = (np.asarray(arr, float) for arr in gait(np.array([tb])))
             etb, edtb, _ = kinematics(m, ltb, ldtb, ldtb)
             X = X - (float(etb[0, j]) - float(e[k, 0, j]))
             V = -float(edtb[0, j])
-            rx += u * (abs(X) + x_abs + v_scale * t_abs)
+            rx += u * (abs(X) + x_abs) + v_scale * dt_t
             rv = dv_t
         kb = sample_of[k] + 1
         if kb < t.size and t[kb] == tb:
             note('shooting', abs(V - V_s[kb]), rv + dv_t, tb)
             note('shooting_position', float(np.max(np.abs(X + e_s[kb] - tr.x[kb]))),
-                 rx + u * (x_abs + v_scale * t_abs), tb)
+                 rx + u * x_abs + v_scale * dt_t, tb)
     rels = {key: beyond[key][0] / scale[key] for key in keys}
     key = max(rels, key=rels.get)
     return dict(worst, beyond={key: val for key, (val, _) in beyond.items()}, v_scale=v_scale,
