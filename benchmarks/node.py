@@ -22,6 +22,11 @@ as one trajectory, so it costs no CPU during the run. Scenarios (issue 11 and 12
   checks, reported by the node) and the real-time factor and p99 afterwards. Floor < 100 ms.
 - ``record`` (not in the default list): alternated pairs of ``realtime`` runs without and with
   recording every output to a bag; the median extra CPU (issue 5's floor: at most 10 %).
+- ``clock`` (not in the default list; issue 42): ``--runs`` runs each of 2 and 3 namespaced sims
+  (``--robots``) started with random delays of 0-3 s while ``--load`` busy processes run, the
+  /clock owner killed with SIGKILL mid-run (:func:`clock_run`). Floors, every run: no /clock
+  message backwards, no sim frozen longer than 1.5 s, exactly one /clock publisher before the
+  kill, the clock ticking again after it.
 
 Each scenario runs ``--repeats`` times; the medians are printed, with a baseline measured in
 this process: the core engine alone (actuator + exact solver, no ROS) flat out on the same
@@ -194,6 +199,152 @@ def run(scenario: str, seconds: float, method: str, env: dict,
     return out
 
 
+#: a sim's time may stand still at most this long (wall s) in a ``clock`` run (issue 42)
+MAX_FREEZE = 1.5
+
+
+def _stamp_ns(data: bytes, offset: int = 4) -> int:
+    """The header stamp [ns] of a message in little-endian CDR (offset 4: after the
+    encapsulation header; a Clock is its stamp)."""
+    import struct
+    sec, nanosec = struct.unpack_from('<iI', data, offset)
+    return sec * 1_000_000_000 + nanosec
+
+
+def clock_run(env: dict, robots: int, seed: int, *, load: int = 2, max_delay: float = 3.0,
+              after_kill: float = 4.0, tmp: Path | None = None) -> dict:
+    """One run of the shared clock under stress: ``robots`` sims (namespaces /r1...,
+    real_time_factor 1) started in random order with random delays (``seed``) while ``load``
+    busy processes run; once every sim has published for 3 s, the /clock owner (the one
+    publisher the graph shows) is killed with SIGKILL; the survivors run ``after_kill`` s more
+    and are stopped with SIGINT. Measured from the DDS source timestamps of what this process
+    receives (not its own, possibly starved, loop): /clock messages that went backwards, the
+    longest time each sim's body_states stamp stood still, the longest /clock silence after
+    the kill, /clock publishers before the kill, exit codes, tracebacks."""
+    import random
+    import tempfile
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.node import Node
+    from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import JointState
+    from crawler_sim.ros.sim.taken import LoopTakenGroup
+
+    rng = random.Random(seed)
+    names = [f'r{k + 1}' for k in range(robots)]
+    delays = sorted((rng.uniform(0.0, max_delay), ns) for ns in rng.sample(names, robots))
+    busy = [subprocess.Popen([sys.executable, '-c', 'while 1: pass']) for _ in range(load)]
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=int(env.get('ROS_DOMAIN_ID', '0')))
+    node = Node('clock_observer', context=ctx)
+    group = LoopTakenGroup()
+    takes = {}
+    for topic, typ in [('/clock', Clock)] + [(f'/{ns}/body_states', JointState) for ns in names]:
+        sub = node.create_subscription(typ, topic, lambda _m: None, 1000, raw=True,
+                                       callback_group=group)
+        takes[topic] = (sub.handle.take_message, typ, [])
+    procs: dict[str, subprocess.Popen] = {}
+    errs: dict[str, Path] = {}
+    tmpdir = tempfile.TemporaryDirectory() if tmp is None else None
+    where = Path(tmpdir.name) if tmpdir is not None else tmp
+
+    def drain() -> None:
+        for take, typ, got in takes.values():
+            msg = take(typ, True)
+            while msg is not None:
+                got.append((msg[1]['source_timestamp'], _stamp_ns(msg[0])))
+                msg = take(typ, True)
+
+    out: dict = {'robots': robots, 'seed': seed, 'delays': [round(d, 2) for d, _ in delays]}
+    try:
+        t0 = time.monotonic()
+        for delay, ns in delays:
+            while time.monotonic() - t0 < delay:
+                drain()
+                time.sleep(0.01)
+            errs[ns] = where / f'{ns}_{seed}.err'
+            procs[ns] = subprocess.Popen(
+                [str(executable('sim_node')), '--ros-args', '-r', f'__ns:=/{ns}', '-p',
+                 f'masses:={[1.0] * (names.index(ns) + 2)}', '-p', 'diagnostics_period:=0.5'],
+                env=env, stdout=subprocess.DEVNULL, stderr=open(errs[ns], 'w'))
+        end = time.monotonic() + 60.0
+        ready = None
+        while True:
+            drain()
+            now = time.monotonic()
+            if all(takes[f'/{ns}/body_states'][2] for ns in names):
+                ready = ready or now
+                if now - ready >= 3.0:
+                    break
+            if now > end:
+                raise RuntimeError(f'not every sim published within 60 s: {out}')
+            time.sleep(0.01)
+        pubs = [info.node_namespace.strip('/')
+                for info in node.get_publishers_info_by_topic('/clock')]
+        out['publishers_before_kill'] = len(pubs)
+        owner = pubs[0] if pubs else names[0]
+        out['killed'] = owner
+        kill_ns = time.time_ns()
+        procs[owner].kill()
+        end = time.monotonic() + after_kill
+        while time.monotonic() < end:
+            drain()
+            time.sleep(0.01)
+        codes = {}
+        stop_ns = time.time_ns()
+        for ns, p in procs.items():
+            if ns != owner:
+                p.send_signal(signal.SIGINT)
+        for ns, p in procs.items():
+            try:
+                codes[ns] = p.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                codes[ns] = 'hung'
+        drain()
+    finally:
+        for p in list(procs.values()) + busy:
+            if p.poll() is None:
+                p.kill()
+                p.wait()
+        node.destroy_node()
+        rclpy.shutdown(context=ctx)
+    clock = takes['/clock'][2]
+    stamps = [t for _, t in clock]
+    out['clock_messages'] = len(stamps)
+    out['backwards'] = sum(b < a for a, b in zip(stamps, stamps[1:]))
+    after = sorted(src for src, _ in clock if src > kill_ns)
+    out['clock_silence_after_kill'] = ((after[0] - kill_ns) / 1e9 if after else math.inf)
+    freeze = {}
+    for ns in names:
+        if ns == owner:
+            continue
+        got = sorted(takes[f'/{ns}/body_states'][2])
+        # the longest wall time (publisher's clock) between two states of increasing stamps
+        longest, last_src, last_t = 0.0, None, None
+        for src, t in got:
+            if last_t is None or t > last_t:
+                if last_src is not None:
+                    longest = max(longest, (src - last_src) / 1e9)
+                last_src, last_t = src, t
+        if last_src is not None:      # a sim that stood still until the end
+            longest = max(longest, (stop_ns - last_src) / 1e9)
+        freeze[ns] = round(longest, 3)
+    out['max_freeze'] = freeze
+    out['codes'] = {ns: c for ns, c in codes.items() if ns != owner}
+    text = {ns: errs[ns].read_text() for ns in names}
+    out['tracebacks'] = [ns for ns, t in text.items() if 'Traceback' in t]
+    out['followers_warn'] = sum('WARN' in line and 'this node follows it' in line
+                                for t in text.values() for line in t.splitlines())
+    if tmpdir is not None:
+        tmpdir.cleanup()
+    out['ok'] = (out['backwards'] == 0 and out['publishers_before_kill'] == 1
+                 and all(f <= MAX_FREEZE for f in freeze.values())
+                 and out['clock_silence_after_kill'] <= MAX_FREEZE
+                 and all(c == 0 for c in out['codes'].values()) and not out['tracebacks'])
+    return out
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -204,6 +355,9 @@ def main() -> int:
                         help='comma-separated scenarios')
     parser.add_argument('--bodies', type=int, default=2,
                         help='number of bodies p (1 kg each; 2: the seed\'s crawler, 0.5 and 1 kg)')
+    parser.add_argument('--runs', type=int, default=20, help='clock: runs per number of sims')
+    parser.add_argument('--robots', default='2,3', help='clock: numbers of sims')
+    parser.add_argument('--load', type=int, default=2, help='clock: busy processes')
     args = parser.parse_args()
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     env = workspace_env(dict(os.environ))
@@ -217,6 +371,22 @@ def main() -> int:
           f'{args.repeats}, {os.cpu_count()} CPUs, load {os.getloadavg()[0]:.1f}')
     print(f'  baseline (this process): core engine alone flat out {base:.1f}x real time')
     for scenario in args.only.split(','):
+        if scenario == 'clock':
+            for robots in (int(r) for r in args.robots.split(',')):
+                runs = []
+                for k in range(args.runs):
+                    r = clock_run(env, robots, seed=1000 * robots + k, load=args.load)
+                    runs.append(r)
+                    print(f'    {"PASS" if r["ok"] else "FAIL"} {r}', flush=True)
+                ok = sum(r['ok'] for r in runs)
+                freeze = max(f for r in runs for f in r['max_freeze'].values())
+                print(f'  clock    | {robots} sims, {args.load} busy processes: {ok}/{len(runs)} '
+                      f'runs pass; backwards {sum(r["backwards"] for r in runs)} of '
+                      f'{sum(r["clock_messages"] for r in runs)} /clock messages; longest freeze '
+                      f'{freeze:.2f} s; longest /clock silence after the kill '
+                      f'{max(r["clock_silence_after_kill"] for r in runs):.2f} s '
+                      f'(floor: 20/20, 0, <= {MAX_FREEZE} s)', flush=True)
+            continue
         if scenario == 'record':
             import tempfile
             extra = []

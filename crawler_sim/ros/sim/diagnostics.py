@@ -125,7 +125,9 @@ def node_values(node: SimNode) -> tuple[dict[str, Any], list[str]]:
         'same_name_nodes': _count(lambda: node.get_fully_qualified_node_names().count(
             node.get_fully_qualified_name()) - 1),
     }
+    values.update(node.clock.values())
     warn = ['recording failed'] if rec.error else []
+    warn += node.clock.warnings()
     if values['same_name_nodes'] > 0:
         # two sims in one namespace interleave their outputs and share this status's name
         warn.append(f'{values["same_name_nodes"]} other node(s) named '

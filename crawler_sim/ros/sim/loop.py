@@ -73,6 +73,8 @@ def _loop(node) -> None:
             node._publish_outputs()       # the initial state at t = 0 (a bag starts there)
     checks = 0
     next_republish = 0.0
+    clock = node.clock
+    shared = clock.active
     while not node._stop:
         # context.ok() costs ~1 us: flat out, ask every 16th iteration
         checks = (checks + 1) & 15
@@ -82,6 +84,9 @@ def _loop(node) -> None:
         if t >= next_diag:
             node._publish_diagnostics(t)
             next_diag = t + node._cfg.diagnostics_period
+        if shared and clock.due(t):
+            with node._lock:
+                clock.poll(t)         # follow, keep alive, take over or yield (.clock)
         if node.paused:
             node.take_inputs()        # count (and warn about) commands while paused too
             if t >= next_republish:   # the state stays visible to late subscribers
@@ -93,7 +98,7 @@ def _loop(node) -> None:
             node._anchor_needed = False
             anchor_wall, anchor_tick = t, counters['ticks']
         cfg = node._cfg
-        target = node._clock_target_ns
+        target = clock.target_ns
         if target is not None:
             # following another node's /clock: tick up to its time, never past it (the stamps
             # of every robot agree with the one clock)

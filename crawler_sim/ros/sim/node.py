@@ -42,10 +42,8 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.callback_groups import CallbackGroup
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import SetBool, Trigger
@@ -56,36 +54,15 @@ from crawler_sim.core.plant import Engine
 from crawler_sim.core.trajectory import State
 from crawler_sim.ros import messages as M
 from . import intake, loop
+from .clock import SharedClock
 from .diagnostics import COUNTERS, Diagnostics, node_values
 from .outputs import Outputs
-from .params import PARAMETERS, SimConfig, declare_all
+from .params import NODE_NAME, PARAMETERS, SimConfig, declare_all
 from .recording import applied_trajectory, SessionBag
-from crawler_sim.core.simtime import from_stamp, to_ns, to_seconds
+from .taken import LoopTakenGroup
+from crawler_sim.core.simtime import to_ns, to_seconds
 
 __all__ = ['SimNode', 'LoopTakenGroup', 'NODE_NAME']
-
-NODE_NAME = 'crawler_sim'
-CLOCK_DISCOVERY = 1.0     # wall s a starting node listens for another's /clock (2 republishes)
-CLOCK_FIRST_TICK = 10.0   # wall s a follower waits for the owner's first /clock
-
-
-class LoopTakenGroup(CallbackGroup):
-    """Callback group of subscriptions whose messages the simulation loop takes itself.
-
-    An executor never waits on nor runs anything of this group (``can_execute`` is always
-    False), so an incoming message does not wake the executor thread (each wake-up rebuilds a
-    wait set in Python and takes the GIL from the loop). The loop takes the messages between
-    ticks instead (:meth:`SimNode.take_inputs`).
-    """
-
-    def can_execute(self, entity: Any) -> bool:
-        return False
-
-    def beginning_execution(self, entity: Any) -> bool:
-        return False
-
-    def ending_execution(self, entity: Any) -> None:
-        pass
 
 
 class SimNode(Node):
@@ -128,10 +105,8 @@ class SimNode(Node):
         self._last_state = None
         self._last_row = None
         self._last_row_ns = 0
-        self._clock_owner = ''                 # FQN of the /clock owner this node follows
-        self._clock_target_ns: int | None = None    # following: tick up to this sim time
-        self._clock_heard: list[int] = []
-        self._follow_sub = None
+        #: the /clock role of this sim among the sims of the domain (owner or follower)
+        self.clock = SharedClock(self, self._log_line)
         self._stop = False        # set by stop() (signals); run() returns at the next tick
         self.recorder = SessionBag(self._absolute_topic, self._log)
         self._journal_seq = 0
@@ -534,62 +509,45 @@ class SimNode(Node):
                                     self.diagnostics(final=True), self._t_ns)
             self.recorder.close()
 
-    # ------------------------------------------------------------------ the loop
     # ------------------------------------------------------------------ the clock
-    def choose_clock(self, wait: float = CLOCK_DISCOVERY) -> None:
-        """Decide who publishes ``/clock`` (several sims in one domain share one clock). Call
-        with the executor spinning, before the loop: for ``wait`` wall seconds the node listens
-        to /clock and looks at its publishers. A /clock that ticks (a sim already running, or
-        paused: it republishes) is followed; otherwise, among sims starting together, the one
-        with the smallest fully qualified name owns it and the others follow. A follower
-        publishes no /clock, starts its sim time at the owner's and ticks up to it (one sim
-        clock for every robot: their stamps agree). ``publish_clock`` false: neither."""
-        if not self._cfg.publish_clock:
-            return
-        heard = self._clock_heard
-        sub = self.create_subscription(Clock, T.CLOCK.node_name, self._on_clock, 10)
-        mine = self.get_fully_qualified_name()
-        end = time.monotonic() + wait
-        while time.monotonic() < end and not heard:
-            time.sleep(0.02)
-        others = sorted(f'{info.node_namespace.rstrip("/")}/{info.node_name}'
-                        for info in self.get_publishers_info_by_topic(T.CLOCK.node_name))
-        others = [fqn for fqn in others if fqn != mine]
-        if not heard and not (others and others[0] < mine):
-            self.destroy_subscription(sub)
-            return                                  # this node owns /clock
-        owner = others[0] if others else 'another node'
-        with self._lock:
-            self.outputs.following_clock = True
-            self.outputs.sync(self._cfg)
-        self._follow_sub = sub
-        self._clock_owner = owner
-        end = time.monotonic() + max(wait, CLOCK_FIRST_TICK)
-        while not heard and time.monotonic() < end:
-            time.sleep(0.02)
-        start = heard[-1] if heard else 0
-        with self._lock:
-            self._clock_target_ns = start
-            self._engine.reset(self._cfg.engine_config(), t_ns=start)
-        self._log.warning(f'/clock is published by {owner}: this node follows it (sim time from '
-                          f'{to_seconds(self._t_ns):.9f} s) and publishes no /clock of its own')
+    def choose_clock(self) -> None:
+        """Take this sim's role on the shared ``/clock`` (:meth:`.clock.SharedClock.choose`):
+        call with the executor spinning, before the loop."""
+        self.clock.choose()
 
-    def _on_clock(self, msg: Clock) -> None:
-        t_ns = from_stamp(msg.clock.sec, msg.clock.nanosec)
-        if self._clock_target_ns is None:
-            self._clock_heard.append(t_ns)       # still choosing
+    def _log_line(self, level: str, line: str) -> None:
+        # (one call site per severity: rclpy refuses two severities from one line)
+        if level == 'warn':
+            self._log.warning(line)
         else:
-            self._clock_target_ns = max(self._clock_target_ns, t_ns)
+            self._log.info(line)
+
+    @property
+    def lock(self) -> threading.RLock:
+        """The lock of the node's state (the loop ticks under it; services take it too)."""
+        return self._lock
+
+    def restart_at(self, t_ns: int) -> None:
+        """Start again at rest at sim time ``t_ns`` (a follower joining the shared clock; under
+        the lock). A journaled reset, so the bag replays from there."""
+        self._engine.reset(self._cfg.engine_config(), t_ns=t_ns)
+        self._drop_pending()
+        self._anchor_needed = True
+
+    def reanchor(self) -> None:
+        """Pace from now on (the wall-clock anchor is taken again at the next tick)."""
+        self._anchor_needed = True
 
     def log_ready(self) -> None:
         """One INFO line when the node is ready: what it simulates, how fast, where to."""
         cfg = self._cfg
         rtf = cfg.real_time_factor
         pace = 'as fast as possible' if rtf <= 0 else f'{rtf:g} x real time'
+        owner = self.clock.owner if self.clock.following else ''
         clock = ('/clock published' if self.outputs.clock_pub is not None
-                 else f'following the /clock of {self._clock_owner}' if self._clock_owner
+                 else f'following the /clock of {owner}' if owner
                  else '/clock not published')
-        if self._clock_owner:
+        if owner:
             pace = 'paced by that clock'
         rec = f'recording to {self.recorder.path}' if self.recorder.on else 'not recording'
         self._log.info(

@@ -13,6 +13,7 @@ and again whenever the model changes (number of bodies, masses, linkage limits).
 """
 from __future__ import annotations
 
+import time
 from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -56,7 +57,12 @@ class Outputs:
         self._node = node
         self.pubs: dict[str, Any] = {}
         self.clock_pub = None
-        self.following_clock = False      # another node owns /clock (SimNode.choose_clock)
+        self._clock_owner = True          # False: another node owns /clock (.clock)
+        #: no /clock below this sim time [ns] (a sim that took the clock over continues from
+        #: the last time heard)
+        self.clock_floor = 0
+        self.clock_last_ns = -1           # the latest /clock published [ns] (-1: none yet)
+        self.clock_wall = 0.0             # when (perf_counter s)
         self.encoder = M.OutputEncoder()
         # (name, topic, publisher, encode, publish_raw) on the publish grid, and those with a
         # subscriber
@@ -73,6 +79,7 @@ class Outputs:
         """Create the publishers of switched-on outputs, destroy those switched off; publish
         ``robot_description`` if the model of ``cfg`` differs from the one last published.
         Return whether it did (:attr:`description` is then the new URDF, e.g. to record)."""
+        self._cfg = cfg
         changed = self._sync_description(cfg)
         node = self._node
         for name in OUTPUTS:
@@ -89,7 +96,7 @@ class Outputs:
                        self.pubs[name].handle.publish_raw)
                       for name in OUTPUTS[:-1] if name in self.pubs]
         self._countdown = 0
-        own_clock = cfg.publish_clock and not self.following_clock
+        own_clock = cfg.publish_clock and self._clock_owner
         if own_clock and self.clock_pub is None:
             self.clock_pub = node.create_publisher(Clock, T.CLOCK.node_name, 10)
             self._clock_raw = self.clock_pub.handle.publish_raw
@@ -97,6 +104,22 @@ class Outputs:
             node.destroy_publisher(self.clock_pub)
             self.clock_pub = None
         return changed
+
+    def set_clock_owner(self, own: bool, floor_ns: int = 0) -> None:
+        """Publish /clock (``own``, from sim time ``floor_ns`` on) or not (another node owns
+        it); the publisher is created or destroyed at once."""
+        self._clock_owner = own
+        self.clock_floor = floor_ns
+        if own:          # (the clock heard up to now counts as published: no yield to it)
+            self.clock_last_ns = max(self.clock_last_ns, floor_ns)
+        self.sync(self._cfg)
+
+    def publish_clock_again(self) -> None:
+        """Publish the latest /clock again (an owner's keep-alive while paused or paced
+        slowly: the followers tell a dead owner by its silence)."""
+        if self.clock_pub is not None and self.clock_last_ns >= 0:
+            self._clock_raw(M.clock_cdr(self.clock_last_ns))
+            self.clock_wall = time.perf_counter()
 
     def _sync_description(self, cfg) -> bool:
         """Publish the URDF of ``cfg``'s crawler when what it is made of changed: p and the
@@ -124,8 +147,10 @@ class Outputs:
         a core ``State`` or its :class:`crawler_sim.ros.messages.Row` (or a callable returning
         one, called only if someone takes an output); ``record`` (Topic, bytes, t_ns) gets
         each output before it is published, so what a subscriber has seen is in the bag."""
-        if self.clock_pub is not None:
+        if self.clock_pub is not None and t_ns >= self.clock_floor:
             self._clock_raw(M.clock_cdr(t_ns))
+            self.clock_last_ns = t_ns
+            self.clock_wall = time.perf_counter()
         if record is not None:
             takers = self._grid
         else:

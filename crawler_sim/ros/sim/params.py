@@ -24,7 +24,11 @@ if TYPE_CHECKING:
     from rcl_interfaces.msg import ParameterDescriptor
     from rclpy.node import Node
 
-__all__ = ['PARAMETERS', 'OUTPUTS', 'SimConfig', 'descriptor', 'declare_all']
+__all__ = ['PARAMETERS', 'OUTPUTS', 'SimConfig', 'descriptor', 'declare_all', 'NODE_NAME']
+
+#: sim_node's node name (namespaces tell several sims apart; the shared clock recognises the
+#: other sims by it, ``.clock``)
+NODE_NAME = 'crawler_sim'
 
 #: the node's own parameters: name -> (default, description, range or None, read_only)
 NODE_PARAMETERS: dict[str, tuple[Any, str, tuple[float, float] | None, bool]] = {

@@ -1,0 +1,301 @@
+"""The one ``/clock`` of several sims in one domain: who publishes it, and who takes over.
+
+``/clock`` is global, so the crawler_sim nodes of a domain (each in its own namespace) share
+one clock. Each sim with ``publish_clock`` is a *candidate*; at any moment one of them owns the
+clock (publishes it) and the others follow it (tick up to its time, never past it, so the
+stamps of every robot agree). The rules, each in one place below:
+
+- **Start** (:meth:`SharedClock.choose`): a sim listens until :data:`DISCOVERY` wall seconds
+  after its creation (DDS discovery between processes takes seconds here). A clock that ticks
+  is followed (a sim already running, a paused one, which keeps its clock
+  alive, or a foreign clock such as a bag player). Otherwise the candidate with the smallest
+  fully qualified name owns it; the order of start-up does not matter.
+- **Owner silent** (:meth:`SharedClock.poll`, follower): an owner that is another crawler_sim
+  and publishes nothing for :data:`SILENCE` wall seconds (killed, hung) is given up; the
+  remaining candidates in name order take over one after the other, candidate k after
+  ``SILENCE + k * STAGGER`` of silence (the first one heard by the others ends the wait of the
+  rest: exactly one takes over, within about a second). It continues from the last time heard
+  (:attr:`Outputs.clock_floor`: no /clock below it), so the clock never goes back and no
+  follower stays frozen.
+- **Foreign clock silent**: a /clock published by a node that is not a crawler_sim (a paused
+  bag player, another simulator) is followed and never taken over; its silence is reported (a
+  WARN line and a diagnostics WARN), not hidden.
+- **Two owners** (a stalled owner coming back after a follower took over; two sims that did
+  not discover each other in time): an owner that hears a /clock later than the last it
+  published yields and follows it. The clock furthest ahead wins, so it never goes back.
+- **Keep-alive**: an owner publishes its clock at least every :data:`HEARTBEAT` wall seconds
+  (paused, or paced slowly), so silence means a dead or hung owner, not a slow one.
+
+A candidate is a node named ``crawler_sim`` (``NODE_NAME``; namespaces tell them apart) that
+publishes or subscribes ``/clock``: renamed with ``-r __node:=...``, a sim counts as a foreign
+clock. The follower takes the /clock messages itself (raw, in the loop), so the executor never
+wakes for them.
+"""
+from __future__ import annotations
+
+import struct
+import time
+from typing import TYPE_CHECKING, Callable
+
+from rosgraph_msgs.msg import Clock
+
+from crawler_sim.bag import topics as T
+from crawler_sim.core.simtime import from_stamp, to_seconds
+from .params import NODE_NAME
+from .taken import LoopTakenGroup
+
+if TYPE_CHECKING:
+    from .node import SimNode
+
+__all__ = ['SharedClock', 'DISCOVERY', 'LISTEN', 'HEAR', 'SILENCE', 'STAGGER', 'HEARTBEAT',
+           'POLL', 'clock_ns']
+
+#: wall s from a sim's creation before it may decide to own /clock: DDS discovery between
+#: processes on this host took a few ms, or, when the first announcements are missed, until
+#: the next periodic one (every 3 s): up to 2.8 s, measured with a probe node at load 6-7 ...
+DISCOVERY = 4.0
+LISTEN = 1.0         # ... and at least this long listening after its warm-up
+#: ... and this much longer when the graph shows a /clock publisher not heard yet (its messages
+#: followed the graph entry within 0.1 s in those measurements)
+HEAR = 0.5
+SILENCE = 0.6        # wall s without /clock after which an owner that is a sim is given up
+#: wall s a follower chosen at start waits for the sim before it in name order, still starting,
+#: to begin ticking (its discovery and warm-up), before it takes over
+START_GRACE = DISCOVERY + LISTEN + HEAR + SILENCE
+STAGGER = 0.25       # wall s between the turns of successive candidates to take over
+HEARTBEAT = 0.1      # wall s: an owner publishes /clock at least this often
+POLL = 0.05          # wall s between two checks of an owner (keep-alive, a later clock heard)
+DEPTH = 100          # /clock messages kept for the loop between two takes
+
+
+def clock_ns(data: bytes) -> int:
+    """The time [ns] of a rosgraph_msgs/Clock in CDR (4-byte encapsulation header, then
+    int32 sec and uint32 nanosec, little- or big-endian as the header says)."""
+    sec, nanosec = struct.unpack_from('<iI' if data[1] & 1 else '>iI', data, 4)
+    return from_stamp(sec, nanosec)
+
+
+def _fqn(info) -> str:
+    return f'{info.node_namespace.rstrip("/")}/{info.node_name}'
+
+
+class SharedClock:
+    """The clock role of one sim (owner, follower, or neither with ``publish_clock`` false).
+
+    The loop calls :meth:`poll` (under the node's lock) and reads :attr:`target_ns`: ``None``
+    while it owns the clock (or has none), else the sim time it may tick up to."""
+
+    def __init__(self, node: SimNode, log: Callable[[str, str], None]) -> None:
+        self._node = node
+        self._created = time.perf_counter()
+        self._log = log                    # (level, line)
+        self._take = None                  # the /clock subscription's take, once choosing
+        self._sub = None
+        self.owner = ''                    # what this sim follows ('' while it owns)
+        self.foreign = False               # the clock followed is not a crawler_sim's
+        self.target_ns: int | None = None  # following: tick up to this sim time
+        self.heard_ns = -1                 # the latest /clock heard [ns]
+        self.heard_wall = 0.0              # when (perf_counter s); 0: never
+        self.silent_for = 0.0              # wall s the followed clock has been silent
+        self.takeovers = 0
+        self.yields = 0
+        self._wait_from = 0.0              # when following began (silence before any message)
+        self.next_poll = 0.0               # perf_counter s of the owner's next check
+        self._silence_logged = False
+        self._fresh = False                # following from the start, no /clock heard yet
+
+    # ------------------------------------------------------------------ what the loop reads
+    @property
+    def active(self) -> bool:
+        """Whether this sim takes part in the shared clock (after :meth:`choose`)."""
+        return self._take is not None
+
+    def due(self, now: float) -> bool:
+        """Whether the loop should call :meth:`poll` now (a follower: every iteration)."""
+        return self.target_ns is not None or now >= self.next_poll
+
+    @property
+    def following(self) -> bool:
+        return self.target_ns is not None
+
+    def values(self) -> dict:
+        """The figures for /diagnostics."""
+        return {'clock': ('following ' + self.owner if self.following else
+                          'owner' if self._node.outputs.clock_pub is not None else 'none'),
+                'clock_silent_s': round(self.silent_for, 3) if self.following else 0.0,
+                'clock_takeovers': self.takeovers, 'clock_yields': self.yields}
+
+    def warnings(self) -> list[str]:
+        """A diagnostics WARN while the followed clock is silent (a foreign one stays silent:
+        it is never taken over)."""
+        if self.following and self.silent_for > SILENCE:
+            return [f'/clock of {self.owner} silent for {self.silent_for:.1f} s: '
+                    + ('following it, not taking over (a foreign clock)' if self.foreign
+                       else 'taking over')]
+        return []
+
+    # ------------------------------------------------------------------ start
+    def choose(self, discovery: float = DISCOVERY) -> None:
+        """At start, with the executor spinning: listen until ``discovery`` wall s after the
+        node's creation (at least :data:`LISTEN`) and take the owner's or a follower's role
+        (module docstring). Call before the loop, without the lock."""
+        node = self._node
+        if not node.config.publish_clock:
+            return
+        self._sub = node.create_subscription(Clock, T.CLOCK.node_name, lambda _m: None, DEPTH,
+                                             callback_group=LoopTakenGroup(), raw=True)
+        self._take = self._sub.handle.take_message
+        end = max(time.perf_counter() + LISTEN, self._created + discovery)
+        self._listen(end)
+        mine = node.get_fully_qualified_name()
+        publishing, sims, foreign = self._graph()
+        if not self.heard_wall and (publishing or foreign):
+            self._listen(time.perf_counter() + HEAR)     # a clock seen, not heard yet
+            publishing, sims, foreign = self._graph()
+        lower = [fqn for fqn in sims if fqn < mine]
+        if self.heard_wall or foreign or lower:
+            with node.lock:
+                # heard: the publisher(s) of /clock; else the first sim before this one,
+                # which is starting and will own it
+                self._follow(foreign, publishing if self.heard_wall else lower, start=True)
+
+    def _listen(self, end: float) -> None:
+        while time.perf_counter() < end and not self._drain():
+            time.sleep(0.02)
+
+    def _publishers(self) -> int:
+        return self._node.count_publishers(T.CLOCK.node_name)
+
+    def _graph(self) -> tuple[list[str], list[str], list[str]]:
+        """The other nodes on /clock as the graph shows them, sorted: (sims that publish it,
+        sims that publish or subscribe it, foreign publishers). A follower has no /clock
+        publisher, so a sim that publishes it is the owner (or one starting, or one killed: the
+        graph keeps a killed process for its DDS lease)."""
+        node = self._node
+        mine = node.get_fully_qualified_name()
+        publishing, sims, foreign = set(), set(), set()
+        for info in node.get_publishers_info_by_topic(T.CLOCK.node_name):
+            (publishing if info.node_name == NODE_NAME else foreign).add(_fqn(info))
+        for info in node.get_subscriptions_info_by_topic(T.CLOCK.node_name):
+            if info.node_name == NODE_NAME:
+                sims.add(_fqn(info))
+        sims |= publishing
+        for group in (publishing, sims, foreign):
+            group.discard(mine)
+        return sorted(publishing), sorted(sims), sorted(foreign)
+
+    def _follow(self, foreign: list[str], owners: list[str], start: bool = False) -> None:
+        """Stop publishing /clock and follow the one heard, published by ``foreign`` nodes or
+        else the sims ``owners`` (under the lock)."""
+        node = self._node
+        self.foreign = bool(foreign)
+        self.owner = (', '.join(foreign) if foreign else owners[0] if owners
+                      else 'another node')
+        self.silent_for = 0.0
+        self._silence_logged = False
+        self._wait_from = time.perf_counter()
+        node.outputs.set_clock_owner(False)
+        self._fresh = start and not self.heard_wall
+        if start and self.heard_wall:          # a fresh sim starts at the clock's time
+            node.restart_at(self.heard_ns)
+        self.target_ns = max(self.heard_ns, node.sim_time_ns)
+        kind = 'a foreign clock: ' if self.foreign else ''
+        self._log('info', f'/clock is published by {kind}{self.owner}: this node follows it '
+                  f'(sim time from {to_seconds(node.sim_time_ns):.9f} s) and publishes no '
+                  '/clock of its own')
+
+    # ------------------------------------------------------------------ running
+    def _drain(self) -> bool:
+        """Take every /clock message waiting; return whether any was."""
+        take = self._take
+        got = take(Clock, True)
+        if got is None:
+            return False
+        latest = self.heard_ns
+        while got is not None:
+            try:
+                latest = max(latest, clock_ns(got[0]))
+            except (struct.error, IndexError, ValueError):
+                pass                              # not a Clock in CDR: ignored
+            got = take(Clock, True)
+        self.heard_ns = latest
+        self.heard_wall = time.perf_counter()
+        return True
+
+    def poll(self, now: float) -> None:
+        """One check from the loop (under the node's lock), ``now`` = perf_counter()."""
+        if self._take is None:
+            return
+        if self.target_ns is None:
+            if now >= self.next_poll:
+                self.next_poll = now + POLL
+                self._poll_owner(now)
+            return
+        if self._drain():
+            if self._fresh:                    # the first tick of the clock chosen at start
+                self._fresh = False
+                self._node.restart_at(self.heard_ns)
+            self.target_ns = max(self.target_ns, self.heard_ns)
+            if self._silence_logged:
+                self._log('info', f'/clock of {self.owner} heard again')
+            self.silent_for = 0.0
+            self._silence_logged = False
+            return
+        self.silent_for = now - max(self.heard_wall, self._wait_from)
+        if self.silent_for <= SILENCE or now < self.next_poll:
+            return
+        self.next_poll = now + POLL
+        self._on_silence()
+
+    def _poll_owner(self, now: float) -> None:
+        outputs = self._node.outputs
+        if outputs.clock_pub is None:
+            return                              # publish_clock switched off
+        if self._drain() and self.heard_ns > outputs.clock_last_ns:
+            # another /clock ahead of this one (a stalled owner back, or two sims that did
+            # not see each other start): the clock furthest ahead wins, this one follows
+            self.yields += 1
+            publishing, _sims, foreign = self._graph()
+            ahead, mine = to_seconds(self.heard_ns), to_seconds(outputs.clock_last_ns)
+            self._log('warn', f'another /clock is ahead of this one ({ahead:.6f} s > '
+                      f'{mine:.6f} s): following it')
+            self._follow(foreign, publishing)
+            return
+        if now - outputs.clock_wall > HEARTBEAT:
+            outputs.publish_clock_again()        # keep-alive: silence means dead or hung
+
+    def _on_silence(self) -> None:
+        """The followed clock has been silent for more than SILENCE: report a foreign one; a
+        sim's is given up, and the followers take over in name order, one STAGGER apart (a
+        follower waiting for a sim still starting gives it START_GRACE)."""
+        publishing, sims, foreign = self._graph()
+        if foreign:
+            self.foreign = True
+            self.owner = ', '.join(foreign)
+            if not self._silence_logged:
+                self._log('warn', f'/clock of {self.owner} silent for {self.silent_for:.1f} s: '
+                          'following it (a foreign clock is not taken over)')
+                self._silence_logged = True
+            return
+        grace = START_GRACE if self._fresh else SILENCE
+        # the candidates are the followers (sims without a /clock publisher): the same list in
+        # every follower, whatever each presumed about the owner
+        mine = self._node.get_fully_qualified_name()
+        rank = sum(fqn < mine for fqn in sims if fqn not in publishing)
+        if self.silent_for < grace + rank * STAGGER:
+            return
+        self._take_over()
+
+    def _take_over(self) -> None:
+        node = self._node
+        floor = max(self.heard_ns, node.sim_time_ns)
+        self._log('warn', f'/clock of {self.owner} silent for {self.silent_for:.1f} s: this node '
+                  f'publishes /clock from t = {to_seconds(floor):.9f} s')
+        self.takeovers += 1
+        self._fresh = False
+        self.target_ns = None
+        self.owner = ''
+        self.foreign = False
+        self.silent_for = 0.0
+        node.outputs.set_clock_owner(True, floor)
+        node.reanchor()
