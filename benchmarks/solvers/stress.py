@@ -38,7 +38,7 @@ from crawler_sim.core.verify import verify
 from . import metrics
 
 __all__ = ['CheckResult', 'random_spec', 'build', 'check_random_scene', 'EXTREMES', 'GRAZING',
-           'check_fuzz', 'check_long_run', 'check_tolerance_ladder', 'run_stress', 'tolerances']
+           'check_fuzz', 'check_custom_period_long', 'check_long_run', 'check_tolerance_ladder', 'run_stress', 'tolerances']
 
 G = 9.81
 EXACT_TOL = 1e-9        # verify tolerance of method "exact"
@@ -659,18 +659,62 @@ GRAZING: dict[str, Callable[..., CheckResult]] = {
 # ----------------------------------------------------------------------------- differential fuzz
 
 @_timed
-def check_fuzz(n_per_family: int = 30, seed: int = 0, families: tuple[str, ...] | None = None
-               ) -> CheckResult:
+def check_fuzz(n_per_family: int = 30, seed: int = 0, families: tuple[str, ...] | None = None,
+               streams: bool = True) -> CheckResult:
     """The long profile of the differential fuzz (issue 14): ``n_per_family`` cases of every
     gait family of test/support/fuzz.py (or of ``families``), exact method against the
-    independent oracle (test/support/oracle.py) at 1e-10."""
+    independent oracle (test/support/oracle.py) at 1e-10; with ``streams`` each case with one
+    gait also streamed onto its event times and one float either side, after first steps of
+    one float and of 1e-200 s (issue 37: ``check_stream``)."""
     from test.support import fuzz as test_fuzz
     res = CheckResult(f'differential_fuzz[{n_per_family} per family, seed {seed}]')
-    out = test_fuzz.run_fuzz(n_per_family, seed, families or test_fuzz.FAMILIES)
+    out = test_fuzz.run_fuzz(n_per_family, seed, families or test_fuzz.FAMILIES,
+                             streams=streams)
     res.figures = {k: out[k] for k in ('cases', 'failed', 'errors', 'worst_x')}
     res.figures['by_family'] = out.get('by_family', {})
     for text in out['failures']:
         res.fail(text)
+    return res
+
+
+def check_custom_period_long(n_cases: int = 4, periods: int = 10_000, seed: int = 0
+                             ) -> CheckResult:
+    """Issue 37 item 1: Custom gaits with ``period=`` (the fuzz family ``custom_period``,
+    Custom copies of sharp Scallops) run for ``periods`` periods with the periodic skip off
+    and on: no failure (the search ran out of steps past 512 s), and each run ends within
+    1e-9 x max(1 m, periods x the gait's stroke, the distance run: a crawler on a slope may slide
+    away; plus what 1e-10 m/s more of v0 moves it: the scene's conditioning) of the built-in
+    Scallop it copies, run the same
+    way (another path: the Scallop's closed form, not Chebyshev pieces of the user's functions)."""
+    from test.support import fuzz as test_fuzz
+    res = CheckResult(f'custom_period_long[{n_cases} cases x {periods} periods, seed {seed}]')
+    worst = 0.0
+    for k in range(n_cases):
+        case = test_fuzz.draw_case('custom_period', seed + k)
+        t_end = periods * case.gait.period
+        ll = case.kin(np.linspace(0.0, case.gait.period, 4001))[0]
+        scale = max(1.0, periods * float(np.ptp(ll, axis=0).sum()))
+        for skip in (False, True):
+            try:
+                x = simulate(case.crawler, test_fuzz.draw_case('custom_period', seed + k).gait,
+                             t_end, t_eval=[0.0, t_end], v0=case.v0, periodic_skip=skip).x[-1]
+            except Exception as exc:  # noqa: BLE001 (a failure is the finding)
+                res.fail(f'{case!r}, periodic_skip={skip}: {type(exc).__name__}: {exc}')
+                continue
+            ref = simulate(case.crawler, case.twin, t_end, t_eval=[0.0, t_end], v0=case.v0,
+                           periodic_skip=skip).x[-1]
+            # the scene's own conditioning: what 1e-10 m/s more of v0 does to the end (a slow
+            # transient amplifies differences at the sampling's rounding)
+            bent = simulate(case.crawler, case.twin, t_end, t_eval=[0.0, t_end],
+                            v0=case.v0 + 1e-10, periodic_skip=skip).x[-1]
+            size = max(scale, float(np.abs(ref).max()))
+            cond = float(np.abs(bent - ref).max())
+            err = float(np.abs(x - ref).max()) / (size + cond / 1e-9)
+            worst = max(worst, err)
+            if not err <= 1e-9:
+                res.fail(f'{case!r}, periodic_skip={skip}: {err:.2e} x {size:.3g} m from its '
+                         f'built-in twin (> 1e-9; 1e-10 m/s of v0 moves it {cond:.2g} m)')
+    res.figures.update(cases=n_cases, periods=periods, worst_rel=worst)
     return res
 
 
@@ -708,6 +752,7 @@ def run_stress(seconds: float = 60.0, seed: int = 0,
         lambda: check_tolerance_ladder('slope_climb'),
         lambda: check_long_run(100_000),
         lambda: check_fuzz(30, seed),
+        lambda: check_custom_period_long(4, 10_000, seed),
     ]
     for k, check in enumerate(fixed):
         say(k, len(fixed), 'fixed checks')

@@ -286,6 +286,14 @@ def test_the_stress_fuzz_check_runs_the_differential_fuzz_and_reports_its_figure
         assert text.startswith('0/'), (fam, res.problems)
 
 
+def test_the_custom_period_check_runs_past_512_s_without_failing():
+    # issue 37 item 1 at a small size: one Custom copy of a sharp Scallop with period= for
+    # 1,000 periods (past 512 s), skip off and on, against its built-in twin
+    res = stress.check_custom_period_long(1, 1_000, seed=0)
+    assert res.ok, res.problems
+    assert res.figures['cases'] == 1 and res.figures['worst_rel'] <= 1e-9
+
+
 def test_the_penalty_audit_allows_its_force_rounding_and_no_more():
     # stress seed 13, random scene 2741: masses ~1e-3 kg, frictions ~1e-2 N, n = 1e8. The
     # penalty method computes a force as n v; v's rounding (~eps v_max) times n accumulates to

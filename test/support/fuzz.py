@@ -39,6 +39,7 @@ class Case:
     gait: object = None                 # simulate(...) with this gait, or
     pieces: list = field(default_factory=list)   # [(t1, gait)] Stepper.advance calls
     desc: str = ''
+    twin: object = None                 # the built-in gait a Custom case copies, if any
 
     def __repr__(self) -> str:
         return (f'Case({self.family!r}, seed={self.seed}, {self.crawler!r}, t_end={self.t_end}, '
@@ -114,7 +115,7 @@ def draw_case(family: str, seed: int) -> Case:
             fns = ((lambda t: src.at1(t)[0], lambda t: src.at1(t)[1], lambda t: src.at1(t)[2])
                    if n == 1 else (lambda t: src.at(t)[0], lambda t: src.at(t)[1],
                                    lambda t: src.at(t)[2]))
-            return Case(kin=_vec(src), gait=G.Custom(*fns, period=src.period),
+            return Case(kin=_vec(src), gait=G.Custom(*fns, period=src.period), twin=src,
                         breakpoints=np.empty(0), timescale=r / freq,
                         desc=f'periodic Custom copy of Scallop {freq=} asymmetry={r}', **kw)
         w = 2 * math.pi * rng.uniform(0.3, 2.5, n)
@@ -310,6 +311,93 @@ def check_case(case: Case) -> dict:
     return out
 
 
+#: a stream's first targets: one float after 0 (where an event at 0 puts the next target) and
+#: 1e-200 s (issue 37 item 3: a Custom gait's first window of a few floats)
+TINY_FIRST = (5e-324, 1e-200)
+
+
+def stream_targets(event_times, t_end: float, t_first=TINY_FIRST) -> list[float]:
+    """Where ``check_stream`` advances: ``t_first``, then every event time and the floats
+    either side of it (issue 37 item 2: a Cubic streamed to an event, then one float on), all
+    in (0, t_end), sorted and distinct."""
+    out = set(float(t) for t in t_first)
+    for t in event_times:
+        t = float(t)
+        out |= {math.nextafter(t, -math.inf), t, math.nextafter(t, math.inf),
+                math.nextafter(math.nextafter(t, math.inf), math.inf)}
+    return sorted(t for t in out if 0.0 < t < t_end)
+
+
+def check_stream(case: Case) -> dict:
+    """A case with one gait streamed through ``Stepper.advance`` the hard way: a first step of
+    a few floats (``TINY_FIRST``), then to every event time of the one-shot run and one float
+    either side of it, then to each sample time: positions and velocities at the samples
+    against the oracle, as ``check_case``. The stream runs on a fresh copy of the case's gait
+    (drawn again from its seed: a Custom gait's table is built by the stream itself). Raises
+    AssertionError on failure."""
+    assert case.gait is not None, 'check_stream takes a case with one gait'
+    te = sample_times(case)
+    o = Oracle.for_crawler(case.crawler, case.kin, case.breakpoints)
+    xo, vo = o.solve(case.t_end, te, v0=case.v0, h=oracle_h(case))
+    one = cs.simulate(case.crawler, case.gait, case.t_end, t_eval=te, v0=case.v0)
+    targets = stream_targets([e.time for e in one.events], case.t_end)
+    gait = draw_case(case.family, case.seed).gait
+    st = cs.Stepper(case.crawler, gait, v0=case.v0)
+    xs, vs = [], []
+    for t in sorted(set(targets) | set(te.tolist())):
+        if t > st.t:
+            st.advance(t)
+        if t in te:
+            s = st.state
+            xs.append(s.x)
+            vs.append(s.v)
+    x, v = np.array(xs), np.array(vs)
+    ex = float(np.abs(x - xo).max())
+    ev = float(np.abs(v - vo).max())
+    x_tol = TOL * max(1.0, float(np.abs(xo).max()))
+    v_tol = TOL * (1.0 + float(np.abs(vo).max()))
+    assert ex <= x_tol and ev <= v_tol, f'{case!r} streamed to {len(targets)} targets on its ' \
+        f'event times: |dx| = {ex:.3g} m, |dv| = {ev:.3g} m/s (tolerances {x_tol:.1g}, {v_tol:.1g})'
+    return {'err_x': ex, 'err_v': ev, 'targets': len(targets)}
+
+
+#: past 512 s, tol / 2 = 5e-14 s is below half a float spacing of t (issue 37 item 1)
+LATE = 600.0
+
+
+def check_late_start(case: Case, t_late: float = LATE) -> dict:
+    """A case of a periodic gait started at the first multiple of its period past ``t_late``
+    instead of at 0 (a fresh copy of the gait, ``Stepper(t0=...)``): the gait repeats, so the
+    motion is the case's own shifted in time, against the oracle's from 0 at the sample times
+    (as ``check_case``). Raises AssertionError on failure."""
+    P = case.gait.period
+    t0 = math.ceil(t_late / P) * P
+    te = sample_times(case)
+    o = Oracle.for_crawler(case.crawler, case.kin, case.breakpoints)
+    xo, vo = o.solve(case.t_end, te, v0=case.v0, h=oracle_h(case))
+    st = cs.Stepper(case.crawler, draw_case(case.family, case.seed).gait, t0=t0, v0=case.v0)
+    xs, vs = [], []
+    for t in te.tolist():
+        if t0 + t > st.t:
+            st.advance(t0 + t)
+        s = st.state
+        xs.append(s.x)
+        vs.append(s.v)
+    ex = float(np.abs(np.array(xs) - xo).max())
+    ev = float(np.abs(np.array(vs) - vo).max())
+    # the shift k P is a float and a time near t0 is known to ulp(t0) (1.1e-13 s at 600 s):
+    # the gait's own values move by that much time (16 ulp of l' and l'' at their largest,
+    # over the run for positions) beyond the oracle's tolerance
+    _, ld, ldd = case.kin(np.linspace(0.0, P, 2001))
+    dt = 16.0 * float(np.spacing(t0 + case.t_end))
+    v_tol = TOL * (1.0 + float(np.abs(vo).max())) + dt * float(np.abs(ldd).max())
+    x_tol = (TOL * max(1.0, float(np.abs(xo).max())) + dt * float(np.abs(ld).max())
+             + v_tol * case.t_end)
+    assert ex <= x_tol and ev <= v_tol, f'{case!r} started at t0 = {t0!r} s: |dx| = {ex:.3g} ' \
+        f'm, |dv| = {ev:.3g} m/s (tolerances {x_tol:.1g}, {v_tol:.1g})'
+    return {'err_x': ex, 'err_v': ev, 't0': t0}
+
+
 _W = 2 * math.pi
 ISSUE_SCENES = {   # issue 14's reproducers: (crawler, gait, t_end, v0)
     'custom_sine_4s': (cs.Crawler([1, 1], [1, 1]), G.Custom(
@@ -324,9 +412,10 @@ ISSUE_SCENES = {   # issue 14's reproducers: (crawler, gait, t_end, v0)
                                 6 / 0.6227466888177834, 6.0),
 }
 def run_fuzz(n_per_family: int, seed: int = 0, families=FAMILIES,
-             progress: Callable | None = None) -> dict:
+             progress: Callable | None = None, streams: bool = False) -> dict:
     """The long profile (``python -m benchmarks.solvers stress``): ``n_per_family`` cases per family from seeds
-    seed, seed + 1, ...; returns counts, worst errors and the failing cases."""
+    seed, seed + 1, ...; returns counts, worst errors and the failing cases. ``streams``: each
+    case with one gait is also streamed onto its event times (``check_stream``)."""
     say = progress or (lambda *a: None)
     out = {'cases': 0, 'failed': 0, 'errors': 0, 'worst_x': 0.0, 'failures': [],
            'by_family': {}}
@@ -338,6 +427,9 @@ def run_fuzz(n_per_family: int, seed: int = 0, families=FAMILIES,
             try:
                 r = check_case(case)
                 out['worst_x'] = max(out['worst_x'], r['err_x'])
+                if streams and case.gait is not None:
+                    r = check_stream(case)
+                    out['worst_x'] = max(out['worst_x'], r['err_x'])
             except AssertionError as exc:
                 out['failed'] += 1
                 out['failures'].append(str(exc)[:400])

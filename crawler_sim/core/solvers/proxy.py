@@ -442,7 +442,8 @@ class ChebTable:
         acc = np.abs(coef[:, :, 2, :]).sum(axis=2)                               # (K, nl)
         err = (NOISE * acc + 64.0 * _EPS * np.maximum(self.scale, self._quiet)
                + _EPS * np.maximum(np.abs(a), np.abs(b))[:, None] * jerk.max(axis=1))
-        slack = 2.0 * N * N * err / (b - a)[:, None]
+        with np.errstate(over='ignore'):      # a piece of a few floats: no check (inf)
+            slack = 2.0 * N * N * err / (b - a)[:, None]
         for k in range(a.size):
             bound = self._jerk(float(a[k]), float(b[k]))
             if bound is None:

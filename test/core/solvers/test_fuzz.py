@@ -22,6 +22,7 @@ examples per family without the example database, so CI is deterministic; shrink
 """
 from __future__ import annotations
 
+import math
 
 import numpy as np
 import pytest
@@ -29,7 +30,8 @@ from hypothesis import HealthCheck, Phase, given, settings, strategies as st
 
 import crawler_sim as cs
 from test.support.fuzz import (FAMILIES, ISSUE_SCENES, N_EXAMPLES, TOL, Case,  # noqa: F401
-                               check_case, draw_case, oracle_h, sample_times)
+                               check_case, check_late_start, check_stream, draw_case, oracle_h,
+                               sample_times, stream_targets)
 
 G = cs.gaits
 _QUICK = settings(max_examples=N_EXAMPLES, derandomize=True, database=None, deadline=None,
@@ -42,6 +44,37 @@ _QUICK = settings(max_examples=N_EXAMPLES, derandomize=True, database=None, dead
 @given(seed=st.integers(0, 2 ** 32 - 1))
 def test_exact_agrees_with_the_oracle(family, seed):
     check_case(draw_case(family, seed))
+
+
+# issue 37: the edges of float time, fewer examples (the long profile runs more, ``run_fuzz``)
+_EDGES = settings(_QUICK, max_examples=max(1, N_EXAMPLES // 5))
+_ONE_GAIT = [f for f in FAMILIES if not f.startswith('switch_')]
+_PERIODIC = ('custom_period', 'sinusoid', 'fourier', 'scallop', 'stroke', 'spline_periodic')
+
+
+@pytest.mark.parametrize('family', _ONE_GAIT)
+@_EDGES
+@given(seed=st.integers(0, 2 ** 32 - 1))
+def test_streams_onto_event_times_agree_with_the_oracle(family, seed):
+    # a first step of one float and of 1e-200 s, then every event time and the floats either
+    # side of it (items 2 and 3)
+    check_stream(draw_case(family, seed))
+
+
+@pytest.mark.parametrize('family', _PERIODIC)
+@_EDGES
+@given(seed=st.integers(0, 2 ** 32 - 1))
+def test_periodic_gaits_started_past_512_s_agree_with_the_oracle(family, seed):
+    # where tol / 2 is below half a float spacing of t (item 1), against the motion from 0
+    check_late_start(draw_case(family, seed))
+
+
+def test_stream_targets_sit_on_and_around_each_event():
+    te = 0.09430771556226782
+    ts = stream_targets([0.0, te], 1.0)
+    assert ts[0] == 5e-324 and 1e-200 in ts and ts == sorted(set(ts))
+    assert {math.nextafter(te, 0.0), te, math.nextafter(te, 1.0)} <= set(ts)
+    assert all(0.0 < t < 1.0 for t in ts)
 
 
 @pytest.mark.parametrize('name', list(ISSUE_SCENES))
