@@ -39,7 +39,8 @@ from typing import IO, Any, Callable, Iterator
 
 from .errors import BagError
 
-__all__ = ['OutputRefused', 'reading', 'check_output', 'check_new_folder', 'write_atomically',
+__all__ = ['OutputRefused', 'reading', 'check_output', 'check_outputs', 'check_new_folder',
+           'write_atomically',
            'write_text', 'open_new', 'temporary_target', 'OPEN_NEW']
 
 #: flags of every file crawler_sim creates: a new file, never an existing one, never a link
@@ -203,6 +204,23 @@ def check_output(path: os.PathLike | str) -> Path:
         what = 'is not a folder' if os.path.lexists(folder) else 'does not exist'
         raise OutputRefused(f'{path}: the folder {folder} {what}')
     return path
+
+
+def check_outputs(*paths: os.PathLike | str) -> list[Path]:
+    """:func:`check_output` of every file a command is about to write, before the first is
+    written; also :class:`OutputRefused` if two of them are the same file (one would replace
+    the other)."""
+    seen: dict[str, Path] = {}
+    checked = []
+    for item in paths:
+        path = check_output(item)
+        key = os.path.join(os.path.realpath(path.parent), path.name)
+        if key in seen:
+            raise OutputRefused(f'{path}: named for two outputs of this command (also as '
+                                f'{seen[key]}); give them different names')
+        seen[key] = path
+        checked.append(path)
+    return checked
 
 
 def check_new_folder(path: os.PathLike | str) -> Path:

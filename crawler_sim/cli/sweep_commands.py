@@ -62,15 +62,14 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 def _sweep(args: argparse.Namespace, source: Path) -> int:
     EXIT_OK, UsageError, _existing, _info, _print_table = _cli()
-    from ..bag.files import OutputRefused, check_output
+    from ..bag.files import OutputRefused, check_outputs
     from ..sweep import sweep
     from ..sweep.tables import table_files, write_table
 
     spec = _spec_of(source)
     fmt = 'csv' if args.csv else 'parquet'
     out = Path(args.output or f'sweep_{spec.name}.{fmt}')
-    for file in table_files(out, fmt):    # before the sweep runs, not after
-        check_output(file)
+    check_outputs(*table_files(out, fmt))     # before the sweep runs, not after
     checkpoint = Path(args.checkpoint) if args.checkpoint else out.with_name(out.name + '.chunks')
     if not args.checkpoint and checkpoint.is_symlink():
         # a folder the sweep makes beside its output is not followed through a planted link
@@ -132,7 +131,7 @@ def _optimize(args: argparse.Namespace, source: Path) -> int:
 
     from dataclasses import replace
 
-    from ..bag.files import check_output, write_text
+    from ..bag.files import check_outputs, write_text
     from ..core.actuator import ActuatorLimits
     from ..core.scene import load_scene, scene_to_dict
     from ..sweep.optimize import STREAM, gait_node_params, optimize, sim_node_params
@@ -146,14 +145,13 @@ def _optimize(args: argparse.Namespace, source: Path) -> int:
     scene_file = stem.with_name(stem.name + '_scene.yaml')
     sim_file = stem.with_name(stem.name + '_sim.yaml')
     # every output checked before the optimiser runs (minutes), not after it
-    for file in (out, scene_file) + ((sim_file,) if args.score == 'node' else ()):
-        check_output(file)
+    outputs = [out, scene_file] + ([sim_file] if args.score == 'node' else [])
     if args.history:
         from ..bag.plot import figure_output
-        figure_output(args.history)
+        outputs.append(figure_output(args.history)[0])
     if args.history_table:
-        for file in table_files(args.history_table):
-            check_output(file)
+        outputs += table_files(args.history_table)
+    check_outputs(*outputs)
     client = _client(args.scheduler)
     try:
         res = optimize(scene, objective=args.objective, family_name=args.family,

@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 from .. import __version__
-from ..bag.files import OutputRefused, check_output, write_atomically
+from ..bag.files import OutputRefused, check_outputs, write_atomically
 from ..core.trajectory import Trajectory
 
 __all__ = ['trajectory_frames', 'run_frames', 'frames', 'write_table', 'read_table',
@@ -127,8 +127,7 @@ def write_table(df: pd.DataFrame, path: str | os.PathLike, fmt: str | None = Non
     files of a CSV table are checked before either is written)."""
     path = Path(path)
     fmt = _format(path, fmt, OutputRefused)
-    for file in table_files(path, fmt):
-        check_output(file)
+    check_outputs(*table_files(path, fmt))
     meta = json.dumps(df.attrs.get(_META_KEY, {'version': __version__}), sort_keys=True,
                       default=str)
     if fmt == 'parquet':
@@ -223,8 +222,7 @@ def export_bag(bag: str | os.PathLike, out: str | os.PathLike, fmt: str | None =
     fmt = _format(out, fmt, OutputRefused)
     events_path = export_paths(out, fmt)[1]
     with reading(bag):
-        for file in table_files(out, fmt) + table_files(events_path, fmt):
-            check_output(file)
+        check_outputs(*table_files(out, fmt), *table_files(events_path, fmt))
         samples, events = frames(bag)
         write_table(samples, out, fmt)
         write_table(events.set_index('t'), events_path, fmt)

@@ -230,6 +230,15 @@ def test_a_new_folder_never_replaces_anything(tmp_path, kind):
         check_new_folder(path)
 
 
+def test_two_outputs_of_one_command_on_one_file_are_refused(tmp_path):
+    (tmp_path / 'sub').mkdir()
+    (tmp_path / 'link').symlink_to(tmp_path / 'sub')
+    with pytest.raises(OutputRefused, match='named for two outputs of this command'):
+        files.check_outputs(tmp_path / 'sub' / 'a.csv', tmp_path / 'link' / 'a.csv')
+    assert files.check_outputs(tmp_path / 'a.csv', tmp_path / 'a.csv.json') == [
+        tmp_path / 'a.csv', tmp_path / 'a.csv.json']
+
+
 def test_reading_blocks_nest_and_end(tmp_path):
     a, b = tmp_path / 'a.yaml', tmp_path / 'b.yaml'
     a.write_text('a')

@@ -163,6 +163,12 @@ REFUSED = {
         'optimize {scene} -o {tmp}/b.yaml --history-table {tmp}/h.csv',
         {'h.csv': 'hard:scene.yaml'}, 'is an input'),
     'optimize to a directory': ('optimize {scene} -o {dir}', {}, 'is a directory'),
+    'optimize history table over its gait file': (
+        'optimize {scene} -o {tmp}/b.csv --history-table {tmp}/b.csv', {},
+        'named for two outputs of this command'),
+    'optimize history over its gait file': (
+        'optimize {scene} -o {tmp}/h.png --history {tmp}/./h.png', {},
+        'named for two outputs of this command'),
 }
 
 
