@@ -764,14 +764,16 @@ def _bang_bang_fmod():
 
 def _twin_gap(fns, breaks, T, periods=2):
     """Largest |x(t) - x_twin(t)| [m] over a run of whole periods (the Custom gait against the
-    built-in twin, same crawler, same samples)."""
-    from crawler_sim import Crawler, simulate
+    built-in twin, same crawler, same samples), and whether verify() passes the Custom run
+    (it reads l'' beside a breakpoint as the sampler does)."""
+    from crawler_sim import Crawler, simulate, verify
     cr = Crawler(masses=[1.0, 1.0], friction=[3.0, 1.0])
     grid = np.linspace(0.0, periods * T, 41)
-    got = simulate(cr, Custom(*fns, breakpoints=breaks), periods * T, t_eval=grid)
+    g = Custom(*fns, breakpoints=breaks)
+    got = simulate(cr, g, periods * T, t_eval=grid)
     _, _, _, twin = _bang_bang_fmod()
     want = simulate(cr, twin, periods * T, t_eval=grid)
-    return float(np.abs(got.x - want.x).max()), got
+    return float(np.abs(got.x - want.x).max()), got, verify(simulate(cr, g, periods * T), g).ok()
 
 
 def test_a_custom_stroke_run_for_whole_periods_needs_no_breakpoint_at_its_end():
@@ -779,8 +781,8 @@ def test_a_custom_stroke_run_for_whole_periods_needs_no_breakpoint_at_its_end():
     # +a: a jump at the run's end is not an event (it was refused, naming t_end)
     fns, T, jumps, _ = _bang_bang_fmod()
     breaks = [k * T + x for k in range(2) for x in jumps][:-1]
-    gap, tr = _twin_gap(fns, breaks, T)
-    assert tr.t[-1] == 2 * T
+    gap, tr, verified = _twin_gap(fns, breaks, T)
+    assert tr.t[-1] == 2 * T and verified
     # the twin's jump times are its own arithmetic (k T + t_k): a few ulps from the user's,
     # which move x by (jump of l'') x (a few 1e-15 s) x t at most
     assert gap <= 1e-12, gap
@@ -794,8 +796,9 @@ def test_custom_breakpoints_rounded_to_15_significant_digits_match_the_jumps(dig
     breaks = [float(f'{k * T + x:.{digits - 1}e}') for k in range(2) for x in jumps][:-1]
     exact = [k * T + x for k in range(2) for x in jumps][:-1]
     assert breaks != exact                       # the premise: some are off
-    gap, _ = _twin_gap(fns, breaks, T)
+    gap, _, verified = _twin_gap(fns, breaks, T)
     assert gap <= 1e-12, gap
+    assert verified
 
 
 def test_a_run_that_starts_on_a_jump_of_a_custom_gait_needs_no_breakpoint_there():
@@ -825,3 +828,32 @@ def test_a_jump_off_every_listed_breakpoint_is_refused_naming_the_nearest():
     assert 'jumps by' in msg and 'breakpoints=' in msg
     assert f'{listed[0]!r}' in msg, msg              # the nearest listed value
     assert f'{float(jumps[0])!r}' in msg, msg        # the jump, to the ulp
+
+
+class _StrokeSubclass(Gait):
+    """A user's Gait subclass: the issue's stroke (its twin's values), its breakpoints each
+    three float spacings late (a user's own arithmetic)."""
+
+    def __init__(self):
+        _, self.T, self.jumps, self.twin = _bang_bang_fmod()
+        self.n_links = 1
+
+    def _eval(self, t):
+        return self.twin(t)
+
+    def breakpoints(self, t0, t1):
+        k = np.arange(math.floor(t0 / self.T), math.ceil(t1 / self.T) + 1)
+        b = (k[:, None] * self.T + self.jumps[None, :]).ravel()
+        b = np.nextafter(np.nextafter(np.nextafter(b, np.inf), np.inf), np.inf)
+        return b[(b > t0) & (b < t1)]
+
+
+def test_a_gait_subclass_whose_breakpoints_are_a_few_ulps_off_runs_as_its_twin():
+    # the same rule for every gait sampled into pieces (Custom or a subclass): it was refused
+    from crawler_sim import Crawler, simulate
+    g = _StrokeSubclass()
+    cr = Crawler(masses=[1.0, 1.0], friction=[3.0, 1.0])
+    grid = np.linspace(0.0, 2 * g.T, 41)
+    got = simulate(cr, g, 2 * g.T, t_eval=grid)
+    want = simulate(cr, g.twin, 2 * g.T, t_eval=grid)
+    assert np.abs(got.x - want.x).max() <= 1e-12
