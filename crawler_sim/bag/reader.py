@@ -24,6 +24,8 @@ import numpy as np
 from numpy.typing import NDArray
 import yaml
 
+from crawler_sim.core.trajectory import sample_frame
+
 from .cdr import Decoder
 from .clock import NS_PER_S, to_seconds
 from .errors import BagError
@@ -141,6 +143,32 @@ class Run:
     def duration(self) -> float:
         """``t[-1] - t[0]`` [s] (0 for fewer than two states)."""
         return float(self.t[-1] - self.t[0]) if len(self.t) > 1 else 0.0
+
+    @property
+    def masses(self) -> NDArray[np.float64] | None:
+        """The body masses [kg] of the recorded scene, when it gives one per body."""
+        crawler = self.scene.get('crawler') if isinstance(self.scene, dict) else None
+        masses = crawler.get('masses') if isinstance(crawler, dict) else None
+        if masses is None and isinstance(self.scene, dict):
+            masses = self.scene.get('masses')
+        try:
+            m = np.asarray(masses, dtype=np.float64).reshape(-1)
+        except (TypeError, ValueError):
+            return None
+        return m if masses is not None and m.size == self.p else None
+
+    def to_pandas(self) -> 'pandas.DataFrame':  # noqa: F821 - pandas is optional
+        """The states as a pandas DataFrame, the layout of ``Trajectory.to_pandas``
+        (:func:`crawler_sim.core.trajectory.sample_frame`; ``com`` when the scene gives the
+        masses). Needs pandas (``pip install pandas``)."""
+        return sample_frame(self.t, self.x, self.v, self.friction, self.contact, self.lengths,
+                            self.rates, self.linkage_force, self.masses)
+
+    def __repr__(self) -> str:
+        """One line: where from, bodies, span, states, events (not every array in full)."""
+        span = f't=[{self.t[0]:g}, {self.t[-1]:g}] s, ' if len(self.t) else ''
+        return (f'Run({str(self.path)!r}, p={self.p}, {span}{len(self.t)} states, '
+                f'{len(self.events.t)} events{", truncated" if self.truncated else ""})')
 
 
 # ---------------------------------------------------------------- files of a bag

@@ -565,7 +565,22 @@ def _version() -> str:
         return '0.1.0'
 
 
+#: optional packages a command may need (not in ``pip install .``), and the pip command that
+#: installs each (exit 2, one line: issue 43)
+_OPTIONAL = {'pandas': 'pip install pandas', 'pyarrow': 'pip install pyarrow',
+             'dask': 'pip install "dask[distributed]"',
+             'distributed': 'pip install "dask[distributed]"'}
+
+
+def _optional(exc: BaseException) -> str | None:
+    """The pip command for the optional package whose absence ``exc`` reports, or None."""
+    name = getattr(exc, 'name', None) if isinstance(exc, ImportError) else None
+    return _OPTIONAL.get((name or '').split('.')[0])
+
+
 def _exit_code(exc: BaseException) -> int:
+    if _optional(exc):
+        return EXIT_USAGE
     scene = sys.modules.get('crawler_sim.core.scene')
     spec = sys.modules.get('crawler_sim.sweep.spec')
     files = sys.modules.get('crawler_sim.bag.files')     # loaded by every command that writes
@@ -588,6 +603,9 @@ def _describe(exc: BaseException) -> str:
         return f'{where}{exc.strerror or exc or type(exc).__name__}'
     if isinstance(exc, MemoryError):
         return 'not enough memory for this command (a smaller run, sweep or bag needs less)'
+    if _optional(exc):
+        return (f'this command needs {exc.name}, which is not installed: {_optional(exc)} '
+                '(or pip install ".[sweep]" in the crawler_sim checkout)')
     if isinstance(exc, ImportError):
         return f'a part of crawler_sim this command needs is missing: {exc}'
     errors = sys.modules.get('crawler_sim.bag.errors')

@@ -17,7 +17,7 @@ from .model import Crawler
 if TYPE_CHECKING:      # dense imports the solvers, which import this module
     from .dense import DenseOutput
 
-__all__ = ['Event', 'EventLog', 'Trajectory', 'State']
+__all__ = ['Event', 'EventLog', 'Trajectory', 'State', 'sample_frame']
 
 
 class Event(NamedTuple):
@@ -459,3 +459,57 @@ class Trajectory:
 
     def __len__(self) -> int:
         return int(self.t.size)
+
+    def __repr__(self) -> str:
+        """One line for a notebook: bodies, method, span, samples, events, mean speed (the
+        dataclass's own repr printed every array in full)."""
+        t = self.t
+        if not t.size:
+            return f'Trajectory(p={self.x.shape[-1]}, method={self.method!r}, no samples)'
+        span = float(t[-1] - t[0])
+        speed = f'{self.mean_speed():.6g} m/s' if span > 0 else 'n/a'
+        return (f'Trajectory(p={self.x.shape[1]}, method={self.method!r}, '
+                f't=[{t[0]:g}, {t[-1]:g}] s, {t.size} samples, {len(self.events)} events, '
+                f'mean speed {speed})')
+
+    def to_pandas(self) -> 'pandas.DataFrame':  # noqa: F821 - pandas is optional
+        """The samples as a pandas DataFrame (:func:`sample_frame`: index ``t`` [s]; per body
+        ``x_i``, ``v_i``, ``friction_i``, ``contact_i``; per linkage ``length_j``, ``rate_j``,
+        ``linkage_force_j``; ``com``). The events: ``pandas.DataFrame(trajectory.events)``.
+        Needs pandas (``pip install pandas``)."""
+        return sample_frame(self.t, self.x, self.v, self.friction, self.contact, self.lengths,
+                            self.rates, self.linkage_force, self.crawler.masses)
+
+
+def sample_frame(t: ArrayLike, x: ArrayLike, v: ArrayLike, friction: ArrayLike,
+                 contact: ArrayLike, lengths: ArrayLike, rates: ArrayLike,
+                 linkage_force: ArrayLike, masses: ArrayLike | None = None
+                 ) -> 'pandas.DataFrame':  # noqa: F821 - pandas is optional
+    """The one table layout of a run's samples (a Trajectory, a loaded bag, an export): index
+    ``t`` [s]; per body i ``x_i`` [m], ``v_i`` [m/s], ``friction_i`` [N], ``contact_i`` (int8);
+    per linkage j ``length_j`` [m], ``rate_j`` [m/s], ``linkage_force_j`` [N]; and ``com``
+    [m] when the masses are given. ImportError naming the pip command without pandas."""
+    try:
+        import pandas as pd
+    except ImportError as exc:
+        raise ImportError('a table of a run needs pandas, which is not installed: '
+                          'pip install pandas', name='pandas') from exc
+    x = np.asarray(x, dtype=np.float64)
+    lengths = np.asarray(lengths, dtype=np.float64)
+    cols: dict[str, NDArray] = {}
+    p, n = x.shape[1], lengths.shape[1]
+    for name, arr in (('x', x), ('v', v), ('friction', friction)):
+        arr = np.asarray(arr)
+        for i in range(p):
+            cols[f'{name}_{i}'] = np.asarray(arr[:, i], dtype=np.float64)
+    contact = np.asarray(contact)
+    for i in range(p):
+        cols[f'contact_{i}'] = np.asarray(contact[:, i], dtype=np.int8)
+    for name, arr in (('length', lengths), ('rate', rates), ('linkage_force', linkage_force)):
+        arr = np.asarray(arr)
+        for j in range(n):
+            cols[f'{name}_{j}'] = np.asarray(arr[:, j], dtype=np.float64)
+    if masses is not None:
+        m = np.asarray(masses, dtype=np.float64)
+        cols['com'] = x @ (m / m.sum())
+    return pd.DataFrame(cols, index=pd.Index(np.asarray(t, dtype=np.float64), name='t'))

@@ -274,3 +274,31 @@ def test_the_typestore_gives_the_field_lists_and_empty_messages_of_the_ros_class
         assert rosmsg.store_field_types(name) == cls.get_fields_and_field_types(), name
         ros_bytes = Trimmer(name).trim(zero_padding(rosmsg.serialize(cls(), name), name))
         assert rosmsg.serialize(rosmsg.store_new(name), name) == ros_bytes, name
+
+
+def test_export_without_pandas_names_the_pip_command_and_exits_2(tmp_path):
+    """pandas is not in ``pip install .``: ``crawler-sim export`` says so in one line with the
+    exact pip command, exit 2 (it said 'a part of crawler_sim ... is missing', exit 1), and
+    ``Trajectory.to_pandas`` names the same command."""
+    import subprocess
+
+    from crawler_sim import Crawler, gaits, simulate
+    from crawler_sim.bag import record_trajectory
+
+    run = simulate(Crawler([0.5, 1.0], mu=0.3), gaits.Scallop(0.1, 0.02, 2.0, 0.2), 1.0)
+    record_trajectory(tmp_path / 'run', run)
+    code = ('import sys; sys.modules["pandas"] = None\n'
+            'from crawler_sim.cli import main\n'
+            f'code = main(["export", {str(tmp_path / "run")!r}, "--csv", '
+            f'{str(tmp_path / "out.csv")!r}])\n'
+            'from crawler_sim import Crawler, gaits, simulate\n'
+            'run = simulate(Crawler([0.5, 1.0], mu=0.3), gaits.Scallop(0.1, 0.02, 2.0, 0.2), 1.0)\n'
+            'try:\n    run.to_pandas()\nexcept ImportError as exc:\n    print(exc)\n'
+            'sys.exit(code)\n')
+    proc = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                          cwd=BAG.parents[1], timeout=300)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.count('\n') == 1 and proc.stderr.startswith('crawler-sim: error: ')
+    assert 'needs pandas' in proc.stderr and 'pip install pandas' in proc.stderr
+    assert 'pip install pandas' in proc.stdout
+    assert not (tmp_path / 'out.csv').exists()

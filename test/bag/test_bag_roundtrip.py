@@ -417,3 +417,34 @@ def test_offline_messages_are_the_bytes_the_node_publishes_and_records(bag, arra
                 got[channel.topic].append(message.data)
     for topic in STATE_TOPICS:
         assert got[topic] == want[topic], topic
+
+
+def test_a_trajectory_and_its_bag_give_the_same_table_and_a_short_repr(tmp_path):
+    """Jupyter (issue 43): ``to_pandas()`` of a Trajectory and of its recorded bag are the
+    same frame (one layout, crawler_sim.core.trajectory.sample_frame, also export's); the
+    reprs are one short line each instead of every array."""
+    pd = pytest.importorskip('pandas')
+    from crawler_sim import Crawler, gaits, simulate
+    from crawler_sim.bag import record_trajectory
+    from crawler_sim.sweep.tables import trajectory_frames
+
+    run = simulate(Crawler([0.5, 1.0], mu=0.3), gaits.Scallop(0.1, 0.02, 2.0, 0.2), 3.0)
+    record_trajectory(tmp_path / 'run', run, scene={'crawler': {'masses': [0.5, 1.0]}})
+    back = load(tmp_path / 'run')
+    frame = run.to_pandas()
+    assert list(frame.columns) == ['x_0', 'x_1', 'v_0', 'v_1', 'friction_0', 'friction_1',
+                                   'contact_0', 'contact_1', 'length_0', 'rate_0',
+                                   'linkage_force_0', 'com']
+    assert frame.index.name == 't' and len(frame) == len(run.t)
+    pd.testing.assert_frame_equal(frame, trajectory_frames(run)[0])
+    loaded = back.to_pandas()
+    # the same columns and numbers; the times went through integer ns
+    pd.testing.assert_frame_equal(loaded, frame, check_exact=False, rtol=0, atol=1e-9)
+    assert_array_equal(loaded.to_numpy(), frame.to_numpy())
+    text = repr(run)
+    assert text.startswith('Trajectory(p=2, method=\'exact\', t=[0, 3] s, ')
+    assert f'{len(run.t)} samples, {len(run.events)} events, mean speed ' in text
+    assert len(text) < 150 and '\n' not in text
+    text = repr(back)
+    assert f'p=2, t=[0, 3] s, {len(run.t)} states, {len(run.events)} events' in text
+    assert len(text) < 200 and '\n' not in text
