@@ -36,7 +36,7 @@ import pandas as pd
 
 from .. import __version__
 from ..bag.files import OutputRefused, check_outputs, write_atomically
-from ..core.trajectory import Trajectory
+from ..core.trajectory import Trajectory, sample_frame
 
 __all__ = ['trajectory_frames', 'run_frames', 'frames', 'write_table', 'read_table',
            'export_bag', 'export_paths', 'table_files', 'write_atomically', 'FORMATS']
@@ -48,19 +48,8 @@ _CSV_PREFIX = f'# {_META_KEY}: '
 
 def _samples(t: np.ndarray, x, v, friction, contact, lengths, rates, force,
              masses: np.ndarray | None) -> pd.DataFrame:
-    cols: dict[str, Any] = {}
-    p, n = x.shape[1], lengths.shape[1]
-    for name, arr in (('x', x), ('v', v), ('friction', friction)):
-        for i in range(p):
-            cols[f'{name}_{i}'] = np.asarray(arr[:, i], dtype=np.float64)
-    for i in range(p):
-        cols[f'contact_{i}'] = np.asarray(contact[:, i], dtype=np.int8)
-    for name, arr in (('length', lengths), ('rate', rates), ('linkage_force', force)):
-        for j in range(n):
-            cols[f'{name}_{j}'] = np.asarray(arr[:, j], dtype=np.float64)
-    if masses is not None:
-        cols['com'] = x @ (masses / masses.sum())
-    return pd.DataFrame(cols, index=pd.Index(np.asarray(t, dtype=np.float64), name='t'))
+    # the one layout of a run's samples, shared with Trajectory.to_pandas and Run.to_pandas
+    return sample_frame(t, x, v, friction, contact, lengths, rates, force, masses)
 
 
 def _events(t, body, old, new) -> pd.DataFrame:
