@@ -390,8 +390,8 @@ def _replay(run: Any, method: str | None, tol: float) -> dict:
     sc = run.scene if isinstance(run.scene, dict) else {}
     node = 'integration_rate' in sc
     if not node and 'gait' not in sc:
-        raise UsageError('the bag holds no scene (neither node parameters nor a scene dict); '
-                         'it cannot be replayed')
+        raise UsageError(f'{run.path}: the bag holds no scene (neither node parameters nor a '
+                         'scene dict); it cannot be replayed')
     x, v, inputs = (_replay_node if node else _replay_scene)(run, method)
     rx, rv = np.asarray(run.x, dtype=float), np.asarray(run.v, dtype=float)
     if rx.shape != x.shape:

@@ -486,9 +486,10 @@ def sample_frame(t: ArrayLike, x: ArrayLike, v: ArrayLike, friction: ArrayLike,
                  linkage_force: ArrayLike, masses: ArrayLike | None = None
                  ) -> 'pandas.DataFrame':  # noqa: F821 - pandas is optional
     """The one table layout of a run's samples (a Trajectory, a loaded bag, an export): index
-    ``t`` [s]; per body i ``x_i`` [m], ``v_i`` [m/s], ``friction_i`` [N], ``contact_i`` (int8);
-    per linkage j ``length_j`` [m], ``rate_j`` [m/s], ``linkage_force_j`` [N]; and ``com``
-    [m] when the masses are given. ImportError naming the pip command without pandas."""
+    ``t`` [s]; per body i ``x_i`` [m], ``v_i`` [m/s], ``friction_i`` [N], ``contact_i`` (int8,
+    when recorded); per linkage j ``length_j`` [m], ``rate_j`` [m/s], ``linkage_force_j`` [N];
+    and ``com`` [m] when the masses are given. ImportError naming the pip command without
+    pandas."""
     try:
         import pandas as pd
     except ImportError as exc:
@@ -503,7 +504,7 @@ def sample_frame(t: ArrayLike, x: ArrayLike, v: ArrayLike, friction: ArrayLike,
         for i in range(p):
             cols[f'{name}_{i}'] = np.asarray(arr[:, i], dtype=np.float64)
     contact = np.asarray(contact)
-    for i in range(p):
+    for i in range(contact.shape[1]):       # none from a bag recorded without contact_states
         cols[f'contact_{i}'] = np.asarray(contact[:, i], dtype=np.int8)
     for name, arr in (('length', lengths), ('rate', rates), ('linkage_force', linkage_force)):
         arr = np.asarray(arr)

@@ -140,3 +140,37 @@ def test_an_oserror_without_a_reason_is_not_an_internal_error(monkeypatch, capsy
     proc = run(capsys, 'simulate', SCENE)
     assert proc.returncode == 1
     assert 'the device went away' in error_line(proc)
+
+
+def body_states_only(path: Path) -> Path:
+    """A bag of body_states alone (an outputs switched off, a foreign recorder): no joint_states
+    or contact_states, no scene."""
+    from sensor_msgs.msg import JointState
+
+    from crawler_sim.bag import BagWriter
+
+    with BagWriter(path, flush_interval=None) as writer:
+        for k in range(5):
+            msg = JointState(name=['body_0', 'body_1'], position=[0.1 * k, 0.2 + 0.1 * k],
+                             velocity=[0.1, 0.1], effort=[-1.0, -2.0])
+            writer.write('/body_states', 'sensor_msgs/msg/JointState', msg, k * 10_000_000)
+    return path
+
+
+def test_export_of_a_bag_without_contact_states_writes_what_was_recorded(tmp_path, capsys):
+    # was: internal error (IndexError: index 0 is out of bounds for axis 1 with size 0)
+    from crawler_sim.sweep.tables import read_table
+
+    bag = body_states_only(tmp_path / 'run')
+    proc = run(capsys, 'export', bag, '--csv', tmp_path / 'run.csv')
+    assert proc.returncode == 0, proc.stderr
+    samples = read_table(tmp_path / 'run.csv')
+    assert not [c for c in samples.columns if c.startswith('contact_')]   # none recorded
+    assert samples['x_1'].tolist() == pytest.approx([0.2, 0.3, 0.4, 0.5, 0.6])
+
+
+def test_replay_of_a_bag_without_a_scene_names_the_bag(tmp_path, capsys):
+    bag = body_states_only(tmp_path / 'run')
+    proc = run(capsys, 'replay', bag)
+    assert proc.returncode == 2
+    assert f'{bag}: the bag holds no scene' in error_line(proc)
