@@ -1,5 +1,7 @@
 """The one way crawler_sim writes a file: bags' metadata, tables and their sidecars, checkpoint
-chunks, specs, gait files and figures all go through :func:`write_atomically`.
+chunks, specs, gait files and figures all go through :func:`write_atomically`; what is written
+as it happens (a recording, a process's log) is created by :func:`open_new`; a command checks
+all its outputs before the first is written with :func:`check_outputs`.
 
 Rules (docs/bags.md, "Outputs"):
 
@@ -40,8 +42,7 @@ from typing import IO, Any, Callable, Iterator
 from .errors import BagError
 
 __all__ = ['OutputRefused', 'reading', 'check_output', 'check_outputs', 'check_new_folder',
-           'write_atomically',
-           'write_text', 'open_new', 'temporary_target', 'OPEN_NEW']
+           'write_atomically', 'write_text', 'open_new', 'temporary_target', 'OPEN_NEW']
 
 #: flags of every file crawler_sim creates: a new file, never an existing one, never a link
 OPEN_NEW = (os.O_CREAT | os.O_EXCL | getattr(os, 'O_NOFOLLOW', 0)
