@@ -4,6 +4,7 @@
     python -m benchmarks.bag --hostile --kill [--kills 30]
     python -m benchmarks.bag --writer [--messages 200000]
     python -m benchmarks.bag --encode [--bodies 3]
+    python -m benchmarks.bag --offline [--t-end 20]
 
 Default: writes a synthetic bag with the node's topics (p = 3, one state per 10 ms of sim time:
 one hour = 360,000 steps, about 1.4 million messages) once, then times ``load`` five times (wall
@@ -28,6 +29,14 @@ included). The figure the McapWriter module doc quotes; no floor.
 :class:`crawler_sim.ros.messages.OutputEncoder` (the one CDR encoder,
 :class:`crawler_sim.bag.cdr.Encoder`) against building the message and
 ``serialize_message``, which is what it replaces; no floor.
+
+``--offline``: the README's recorded offline run (issue 43), ``crawler-sim simulate
+config/scenes/slope_climb.yaml --method implicit --dt 1e-4 --out DIR`` (200,001 samples),
+then ``plot`` and ``export --csv``/``--parquet`` of that bag, each step in CPU seconds in this
+process (imports done first), median of 3 with the best: the simulation, the recording
+(``record_trajectory``, columnar), ``load``, the figure (drawn and saved) and the tables
+(frames and written). Floors (issue 43): recording at most 2 s beyond the run; plot and
+export under 2 s each.
 """
 from __future__ import annotations
 
@@ -279,6 +288,44 @@ def print_hostile(rows: list[dict]) -> None:
               f'{r["result"]}')
 
 
+def bench_offline(t_end: float, rounds: int = 3) -> dict[str, list[float]]:
+    """CPU seconds of each step of the README's recorded offline run (see the module doc)."""
+    from crawler_sim.bag.plot import figure, save
+    from crawler_sim.core.scene import load_scene, scene_to_dict
+    from crawler_sim.bag import record_trajectory
+    try:
+        from crawler_sim.sweep.tables import export_bag
+    except ImportError:                     # pandas is optional: no table figures then
+        export_bag = None
+    scene = load_scene(Path(__file__).resolve().parents[1] / 'config' / 'scenes'
+                       / 'slope_climb.yaml').with_run(method='implicit', t_end=t_end, dt=1e-4)
+    times: dict[str, list[float]] = {}
+    clock = time.process_time
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in range(rounds):
+            out = Path(tmp) / f'climb{k}'
+            c0 = clock()
+            tr = scene.simulate()
+            c1 = clock()
+            record_trajectory(out, tr, scene=scene_to_dict(scene))
+            c2 = clock()
+            run = load(out)
+            c3 = clock()
+            save(figure(run, 'climb'), Path(tmp) / f'climb{k}.png')
+            c4 = clock()
+            steps = {'simulate': c1 - c0, 'record': c2 - c1, 'load': c3 - c2,
+                     'plot (load + figure)': c4 - c2, 'samples': len(tr.t)}
+            if export_bag is not None:
+                export_bag(out, Path(tmp) / f'climb{k}.csv', 'csv')
+                c5 = clock()
+                export_bag(out, Path(tmp) / f'climb{k}.parquet', 'parquet')
+                c6 = clock()
+                steps.update({'export csv': c5 - c4, 'export parquet': c6 - c5})
+            for name, value in steps.items():
+                times.setdefault(name, []).append(value)
+    return times
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--steps', type=int, default=360_000, help='states (100 Hz: 360000 = 1 h)')
@@ -292,6 +339,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument('--encode', action='store_true',
                     help='us per output message: OutputEncoder against serialize_message')
     ap.add_argument('--bodies', type=int, default=3, help='bodies for --encode')
+    ap.add_argument('--offline', action='store_true',
+                    help='CPU of recording, plotting, exporting the README\'s offline run')
+    ap.add_argument('--t-end', type=float, default=20.0, help='run length for --offline [s]')
     ap.add_argument('--seed', type=int, default=1)
     ap.add_argument('--child', help=argparse.SUPPRESS)
     ap.add_argument('--measure', nargs=2, help=argparse.SUPPRESS)
@@ -302,6 +352,23 @@ def main(argv: list[str] | None = None) -> int:
     if args.measure:
         child_measure(*args.measure)
         return 0
+    if args.offline:
+        times = bench_offline(args.t_end)
+        samples = times.pop('samples')[0]
+        print(f'slope_climb, implicit, dt 1e-4, t_end {args.t_end:g} s: {samples} samples '
+              '(CPU s, median of 3, best)')
+        for name, values in times.items():
+            print(f'  {name:22s} {statistics.median(values):7.3f} {min(values):7.3f}')
+        floors = {'record': 2.0, 'plot (load + figure)': 2.0, 'export csv': 2.0,
+                  'export parquet': 2.0}
+        ok = True
+        for name, floor in floors.items():
+            if name in times:
+                median = statistics.median(times[name])
+                print(f'{name}: {median:.3f} s CPU, floor {floor:g} s: '
+                      f'{"PASS" if median <= floor else "FAIL"}')
+                ok = ok and median <= floor
+        return 0 if ok else 1
     if args.encode:
         print(f'{"output":18s} {"OutputEncoder":>14s} {"serialize_message":>18s}  '
               f'(us per message, p = {args.bodies}, median of 5)')
