@@ -20,13 +20,13 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
 from crawler_sim.core.plant.config import _short
 from crawler_sim.core.plant.replay import Input, input_name, JournalError, KINDS
-from . import trajarrays
+from . import journal, trajarrays
 from .mcapfile import Batch, scan
 from .reader import bag_files
 from .topics import LINKAGE_CMD, LINKAGE_TRAJECTORY, PLANT_INPUTS, normalize_namespace
@@ -92,14 +92,9 @@ def _string(data: bytes) -> str:
     return data[8:8 + n - 1].decode('utf-8')
 
 
-#: the field each kind of journal entry needs: (name, what it must be, check)
-_FIELDS: dict[str, tuple[str, str, Any]] = {
-    'command': ('lengths', 'a list of lengths [m]', lambda x: isinstance(x, list)),
-    'configure': ('values', 'an object of parameter values', lambda x: isinstance(x, dict)),
-    'reset': ('values', 'an object of parameter values', lambda x: isinstance(x, dict)),
-    'trajectory': ('points', 'an integer >= -1 (-1: not recorded)',
-                   lambda x: isinstance(x, int) and not isinstance(x, bool) and x >= -1),
-}
+#: the field each kind of journal entry needs: (name, what it must be, check); the format's
+#: owner is .journal (the node writes with it)
+_FIELDS = journal.FIELDS
 
 
 def _entry(path, name: str, data: bytes) -> dict:

@@ -75,7 +75,7 @@ def test_diagnostics_names_carry_the_namespace(ros):
     names = {n.diagnostics().status[0].name for n in (a, b)}
     assert names == {'/robot1/crawler_sim: simulation', '/robot2/crawler_sim: simulation'}
     diags = ros.listen(DiagnosticArray, '/diagnostics')
-    a._publish_diagnostics(0.0)
+    a.publish_diagnostics(0.0)
     ros.until(lambda: diags, 'a diagnostics message')
     assert diags[-1].status[0].name == '/robot1/crawler_sim: simulation'
 

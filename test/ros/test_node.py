@@ -81,6 +81,19 @@ def test_a_sensor_data_and_a_reliable_subscriber_both_receive(ros):
     ros.until(lambda: best_effort and reliable, 'both subscribers to receive')
 
 
+def test_the_publish_grid_is_every_output_but_the_named_off_grid_ones(ros, monkeypatch):
+    """Issue 42: the grid was ``OUTPUTS[:-1]`` (diagnostics assumed last), so an output added
+    at the end of the table left the grid and diagnostics joined it (SimNode failed to start:
+    no encoder named diagnostics). The off-grid outputs are named (params.OFF_GRID)."""
+    from crawler_sim.ros.sim import outputs as O
+    from crawler_sim.ros.sim.params import OFF_GRID, OUTPUTS
+    reordered = ('diagnostics',) + tuple(n for n in OUTPUTS if n != 'diagnostics')
+    monkeypatch.setattr(O, 'OUTPUTS', reordered)
+    sim = ros.sim()
+    grid = [name for name, *_ in sim.outputs._grid]
+    assert grid == [n for n in reordered if n not in OFF_GRID] and 'markers' in grid
+
+
 def test_clock_is_published_at_every_publish_tick_only_when_asked(ros):
     sim = ros.sim(publish_clock=True, publish_rate=50.0, method='implicit')
     clocks = ros.listen(Clock, '/clock')

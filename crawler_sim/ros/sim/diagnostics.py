@@ -8,17 +8,14 @@ rejected inputs, a recording or solver failure), else OK.
 from __future__ import annotations
 
 import time
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
 
 from crawler_sim.ros import messages as M
 from crawler_sim.core.simtime import to_seconds
 
-if TYPE_CHECKING:
-    from .node import SimNode
-
-__all__ = ['Diagnostics', 'COUNTERS', 'node_values']
+__all__ = ['Diagnostics', 'COUNTERS', 'graph_count']
 
 COUNTERS = ('ticks', 'late_ticks', 'commands_accepted', 'commands_rejected',
             'commands_no_value', 'trajectories_accepted', 'trajectories_rejected',
@@ -58,7 +55,7 @@ class Diagnostics:
             self._rtf = to_seconds(t_ns - t_prev) / max(wall_now - wall_prev, 1e-9)
         rtf = self._rtf
         late = sorted(self.lateness)
-        self.lateness = []
+        self.lateness.clear()        # in place: the loop holds this list
         self._prev = (t_ns, wall_now, c)
         p99 = late[min(len(late) - 1, int(0.99 * len(late)))] * 1e3 if late else 0.0
         out = {'sim_time': to_seconds(t_ns), 'real_time_factor': rtf,
@@ -96,41 +93,9 @@ class Diagnostics:
         return M.diagnostics_msg(t_ns, out, warn=warn, name=self.name, error=error)
 
 
-def _count(query) -> int:
+def graph_count(query) -> int:
     """A graph count, or -1 once the context is shut down (e.g. in the final diagnostics)."""
     try:
         return int(query())
     except Exception:  # rclpy raises RCLError for an invalid context
         return -1
-
-
-def node_values(node: SimNode) -> tuple[dict[str, Any], list[str]]:
-    """The figures of a SimNode for its report (call under its lock), and extra warnings."""
-    rec = node.recorder
-    cfg = node._cfg
-    clock = node.outputs.clock_pub
-    values = {
-        'paused': node.paused, 'method': cfg.method, 'bodies': cfg.p,
-        'real_time_factor_target': cfg.real_time_factor,
-        'last_rejection': node._rejections.last,
-        'indeterminate': bool(getattr(node._last_state, 'indeterminate', False)),
-        'solver_method_now': node._engine.stepper.method,
-        'solver_error': node._solver_error,
-        'linkage_cmd_publishers': _count(node._cmd_sub.get_publisher_count),
-        'linkage_trajectory_publishers': _count(node._traj_sub.get_publisher_count),
-        'clock_subscribers': _count(clock.get_subscription_count) if clock is not None else 0,
-        'recording': rec.path, 'recording_error': rec.error,
-        'last_trajectory_intake_ms': node._traj_intake[0] * 1e3,
-        'last_trajectory_bytes': node._traj_intake[1],
-        'same_name_nodes': _count(lambda: node.get_fully_qualified_node_names().count(
-            node.get_fully_qualified_name()) - 1),
-    }
-    values.update(node.clock.values())
-    warn = ['recording failed'] if rec.error else []
-    warn += node.clock.warnings()
-    if values['same_name_nodes'] > 0:
-        # two sims in one namespace interleave their outputs and share this status's name
-        warn.append(f'{values["same_name_nodes"]} other node(s) named '
-                    f'{node.get_fully_qualified_name()}: outputs interleave (give each sim its '
-                    'own namespace, -r __ns:=/robot2)')
-    return values, warn

@@ -18,39 +18,55 @@ wait for a message; the bag flushes itself on a wall timer in its own thread (cr
 """
 from __future__ import annotations
 
+import threading
 import time
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Protocol
 
 from crawler_sim.core.simtime import to_seconds
 
 if TYPE_CHECKING:
-    from .node import SimNode
+    from .clock import SharedClock
+    from .params import SimConfig
 
-__all__ = ['run', 'warm_up', 'MAX_LAG', 'PAUSED_REPUBLISH']
+__all__ = ['run', 'Loopable', 'MAX_LAG', 'PAUSED_REPUBLISH']
 
 MAX_LAG = 0.5            # wall s of lag after which the real-time loop re-anchors
 PAUSED_REPUBLISH = 0.5   # wall s between two republications of the state while paused
 
 
-def warm_up(node: SimNode) -> None:
-    """Run once what the first ticks would compile, import or build cold (the solver's first
-    call, the encoders' templates) on a scratch engine, so that cold start stays out of the
-    real-time loop; ``main`` calls it before the loop starts. The node's state is unchanged."""
-    from crawler_sim.core.plant import Engine
-    with node._lock:
-        cfg = node._cfg
-        scratch = Engine(cfg.engine_config(), node._t_ns)
-        for _ in range(cfg.publish_every):
-            scratch.tick()
-        st = scratch.state
-        enc = node.outputs.encoder
-        for _name, _topic, _pub, encode, _raw in node.outputs._grid:
-            encode(st, node._t_ns, cfg.crawler.masses)
-        enc.applied_command(list(cfg.initial_lengths), node._t_ns)
-        enc.fast = enc.slow = 0
+class Loopable(Protocol):
+    """What the loop uses of a node (``SimNode``): the whole interface between the two."""
+
+    counters: dict[str, int]
+    clock: SharedClock
+    context: Any
+    #: wall s of lateness of each paced tick since the last diagnostics report
+    lateness: list[float]
+
+    @property
+    def lock(self) -> threading.RLock: ...
+    @property
+    def config(self) -> SimConfig: ...
+    @property
+    def sim_time_ns(self) -> int: ...
+    @property
+    def paused(self) -> bool: ...
+    @property
+    def stopped(self) -> bool: ...
+    def take_anchor(self) -> bool:
+        """Whether pacing must start again from now (and clear the request)."""
+    def reanchor(self) -> None:
+        """Ask for pacing to start again from now."""
+    def tick_locked(self, to_grid: bool = False) -> None:
+        """One tick (``to_grid``: up to the next publish tick), the lock held."""
+    def publish_state(self) -> None:
+        """Publish the state now (the lock held)."""
+    def publish_diagnostics(self, wall_now: float) -> None: ...
+    def take_inputs(self) -> int: ...
+    def republish(self) -> None: ...
 
 
-def run(node: SimNode) -> None:
+def run(node: Loopable) -> None:
     """Tick ``node`` until it is stopped or its context shuts down."""
     try:
         _loop(node)
@@ -60,32 +76,32 @@ def run(node: SimNode) -> None:
         # a signal shut the context down in the middle of a tick (e.g. while publishing)
 
 
-def _loop(node) -> None:
+def _loop(node: Loopable) -> None:
     now = time.perf_counter
     anchor_wall = now()
     anchor_tick = 0
-    next_diag = anchor_wall + node._cfg.diagnostics_period
+    next_diag = anchor_wall + node.config.diagnostics_period
     ok = node.context.ok
     counters = node.counters
-    lateness = node._diag
+    lateness = node.lateness
     if counters['ticks'] == 0:
-        with node._lock:
-            node._publish_outputs()       # the initial state at t = 0 (a bag starts there)
+        with node.lock:
+            node.publish_state()       # the initial state at t = 0 (a bag starts there)
     checks = 0
     next_republish = 0.0
     clock = node.clock
     shared = clock.active
-    while not node._stop:
+    while not node.stopped:
         # context.ok() costs ~1 us: flat out, ask every 16th iteration
         checks = (checks + 1) & 15
         if checks == 0 and not ok():
             break
         t = now()
         if t >= next_diag:
-            node._publish_diagnostics(t)
-            next_diag = t + node._cfg.diagnostics_period
+            node.publish_diagnostics(t)
+            next_diag = t + node.config.diagnostics_period
         if shared and clock.due(t):
-            with node._lock:
+            with node.lock:
                 clock.poll(t)         # follow, keep alive, take over or yield (.clock)
         if node.paused:
             node.take_inputs()        # count (and warn about) commands while paused too
@@ -94,17 +110,16 @@ def _loop(node) -> None:
                 next_republish = t + PAUSED_REPUBLISH
             time.sleep(0.01)
             continue
-        if node._anchor_needed:
-            node._anchor_needed = False
+        if node.take_anchor():
             anchor_wall, anchor_tick = t, counters['ticks']
-        cfg = node._cfg
+        cfg = node.config
         target = clock.target_ns
         if target is not None:
             # following another node's /clock: tick up to its time, never past it (the stamps
             # of every robot agree with the one clock)
-            with node._lock:
-                if not node.paused and node._t_ns + cfg.dt_ns <= target:
-                    node._tick()
+            with node.lock:
+                if not node.paused and node.sim_time_ns + cfg.dt_ns <= target:
+                    node.tick_locked()
                     continue
             time.sleep(0.001)
             continue
@@ -114,9 +129,9 @@ def _loop(node) -> None:
             # at its first tick, as the paced branch does between a period's first tick and
             # the next): the per-tick calls of the loop and of SimNode.tick cost about a third
             # of the engine's own time.
-            with node._lock:
+            with node.lock:
                 if not node.paused:
-                    node._tick(to_grid=True)
+                    node.tick_locked(to_grid=True)
             continue
         if rtf > 0.0:
             period = to_seconds(cfg.dt_ns) / rtf
@@ -133,12 +148,12 @@ def _loop(node) -> None:
                 # Early ticks are not late: lateness counts the ticks that waited.
             else:
                 late = t - deadline
-                lateness.lateness.append(late)
+                lateness.append(late)
                 if late > period:
                     counters['late_ticks'] += 1
                 if late > MAX_LAG:
                     counters['lag_resets'] += 1
-                    node._anchor_needed = True
-        with node._lock:              # a pause that arrived meanwhile wins
+                    node.reanchor()
+        with node.lock:              # a pause that arrived meanwhile wins
             if not node.paused:
-                node._tick()          # node.tick() without taking the lock a second time
+                node.tick_locked()

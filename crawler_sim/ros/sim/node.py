@@ -34,7 +34,6 @@ delegates lives in its own module.
 """
 from __future__ import annotations
 
-import json
 import math
 import threading
 import time
@@ -49,13 +48,13 @@ from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import SetBool, Trigger
 from trajectory_msgs.msg import JointTrajectory
 
-from crawler_sim.bag import topics as T
+from crawler_sim.bag import journal, topics as T
 from crawler_sim.core.plant import Engine
 from crawler_sim.core.trajectory import State
 from crawler_sim.ros import messages as M
 from . import intake, loop
 from .clock import SharedClock
-from .diagnostics import COUNTERS, Diagnostics, node_values
+from .diagnostics import COUNTERS, Diagnostics, graph_count
 from .outputs import Outputs
 from .params import NODE_NAME, PARAMETERS, SimConfig, declare_all
 from .recording import applied_trajectory, SessionBag
@@ -80,6 +79,8 @@ class SimNode(Node):
         self.counters = dict.fromkeys(COUNTERS, 0)
         self._rejections = intake.RejectionLog(self.counters, self._log.warning)
         self._diag = Diagnostics(self.counters, f'{self.get_fully_qualified_name()}: simulation')
+        #: wall s of lateness of each paced tick since the last report (the loop appends)
+        self.lateness = self._diag.lateness
         self.outputs = Outputs(self)
         self._applied_pub = self.create_publisher(JointState, T.APPLIED_COMMAND.node_name, 10)
         self.outputs.sync(self._cfg)
@@ -204,21 +205,15 @@ class SimNode(Node):
         if not rec.on:
             return
         self._journal_seq += 1
-        entry: dict[str, Any] = {'seq': self._journal_seq, 'kind': kind}
-        if kind == 'command':
-            entry['lengths'] = payload
-        elif kind in ('configure', 'reset'):
-            entry['values'] = {k: (list(v) if isinstance(v, (list, tuple)) else v)
-                               for k, v in payload.values.items()}
-        elif kind == 'trajectory':
-            entry['points'] = 0 if payload is None else len(payload.tfs_ns)
+        if kind == 'trajectory':
             raw = getattr(payload, 'raw', None)
             if raw is not None:
                 rec.write(T.LINKAGE_TRAJECTORY,
                           applied_trajectory(raw, payload.stamp_ns, t_ns), t_ns)
-            else:
-                entry['points'] = -1          # not recorded (a trajectory given in Python)
-        rec.write(T.PLANT_INPUTS, String(data=json.dumps(entry)), t_ns)
+            # a trajectory given in Python (or None) has no message: not recorded
+            payload = len(payload.tfs_ns) if raw is not None else journal.NOT_RECORDED
+        rec.write(T.PLANT_INPUTS, String(data=journal.encode(self._journal_seq, kind, payload)),
+                  t_ns)
 
     # ------------------------------------------------------------------ inputs
     def take_inputs(self) -> int:
@@ -479,14 +474,47 @@ class SimNode(Node):
         """Build the /diagnostics message (figures since the previous call; ``final``: the
         last one, at shutdown)."""
         with self._lock:
-            values, warn = node_values(self)
+            values, warn = self._report_values()
             same = values['same_name_nodes'] > 0
             if same and not self._same_name_logged:
                 self._log.warning(next(w for w in warn if 'other node(s) named' in w))
             self._same_name_logged = same
             return self._diag.message(self._t_ns, values, wall_now, warn, final=final)
 
-    def _publish_diagnostics(self, wall_now: float) -> None:
+    def _report_values(self) -> tuple[dict[str, Any], list[str]]:
+        """The node's own figures for its report (under the lock), and extra warnings."""
+        rec = self.recorder
+        cfg = self._cfg
+        clock = self.outputs.clock_pub
+        fqn = self.get_fully_qualified_name()
+        values = {
+            'paused': self.paused, 'method': cfg.method, 'bodies': cfg.p,
+            'real_time_factor_target': cfg.real_time_factor,
+            'last_rejection': self._rejections.last,
+            'indeterminate': bool(getattr(self._last_state, 'indeterminate', False)),
+            'solver_method_now': self._engine.stepper.method,
+            'solver_error': self._solver_error,
+            'linkage_cmd_publishers': graph_count(self._cmd_sub.get_publisher_count),
+            'linkage_trajectory_publishers': graph_count(self._traj_sub.get_publisher_count),
+            'clock_subscribers': (graph_count(clock.get_subscription_count)
+                                  if clock is not None else 0),
+            'recording': rec.path, 'recording_error': rec.error,
+            'last_trajectory_intake_ms': self._traj_intake[0] * 1e3,
+            'last_trajectory_bytes': self._traj_intake[1],
+            'same_name_nodes': graph_count(
+                lambda: self.get_fully_qualified_node_names().count(fqn) - 1),
+        }
+        values.update(self.clock.values())
+        warn = ['recording failed'] if rec.error else []
+        warn += self.clock.warnings()
+        if values['same_name_nodes'] > 0:
+            # two sims in one namespace interleave their outputs and share this status's name
+            warn.append(f'{values["same_name_nodes"]} other node(s) named {fqn}: outputs '
+                        'interleave (give each sim its own namespace, -r __ns:=/robot2)')
+        return values, warn
+
+    def publish_diagnostics(self, wall_now: float) -> None:
+        """Publish (and record) the report now (the loop does, every diagnostics_period)."""
         msg = self.diagnostics(wall_now)
         pub = self.outputs.pubs.get('diagnostics')
         if pub is not None:
@@ -557,8 +585,38 @@ class SimNode(Node):
             + ('; paused: ~/pause false starts it' if self.paused else ''))
 
     def warm_up(self) -> None:
-        """Run once what the first ticks would compute cold (see :func:`.loop.warm_up`)."""
-        loop.warm_up(self)
+        """Run once what the first ticks would compile, import or build cold (the solver's first
+        call, the encoders' templates) on a scratch engine, so that cold start stays out of the
+        real-time loop; ``main`` calls it before the loop starts. The node's state is
+        unchanged."""
+        with self._lock:
+            cfg = self._cfg
+            scratch = Engine(cfg.engine_config(), self._t_ns)
+            for _ in range(cfg.publish_every):
+                scratch.tick()
+            self.outputs.warm_up(scratch.state, self._t_ns, cfg.crawler.masses,
+                                 list(cfg.initial_lengths))
+
+    # ------------------------------------------------------------------ what the loop uses
+    # (.loop.Loopable: the whole interface between the loop and the node)
+    @property
+    def stopped(self) -> bool:
+        """Whether :meth:`stop` was called."""
+        return self._stop
+
+    def take_anchor(self) -> bool:
+        """Whether pacing must start again from now (a pause, a reset, a new clock...); the
+        request is cleared."""
+        needed, self._anchor_needed = self._anchor_needed, False
+        return needed
+
+    def tick_locked(self, to_grid: bool = False) -> None:
+        """:meth:`tick` for the loop, which holds the lock (``to_grid``: see :meth:`_tick`)."""
+        self._tick(to_grid)
+
+    def publish_state(self) -> None:
+        """Publish (and record) the state now; the lock held (the loop's first state)."""
+        self._publish_outputs()
 
     def run(self) -> None:
         """Tick until stopped or the context shuts down, paced by ``real_time_factor``."""

@@ -27,7 +27,7 @@ from visualization_msgs.msg import MarkerArray
 from crawler_sim.bag import topics as T
 from crawler_sim.ros import messages as M
 from .model import robot_description
-from .params import OUTPUTS
+from .params import OFF_GRID, OUTPUTS
 
 if TYPE_CHECKING:
     from rclpy.node import Node
@@ -94,7 +94,7 @@ class Outputs:
         # `with handle` guard (about 5 us) per message; the handles live as long as the node
         self._grid = [(name, T.OUTPUTS[name], self.pubs[name], getattr(enc, name),
                        self.pubs[name].handle.publish_raw)
-                      for name in OUTPUTS[:-1] if name in self.pubs]
+                      for name in OUTPUTS if name in self.pubs and name not in OFF_GRID]
         self._countdown = 0
         own_clock = cfg.publish_clock and self._clock_owner
         if own_clock and self.clock_pub is None:
@@ -136,6 +136,15 @@ class Outputs:
         self.description_pub.publish(String(data=self.description))
         self._model_key = key
         return True
+
+    def warm_up(self, state: Any, t_ns: int, masses: Sequence[float],
+                lengths: Sequence[float]) -> None:
+        """Encode every grid output of ``state`` and an applied command of ``lengths`` once, so
+        that the templates are built before the loop runs (the node's warm-up)."""
+        for _name, _topic, _pub, encode, _raw in self._grid:
+            encode(state, t_ns, masses)
+        self.encoder.applied_command(list(lengths), t_ns)
+        self.encoder.fast = self.encoder.slow = 0
 
     def topics(self) -> list[T.Topic]:
         """The grid outputs this node publishes."""

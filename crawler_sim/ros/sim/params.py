@@ -24,7 +24,8 @@ if TYPE_CHECKING:
     from rcl_interfaces.msg import ParameterDescriptor
     from rclpy.node import Node
 
-__all__ = ['PARAMETERS', 'OUTPUTS', 'SimConfig', 'descriptor', 'declare_all', 'NODE_NAME']
+__all__ = ['PARAMETERS', 'OUTPUTS', 'OFF_GRID', 'SimConfig', 'descriptor', 'declare_all',
+           'NODE_NAME']
 
 #: sim_node's node name (namespaces tell several sims apart; the shared clock recognises the
 #: other sims by it, ``.clock``)
@@ -62,8 +63,12 @@ PARAMETERS: dict[str, tuple[Any, str, tuple[float, float] | None, bool]] = {
        in plant.PARAMETERS.items()},
     **NODE_PARAMETERS}
 
-#: the outputs in publishing order (diagnostics last: it is not on the publish grid)
+#: the outputs, each switched on by ``publish_<name>``, in publishing order
 OUTPUTS = tuple(topics.OUTPUTS)
+#: the outputs not on the publish grid (not sent with every state: ``/diagnostics`` goes out
+#: every ``diagnostics_period`` from the loop); named here, so that an output added to the
+#: table anywhere is on the grid unless listed
+OFF_GRID = ('diagnostics',)
 
 
 def descriptor(name: str) -> ParameterDescriptor:
