@@ -5,7 +5,8 @@
   with the plant, ``crawler_sim.core.plant.inputs``);
 - :mod:`.outputs`: publishers and CDR encoders of the outputs; :mod:`.model`: the URDF
   (``robot_description``);
-- :mod:`.recording`: the bag; :mod:`.diagnostics`: ``/diagnostics``;
+- :mod:`.recording`: the bag; :mod:`.diagnostics`: ``/diagnostics``; :mod:`.clock`: the
+  ``/clock`` shared by the sims of a domain;
 - :mod:`.loop`: the real-time loop; :mod:`.node`: ``SimNode``; :mod:`.main`: the entry point.
 
 Everything but ``node``, ``outputs``, ``diagnostics`` and ``main`` works without DDS
