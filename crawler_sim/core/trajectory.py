@@ -438,20 +438,38 @@ class Trajectory:
         gravity = c.gravity_forces @ (self.x[-1] - self.x[0])
         return float(kinetic + self.dissipated_energy - gravity)
 
+    def positive_work(self, start: float | None = None, end: float | None = None) -> float:
+        """Integral of the positive part of the actuator power sum_j linkage_force_j l_j'
+        over [start, end] [J] (default: the run; motors do not regenerate).
+
+        For an exact run, from its dense output: the power's sign changes found and each
+        stretch between them and the pieces' boundaries integrated by adaptive Gauss-Legendre
+        quadrature to ~1e-13 of the integral of |power| (``DenseOutput.positive_work``;
+        whole skipped periods counted as their template period). Otherwise the trapezoidal
+        rule over the samples in [start, end].
+        """
+        t = self.t
+        a = float(t[0]) if start is None else float(start)
+        b = float(t[-1]) if end is None else float(end)
+        if not t[0] <= a <= b <= t[-1]:
+            raise ValueError(f'the window [{start}, {end}] s must lie inside the run '
+                             f'[{t[0]}, {t[-1]}] s')
+        if self.dense is not None:
+            return self.dense.positive_work(a, b)
+        i0, i1 = int(np.searchsorted(t, a, 'left')), int(np.searchsorted(t, b, 'right'))
+        power = np.sum(self.linkage_force[i0:i1] * self.rates[i0:i1], axis=1)
+        return _trapezoid(np.maximum(power, 0.0), t[i0:i1])
+
     @property
     def positive_actuator_work(self) -> float:
-        """Integral of the positive part of the actuator power [J] (motors do not regenerate).
-
-        The trapezoidal rule over the samples, also for an exact run (its samples are exact,
-        the quadrature is not: the power's sign changes are not events).
-        """
-        power = np.sum(self.linkage_force * self.rates, axis=1)
-        return _trapezoid(np.maximum(power, 0.0), self.t)
+        """Integral of the positive part of the actuator power over the run [J]
+        (:meth:`positive_work`: exact for an exact run)."""
+        return self.positive_work()
 
     @property
     def cost_of_transport(self) -> float:
         """Positive actuator work / (M g |displacement|), dimensionless (inf if it did not
-        move)."""
+        move); exact for an exact run."""
         c = self.crawler
         d = abs(self.displacement)
         denom = c.total_mass * c.gravity * d

@@ -17,8 +17,9 @@ Energy
 Between two consecutive events each body slides one way or sticks, and its friction force is
 constant while it slides, so the energy it dissipates is exactly f_i^+ (forward travel) + f_i^-
 (backward travel) (``Trajectory.sliding_distance``: exact for the exact method, every event
-read from its dense output). The actuator's positive work is the trapezoidal integral of
-max(G l', 0) over the samples.
+read from its dense output). The actuator's positive work, the integral of max(G l', 0), is
+``Trajectory.positive_work``: quadrature between the power's roots to ~1e-13 for the exact
+method, the trapezoid over the samples for the others.
 """
 from __future__ import annotations
 
@@ -112,7 +113,6 @@ def run_figures(tr: Trajectory, period: float, periods: int) -> dict[str, Any]:
     X_b, t_b = _boundaries(tr, bounds, idx)
     scale = float(np.ptp(tr.lengths)) if tr.lengths.size else 0.0
     k0, steady = steady_window(X_b, scale)
-    i0, i1 = int(idx[k0]), int(idx[-1])
     t0, t1 = float(t_b[k0]), float(t_b[-1])
     window = t1 - t0
     n_win = periods - k0
@@ -120,9 +120,7 @@ def run_figures(tr: Trajectory, period: float, periods: int) -> dict[str, Any]:
     speed = dx / window
     fwd, back = tr.sliding_distance(t0, t1)
     dissipated = float(c.friction @ fwd + c.friction_backward @ back)
-    power = np.maximum(np.sum(tr.linkage_force[i0:i1 + 1] * tr.rates[i0:i1 + 1], axis=1), 0.0)
-    tt = tr.t[i0:i1 + 1]
-    pos_work = float(np.sum(0.5 * (power[1:] + power[:-1]) * np.diff(tt)))
+    pos_work = tr.positive_work(t0, t1)
     denom = c.total_mass * c.gravity * abs(dx)
     report = verify(tr)
     out: dict[str, Any] = {
