@@ -38,7 +38,7 @@ from crawler_sim.core.verify import verify
 from . import metrics
 
 __all__ = ['CheckResult', 'random_spec', 'build', 'check_random_scene', 'EXTREMES', 'GRAZING',
-           'check_fuzz', 'check_custom_period_long', 'check_long_run', 'check_tolerance_ladder', 'run_stress', 'tolerances']
+           'check_fuzz', 'check_custom_period_long', 'check_long_periodic', 'check_long_run', 'check_tolerance_ladder', 'run_stress', 'tolerances']
 
 G = 9.81
 EXACT_TOL = 1e-9        # verify tolerance of method "exact"
@@ -718,6 +718,54 @@ def check_custom_period_long(n_cases: int = 4, periods: int = 10_000, seed: int 
     return res
 
 
+def check_long_periodic(n_per_family: int = 2, periods: int = 10_000, seed: int = 0,
+                        families: tuple[str, ...] = ('sinusoid', 'fourier', 'scallop', 'stroke',
+                                                     'spline_periodic', 'custom_period')
+                        ) -> CheckResult:
+    """Issue 37 item 4: fuzz cases of every periodic gait family run for ``periods`` periods
+    with the periodic skip on and off, each against an independent reference: the oracle
+    (test/support/oracle.py) run up to two periods past where the skip found the state
+    repeating, then whole periods of its last displacement (a run that never repeats, such as
+    a crawler sliding off a slope, has no reference: there skip on and off must agree). Each
+    within 1e-9 x max(1 m, periods x the gait's stroke, the distance run)."""
+    from test.support import fuzz as test_fuzz
+    from test.support.oracle import Oracle
+    res = CheckResult(f'long_periodic[{n_per_family} per family x {periods} periods, '
+                      f'seed {seed}]')
+    worst, n_ref = 0.0, 0
+    for fam in families:
+        for k in range(n_per_family):
+            case = test_fuzz.draw_case(fam, seed + k)
+            P = case.gait.period
+            t_end = periods * P
+            runs = {}
+            for skip in (True, False):
+                tr = simulate(case.crawler, test_fuzz.draw_case(fam, seed + k).gait, t_end,
+                              t_eval=[0.0, t_end], v0=case.v0, periodic_skip=skip)
+                runs[skip] = (float(tr.x[-1, 0]), tr.info['skipped_periods'])
+            ll = case.kin(np.linspace(0.0, P, 4001))[0]
+            stroke = periods * float(np.ptp(ll, axis=0).sum())
+            skipped = runs[True][1]
+            if skipped:
+                K = periods - skipped + 2
+                o = Oracle.for_crawler(case.crawler, case.kin, case.breakpoints)
+                xo, _ = o.solve(K * P, [(K - 1) * P, K * P], v0=case.v0,
+                                h=test_fuzz.oracle_h(case))
+                ref = float(xo[1, 0]) + (periods - K) * float(xo[1, 0] - xo[0, 0])
+                n_ref += 1
+            else:
+                ref = runs[False][0]
+            size = max(1.0, stroke, abs(ref))
+            for skip, (x, _) in runs.items():
+                err = abs(x - ref) / size
+                worst = max(worst, err)
+                if not err <= 1e-9:
+                    res.fail(f'{case!r}, periodic_skip={skip}: {abs(x - ref):.3g} m from the '
+                             f'reference (> 1e-9 x {size:.3g} m; {skipped} periods skipped)')
+    res.figures.update(worst_rel=worst, with_oracle_reference=n_ref)
+    return res
+
+
 # ----------------------------------------------------------------------------- the long run
 
 def run_stress(seconds: float = 60.0, seed: int = 0,
@@ -753,6 +801,7 @@ def run_stress(seconds: float = 60.0, seed: int = 0,
         lambda: check_long_run(100_000),
         lambda: check_fuzz(30, seed),
         lambda: check_custom_period_long(4, 10_000, seed),
+        lambda: check_long_periodic(2, 10_000, seed),
     ]
     for k, check in enumerate(fixed):
         say(k, len(fixed), 'fixed checks')

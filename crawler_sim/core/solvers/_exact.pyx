@@ -468,6 +468,13 @@ cdef class ExactCore:
     cdef public double tol, tscale, cap
     # state: body 0 follows from X, V and the gait (X, V: centre of mass [m, m/s])
     cdef public double t, X, V, x_ref
+    # a periodic gait's frame: the loop runs in local time tl = t - origin, origin = origin_k T
+    # (the float product of the period count and the period, never a running sum), so a
+    # period's arithmetic is the first period's whatever the period count: event times to
+    # ulp(T), not ulp(t), and the gait read at the same floats each period. ``t`` is absolute
+    cdef public double tl, origin
+    cdef public long origin_k
+    cdef public bint skip         # a period that repeats the previous one stops ``drive``
     cdef public int ref
     cdef double* K
     cdef signed char* contact
@@ -787,6 +794,9 @@ cdef class ExactCore:
         self._snap_f[14] = self.ck_ref
         self._snap_f[15] = self.last_valid
         self._snap_f[16] = self.last_ref
+        self._snap_f[17] = self.tl
+        self._snap_f[18] = self.origin
+        self._snap_f[19] = self.origin_k
         self._saved_gait = self.last_gait
 
     def restore(self):
@@ -810,6 +820,9 @@ cdef class ExactCore:
         self.ck_ref = <int>self._snap_f[14]
         self.last_valid = self._snap_f[15] != 0.0
         self.last_ref = <int>self._snap_f[16]
+        self.tl = self._snap_f[17]
+        self.origin = self._snap_f[18]
+        self.origin_k = <long>self._snap_f[19]
         self.last_gait = self._saved_gait
         self.n_seg = 0
         self.n_ev = 0
@@ -831,6 +844,9 @@ cdef class ExactCore:
                 self.bad_time = t0
                 return False
         self.t = t0
+        self.tl = t0
+        self.origin = 0.0
+        self.origin_k = 0
         self.X = x0 - dot(self.W, 0, self.l, nl)
         self.V = v0 - dot(self.W, 0, self.ld, nl)
         for i in range(p):
@@ -862,6 +878,9 @@ cdef class ExactCore:
         for i in range(p):
             self.K[i] += n * dK[i]
         self.t = (k + n) * T
+        self.origin_k = k + n         # the frame of period k + n: local time 0
+        self.origin = self.t
+        self.tl = 0.0
         self.last_valid = False
         self.ck_k = k + n
         self.ck_X = self.X
@@ -1705,7 +1724,7 @@ cdef class ExactCore:
         cdef int i
         for i in range(self.p):
             if new[i] != self.contact[i]:
-                self.et[self.n_ev] = t
+                self.et[self.n_ev] = self.origin + t        # (local t: absolute times out)
                 self.ei[self.n_ev * 3 + 0] = i
                 self.ei[self.n_ev * 3 + 1] = self.contact[i]
                 self.ei[self.n_ev * 3 + 2] = new[i]
@@ -1713,22 +1732,32 @@ cdef class ExactCore:
                 self.contact[i] = new[i]
 
     # ------------------------------------------------------------------ the loop
-    def drive(self, CompiledGait gait, double t_end, double T):
-        """Integrate towards t_end (see the module doc); ``T`` > 0: the period whose
-        multiples end segments and are compared. Returns a status."""
+    def drive(self, CompiledGait gait, double t_abs, double T):
+        """Integrate towards t_abs [s] (see the module doc); ``T`` > 0: the period whose
+        multiples end segments and are compared (with ``skip``, a repeat stops the call), and,
+        for a gait read from its period's frame (every kind but a Python gait's pieces not yet
+        periodic), where the frame moves on (``tl``, ``origin``; without ``skip``, at the first
+        segment end past a period's end: segments are not cut there). Returns a status."""
         cdef GaitData* g = &gait.d
         cdef int p = self.p, nl = self.nl, i, j, r, nr, r0, code, n_hit
         cdef int guard = 0, status = S_REACHED, n_max = self.n_buf
         cdef int ev_max = 2 * self.n_buf
         cdef double t, ts, end, b, kT, t0, a, V0, X_s, V_s, t_ev, tt, d, f_slide, imp, w, fmg
-        cdef double tol = self.tol, cap, Vi
+        cdef double tol = self.tol, cap, Vi, t_end
         cdef long k_next
         cdef bint left, stale, moving, tiny, same, group_all
         self.n_seg = 0
         self.n_ev = 0
         self.k_at = -1
         self.bad_time = NAN
-        t = self.t
+        if T > 0.0 and self.tl >= T and (g.kind != PROXY or g.period > 0.0):
+            # the frame of the period holding t (a run started at k T, or a call that ended
+            # past a period's end): t is known to ulp(t) there, once
+            self.origin_k += <long>floor(self.tl / T)
+            self.origin = self.origin_k * T
+            self.tl = self.t - self.origin
+        t = self.tl
+        t_end = t_abs - self.origin
         if g.kind == PROXY:
             gait.span_lo = t
             gait.span_hi = t_end
@@ -1744,7 +1773,7 @@ cdef class ExactCore:
                 ts = b
                 left = True
             k_next = -1
-            if T > 0.0:
+            if T > 0.0 and self.skip:
                 k_next = <long>floor(t / T * (1 + 4 * EPS) + 4 * EPS) + 1
                 kT = k_next * T
                 if kT < ts:
@@ -1820,7 +1849,7 @@ cdef class ExactCore:
             V0 = -self.ep[r0] if r0 >= 0 else self.V
             t0 = t
             self.record_change(t0, self.new_contact)
-            self.sf[self.n_seg * 6 + 0] = t0
+            self.sf[self.n_seg * 6 + 0] = self.origin + t0
             self.sf[self.n_seg * 6 + 2] = self.X
             self.sf[self.n_seg * 6 + 3] = V0
             self.sf[self.n_seg * 6 + 4] = a
@@ -1903,7 +1932,13 @@ cdef class ExactCore:
                         if r0 < 0:
                             # the body's velocity is exactly zero at the event
                             self.V = -dot(self.W, i, self.ld, nl)
-            self.sf[self.n_seg * 6 + 1] = t_ev
+            # absolute: the call's end as asked, a period's end as the next frame's origin
+            if t_ev == t_end:
+                self.sf[self.n_seg * 6 + 1] = t_abs
+            elif k_next > 0 and t_ev == k_next * T:
+                self.sf[self.n_seg * 6 + 1] = (self.origin_k + k_next) * T
+            else:
+                self.sf[self.n_seg * 6 + 1] = self.origin + t_ev
             # the last segment, for ``current``
             self.last_valid = True
             for j in range(6):
@@ -1918,7 +1953,20 @@ cdef class ExactCore:
             tiny = t_ev - t0 <= STALL_ULPS * EPS * max(fabs(t_ev), 1.0)
             guard = guard + 1 if tiny else 0
             t = t_ev
-            self.t = t
+            self.tl = t
+            self.t = self.sf[(self.n_seg - 1) * 6 + 1]
+            if (T > 0.0 and not self.skip and T <= t < t_end
+                    and (g.kind != PROXY or g.period > 0.0)):
+                # periods not compared: the frame moves on at the first segment end past a
+                # period's end (segments are not cut there), by whole periods (one: t - T is
+                # exact for T <= t <= 2 T)
+                k_next = <long>floor(t / T)
+                self.origin_k += k_next
+                self.origin = self.origin_k * T
+                t = t - k_next * T
+                self.tl = t
+                t_end = t_abs - self.origin
+                k_next = -1
             if guard > STALL_SEGMENTS:
                 status = S_STALLED
                 break
@@ -1930,7 +1978,8 @@ cdef class ExactCore:
                     self.cache_group[i] = self.group[i]
             if k_next > 0 and t == k_next * T:
                 # ---- period boundary: the state against the one a period earlier
-                same = self.ck_valid and self.ck_k == k_next - 1 and self.ck_ref == self.ref
+                same = (self.ck_valid and self.ck_k == self.origin_k + k_next - 1
+                        and self.ck_ref == self.ref)
                 if same:
                     for i in range(p):
                         if self.ck_contact[i] != self.contact[i] or self.ck_zero[i] != self.zero[i]:
@@ -1940,12 +1989,12 @@ cdef class ExactCore:
                     # velocities to about tol times the largest friction acceleration
                     same = fabs(self.V - self.ck_V) <= 16.0 * (
                         tol * self.v_acc + EPS * (fabs(self.V) + fabs(self.ck_V)))
-                if same and floor((t_end - t) / T * (1 + 4 * EPS)) >= 1:
-                    self.k_at = k_next
+                if same and self.skip and floor((t_end - t) / T * (1 + 4 * EPS)) >= 1:
+                    self.k_at = self.origin_k + k_next
                     status = S_PERIODIC
                     break
                 self.ck_valid = True
-                self.ck_k = k_next
+                self.ck_k = self.origin_k + k_next
                 self.ck_X = self.X
                 self.ck_V = self.V
                 self.ck_x_ref = self.x_ref
@@ -1956,7 +2005,20 @@ cdef class ExactCore:
                     self.ck_K[i] = self.K[i]
                     self.ck_contact[i] = self.contact[i]
                     self.ck_zero[i] = self.zero[i]
-        self.t = t
+                if g.kind != PROXY or g.period > 0.0:
+                    # the next period in its own frame (a Python gait's pieces only once they
+                    # repeat: before, they are built at the times the solver reaches); its
+                    # origin is where this segment ended, (origin_k + k_next) T
+                    self.origin_k += k_next
+                    self.origin = self.origin_k * T
+                    t = 0.0
+                    self.tl = 0.0
+                    t_end = t_abs - self.origin
+        self.tl = t
+        if status == S_REACHED:
+            self.t = t_abs          # reached: the time asked (its local image may round)
+        elif self.n_seg == 0:
+            self.t = self.origin + t
         if self.n_seg > 0:
             self.last_gait = gait
         return status

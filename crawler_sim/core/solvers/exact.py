@@ -129,7 +129,12 @@ class ExactSolver:
         t1 = float(t1)
         core = self._core
         gp = self.gait.period
-        T = gp if (self.periodic_skip and gp) else 0.0
+        # a periodic gait's multiples of the period end segments whether or not repeats are
+        # skipped: each period runs in its own frame (``ExactCore.tl``: local time from
+        # origin_k T, so an event time is known to ulp(T), not ulp(t), and the gait is read at
+        # the same floats each period: a run of periods does not drift with t)
+        T = gp if gp else 0.0
+        core.skip = self.periodic_skip
         core.tscale = gp if gp else (self.max_step or 1.0)
         core.cap = self._cap()
         self.status, self.message = 'ok', ''
@@ -220,6 +225,8 @@ class ExactSolver:
         core, k = self._core, self._k
         cg = gait.compiled()
         t = core.t
+        # the new gait is read at absolute times (it may repeat on another period or not at all)
+        core.tl, core.origin, core.origin_k = t, 0.0, 0
         l0, ld0, ldd0 = self._cg.at(t)
         l1, ld1, ldd1 = cg.at(t)
         core.ck_valid = False

@@ -192,12 +192,17 @@ class ChebTable:
         while not self.knots.size or (self.hi < t and not self.periodic):
             s = self.hi if self.knots.size else start
             end = s + WINDOW * PIECE * self.spacing
-            if self.period:
-                end = min(end, (self.lo if self.knots.size else s) + self.period)
             if stop > s:
                 end = min(end, stop)
-            self._build(s, max(end, t))
-            if self.period and self.hi - self.lo >= self.period:
+            end = max(end, t)
+            if self.period:
+                # one period from the table's start at most, whatever time is asked: the
+                # pieces repeat from there (a time past it, asked before the period was
+                # complete, made a table longer than the period, read modulo the period: a
+                # stream started at 3 periods was 4.5e-4 m off)
+                end = min(end, (self.lo if self.knots.size else s) + self.period)
+            self._build(s, end)
+            if self.period and self.hi >= self.lo + self.period:
                 self.periodic = True
 
     def _forget(self, t: float) -> None:

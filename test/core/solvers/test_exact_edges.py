@@ -144,3 +144,57 @@ def test_a_failed_run_leaves_a_custom_gait_as_it_was(period):
     fresh = cs.simulate(cr, G.Custom(_SINE[0], _SINE[1], acc, period=period), 0.4,
                         t_eval=[0.0, 0.2, 0.4])
     assert np.array_equal(after.x, fresh.x) and np.array_equal(after.v, fresh.v)
+
+
+def test_a_periodic_custom_gait_streamed_from_three_periods_is_the_motion_from_0():
+    # found by the late-start fuzz (custom_period seed 81): started at 3 periods, a time past
+    # the first period was asked before that period's pieces were complete, and the table was
+    # built 0.14 s longer than the period, then read modulo the period: 4.5e-4 m off. The gait
+    # repeats, so the motion from 3 periods is the motion from 0 shifted (reference: the run
+    # from 0, streamed to the same offsets)
+    from test.support.fuzz import draw_case
+    case = draw_case('custom_period', 81)
+    P = case.gait.period
+    offsets = [0.4669924307318728, 0.8765267915190254, 1.833736527625102, 2.1452531355034155]
+    runs = []
+    for t0 in (0.0, 3 * P):
+        gait = draw_case('custom_period', 81).gait
+        st = cs.Stepper(case.crawler, gait, t0=t0, v0=case.v0)
+        xs = []
+        for s in offsets:
+            st.advance(t0 + s)
+            xs.append(st.state.x)
+        runs.append(np.array(xs))
+        table = gait.compiled().table
+        assert table.periodic and table.knots[-1] - table.knots[0] <= P * (1 + 1e-15)
+    assert np.abs(runs[1] - runs[0]).max() <= 1e-10
+
+
+@pytest.mark.parametrize('family', ['spline_periodic', 'fourier', 'scallop', 'stroke'])
+def test_a_period_far_from_0_moves_the_crawler_as_the_first_ones_do(family):
+    # item 4: with periodic_skip off the displacement per period drifted with t (event times
+    # to ulp(t), the gait read with a phase error of ulp(t)): a p = 4 periodic Spline moved
+    # 1.5e-12 m more a period at 1e3 periods, 3.6e-9 m at 1e6 (x off by ~N^2). The gait
+    # repeats, so a period run from k T moves the crawler as the same period from 0 does
+    # (physics: invariance under a shift by whole periods); each period now runs in its own
+    # frame (local time from k T)
+    from test.support.fuzz import draw_case
+    seed = {'spline_periodic': 144, 'fourier': 4, 'scallop': 4, 'stroke': 5}[family]
+    case = draw_case(family, seed)
+    P = case.gait.period
+    D, v_max = {}, 0.0
+    for m in (0, 100_000, 1_000_000):
+        st = cs.Stepper(case.crawler, draw_case(family, seed).gait, t0=m * P, v0=case.v0,
+                        periodic_skip=False)
+        xs = [float(st.state.x[0])]
+        for k in range(1, 13):
+            st.advance((m + k) * P)
+            xs.append(float(st.state.x[0]))
+            v_max = max(v_max, float(np.abs(st.state.v).max()))
+        D[m] = np.diff(xs)
+    scale = max(1.0, float(np.abs(D[0]).max()))
+    for m in (100_000, 1_000_000):
+        # the times (m + k) P are floats: a sample is known to ulp(t) of time, v_max ulp(t) of
+        # position at each end (1.5e-11 s at 1e5 periods of 1.26 s); the drift was 26 times that
+        tol = 1e-12 * scale + 4.0 * v_max * float(np.spacing((m + 12) * P))
+        assert np.abs(D[m] - D[0]).max() <= tol, (m, np.abs(D[m] - D[0]).max(), tol)
