@@ -9,7 +9,11 @@ suite (``test/test_stress.py``) runs them with small sizes and hypothesis-drawn 
 What is checked
 ---------------
 * the differential fuzz of issue 14 (`check_fuzz`): every gait family of test/support/fuzz.py,
-  the exact method against the independent oracle (test/support/oracle.py) at 1e-10;
+  the exact method against the independent oracle (test/support/oracle.py) at 1e-10, each case
+  also streamed onto its event times and the floats either side (issue 37);
+* issue 37's long runs: Custom gaits with ``period=`` for 1e4 periods against their built-in
+  twins (`check_custom_period_long`), and every periodic family for 1e4 periods, periodic skip
+  on and off, against the oracle extrapolated by whole periods (`check_long_periodic`);
 * every method's output passes ``verify`` at a tolerance that suits the method (`tolerances`)
   and holds no NaN or infinity;
 * method "implicit" converges to method "exact" as dt shrinks (first order);

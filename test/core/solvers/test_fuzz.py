@@ -16,6 +16,12 @@ Pass: at every sample, positions within 1e-10 m (1e-10 relative beyond 1 m) and 
 1e-10 (relative to 1 + the largest velocity) of the oracle, no exception and no stall, and, for
 ``simulate`` runs, ``verify(tr, gait).ok()``.
 
+Issue 37's edges of float time: each one-gait case streamed (``check_stream``) after first
+steps of one float and of 1e-200 s onto every event time of its one-shot run and the floats
+either side, and each periodic case started past 600 s (``check_late_start``, where tol / 2 is
+below half a float spacing of t) against the oracle's run from 0, with what ulp(t) of time does
+to the gait's values; ``N_EXAMPLES // 5`` cases a family here, every case in the long profile.
+
 The quick profile (``make test``) runs ``CRAWLER_SIM_FUZZ_EXAMPLES`` (default 10) derandomised
 examples per family without the example database, so CI is deterministic; shrinking is off
 (the failing case's parameters are printed instead, to rerun with ``check_case``).
