@@ -68,15 +68,36 @@ from .stepper import METHODS, simulate
 from .trajectory import Trajectory
 
 __all__ = ['SceneError', 'RunOptions', 'Scene', 'GAIT_TYPES', 'LIMITS', 'load_scene',
-           'scene_from_dict', 'scene_to_dict', 'crawler_from_mapping']
+           'scene_from_dict', 'scene_to_dict', 'crawler_from_mapping', 'MAX_SCENE_BODIES',
+           'MAX_ENTRIES', 'MAX_SCENE_BYTES']
 
 
 class SceneError(ValueError):
     """A scene is missing, malformed or out of range; the message is one line for the user."""
 
 
-class _Loader(yaml.SafeLoader):
-    """SafeLoader that also reads ``1e-3`` as a float (YAML 1.2; PyYAML's 1.1 needs ``1.0e-3``)."""
+#: the most bodies of a scene (a sweep's ``bodies`` too). Checked on the list's length before
+#: any array is built from it: a 1e6-body scene reached optimize's first allocation of 3.8 GiB
+#: (issue 38). 1000 bodies run 2 s in 2.5 s with the implicit method (its arrays are a few MB a
+#: second); sim_node takes at most 64 (`core.plant.config.MAX_BODIES`).
+MAX_SCENE_BODIES = 1000
+#: the most numbers in one array field of a gait (a table of times and lengths, coefficients)
+MAX_ENTRIES = 1_000_000
+#: the largest scene file read, as a sweep spec's (a 1000-body scene with every per-body list
+#: is ~30 kB). Checked before parsing: YAML is slow to parse (a 2 MB list of a million bodies:
+#: 51 s and 790 MB with PyYAML's pure-Python loader, 10 s with libyaml's; 256 KiB: 5.3 s / 1.9 s)
+MAX_SCENE_BYTES = 256 * 1024
+
+
+def _short(value: Any) -> str:
+    """``value`` in a message: bounded whatever its size."""
+    import reprlib
+    return reprlib.repr(value)
+
+
+class _Loader(getattr(yaml, 'CSafeLoader', yaml.SafeLoader)):     # type: ignore[misc]
+    """Safe loader (libyaml's when PyYAML has it: 3x faster) that also reads ``1e-3`` as a
+    float (YAML 1.2; PyYAML's 1.1 needs ``1.0e-3``)."""
 
 
 _Loader.add_implicit_resolver(
@@ -139,15 +160,24 @@ def _in_range(path: str, value: Any, key: str) -> None:
                          f', got {got!r}')
 
 
-def _array(path: str, value: Any) -> NDArray[np.float64]:
-    """A finite float array of any rectangular shape, from numbers and (nested) lists."""
+def _array(path: str, value: Any, budget: list[int] | None = None) -> NDArray[np.float64]:
+    """A finite float array of any rectangular shape, from numbers and (nested) lists, of at
+    most ``MAX_ENTRIES`` entries: counted while they are read (``budget``: the entries still
+    allowed), so a list too long, or nested YAML aliases that repeat a list a billion times,
+    stop at the limit instead of being walked or built."""
+    budget = [MAX_ENTRIES] if budget is None else budget
     if _is_number(value):
         arr = np.array(float(value))
     else:
         if not isinstance(value, (list, tuple)) or len(value) == 0:
             raise SceneError(f'{path}: must be a number or a non-empty list of numbers, '
-                             f'got {value!r}')
-        rows = [_array(f'{path}[{i}]', v) for i, v in enumerate(value)]
+                             f'got {_short(value)}')
+        budget[0] -= len(value)         # its items (numbers or rows), before walking them
+        if budget[0] < 0:
+            root = path.split('[', 1)[0]
+            raise SceneError(f'{root}: must have at most {MAX_ENTRIES} entries (its numbers '
+                             'and rows, each use of a YAML alias counted)')
+        rows = [_array(f'{path}[{i}]', v, budget) for i, v in enumerate(value)]
         if any(r.shape != rows[0].shape for r in rows):
             raise SceneError(f'{path}: rows must all have the same length, got '
                              f'{[len(r) if r.ndim else 1 for r in rows]}')
@@ -219,6 +249,9 @@ def crawler_from_mapping(spec: Any, path: str = 'crawler') -> Crawler:
     def k(name: str) -> str:
         return f'{path}.{name}' if path else name
     d = _mapping(path or 'crawler', spec, _CRAWLER_KEYS, ('masses',))
+    if isinstance(d['masses'], (list, tuple)) and len(d['masses']) > MAX_SCENE_BODIES:
+        raise SceneError(f"{k('masses')}: must list 2 to {MAX_SCENE_BODIES} bodies, got "
+                         f"{len(d['masses'])}")
     masses = _per_body(k('masses'), d['masses'], None, positive=True, limit='masses')
     _in_range(k('masses'), masses, 'masses')
     p = masses.size
@@ -490,7 +523,14 @@ def read_section(path: Path, key: str, kind: str, error: type[Exception]) -> Any
     floats). Malformed YAML or a missing key raise ``error`` naming the file, and the line
     and column where known (OSError if the file cannot be read).
     """
-    text = path.read_text(encoding='utf-8')
+    with open(path, 'rb') as fh:      # at most the limit: a huge file or a device is not read
+        raw = fh.read(MAX_SCENE_BYTES + 1)
+    if len(raw) > MAX_SCENE_BYTES:
+        raise error(f'{path}: {kind} file must have at most {MAX_SCENE_BYTES} bytes, got more')
+    try:
+        text = raw.decode('utf-8')
+    except UnicodeDecodeError as exc:
+        raise error(f'{path}: not UTF-8 text ({exc.reason} at byte {exc.start})') from None
     try:
         data = yaml.load(text, Loader=_Loader)  # noqa: S506 (a SafeLoader subclass)
     except yaml.YAMLError as exc:

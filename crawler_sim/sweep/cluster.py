@@ -115,15 +115,6 @@ def connect(address: str) -> Any:
     return _within(limit, 'connecting', address, Client, address, timeout=limit)
 
 
-def close(client: Any) -> None:
-    """Close ``client`` within :func:`deadline`, quietly: the sweep's own outcome (its result
-    or its error) is what the user needs, not a second failure of a cluster that is gone."""
-    try:
-        _within(deadline(), 'closing', _address(client), client.close)
-    except Exception:
-        pass
-
-
 def check_workers(client: Any) -> None:
     """Raise RuntimeError naming every worker of ``client`` (and its scheduler) that cannot
     import ``crawler_sim`` or has another version than this process, and how to fix it.

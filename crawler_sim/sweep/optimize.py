@@ -45,11 +45,12 @@ from ..core.plant import PlantConfig
 from ..core.plant.streams import Stream, simulate_as_node
 from ..core.scene import Scene, scene_to_dict
 from .metrics import run_figures, scene_figures
+from .spec import SpecError
 from crawler_sim.core.simtime import to_seconds
 
-__all__ = ['FAMILIES', 'OBJECTIVES', 'SCORES', 'STREAM', 'PENALTY', 'Family', 'Objective',
-           'OptimizeResult', 'optimize', 'family', 'gait_node_params', 'sim_node_params',
-           'plant_for']
+__all__ = ['FAMILIES', 'OBJECTIVES', 'SCORES', 'STREAM', 'PENALTY', 'LIMITS', 'Family',
+           'Objective', 'OptimizeError', 'OptimizeResult', 'optimize', 'family',
+           'gait_node_params', 'sim_node_params', 'plant_for']
 
 OBJECTIVES = ('speed', 'cot')
 SCORES = ('node', 'ideal')
@@ -59,6 +60,55 @@ STREAM = Stream('trajectory', rate=100.0, preload=True, duration=600.0)
 FAMILIES = ('scallop', 'stroke', 'fourier')
 PENALTY = 1e6     # score of an infeasible stroke (plus its violation); speeds are << 1 m/s
 _GRID = 2048      # samples per period for the feasibility check (plus the breakpoints)
+
+#: name -> (lowest, highest) of optimize's settings, checked before anything is built from them
+#: (`optimize`). ``parameters``: the size of z (fourier: 2 x linkages x harmonics);
+#: ``population``: differential evolution's popsize x parameters, the rows of its population
+#: array (parameters x population x 8 bytes: 16 MB at the limits) and the evaluations of one
+#: generation. Scored as the node runs it, the scene's bodies are sim_node's (2 to
+#: `core.plant.config.MAX_BODIES`).
+LIMITS: dict[str, tuple[int, int]] = {
+    'harmonics': (1, 32), 'periods': (4, 10_000), 'maxiter': (0, 10_000),
+    'popsize': (1, 1_000), 'local_maxiter': (0, 100_000), 'workers': (1, 1_024),
+    'parameters': (1, 200), 'population': (1, 10_000),
+}
+
+
+class OptimizeError(SpecError):
+    """optimize's settings (or its scene, for the score) out of range: a refused input (the
+    command line's exit 2, as a SpecError); one line naming the setting and its range."""
+
+
+def _check_settings(base: Scene, score: str, settings: dict[str, Any]) -> None:
+    """The settings, and the scene's bodies for the score, before anything is built from them:
+    a 1e6-body scene reached a 3.8 GiB allocation and 1000 bodies were refused by the plant
+    only after a large one (issue 38)."""
+    for name, value in settings.items():
+        lo, hi = LIMITS[name]
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or \
+                not lo <= value <= hi:
+            raise OptimizeError(f'{name}: must be an integer from {lo} to {hi}, got {value!r}')
+    p = base.crawler.p
+    if score == 'node':
+        from ..core.plant.config import MAX_BODIES
+        if p > MAX_BODIES:
+            raise OptimizeError(f'scene.crawler.masses: scored as the node runs it, the crawler '
+                                f'must have 2 to {MAX_BODIES} bodies (sim_node\'s limit), got '
+                                f'{p}; use --score ideal for more')
+
+
+def _check_search(fam: Family, p: int, popsize: int) -> None:
+    """The size of z and of differential evolution's population (``popsize`` x parameters
+    rows of parameters each), before the search allocates them."""
+    n = len(fam.names)
+    lo, hi = LIMITS['parameters']
+    if n > hi:
+        raise OptimizeError(f'{fam.name} family: {n} parameters for {p} bodies and '
+                            f'{fam.harmonics} harmonics; allowed {lo} to {hi}')
+    lo, hi = LIMITS['population']
+    if popsize * n > hi:
+        raise OptimizeError(f'popsize: popsize x parameters must be from {lo} to {hi} (strokes '
+                            f'per generation), got {popsize} x {n} = {popsize * n}')
 
 
 @dataclass(frozen=True)
@@ -277,8 +327,12 @@ def optimize(base: Scene, *, objective: str = 'speed', family_name: str = 'scall
         raise ValueError(f'objective must be one of {", ".join(OBJECTIVES)}, got {objective!r}')
     if score not in SCORES:
         raise ValueError(f'score must be one of {", ".join(SCORES)}, got {score!r}')
+    _check_settings(base, score, {
+        'harmonics': harmonics, 'periods': periods, 'maxiter': maxiter, 'popsize': popsize,
+        'local_maxiter': local_maxiter, 'workers': workers})
     limits = limits or ActuatorLimits()
     fam = family(family_name, base, limits, harmonics)
+    _check_search(fam, base.crawler.p, popsize)
     plant = plant_for(base, fam, limits) if score == 'node' else None
     obj = Objective(scene_to_dict(base), fam, limits, objective, periods, score=score,
                     plant=None if plant is None else plant.values, stream=stream)

@@ -55,7 +55,7 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 import yaml
 
-from ..core.scene import Scene, SceneError, scene_from_dict
+from ..core.scene import MAX_SCENE_BODIES, Scene, SceneError, scene_from_dict
 
 __all__ = ['SpecError', 'SweepSpec', 'LIMITS', 'load_spec', 'spec_from_dict', 'apply_params']
 
@@ -470,6 +470,8 @@ def _grid(data: Any) -> dict[str, list]:
     for path, values in data.items():
         _check_path(f'sweep.grid.{_label(path)}', path)
         grid[path] = _grid_values(f'sweep.grid.{path}', values)     # each at most LIMITS['axis']
+        if path == 'bodies':
+            _check_bodies(f'sweep.grid.{path}', grid[path])
     scenes = math.prod(len(v) for v in grid.values())
     if scenes > LIMITS['scenes']:
         sizes = ' x '.join(str(len(v)) for v in grid.values())
@@ -488,9 +490,27 @@ def _random(r: Any) -> dict[str, Any]:
     for path, dist in r['params'].items():
         _check_path(f'sweep.random.params.{_label(path)}', path)
         params[path] = _check_draw(f'sweep.random.params.{path}', dist)
+        if path == 'bodies':
+            kind, args = params[path]
+            if kind not in ('integers', 'choice'):
+                raise SpecError(f'sweep.random.params.bodies: must be {{integers: [a, b]}} or '
+                                f'{{choice: [...]}} (a number of bodies), got {kind}')
+            _check_bodies(f'sweep.random.params.bodies.{kind}', args)
     return {'n': _int('sweep.random.n', r.get('n', 1), 1, LIMITS['scenes']),
             'seed': _int('sweep.random.seed', r.get('seed', 0), 0, LIMITS['seed']),
             'params': params}
+
+
+def _check_bodies(where: str, values: Any) -> None:
+    """Every number of bodies the spec can give is an integer in [2, MAX_SCENE_BODIES],
+    checked on the spec: a scene's lists are made ``bodies`` long before the scene is
+    validated, so a billion would be allocated first."""
+    for value in values:
+        whole = isinstance(value, (int, float)) and not isinstance(value, bool) and \
+            float(value).is_integer()
+        if not whole or not 2 <= value <= MAX_SCENE_BODIES:
+            raise SpecError(f'{where}: numbers of bodies must be integers from 2 to '
+                            f'{MAX_SCENE_BODIES}, got {_show(value)}')
 
 
 def _check_first_scene(spec: SweepSpec) -> None:

@@ -195,14 +195,3 @@ def test_a_large_checkpointed_sweep_keeps_chunks_on_disk_and_reads_them_back(ser
     assert loaded == [0, 1, 2, 3, 4]              # every chunk came back from disk, in order
     pd.testing.assert_frame_equal(df, serial, check_exact=True)
 
-
-def test_an_optimisation_on_a_dask_cluster_scores_every_stroke_as_a_serial_one(dask_client):
-    # the generations go through cluster.gather (every wait with a deadline): the same history
-    from crawler_sim.core.scene import scene_from_dict
-    from crawler_sim.sweep.optimize import optimize
-    base = scene_from_dict(SPEC['base'])
-    kw = dict(score='ideal', periods=6, maxiter=1, popsize=2, local_maxiter=2, seed=1)
-    serial_run = optimize(base, **kw)
-    on_dask = optimize(base, client=dask_client, **kw)
-    assert [h['score'] for h in on_dask.history] == [h['score'] for h in serial_run.history]
-    assert len(on_dask.history) > 4
