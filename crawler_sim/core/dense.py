@@ -36,6 +36,8 @@ _PROBE = 9          # interior points of each piece where a sign change of the p
 _ITERATIONS = 80    # Illinois steps (each at most halves the bracket, about every third)
 _LEVELS = 60        # halvings of a quadrature piece
 _RTOL = 1e-13       # a piece's quadrature error, relative to the integral of |power| over it
+_CUBIC_INTEGRAL = np.array([1.0, 1 / 2, 1 / 3, 1 / 4])   # of b0 + b1 u + b2 u^2 + b3 u^3 on [0, 1]
+_ONE_SIGN = np.array([-1.0, 1.0, 1.0, 1.0])            # |b1| + |b2| + |b3| - |b0| < 0: one sign
 
 
 class DenseOutput:
@@ -149,6 +151,14 @@ class DenseOutput:
         lo, hi, mult = lo[keep], hi[keep], mult[keep]
         if not lo.size:
             return 0.0
+        # constant-jerk pieces (the node's actuator): the power is a cubic on each piece,
+        # integrated in closed form; what that path cannot prove goes to the quadrature
+        done, work = self._cubic_work(lo, hi)
+        total = float(mult[done] @ work)
+        rest = ~done
+        if not rest.any():
+            return total
+        lo, hi, mult = lo[rest], hi[rest], mult[rest]
         root, owner = self._roots(lo, hi, 1e-10 * (b - a))
         # each piece cut at its roots: the points sorted by piece, then time
         pts = np.concatenate([lo, root])
@@ -157,7 +167,102 @@ class DenseOutput:
         pts, own = pts[order], own[order]
         last = np.append(own[1:] != own[:-1], True)       # a piece's last point
         ends = np.where(last, hi[own], np.append(pts[1:], 0.0))
-        return self._quadrature(pts, ends, mult[own], float(b - a))
+        return total + self._quadrature(pts, ends, mult[own], float(b - a))
+
+    def _cubic_work(self, lo: NDArray, hi: NDArray) -> tuple[NDArray, NDArray]:
+        """Integral of max(power, 0) [J] over the pieces [lo, hi] [s] of a constant-jerk gait
+        (``PiecewiseCubic``), in closed form: (which pieces it holds, their integrals).
+
+        Within a segment (one contact mode) the linkage forces are affine in l'':
+        G = A l'' + c (sliding bodies' friction is constant, stuck ones follow the gait), so on
+        a piece where l' is quadratic and l'' affine the power G . l' is a cubic. A and c are
+        fitted per segment from the run's own states at n_links + 3 interior times (two more
+        than they need) and the fit must reproduce every one of them to 1e-13 of the forces,
+        with l'' spanning its space (else the segment's pieces are left to the quadrature).
+        The cubic's roots in a piece: between the roots of its derivative (closed form) it is
+        monotone, and a sign change there is narrowed by safeguarded Newton to rounding.
+        """
+        from .gaits.cubic import PiecewiseCubic
+
+        none = np.zeros(lo.size, dtype=bool), np.empty(0)
+        g = self.gait
+        table, row_of = self.segments.records()
+        if not isinstance(g, PiecewiseCubic) or len(table.gaits) != 1 or table.gaits[0] is not g:
+            return none
+        if g._arrays is not None:           # the actuator's runs: built from arrays
+            starts, anchors, coef = g._arrays
+        else:
+            pcs = g.pieces
+            starts = np.asarray(g.starts, dtype=float)
+            anchors = np.array([pc.t0 for pc in pcs])
+            coef = np.array([np.stack([pc.l0, pc.v0, pc.a0, pc.jerk], axis=-1) for pc in pcs])
+        m = coef.shape[1]
+        # each piece's segment (a piece lies inside one: the segments' starts are breaks)
+        seg_starts = self.segments.starts()
+        mid = 0.5 * (lo + hi)
+        seg = np.clip(np.searchsorted(seg_starts, mid, side='right') - 1, 0, None)
+        first = int(seg.min())                  # the segments from the first piece's on
+        used = np.arange(first, int(seg.max()) + 1)
+        inv = seg - first
+        s0 = seg_starts[used]
+        s1 = np.append(seg_starts, self.span[1])[used + 1]
+        # n_links + 3 interior times of each segment, clustered to neither end
+        k = m + 3
+        frac = 0.5 - 0.5 * np.cos((np.arange(k) + 0.5) * np.pi / k)
+        t = s0[:, None] + (s1 - s0)[:, None] * frac
+        order = np.argsort(t.ravel(), kind='stable')
+        ok_t = np.diff(t, axis=1).min(axis=1) > 0        # distinct times (not a float-long one)
+        out = self.sample(t.ravel()[order])
+        G = np.empty((t.size, m))
+        G[order] = out['linkage_force']
+        cg = g.compiled()
+        with cg.lock:
+            ldd_sorted = cg.values(t.ravel()[order])[2]
+        ldd = np.empty((t.size, m))
+        ldd[order] = ldd_sorted
+        G = G.reshape(used.size, k, m)
+        X = np.concatenate([ldd.reshape(used.size, k, m), np.ones((used.size, k, 1))], axis=2)
+        # least squares through the SVD: rank-deficient l'' (a hold, linkages in lockstep)
+        # leaves the segment to the quadrature
+        U, S, Vt = np.linalg.svd(X, full_matrices=False)
+        full = (S[:, -1] > 1e-8 * S[:, 0]) & (row_of[used] >= 0) & ok_t
+        Sinv = np.where(full[:, None], 1.0 / np.where(S > 0, S, 1.0), 0.0)
+        W = np.einsum('sji,sj,skj,skm->sim', Vt, Sinv, U, G)     # (segments, m + 1, m)
+        resid = np.abs(np.einsum('ski,sim->skm', X, W) - G).max(axis=(1, 2))
+        full &= resid <= 1e-13 * np.maximum(np.abs(G).max(axis=(1, 2)), 1e-300)
+        done = full[inv]
+        if not done.any():
+            return none
+        lo, hi, inv = lo[done], hi[done], inv[done]
+        A, c = W[inv, :m, :], W[inv, m, :]              # G = l'' @ A + c
+        piece = np.clip(np.searchsorted(starts, 0.5 * (lo + hi), side='right') - 1, 0, None)
+        d = (lo - anchors[piece])[:, None]
+        v0, a0, jerk = (coef[:, :, col][piece] for col in (1, 2, 3))
+        v = v0 + d * (a0 + 0.5 * d * jerk)               # l', l'' at lo; l''' = jerk
+        acc = a0 + d * jerk
+        g0 = np.einsum('ni,nim->nm', acc, A) + c         # G at lo and its slope [N, N/s]
+        g1 = np.einsum('ni,nim->nm', jerk, A)
+        h = hi - lo
+        # P(lo + u h) = b0 + b1 u + b2 u^2 + b3 u^3, u in [0, 1]
+        b = np.empty((lo.size, 4))
+        dot = np.einsum
+        b[:, 0] = dot('nm,nm->n', g0, v)
+        b[:, 1] = h * (dot('nm,nm->n', g0, acc) + dot('nm,nm->n', g1, v))
+        b[:, 2] = h * h * (0.5 * dot('nm,nm->n', g0, jerk) + dot('nm,nm->n', g1, acc))
+        b[:, 3] = h ** 3 * 0.5 * dot('nm,nm->n', g1, jerk)
+        # |P(u) - b0| <= |b1| + |b2| + |b3| on [0, 1]: most pieces keep b0's sign throughout
+        # and their integral is the whole cubic's (or nothing)
+        mixed = np.flatnonzero(np.abs(b) @ _ONE_SIGN >= 0.0)
+        work = b @ _CUBIC_INTEGRAL
+        work[b[:, 0] <= 0] = 0.0
+        if mixed.size:
+            bm = b[mixed]
+            pts = np.concatenate([np.zeros((mixed.size, 1)), np.sort(_cubic_roots01(bm), axis=1),
+                                  np.ones((mixed.size, 1))], axis=1)
+            positive = _poly(bm, 0.5 * (pts[:, :-1] + pts[:, 1:])) > 0
+            F = _poly_integral(bm, pts)
+            work[mixed] = np.where(positive, F[:, 1:] - F[:, :-1], 0.0).sum(axis=1)
+        return done, h * work
 
     def _eval(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
         """``power`` at times in any order and shape."""
@@ -251,6 +356,60 @@ def _restore(crawler: Crawler, blob: bytes, span: tuple[float, float], tol: floa
              max_step: float | None) -> DenseOutput:
     gait, segments = pickle.loads(blob)
     return DenseOutput(crawler, gait, segments, span, tol=tol, max_step=max_step)
+
+
+def _poly(b: NDArray, u: NDArray) -> NDArray:
+    """b0 + b1 u + b2 u^2 + b3 u^3 for each row of ``b`` (n, 4) at ``u`` (n, k)."""
+    return b[:, :1] + u * (b[:, 1:2] + u * (b[:, 2:3] + u * b[:, 3:4]))
+
+
+def _poly_integral(b: NDArray, u: NDArray) -> NDArray:
+    """The integral of ``_poly`` from 0 to ``u`` (n, k)."""
+    return u * (b[:, :1] + u * (b[:, 1:2] / 2 + u * (b[:, 2:3] / 3 + u * b[:, 3:4] / 4)))
+
+
+def _cubic_roots01(b: NDArray) -> NDArray:
+    """The sign changes of each cubic b0 + b1 u + b2 u^2 + b3 u^3 (rows of ``b``) in (0, 1),
+    shape (n, 3), 1.0 where there is none (an empty interval at the end).
+
+    The derivative's roots (closed form) cut [0, 1] into at most three stretches where the
+    cubic is monotone; a stretch whose ends differ in sign holds one root, found by Newton's
+    method from the secant point, kept inside its bracket (bisection where a step leaves it)
+    until the step or the bracket is a few ulps of 1.
+    """
+    n = b.shape[0]
+    # derivative 3 b3 u^2 + 2 b2 u + b1: roots by the cancellation-free quadratic formula
+    qa, qb, qc = 3 * b[:, 3], 2 * b[:, 2], b[:, 1]
+    disc = qb * qb - 4 * qa * qc
+    with np.errstate(divide='ignore', invalid='ignore'):
+        q = -0.5 * (qb + np.copysign(np.sqrt(np.maximum(disc, 0.0)), qb))
+        crit = np.stack([q / qa, qc / q], axis=1)
+    crit = np.where((disc > 0)[:, None] & (crit > 0) & (crit < 1), crit, 1.0)
+    knots = np.concatenate([np.zeros((n, 1)), np.sort(crit, axis=1), np.ones((n, 1))], axis=1)
+    f = _poly(b, knots)
+    x0, x1, f0, f1 = knots[:, :-1], knots[:, 1:], f[:, :-1], f[:, 1:]
+    out = np.ones((n, 3))
+    r, c = np.nonzero((x1 > x0) & (((f0 < 0) & (f1 > 0)) | ((f0 > 0) & (f1 < 0))))
+    if not r.size:
+        return out
+    lo, hi, flo, fhi, br = x0[r, c], x1[r, c], f0[r, c], f1[r, c], b[r]
+    x = (lo * fhi - hi * flo) / (fhi - flo)          # the secant point: inside the bracket
+    up = fhi > 0                                     # P rises through the root
+    for _ in range(_ITERATIONS):
+        fx = br[:, 0] + x * (br[:, 1] + x * (br[:, 2] + x * br[:, 3]))
+        dfx = br[:, 1] + x * (2 * br[:, 2] + 3 * x * br[:, 3])
+        right = (fx < 0) == up                       # the root lies right of x
+        lo, hi = np.where(right, x, lo), np.where(right, hi, x)
+        with np.errstate(divide='ignore', invalid='ignore'):
+            step = x - fx / dfx
+        new = np.where((step > lo) & (step < hi), step, 0.5 * (lo + hi))
+        new[fx == 0] = x[fx == 0]
+        moved = (np.abs(new - x) > 4 * _EPS) & (hi - lo > 4 * _EPS)
+        x = new
+        if not moved.any():
+            break
+    out[r, c] = x
+    return out
 
 
 class _Unavailable:

@@ -306,15 +306,17 @@ def test_sliding_distance_of_a_light_body_dragged_by_a_stuck_heavy_one():
         tr.sliding_distance(-1.0, 2.0)
 
 
-def _positive_work_independent(crawler, g, t_end, a, b):
+def _positive_work_independent(crawler, g, t_end, a, b, joins=()):
     """Integral of max(power, 0) over [a, b] by runs sampled at chosen times only: the power's
     sign changes bracketed on a 40,001-point grid (plus the events) and narrowed by brentq,
     each evaluation a run sampled at that time; then 20-point Gauss-Legendre on stretches of at
-    most 5 ms between events and roots."""
+    most 5 ms between events, ``joins`` (times where the gait's jerk jumps) and roots."""
     from scipy.optimize import brentq
 
     events = np.array([e.time for e in cs.simulate(crawler, g, t_end).events
                        if a < e.time < b])
+    joins = np.asarray(joins, dtype=float)
+    events = np.union1d(events, joins[(joins > a) & (joins < b)])
     grid = np.union1d(np.linspace(a, b, 40001), events)
     s = cs.simulate(crawler, g, t_end, t_eval=grid)
     P = np.sum(s.linkage_force * s.rates, axis=1)
@@ -367,3 +369,64 @@ def test_positive_work_of_stepping_methods_is_the_trapezoid():
                                                        rel=1e-14)
     with pytest.raises(ValueError, match='inside the run'):
         tr.positive_work(0.5, 3.5)
+
+
+def _jerk_pieces(n_links, n, dt, seed):
+    """A PiecewiseCubic of n pieces of dt [s] per linkage with random jerks about a rest
+    length: the form of the node's actuator output (constant jerk per tick)."""
+    rng = np.random.default_rng(seed)
+    starts = np.arange(n) * dt
+    coef = np.zeros((n, n_links, 4))
+    l, v, acc = np.full(n_links, 0.1), np.zeros(n_links), np.zeros(n_links)
+    for k in range(n):
+        jerk = rng.uniform(-40, 40, n_links) - 8 * acc / dt / 20 - 2 * v / dt / 20
+        coef[k] = np.stack([l, v, acc, jerk], axis=-1)
+        l, v, acc = (l + dt * (v + dt * (acc / 2 + dt * jerk / 6)),
+                     v + dt * (acc + dt * jerk / 2), acc + dt * jerk)
+    return gaits.PiecewiseCubic.from_arrays(starts, starts.copy(), coef)
+
+
+@pytest.mark.parametrize('masses, slope, n, dt', [
+    ([0.5, 1.0], 0.0, 400, 0.01),                   # p = 2, level
+    ([1.0, 0.4, 0.7], 0.1, 300, 0.01),              # p = 3, slope
+    ([0.3, 0.5, 0.2, 0.6, 0.4, 0.3, 0.5, 0.7], -0.05, 80, 0.025),   # p = 8
+])
+def test_positive_work_of_constant_jerk_pieces_exact(masses, slope, n, dt):
+    """Constant-jerk pieces (the power a cubic on each piece, integrated in closed form)
+    against the independent quadrature with the pieces' joins as edges; a sub-window too."""
+    crawler = cs.Crawler(masses=masses, mu=0.3, slope=slope)
+    g = _jerk_pieces(len(masses) - 1, n, dt, seed=len(masses))
+    t_end = n * dt
+    tr = cs.simulate(crawler, g, t_end)
+    assert len(tr.events) > 5
+    for a, b in ((0.0, t_end), (0.1234, 0.77 * t_end)):
+        expected = _positive_work_independent(crawler, g, t_end, a, b, g.starts)
+        assert expected > 0
+        assert tr.positive_work(a, b) == pytest.approx(expected, rel=1e-12)
+
+
+def test_positive_work_of_a_node_run_exact():
+    """A stroke played as the node plays it (the actuator's ~1 ms constant-jerk pieces: the
+    optimiser's "node" score) on a slope; the reference samples the played gait."""
+    from dataclasses import replace
+
+    from crawler_sim.core.actuator import ActuatorLimits
+    from crawler_sim.core.plant.streams import simulate_as_node
+    from crawler_sim.core.scene import scene_from_dict
+    from crawler_sim.sweep.optimize import STREAM, family, plant_for
+
+    base = scene_from_dict({'crawler': {'masses': [0.5, 1.0], 'mu': 0.3, 'slope_deg': 2.0},
+                            'gait': {'type': 'scallop', 'mean': 0.1, 'amplitude': 0.02,
+                                     'frequency': 1.0, 'asymmetry': 0.3}})
+    limits = ActuatorLimits()
+    fam = family('scallop', base, limits)
+    plant = plant_for(base, fam, limits)
+    g = fam.gait(np.array([0.02, 1.37, 0.2]))
+    t_end = 2 * g.period
+    stream = replace(STREAM, duration=t_end + 2.0 / STREAM.rate)
+    tr = simulate_as_node(plant, g, stream, t_end)
+    played = tr.dense.gait                      # the actuator's output, as run
+    assert isinstance(played, gaits.PiecewiseCubic) and played.starts.size > 1000
+    a, b = 0.05, t_end - 0.03
+    expected = _positive_work_independent(tr.crawler, played, t_end, a, b, played.starts)
+    assert tr.positive_work(a, b) == pytest.approx(expected, rel=1e-12)
