@@ -132,3 +132,26 @@ def test_a_killed_worker_is_replaced_and_a_killed_scheduler_is_one_line_and_a_re
     assert 1 <= kept < 12
     resumed = sweep(SPEC, workers=1, checkpoint=ck)
     pd.testing.assert_frame_equal(resumed, whole, check_exact=True)
+
+
+def test_a_scheduler_frozen_mid_sweep_is_one_line_within_the_deadline_not_a_hang(tmp_path):
+    # SIGSTOP: the connection stays open and nothing answers (a scheduler swapped out, a host
+    # that froze); the sweep's ping of the scheduler finds it silent
+    ck = tmp_path / 'ck'
+    with dask.config.set({'distributed.comm.timeouts.connect': f'{DEADLINE}s'}), \
+            local_cluster(tmp_path, workers=1) as client:
+        address = client.scheduler.address
+        scheduler = client.run_on_scheduler(os.getpid)
+
+        def freeze(done: int, total: int) -> None:
+            if done:
+                os.kill(scheduler, signal.SIGSTOP)
+
+        try:
+            with pytest.raises(ClusterError) as err:
+                sweep(SPEC, client=client, checkpoint=ck, progress=freeze)
+        finally:
+            os.kill(scheduler, signal.SIGCONT)
+    text = str(err.value)
+    assert text.startswith(f'Dask scheduler {address}: no answer within {DEADLINE} s ')
+    assert f'kept in {ck}: run the same command again to resume' in text
