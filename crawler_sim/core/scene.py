@@ -69,7 +69,7 @@ from .trajectory import Trajectory
 
 __all__ = ['SceneError', 'RunOptions', 'Scene', 'GAIT_TYPES', 'LIMITS', 'load_scene',
            'scene_from_dict', 'scene_to_dict', 'crawler_from_mapping', 'MAX_SCENE_BODIES',
-           'MAX_ENTRIES', 'MAX_SCENE_BYTES']
+           'MAX_ENTRIES', 'MAX_SCENE_BYTES', 'YamlLoader']
 
 
 class SceneError(ValueError):
@@ -95,12 +95,12 @@ def _short(value: Any) -> str:
     return reprlib.repr(value)
 
 
-class _Loader(getattr(yaml, 'CSafeLoader', yaml.SafeLoader)):     # type: ignore[misc]
-    """Safe loader (libyaml's when PyYAML has it: 3x faster) that also reads ``1e-3`` as a
-    float (YAML 1.2; PyYAML's 1.1 needs ``1.0e-3``)."""
+class YamlLoader(getattr(yaml, 'CSafeLoader', yaml.SafeLoader)):     # type: ignore[misc]
+    """The YAML loader of scene and sweep files: safe (libyaml's when PyYAML has it: 3x
+    faster), and reads ``1e-3`` as a float (YAML 1.2; PyYAML's 1.1 needs ``1.0e-3``)."""
 
 
-_Loader.add_implicit_resolver(
+YamlLoader.add_implicit_resolver(
     'tag:yaml.org,2002:float',
     re.compile(r'''^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
                    |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
@@ -532,7 +532,7 @@ def read_section(path: Path, key: str, kind: str, error: type[Exception]) -> Any
     except UnicodeDecodeError as exc:
         raise error(f'{path}: not UTF-8 text ({exc.reason} at byte {exc.start})') from None
     try:
-        data = yaml.load(text, Loader=_Loader)  # noqa: S506 (a SafeLoader subclass)
+        data = yaml.load(text, Loader=YamlLoader)  # noqa: S506 (a SafeLoader subclass)
     except yaml.YAMLError as exc:
         mark = getattr(exc, 'problem_mark', None)
         where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''

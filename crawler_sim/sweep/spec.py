@@ -55,7 +55,7 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 import yaml
 
-from ..core.scene import MAX_SCENE_BODIES, Scene, SceneError, scene_from_dict
+from ..core.scene import MAX_SCENE_BODIES, Scene, SceneError, YamlLoader, scene_from_dict
 
 __all__ = ['SpecError', 'SweepSpec', 'LIMITS', 'load_spec', 'spec_from_dict', 'apply_params']
 
@@ -107,21 +107,6 @@ def _clip(text: str, limit: int = 300) -> str:
     """The first line of ``text``, at most ``limit`` characters."""
     line = text.splitlines()[0] if text else ''
     return line if len(line) <= limit else line[:limit] + '...'
-
-
-class _SpecLoader(getattr(yaml, 'CSafeLoader', yaml.SafeLoader)):     # type: ignore[misc]
-    """Safe loader (libyaml's when PyYAML has it) that reads ``1e-3`` as a float (YAML 1.2),
-    the rule of the scene files' loader."""
-
-
-_SpecLoader.add_implicit_resolver(
-    'tag:yaml.org,2002:float',
-    re.compile(r'''^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
-                   |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
-                   |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
-                   |[-+]?\.(?:inf|Inf|INF)
-                   |\.(?:nan|NaN|NAN))$''', re.X),
-    list('-+0123456789.'))
 
 
 def _parts(obj: Any) -> tuple[list | None, int]:
@@ -550,7 +535,7 @@ def _read_yaml(path: Path) -> Any:
         text = raw.decode('utf-8')
     except UnicodeDecodeError as exc:
         raise SpecError(f'{path}: not UTF-8 text ({exc.reason} at byte {exc.start})') from None
-    loader = _SpecLoader(text)
+    loader = YamlLoader(text)        # the scene files' loader, composing first
     try:
         node = loader.get_single_node()
         if node is None:
