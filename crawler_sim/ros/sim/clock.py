@@ -103,6 +103,8 @@ class SharedClock:
         self.next_poll = 0.0               # perf_counter s of the owner's next check
         self._silence_logged = False
         self._fresh = False                # following from the start, no /clock heard yet
+        #: the sims publishing /clock when the current silence began (None: not silent)
+        self._episode: set[str] | None = None
 
     # ------------------------------------------------------------------ what the loop reads
     @property
@@ -117,6 +119,12 @@ class SharedClock:
     @property
     def following(self) -> bool:
         return self.target_ns is not None
+
+    @property
+    def waiting(self) -> bool:
+        """Following from the start a clock not heard yet: the sim has not begun (it publishes
+        its first state when it hears the clock, at that time)."""
+        return self._fresh
 
     def values(self) -> dict:
         """The figures for /diagnostics."""
@@ -194,6 +202,7 @@ class SharedClock:
         self.silent_for = 0.0
         self._silence_logged = False
         self._wait_from = time.perf_counter()
+        self._episode = None
         node.outputs.set_clock_owner(False)
         self._fresh = start and not self.heard_wall
         if start and self.heard_wall:          # a fresh sim starts at the clock's time
@@ -235,11 +244,13 @@ class SharedClock:
             if self._fresh:                    # the first tick of the clock chosen at start
                 self._fresh = False
                 self._node.restart_at(self.heard_ns)
+                self._node.publish_state()     # the first state, at the clock's time
             self.target_ns = max(self.target_ns, self.heard_ns)
             if self._silence_logged:
                 self._log('info', f'/clock of {self.owner} heard again')
             self.silent_for = 0.0
             self._silence_logged = False
+            self._episode = None
             return
         self.silent_for = now - max(self.heard_wall, self._wait_from)
         if self.silent_for <= SILENCE or now < self.next_poll:
@@ -278,10 +289,21 @@ class SharedClock:
                 self._silence_logged = True
             return
         grace = START_GRACE if self._fresh else SILENCE
-        # the candidates are the followers (sims without a /clock publisher): the same list in
-        # every follower, whatever each presumed about the owner
         mine = self._node.get_fully_qualified_name()
-        rank = sum(fqn < mine for fqn in sims if fqn not in publishing)
+        if self._episode is None:
+            self._episode = set(publishing)
+        taking = [fqn for fqn in publishing if fqn not in self._episode and fqn < mine]
+        if taking:
+            # a sim before this one has just taken over (its /clock publisher is new): wait
+            # for its clock, as after any other message
+            self._episode.update(taking)
+            self.owner = taking[0]
+            self._wait_from = time.perf_counter()
+            return
+        # the candidates are the followers when the silence began (sims without a /clock
+        # publisher then): the same list in every follower, whatever each presumed about the
+        # owner, and not shortened by the one taking over
+        rank = sum(fqn < mine for fqn in sims if fqn not in self._episode)
         if self.silent_for < grace + rank * STAGGER:
             return
         self._take_over()
@@ -292,10 +314,13 @@ class SharedClock:
         self._log('warn', f'/clock of {self.owner} silent for {self.silent_for:.1f} s: this node '
                   f'publishes /clock from t = {to_seconds(floor):.9f} s')
         self.takeovers += 1
-        self._fresh = False
+        fresh, self._fresh = self._fresh, False
+        self._episode = None
         self.target_ns = None
         self.owner = ''
         self.foreign = False
         self.silent_for = 0.0
         node.outputs.set_clock_owner(True, floor)
         node.reanchor()
+        if fresh:                     # it had not begun: its first state (and /clock) now
+            node.publish_state()

@@ -84,13 +84,13 @@ def _loop(node: Loopable) -> None:
     ok = node.context.ok
     counters = node.counters
     lateness = node.lateness
-    if counters['ticks'] == 0:
+    clock = node.clock
+    shared = clock.active
+    if counters['ticks'] == 0 and not clock.waiting:
         with node.lock:
             node.publish_state()       # the initial state at t = 0 (a bag starts there)
     checks = 0
     next_republish = 0.0
-    clock = node.clock
-    shared = clock.active
     while not node.stopped:
         # context.ok() costs ~1 us: flat out, ask every 16th iteration
         checks = (checks + 1) & 15
