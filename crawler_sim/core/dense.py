@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import pickle
+from typing import Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,6 +38,11 @@ _ITERATIONS = 80    # Illinois steps (each at most halves the bracket, about eve
 _LEVELS = 60        # halvings of a quadrature piece
 _RTOL = 1e-13       # a piece's quadrature error, relative to the integral of |power| over it
 _CUBIC_INTEGRAL = np.array([1.0, 1 / 2, 1 / 3, 1 / 4])   # of b0 + b1 u + b2 u^2 + b3 u^3 on [0, 1]
+# 4 interior points of [0, 1] (Chebyshev's) and the map from a cubic's values there to its
+# coefficients b0..b3: values @ _CHEB4_TO_B
+_CHEB4 = 0.5 - 0.5 * np.cos((np.arange(4) + 0.5) * np.pi / 4)
+_CHEB4_TO_B = np.linalg.inv(np.vander(_CHEB4, 4, increasing=True)).T
+_SCALAR = 16       # up to this many cubics with a sign change: one at a time, in floats
 _ONE_SIGN = np.array([-1.0, 1.0, 1.0, 1.0])            # |b1| + |b2| + |b3| - |b0| < 0: one sign
 
 
@@ -117,14 +123,23 @@ class DenseOutput:
 
         The whole skipped periods inside [a, b] are the block's template period repeated (the
         same closed forms at the same template times: ``sample``), so each block counts its
-        template period's integral times the periods it has in [a, b]. The power is smooth
-        between the pieces' boundaries (``breaks``); its sign changes there are found by
-        probing each piece at 9 interior points and narrowing every change of sign (Illinois'
-        regula falsi, to 1e-10 of [a, b]: the integral's error is |power'| times the square of
-        that); between boundaries and roots, adaptive 12-point Gauss-Legendre quadrature (a
-        piece is accepted when it agrees with the sum over its halves to 1e-13 of the integral
-        of |power| over it, or over [a, b] in proportion to its length, else split). A double
-        root the probes miss is a kink the splitting resolves.
+        template period's integral times the periods it has in [a, b] (a period of a block
+        the windows do not count whole is moved onto the template: ``_onto_templates``).
+
+        The linkage forces are fitted per segment as affine in l'' (``_Forces``: exact within
+        one contact mode, checked on the run's own states), so the power anywhere is one
+        compiled gait evaluation. Where the gait is polynomial on a piece (``PiecewiseCubic``:
+        the node's actuator; ``PiecewiseParabolic``) the power is a cubic there, integrated in
+        closed form between its roots (``_cubic_work``). Elsewhere the power is smooth between
+        the pieces' boundaries (``breaks``); its sign changes there are found by probing each
+        piece at 9 interior points and narrowing every change of sign (Illinois' regula
+        falsi, to 1e-10 of [a, b]: the integral's error is |power'| times the square of that);
+        between boundaries and roots, adaptive 12-point Gauss-Legendre quadrature (a piece is
+        accepted when it agrees with the sum over its halves to 1e-13 of the integral of
+        |power| over it, or over [a, b] in proportion to its length, else split). A double
+        root the probes miss is a kink the splitting resolves. A segment the fit does not
+        hold for (a hold, linkages moving in lockstep, a run of several gaits) is evaluated
+        by ``sample``, as before.
         """
         windows, cuts = [], []         # (start, end, multiplier); the stretches counted
         for blk in self._blocks():
@@ -151,15 +166,18 @@ class DenseOutput:
         lo, hi, mult = lo[keep], hi[keep], mult[keep]
         if not lo.size:
             return 0.0
+        self._onto_templates(lo, hi)
         # constant-jerk pieces (the node's actuator): the power is a cubic on each piece,
         # integrated in closed form; what that path cannot prove goes to the quadrature
-        done, work = self._cubic_work(lo, hi)
+        fit = _Forces.fit(self, lo, hi)
+        done, work = self._cubic_work(lo, hi, fit)
         total = float(mult[done] @ work)
-        rest = ~done
-        if not rest.any():
+        rest = np.flatnonzero(~done)
+        if not rest.size:
             return total
         lo, hi, mult = lo[rest], hi[rest], mult[rest]
-        root, owner = self._roots(lo, hi, 1e-10 * (b - a))
+        power = fit.power_of(rest)
+        root, owner = self._roots(lo, hi, 1e-10 * (b - a), power)
         # each piece cut at its roots: the points sorted by piece, then time
         pts = np.concatenate([lo, root])
         own = np.concatenate([np.arange(lo.size), owner])
@@ -167,27 +185,52 @@ class DenseOutput:
         pts, own = pts[order], own[order]
         last = np.append(own[1:] != own[:-1], True)       # a piece's last point
         ends = np.where(last, hi[own], np.append(pts[1:], 0.0))
-        return total + self._quadrature(pts, ends, mult[own], float(b - a))
+        return total + self._quadrature(pts, ends, mult[own], float(b - a), power, own)
 
-    def _cubic_work(self, lo: NDArray, hi: NDArray) -> tuple[NDArray, NDArray]:
-        """Integral of max(power, 0) [J] over the pieces [lo, hi] [s] of a constant-jerk gait
-        (``PiecewiseCubic``), in closed form: (which pieces it holds, their integrals).
+    def _onto_templates(self, lo: NDArray, hi: NDArray) -> None:
+        """Pieces inside a block of skipped periods (a period the windows did not count as a
+        whole) moved in place onto its template period, t - j T as ``sample`` maps a time:
+        the same power, at times of the template's own segments."""
+        _, row_of = self.segments.records()
+        item = np.clip(np.searchsorted(self.segments.starts(), 0.5 * (lo + hi), side='right')
+                       - 1, 0, None)
+        for k in np.unique(item[row_of[item] < 0]).tolist():
+            blk = self.segments[k]
+            sel = np.flatnonzero(item == k)
+            j = np.clip(np.floor((0.5 * (lo[sel] + hi[sel]) - blk.t0) / blk.T).astype(int) + 1,
+                        1, blk.n)
+            lo[sel] -= j * blk.T
+            hi[sel] -= j * blk.T
 
-        Within a segment (one contact mode) the linkage forces are affine in l'':
-        G = A l'' + c (sliding bodies' friction is constant, stuck ones follow the gait), so on
-        a piece where l' is quadratic and l'' affine the power G . l' is a cubic. A and c are
-        fitted per segment from the run's own states at n_links + 3 interior times (two more
-        than they need) and the fit must reproduce every one of them to 1e-13 of the forces,
-        with l'' spanning its space (else the segment's pieces are left to the quadrature).
-        The cubic's roots in a piece: between the roots of its derivative (closed form) it is
-        monotone, and a sign change there is narrowed by safeguarded Newton to rounding.
+    def _cubic_work(self, lo: NDArray, hi: NDArray, fit: _Forces
+                    ) -> tuple[NDArray, NDArray]:
+        """Integral of max(power, 0) [J] over the pieces [lo, hi] [s] of a polynomial gait,
+        in closed form: (which pieces it holds, their integrals).
+
+        With the linkage forces affine in l'' on a piece (``_Forces``), a piece where l' is
+        quadratic and l'' affine (``PiecewiseCubic``: its coefficients read directly) or l'
+        affine and l'' constant (``PiecewiseParabolic``: four fitted powers) has a cubic power
+        G . l'. The cubic's roots in a piece: between the roots of its derivative (closed
+        form) it is monotone, and a sign change there is narrowed by safeguarded Newton to a
+        few ulps of the piece.
         """
         from .gaits.cubic import PiecewiseCubic
+        from .gaits.piecewise import PiecewiseParabolic
 
         none = np.zeros(lo.size, dtype=bool), np.empty(0)
         g = self.gait
-        table, row_of = self.segments.records()
-        if not isinstance(g, PiecewiseCubic) or len(table.gaits) != 1 or table.gaits[0] is not g:
+        done = fit.ok
+        if fit.gait is not g or not done.any():
+            return none
+        if isinstance(g, PiecewiseParabolic):
+            # l'' constant on a piece, l' affine: the power is affine there (a cubic of
+            # degree one); its coefficients from the fitted power at 4 interior points
+            lo, hi = lo[done], hi[done]
+            h = hi - lo
+            P = fit.power_of(np.flatnonzero(done))(lo[:, None] + h[:, None] * _CHEB4,
+                                                    np.arange(lo.size))
+            return done, h * _positive_cubic(P @ _CHEB4_TO_B)
+        if not isinstance(g, PiecewiseCubic):
             return none
         if g._arrays is not None:           # the actuator's runs: built from arrays
             starts, anchors, coef = g._arrays
@@ -196,45 +239,8 @@ class DenseOutput:
             starts = np.asarray(g.starts, dtype=float)
             anchors = np.array([pc.t0 for pc in pcs])
             coef = np.array([np.stack([pc.l0, pc.v0, pc.a0, pc.jerk], axis=-1) for pc in pcs])
-        m = coef.shape[1]
-        # each piece's segment (a piece lies inside one: the segments' starts are breaks)
-        seg_starts = self.segments.starts()
-        mid = 0.5 * (lo + hi)
-        seg = np.clip(np.searchsorted(seg_starts, mid, side='right') - 1, 0, None)
-        first = int(seg.min())                  # the segments from the first piece's on
-        used = np.arange(first, int(seg.max()) + 1)
-        inv = seg - first
-        s0 = seg_starts[used]
-        s1 = np.append(seg_starts, self.span[1])[used + 1]
-        # n_links + 3 interior times of each segment, clustered to neither end
-        k = m + 3
-        frac = 0.5 - 0.5 * np.cos((np.arange(k) + 0.5) * np.pi / k)
-        t = s0[:, None] + (s1 - s0)[:, None] * frac
-        order = np.argsort(t.ravel(), kind='stable')
-        ok_t = np.diff(t, axis=1).min(axis=1) > 0        # distinct times (not a float-long one)
-        out = self.sample(t.ravel()[order])
-        G = np.empty((t.size, m))
-        G[order] = out['linkage_force']
-        cg = g.compiled()
-        with cg.lock:
-            ldd_sorted = cg.values(t.ravel()[order])[2]
-        ldd = np.empty((t.size, m))
-        ldd[order] = ldd_sorted
-        G = G.reshape(used.size, k, m)
-        X = np.concatenate([ldd.reshape(used.size, k, m), np.ones((used.size, k, 1))], axis=2)
-        # least squares through the SVD: rank-deficient l'' (a hold, linkages in lockstep)
-        # leaves the segment to the quadrature
-        U, S, Vt = np.linalg.svd(X, full_matrices=False)
-        full = (S[:, -1] > 1e-8 * S[:, 0]) & (row_of[used] >= 0) & ok_t
-        Sinv = np.where(full[:, None], 1.0 / np.where(S > 0, S, 1.0), 0.0)
-        W = np.einsum('sji,sj,skj,skm->sim', Vt, Sinv, U, G)     # (segments, m + 1, m)
-        resid = np.abs(np.einsum('ski,sim->skm', X, W) - G).max(axis=(1, 2))
-        full &= resid <= 1e-13 * np.maximum(np.abs(G).max(axis=(1, 2)), 1e-300)
-        done = full[inv]
-        if not done.any():
-            return none
-        lo, hi, inv = lo[done], hi[done], inv[done]
-        A, c = W[inv, :m, :], W[inv, m, :]              # G = l'' @ A + c
+        lo, hi = lo[done], hi[done]
+        A, c = fit.A[fit.seg[done]], fit.c[fit.seg[done]]          # G = l'' @ A + c
         piece = np.clip(np.searchsorted(starts, 0.5 * (lo + hi), side='right') - 1, 0, None)
         d = (lo - anchors[piece])[:, None]
         v0, a0, jerk = (coef[:, :, col][piece] for col in (1, 2, 3))
@@ -250,19 +256,7 @@ class DenseOutput:
         b[:, 1] = h * (dot('nm,nm->n', g0, acc) + dot('nm,nm->n', g1, v))
         b[:, 2] = h * h * (0.5 * dot('nm,nm->n', g0, jerk) + dot('nm,nm->n', g1, acc))
         b[:, 3] = h ** 3 * 0.5 * dot('nm,nm->n', g1, jerk)
-        # |P(u) - b0| <= |b1| + |b2| + |b3| on [0, 1]: most pieces keep b0's sign throughout
-        # and their integral is the whole cubic's (or nothing)
-        mixed = np.flatnonzero(np.abs(b) @ _ONE_SIGN >= 0.0)
-        work = b @ _CUBIC_INTEGRAL
-        work[b[:, 0] <= 0] = 0.0
-        if mixed.size:
-            bm = b[mixed]
-            pts = np.concatenate([np.zeros((mixed.size, 1)), np.sort(_cubic_roots01(bm), axis=1),
-                                  np.ones((mixed.size, 1))], axis=1)
-            positive = _poly(bm, 0.5 * (pts[:, :-1] + pts[:, 1:])) > 0
-            F = _poly_integral(bm, pts)
-            work[mixed] = np.where(positive, F[:, 1:] - F[:, :-1], 0.0).sum(axis=1)
-        return done, h * work
+        return done, h * _positive_cubic(b)
 
     def _eval(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
         """``power`` at times in any order and shape."""
@@ -272,12 +266,14 @@ class DenseOutput:
         out[order] = self.power(flat[order])
         return out.reshape(t.shape)
 
-    def _roots(self, lo: NDArray, hi: NDArray, xtol: float) -> tuple[NDArray, NDArray]:
+    def _roots(self, lo: NDArray, hi: NDArray, xtol: float, power: Callable
+               ) -> tuple[NDArray, NDArray]:
         """The power's sign changes between 9 interior points of each piece, narrowed to
-        ``xtol`` [s]: (times, index of their piece)."""
+        ``xtol`` [s]: (times, index of their piece). ``power(t, piece)``: the power at times
+        ``t`` (n, k) of the pieces ``piece`` (n,)."""
         u = 0.5 - 0.5 * np.cos((np.arange(_PROBE) + 0.5) * np.pi / _PROBE)
         x = lo[:, None] + (hi - lo)[:, None] * u
-        P = self._eval(x)
+        P = power(x, np.arange(lo.size))
         sign = P > 0
         r, c = np.nonzero(sign[:, 1:] != sign[:, :-1])
         x0, x1 = x[r, c], x[r, c + 1]
@@ -291,7 +287,7 @@ class DenseOutput:
             xm = a1 - g1 * (a1 - a0) / (g1 - g0)
             bad = ~((xm > np.minimum(a0, a1)) & (xm < np.maximum(a0, a1)))
             xm[bad] = 0.5 * (a0 + a1)[bad]            # the secant left the bracket
-            fm = self._eval(xm)
+            fm = power(xm[:, None], r[idx])[:, 0]
             same = (fm > 0) == (g1 > 0)
             # Illinois: the end kept twice in a row has its value halved
             k, nk = idx[same], idx[~same]
@@ -300,8 +296,10 @@ class DenseOutput:
             x1[idx], f1[idx] = xm, fm
         return np.where(np.abs(f0) < np.abs(f1), x0, x1), r
 
-    def _quadrature(self, lo: NDArray, hi: NDArray, mult: NDArray, span: float) -> float:
-        """Sum of mult * integral of max(power, 0) over the pieces [lo, hi] (adaptive)."""
+    def _quadrature(self, lo: NDArray, hi: NDArray, mult: NDArray, span: float,
+                    power: Callable, own: NDArray) -> float:
+        """Sum of mult * integral of max(power, 0) over the pieces [lo, hi] (adaptive);
+        ``power(t, own)`` as in ``_roots``, ``own`` each piece's index there."""
         total, size = 0.0, None
         n = _GL_U.size
         w2 = np.concatenate([_GL_W, _GL_W])
@@ -315,11 +313,11 @@ class DenseOutput:
                                        axis=1)
             if whole is None:          # later levels: the parent's halves are the pieces
                 nodes = np.concatenate([c[:, None] + r[:, None] * _GL_U, halves_at], axis=1)
-                P = self._eval(nodes)
+                P = power(nodes, own)
                 whole = r * (np.maximum(P[:, :n], 0.0) @ _GL_W)
                 P = P[:, n:]
             else:
-                P = self._eval(halves_at)
+                P = power(halves_at, own)
             left = 0.5 * r * (np.maximum(P[:, :n], 0.0) @ _GL_W)
             right = 0.5 * r * (np.maximum(P[:, n:], 0.0) @ _GL_W)
             scale = 0.5 * r * (np.abs(P) @ w2)
@@ -334,9 +332,9 @@ class DenseOutput:
             done = (np.abs(whole - left - right) <= tol) | (hi - lo <= 64 * _EPS * np.abs(hi))
             total += float((mult[done] * (left + right)[done]).sum())
             s = ~done
-            lo, hi, c, mult = lo[s], hi[s], c[s], mult[s]
+            lo, hi, c, mult, own = lo[s], hi[s], c[s], mult[s], own[s]
             lo, hi = np.concatenate([lo, c]), np.concatenate([c, hi])
-            mult = np.concatenate([mult, mult])
+            mult, own = np.concatenate([mult, mult]), np.concatenate([own, own])
             whole = np.concatenate([left[s], right[s]])
         if lo.size:
             raise RuntimeError('positive_work: the quadrature did not converge (report this run)')
@@ -358,6 +356,113 @@ def _restore(crawler: Crawler, blob: bytes, span: tuple[float, float], tol: floa
     return DenseOutput(crawler, gait, segments, span, tol=tol, max_step=max_step)
 
 
+class _Forces:
+    """The linkage forces of each piece of a run as an affine function of l'':
+    G = l'' @ A + c [N] (``A`` (m, m) [kg], ``c`` (m,) [N], m = n_links).
+
+    Within one segment (one contact mode) sliding bodies' friction is constant and the stuck
+    ones follow the gait, so the forces are affine in l''. A and c are fitted per segment from
+    the run's own states (``DenseOutput.sample``) at n_links + 3 interior times, two more than
+    they need; a segment counts (``ok``) only when the fit reproduces every one of them to
+    1e-13 of the forces and l'' spans its space there (not a hold, not linkages in lockstep):
+    otherwise its pieces are evaluated by ``sample``. With the fit, the power anywhere in a
+    piece is one compiled gait evaluation (l', l'') and no solver.
+    """
+
+    __slots__ = ('dense', 'gait', 'cg', 'ok', 'seg', 'A', 'c')
+
+    @classmethod
+    def fit(cls, dense: DenseOutput, lo: NDArray, hi: NDArray) -> _Forces:
+        """The fit for the pieces [lo, hi] [s] (each inside one segment: the segments'
+        starts are among the pieces' boundaries)."""
+        from .gaits.piecewise import PiecewiseParabolic
+
+        self = cls()
+        self.dense, self.gait, self.ok = dense, None, np.zeros(lo.size, dtype=bool)
+        table, row_of = dense.segments.records()
+        if len(table.gaits) != 1:         # a run of several gaits: sample it
+            return self
+        g = table.gaits[0]
+        m = g.n_links
+        seg_starts = dense.segments.starts()
+        seg = np.clip(np.searchsorted(seg_starts, 0.5 * (lo + hi), side='right') - 1, 0, None)
+        first = int(seg.min())            # the segments from the first piece's on
+        used = np.arange(first, int(seg.max()) + 1)
+        # a block of skipped periods is no segment of its own (its pieces were moved onto
+        # the template): not sampled, which would map every time through the block
+        used = used[row_of[used] >= 0]
+        if not used.size:
+            return self
+        s0 = seg_starts[used]
+        s1 = np.append(seg_starts, dense.span[1])[used + 1]
+        # n_links + 3 interior times of each segment, clustered to neither end
+        k = m + 3
+        frac = 0.5 - 0.5 * np.cos((np.arange(k) + 0.5) * np.pi / k)
+        t = s0[:, None] + (s1 - s0)[:, None] * frac
+        good = np.diff(t, axis=1).min(axis=1) > 0      # not a segment of a few floats
+        flat = t.ravel()                  # sorted: the segments are disjoint and in order
+        G = dense.sample(flat)['linkage_force'].reshape(used.size, k, m)
+        cg = g.compiled()
+        with cg.lock:
+            ldd = cg.values(flat)[2].reshape(used.size, k, m)
+        # A rank-deficient l'' is refused, unless the gait's l'' is constant between its
+        # breakpoints (bang-bang strokes: a segment does not straddle one), where the fit
+        # need only hold at that one l''
+        const = isinstance(g, PiecewiseParabolic)
+        if m == 1:                        # least squares of a line, in closed form
+            x, y = ldd[:, :, 0], G[:, :, 0]
+            xm, ym = x.mean(axis=1), y.mean(axis=1)
+            dx = x - xm[:, None]
+            sxx = np.einsum('sk,sk->s', dx, dx)
+            live = sxx > 1e-16 * (k * xm * xm + sxx)
+            if not const:
+                good &= live
+            a = np.where(live, np.einsum('sk,sk->s', dx, y) / np.where(live, sxx, 1.0), 0.0)
+            A, c = a[:, None, None], (ym - a * xm)[:, None]
+        else:                             # through the SVD (batched)
+            X = np.concatenate([ldd, np.ones((used.size, k, 1))], axis=2)
+            U, S, Vt = np.linalg.svd(X, full_matrices=False)
+            live = S > 1e-8 * S[:, :1]
+            if not const:
+                good &= live[:, -1]
+            Sinv = np.where(live, 1.0 / np.where(live, S, 1.0), 0.0)
+            W = np.einsum('sji,sj,skj,skm->sim', Vt, Sinv, U, G)     # (segments, m + 1, m)
+            A, c = W[:, :m, :], W[:, m, :]
+        resid = np.abs(np.einsum('ski,sim->skm', ldd, A) + c[:, None, :] - G).max(axis=(1, 2))
+        good &= resid <= 1e-13 * np.maximum(np.abs(G).max(axis=(1, 2)), 1e-300)
+        self.gait, self.cg, self.A, self.c = g, cg, A, c
+        # each piece's row among the fitted segments; a piece in a block matches none
+        self.seg = np.minimum(np.searchsorted(used, seg), used.size - 1)
+        self.ok = good[self.seg] & (used[self.seg] == seg)
+        return self
+
+    def power_of(self, rows: NDArray) -> Callable:
+        """``power(t, piece)`` [W] for the fitted pieces ``rows``: t (n, k) [s] in pieces
+        ``rows[piece]`` (n,); fitted pieces from the gait, the others from ``sample``."""
+        ok = self.ok[rows]
+        seg = self.seg[rows] if self.gait is not None else None
+
+        def power(t: NDArray, piece: NDArray) -> NDArray:
+            model = ok[piece]
+            if model.all():
+                return self._power(t, seg[piece])
+            out = np.empty(t.shape)
+            if model.any():
+                out[model] = self._power(t[model], seg[piece[model]])
+            out[~model] = self.dense._eval(t[~model])
+            return out
+        return power
+
+    def _power(self, t: NDArray, seg: NDArray) -> NDArray:
+        """(l'' @ A + c) . l' at times t (n, k) [s] of the segments ``seg`` (n,) [W]."""
+        n, k = t.shape
+        with self.cg.lock:
+            _, ld, ldd = self.cg.values(t.ravel())
+        m = ld.shape[1]
+        G = np.einsum('nki,nim->nkm', ldd.reshape(n, k, m), self.A[seg]) + self.c[seg][:, None]
+        return np.einsum('nkm,nkm->nk', G, ld.reshape(n, k, m))
+
+
 def _poly(b: NDArray, u: NDArray) -> NDArray:
     """b0 + b1 u + b2 u^2 + b3 u^3 for each row of ``b`` (n, 4) at ``u`` (n, k)."""
     return b[:, :1] + u * (b[:, 1:2] + u * (b[:, 2:3] + u * b[:, 3:4]))
@@ -366,6 +471,70 @@ def _poly(b: NDArray, u: NDArray) -> NDArray:
 def _poly_integral(b: NDArray, u: NDArray) -> NDArray:
     """The integral of ``_poly`` from 0 to ``u`` (n, k)."""
     return u * (b[:, :1] + u * (b[:, 1:2] / 2 + u * (b[:, 2:3] / 3 + u * b[:, 3:4] / 4)))
+
+
+def _positive_cubic(b: NDArray) -> NDArray:
+    """Integral over [0, 1] of max(0, b0 + b1 u + b2 u^2 + b3 u^3) for each row of ``b``."""
+    # |P(u) - b0| <= |b1| + |b2| + |b3| on [0, 1]: most pieces keep b0's sign throughout
+    # and their integral is the whole cubic's (or nothing)
+    mixed = np.flatnonzero(np.abs(b) @ _ONE_SIGN >= 0.0)
+    work = b @ _CUBIC_INTEGRAL
+    work[b[:, 0] <= 0] = 0.0
+    if 0 < mixed.size <= _SCALAR:         # a few: in floats, without numpy's per-call cost
+        for i in mixed.tolist():
+            work[i] = _positive_cubic1(*b[i].tolist())
+    elif mixed.size:
+        bm = b[mixed]
+        pts = np.concatenate([np.zeros((mixed.size, 1)), np.sort(_cubic_roots01(bm), axis=1),
+                              np.ones((mixed.size, 1))], axis=1)
+        positive = _poly(bm, 0.5 * (pts[:, :-1] + pts[:, 1:])) > 0
+        F = _poly_integral(bm, pts)
+        work[mixed] = np.where(positive, F[:, 1:] - F[:, :-1], 0.0).sum(axis=1)
+    return work
+
+
+def _positive_cubic1(b0: float, b1: float, b2: float, b3: float) -> float:
+    """``_positive_cubic`` of one cubic, in floats: the same steps as ``_cubic_roots01``."""
+    def f(u: float) -> float:
+        return b0 + u * (b1 + u * (b2 + u * b3))
+
+    def integral(u: float) -> float:
+        return u * (b0 + u * (b1 / 2 + u * (b2 / 3 + u * b3 / 4)))
+
+    qa, qb, qc = 3 * b3, 2 * b2, b1
+    disc = qb * qb - 4 * qa * qc
+    knots = [0.0, 1.0]
+    if disc > 0:
+        q = -0.5 * (qb + math.copysign(math.sqrt(disc), qb))
+        for r in ((q / qa) if qa else None, (qc / q) if q else None):
+            if r is not None and 0 < r < 1:
+                knots.append(r)
+    knots.sort()
+    pts = [0.0]
+    for x0, x1 in zip(knots, knots[1:]):
+        f0, f1 = f(x0), f(x1)
+        if x1 > x0 and f0 * f1 < 0:
+            lo, hi, up = x0, x1, f1 > 0
+            x = (x0 * f1 - x1 * f0) / (f1 - f0)
+            for _ in range(_ITERATIONS):
+                fx = f(x)
+                if fx == 0:
+                    break
+                if (fx < 0) == up:
+                    lo = x
+                else:
+                    hi = x
+                dfx = b1 + x * (2 * b2 + 3 * x * b3)
+                step = x - fx / dfx if dfx else lo - 1.0
+                new = step if lo < step < hi else 0.5 * (lo + hi)
+                done = abs(new - x) <= 4 * _EPS or hi - lo <= 4 * _EPS
+                x = new
+                if done:
+                    break
+            pts.append(x)
+    pts.append(1.0)
+    return sum(integral(e) - integral(s) for s, e in zip(pts, pts[1:])
+               if f(0.5 * (s + e)) > 0)
 
 
 def _cubic_roots01(b: NDArray) -> NDArray:

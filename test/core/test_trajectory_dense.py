@@ -430,3 +430,36 @@ def test_positive_work_of_a_node_run_exact():
     a, b = 0.05, t_end - 0.03
     expected = _positive_work_independent(tr.crawler, played, t_end, a, b, played.starts)
     assert tr.positive_work(a, b) == pytest.approx(expected, rel=1e-12)
+
+
+def _families():
+    """(crawler, gait, t_end) of gait families the fitted forces meet: a bang-bang stroke (l''
+    constant on its pieces, so the power is affine there) of 2 and 3 bodies, a Custom gait
+    (read through its sampled pieces)."""
+    w = 2 * math.pi
+    custom = gaits.Custom(lambda t: np.array([0.1 + 0.02 * math.sin(w * t)]),
+                          lambda t: np.array([0.02 * w * math.cos(w * t)]),
+                          lambda t: np.array([-0.02 * w * w * math.sin(w * t)]), period=1.0)
+    return {
+        'stroke, p = 2, slope': (cs.Crawler(masses=[0.5, 1.0], mu=[0.3, 0.4], slope=-0.04),
+                                 gaits.PiecewiseParabolic.stroke(0.1, 0.02, 1.37, 0.3), 12.0),
+        'stroke, p = 3': (cs.Crawler(masses=[1.0, 0.4, 0.7], mu=[0.3, 0.5, 0.2]),
+                          gaits.PiecewiseParabolic.stroke([0.1, 0.12], [0.02, 0.015], 1.1, 0.35),
+                          10.0),
+        'Custom, p = 2': (CRAWLER, custom, 8.0),
+    }
+
+
+@pytest.mark.parametrize('name', list(_families()))
+def test_positive_work_of_gait_families_exact(name):
+    """Against the independent quadrature (the gait's breakpoints among its edges: the power
+    jumps where l'' does): the whole run, and a window that starts and ends inside periods
+    (inside the block of skipped periods)."""
+    crawler, g, t_end = _families()[name]
+    tr = cs.simulate(crawler, g, t_end)
+    assert tr.info['skipped_periods'] > 3
+    joins = g.breakpoints(0.0, t_end)
+    for a, b in ((0.0, t_end), (0.37 * g.period + 1.1, t_end - 0.61 * g.period - 0.9)):
+        expected = _positive_work_independent(crawler, g, t_end, a, b, joins)
+        assert expected > 0
+        assert tr.positive_work(a, b) == pytest.approx(expected, rel=1e-12), (a, b)
