@@ -12,6 +12,8 @@ Floors, each printed with PASS/FAIL:
   of an exact run: its speed equal to the window [k0 T, N T] sampled exactly, to 1e-12;
 * ``Trajectory.positive_work`` (the cost of transport's numerator) equal to an independent
   quadrature (roots by brentq, Gauss-Legendre between events and roots) to 1e-12 relative;
+* the exact positive work's cost: a sweep scene and an optimiser evaluation (scores node and
+  ideal) at most 1.1x their CPU with the trapezoid it replaced (interleaved, this process);
 * ``Trajectory.state_at(t)`` equal to a run sampled at t to 1e-13 m (Scallop with skipped
   periods, three-body Fourier, PiecewiseCubic, Custom), and within 1e-11 m of runs without the
   periodic skip (every period integrated, not shifted).
@@ -285,6 +287,69 @@ def cost_rows(repeats: int) -> None:
           f'{run * 1e6:.1f} us)')
 
 
+def _trapezoid_work(tr: cs.Trajectory, start: float | None = None,
+                    end: float | None = None) -> float:
+    """What ``Trajectory.positive_work`` was before it was exact: the trapezoid of
+    max(power, 0) over the run's samples in [start, end] (the cost compared against)."""
+    t = tr.t
+    a = float(t[0]) if start is None else float(start)
+    b = float(t[-1]) if end is None else float(end)
+    i0, i1 = int(np.searchsorted(t, a, 'left')), int(np.searchsorted(t, b, 'right'))
+    power = np.maximum(np.sum(tr.linkage_force[i0:i1] * tr.rates[i0:i1], axis=1), 0.0)
+    return float(np.sum(0.5 * (power[1:] + power[:-1]) * np.diff(t[i0:i1])))
+
+
+def work_cost_rows(repeats: int, scenes: int) -> float:
+    """CPU of a sweep scene (benchmarks.sweep's spec, 20 periods) and of an optimiser
+    evaluation (objective cot, 8 periods; scores node and ideal) with the exact positive work
+    against the same with the trapezoid, interleaved in this process; returns the worst
+    ratio (floor 1.1)."""
+    from benchmarks.sweep import bench_spec
+
+    spec = bench_spec(scenes)
+    sweep_scenes = [spec.scene(spec.param_set(k)) for k in range(scenes)]
+    base = scene_from_dict({'crawler': {'masses': [0.5, 1.0], 'mu': 0.3},
+                            'gait': {'type': 'scallop', 'mean': 0.1, 'amplitude': 0.02,
+                                     'frequency': 1.0, 'asymmetry': 0.3}})
+    limits = ActuatorLimits()
+    fam = family('scallop', base, limits)
+    plant = plant_for(base, fam, limits)
+    zs = [np.array(z) for z in ([0.035, 1.5, 0.42], [0.02, 1.37, 0.2], [0.04, 0.9, 0.3],
+                                [0.025, 2.2, 0.25])]
+    objs = {score: Objective(scene_to_dict(base), fam, limits, 'cot', 8, 40, score,
+                             plant=plant.values if score == 'node' else None, stream=STREAM)
+            for score in ('node', 'ideal')}
+    jobs = {f'sweep scene ({scenes} of random_2body, 20 periods)':
+            (lambda: [scene_figures(sc, 20, 50) for sc in sweep_scenes], scenes),
+            'optimiser evaluation, score node (8 periods)':
+            (lambda: [objs['node'].evaluate(z) for z in zs], len(zs)),
+            'optimiser evaluation, score ideal (8 periods)':
+            (lambda: [objs['ideal'].evaluate(z) for z in zs], len(zs))}
+    exact = cs.Trajectory.positive_work
+    print(f'\ncost of the exact positive work (CPU per item, median of {repeats} interleaved '
+          'rounds; trapezoid = the figure before it was exact)')
+    print(f'{"":>48} {"trapezoid":>10} {"exact":>10} {"ratio":>6}')
+    worst = 0.0
+    try:
+        for name, (fn, n) in jobs.items():
+            fn()                                         # warm: compiled gaits, imports
+            times = {'trapezoid': [], 'exact': []}
+            for _ in range(repeats):
+                for mode in times:
+                    cs.Trajectory.positive_work = exact if mode == 'exact' else _trapezoid_work
+                    t0 = time.process_time()
+                    fn()
+                    times[mode].append((time.process_time() - t0) / n)
+            old, new = (statistics.median(times[k]) for k in ('trapezoid', 'exact'))
+            worst = max(worst, new / old)
+            print(f'{name:>48} {old * 1e3:8.3f} ms {new * 1e3:7.3f} ms {new / old:6.2f}')
+    finally:
+        cs.Trajectory.positive_work = exact
+    print(f'floor: exact positive work at most 1.1x the trapezoid\'s cost: worst {worst:.2f}x '
+          f'{_verdict(worst, 1.1)}')
+    return worst
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--quick', action='store_true', help='fewer frequencies, times, rounds')
@@ -297,7 +362,9 @@ def main() -> None:
     worst.append(state_at_rows(20 if args.quick else 200))
     worst.append(positive_work_rows())
     cost_rows(3 if args.quick else args.repeats)
-    ok = worst[0] <= 1e-12 and worst[1] <= 1e-12 and worst[2] <= 1e-13 and worst[3] <= 1e-12
+    cost = work_cost_rows(3 if args.quick else args.repeats, 20 if args.quick else 60)
+    ok = (worst[0] <= 1e-12 and worst[1] <= 1e-12 and worst[2] <= 1e-13 and worst[3] <= 1e-12
+          and cost <= 1.1)
     print(f'\nall floors: {"PASS" if ok else "FAIL"}')
 
 

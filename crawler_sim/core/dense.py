@@ -192,6 +192,8 @@ class DenseOutput:
         whole) moved in place onto its template period, t - j T as ``sample`` maps a time:
         the same power, at times of the template's own segments."""
         _, row_of = self.segments.records()
+        if (row_of >= 0).all():           # no block of skipped periods
+            return
         item = np.clip(np.searchsorted(self.segments.starts(), 0.5 * (lo + hi), side='right')
                        - 1, 0, None)
         for k in np.unique(item[row_of[item] < 0]).tolist():
@@ -432,8 +434,12 @@ class _Forces:
         good &= resid <= 1e-13 * np.maximum(np.abs(G).max(axis=(1, 2)), 1e-300)
         self.gait, self.cg, self.A, self.c = g, cg, A, c
         # each piece's row among the fitted segments; a piece in a block matches none
-        self.seg = np.minimum(np.searchsorted(used, seg), used.size - 1)
-        self.ok = good[self.seg] & (used[self.seg] == seg)
+        if used.size == used[-1] - first + 1:          # no block among them
+            self.seg = seg - first
+            self.ok = good[self.seg]
+        else:
+            self.seg = np.minimum(np.searchsorted(used, seg), used.size - 1)
+            self.ok = good[self.seg] & (used[self.seg] == seg)
         return self
 
     def power_of(self, rows: NDArray) -> Callable:
