@@ -241,8 +241,10 @@ class DenseOutput:
             starts = np.asarray(g.starts, dtype=float)
             anchors = np.array([pc.t0 for pc in pcs])
             coef = np.array([np.stack([pc.l0, pc.v0, pc.a0, pc.jerk], axis=-1) for pc in pcs])
-        lo, hi = lo[done], hi[done]
-        A, c = fit.A[fit.seg[done]], fit.c[fit.seg[done]]          # G = l'' @ A + c
+        seg = fit.seg
+        if not done.all():                # (the node's runs: every piece fitted)
+            lo, hi, seg = lo[done], hi[done], seg[done]
+        A, c = fit.A[seg], fit.c[seg]     # G = l'' @ A + c
         piece = np.clip(np.searchsorted(starts, 0.5 * (lo + hi), side='right') - 1, 0, None)
         d = (lo - anchors[piece])[:, None]
         v0, a0, jerk = (coef[:, :, col][piece] for col in (1, 2, 3))
