@@ -443,10 +443,11 @@ class Trajectory:
         over [start, end] [J] (default: the run; motors do not regenerate).
 
         For an exact run, from its dense output: the power's sign changes found and each
-        stretch between them and the pieces' boundaries integrated by adaptive Gauss-Legendre
-        quadrature to ~1e-13 of the integral of |power| (``DenseOutput.positive_work``;
-        whole skipped periods counted as their template period). Otherwise the trapezoidal
-        rule over the samples in [start, end].
+        stretch between them and the pieces' boundaries integrated in closed form where the
+        gait is polynomial (the node's constant-jerk pieces, bang-bang strokes), else by
+        adaptive Gauss-Legendre quadrature to ~1e-13 of the integral of |power|
+        (``DenseOutput.positive_work``; whole skipped periods counted as their template
+        period). Otherwise the trapezoidal rule over the samples in [start, end].
         """
         t = self.t
         a = float(t[0]) if start is None else float(start)
