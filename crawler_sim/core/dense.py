@@ -390,8 +390,8 @@ class _Forces:
         m = g.n_links
         seg_starts = dense.segments.starts()
         seg = np.clip(np.searchsorted(seg_starts, 0.5 * (lo + hi), side='right') - 1, 0, None)
-        first = int(seg.min())            # the segments from the first piece's on
-        used = np.arange(first, int(seg.max()) + 1)
+        first, last = int(seg.min()), int(seg.max())   # the segments of the pieces
+        used = np.arange(first, last + 1)
         # a block of skipped periods is no segment of its own (its pieces were moved onto
         # the template): not sampled, which would map every time through the block
         used = used[row_of[used] >= 0]
@@ -413,22 +413,23 @@ class _Forces:
         # breakpoints (bang-bang strokes: a segment does not straddle one), where the fit
         # need only hold at that one l''
         const = isinstance(g, PiecewiseParabolic)
+        if const:                         # and no breakpoint inside the segment after all
+            bp = np.asarray(g.breakpoints(float(s0[0]), float(s1[-1])), dtype=float)
+            const = np.searchsorted(bp, s0, 'right') == np.searchsorted(bp, s1, 'left')
         if m == 1:                        # least squares of a line, in closed form
             x, y = ldd[:, :, 0], G[:, :, 0]
             xm, ym = x.mean(axis=1), y.mean(axis=1)
             dx = x - xm[:, None]
             sxx = np.einsum('sk,sk->s', dx, dx)
             live = sxx > 1e-16 * (k * xm * xm + sxx)
-            if not const:
-                good &= live
+            good &= live | const
             a = np.where(live, np.einsum('sk,sk->s', dx, y) / np.where(live, sxx, 1.0), 0.0)
             A, c = a[:, None, None], (ym - a * xm)[:, None]
         else:                             # through the SVD (batched)
             X = np.concatenate([ldd, np.ones((used.size, k, 1))], axis=2)
             U, S, Vt = np.linalg.svd(X, full_matrices=False)
             live = S > 1e-8 * S[:, :1]
-            if not const:
-                good &= live[:, -1]
+            good &= live[:, -1] | const
             Sinv = np.where(live, 1.0 / np.where(live, S, 1.0), 0.0)
             W = np.einsum('sji,sj,skj,skm->sim', Vt, Sinv, U, G)     # (segments, m + 1, m)
             A, c = W[:, :m, :], W[:, m, :]
@@ -436,7 +437,7 @@ class _Forces:
         good &= resid <= 1e-13 * np.maximum(np.abs(G).max(axis=(1, 2)), 1e-300)
         self.gait, self.cg, self.A, self.c = g, cg, A, c
         # each piece's row among the fitted segments; a piece in a block matches none
-        if used.size == used[-1] - first + 1:          # no block among them
+        if used.size == last - first + 1:              # no block among them
             self.seg = seg - first
             self.ok = good[self.seg]
         else:
