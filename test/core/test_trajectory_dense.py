@@ -463,3 +463,16 @@ def test_positive_work_of_gait_families_exact(name):
         expected = _positive_work_independent(crawler, g, t_end, a, b, joins)
         assert expected > 0
         assert tr.positive_work(a, b) == pytest.approx(expected, rel=1e-12), (a, b)
+
+
+def test_positive_work_of_cubic_pieces_built_from_objects():
+    """A PiecewiseCubic of Cubic objects (coefficients read from each piece) gives the
+    positive work of the same pieces built from arrays, and the independent quadrature's."""
+    arrays = _jerk_pieces(1, 200, 0.01, seed=5)
+    objects = gaits.PiecewiseCubic(arrays.starts, [arrays._piece(k) for k in range(200)])
+    a, b = 0.2, 1.9
+    got = cs.simulate(CRAWLER, objects, 2.0).positive_work(a, b)
+    assert got == pytest.approx(cs.simulate(CRAWLER, arrays, 2.0).positive_work(a, b),
+                                rel=1e-14)
+    expected = _positive_work_independent(CRAWLER, objects, 2.0, a, b, arrays.starts)
+    assert got == pytest.approx(expected, rel=1e-12)
