@@ -33,7 +33,8 @@ __all__ = ['DenseOutput']
 
 _EPS = float(np.finfo(float).eps)
 _GL_U, _GL_W = np.polynomial.legendre.leggauss(12)
-_PROBE = 9          # interior points of each piece where a sign change of the power is sought
+_PROBE = 25         # interior points of each piece where a sign change is sought (9 missed
+#                     a root pair a few ms apart: 8 bodies, test_trajectory_dense)
 _ITERATIONS = 80    # Illinois steps (each at most halves the bracket, about every third)
 _LEVELS = 60        # halvings of a quadrature piece
 _RTOL = 1e-13       # a piece's quadrature error, relative to the integral of |power| over it
@@ -132,7 +133,7 @@ class DenseOutput:
         the node's actuator; ``PiecewiseParabolic``) the power is a cubic there, integrated in
         closed form between its roots (``_cubic_work``). Elsewhere the power is smooth between
         the pieces' boundaries (``breaks``); its sign changes there are found by probing each
-        piece at 9 interior points and narrowing every change of sign (Illinois' regula
+        piece at 25 interior points and narrowing every change of sign (Illinois' regula
         falsi, to 1e-10 of [a, b]: the integral's error is |power'| times the square of that);
         between boundaries and roots, adaptive 12-point Gauss-Legendre quadrature (a piece is
         accepted when it agrees with the sum over its halves to 1e-13 of the integral of
@@ -272,7 +273,7 @@ class DenseOutput:
 
     def _roots(self, lo: NDArray, hi: NDArray, xtol: float, power: Callable
                ) -> tuple[NDArray, NDArray]:
-        """The power's sign changes between 9 interior points of each piece, narrowed to
+        """The power's sign changes between 25 interior points of each piece, narrowed to
         ``xtol`` [s]: (times, index of their piece). ``power(t, piece)``: the power at times
         ``t`` (n, k) of the pieces ``piece`` (n,)."""
         u = 0.5 - 0.5 * np.cos((np.arange(_PROBE) + 0.5) * np.pi / _PROBE)
