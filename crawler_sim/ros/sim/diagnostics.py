@@ -8,7 +8,7 @@ rejected inputs, a recording or solver failure), else OK.
 from __future__ import annotations
 
 import time
-from typing import Any
+from typing import Any, Callable
 
 from diagnostic_msgs.msg import DiagnosticArray
 
@@ -93,7 +93,7 @@ class Diagnostics:
         return M.diagnostics_msg(t_ns, out, warn=warn, name=self.name, error=error)
 
 
-def graph_count(query) -> int:
+def graph_count(query: Callable[[], int]) -> int:
     """A graph count, or -1 once the context is shut down (e.g. in the final diagnostics)."""
     try:
         return int(query())
