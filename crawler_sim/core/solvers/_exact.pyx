@@ -68,6 +68,14 @@ cdef long MAX_STEPS = 10000000    # grid and narrowing steps of one search: a sa
 cdef int N_BUF = 256              # segment records per call
 
 
+cdef inline int ev_records(int p) noexcept nogil:
+    """Contact-change records per call: 2 N_BUF, and room for a segment's worst case on top
+    when 2 N_BUF cannot hold it (2 p + 2: up to p changes where stale signs are corrected and
+    p where the mode is set). ``drive`` starts a segment only with that room left, so with 2 N_BUF
+    alone p >= 256 bodies never started one: every call returned 'full' with nothing done."""
+    return 2 * N_BUF + (2 * p + 2 if 2 * p + 2 > 2 * N_BUF else 0)
+
+
 cdef inline bint clear(double v, bint watched, double noise) noexcept nogil:
     """A row's value v (or a lower bound of it) clear of an event: an unwatched row > 0, a
     watched one (at zero to within its rounding ``noise``) >= -noise."""
@@ -566,6 +574,7 @@ cdef class ExactCore:
 
     def __cinit__(self, ClosedForm closed, double tol):
         cdef int p = closed.p, nl = max(p - 1, 1), nr = 3 * p + 2, n_buf = N_BUF
+        cdef int n_evr = ev_records(p)
         cdef Py_ssize_t nd, nb, off
         self.p = p
         self.nl = p - 1
@@ -576,13 +585,13 @@ cdef class ExactCore:
               + 4 * p + 2 * p * nl                    # fp, fm, m_, grav, W, C
               + 8 * nl + 10 * p                       # l .. snap, e .. fmz
               + 7 * nr + 2 * nr * nl + 18 * nr        # c0 .. noise, RL, B3, A1 .. qd
-              + 6 * n_buf + 2 * p * n_buf + 2 * n_buf)    # sf, sR, sK0, et
+              + 6 * n_buf + 2 * p * n_buf + n_evr)        # sf, sR, sK0, et
         nb = (p + p + p + p + p + p + p               # contact zero cache_group ck_contact ck_zero
               + p + p + p + p + p                     # last_contact last_group free hits group
               + p + p + p                             # group2 new_contact new2
               + 3 * nr + 2 * p * n_buf)               # watch hit mirror, scontact sgroup
         self._mem = <char*>PyMem_Calloc(1, nd * sizeof(double) + nb + 16
-                                        + (2 * nr + n_buf + 6 * n_buf) * sizeof(long)
+                                        + (2 * nr + n_buf + 3 * n_evr) * sizeof(long)
                                         + 2 * p * sizeof(int) + 64)
         if self._mem == NULL:
             raise MemoryError()
@@ -631,12 +640,12 @@ cdef class ExactCore:
         self.sf = d; d += 6 * n_buf
         self.sR = d; d += p * n_buf
         self.sK0 = d; d += p * n_buf
-        self.et = d; d += 2 * n_buf
+        self.et = d; d += n_evr
         cdef long* q = <long*>d
         self.lab_kind = q; q += nr
         self.lab_body = q; q += nr
         self.sref = q; q += n_buf
-        self.ei = q; q += 6 * n_buf
+        self.ei = q; q += 3 * n_evr
         cdef int* ii = <int*>q
         self.idx = ii; ii += p
         self.zidx = ii; ii += p
@@ -1741,7 +1750,7 @@ cdef class ExactCore:
         cdef GaitData* g = &gait.d
         cdef int p = self.p, nl = self.nl, i, j, r, nr, r0, code, n_hit
         cdef int guard = 0, status = S_REACHED, n_max = self.n_buf
-        cdef int ev_max = 2 * self.n_buf
+        cdef int ev_max = ev_records(p)
         cdef double t, ts, end, b, kT, t0, a, V0, X_s, V_s, t_ev, tt, d, f_slide, imp, w, fmg
         cdef double tol = self.tol, cap, Vi, t_end
         cdef long k_next
