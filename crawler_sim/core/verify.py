@@ -108,13 +108,8 @@ class VerifyReport:
         return self.worst <= tol and self.contact == 0
 
 
-# [s] the exact method's default event-time tolerance (``Stepper`` tol), which is also the
-# noise below which its search takes a row (a velocity, a stuck body's force) for zero, relative
-# to the row's size over the span it integrates (``_exact``: a watched row): an event where a row
-# leaves zero (a body starting to slide from rest) is placed up to EVENT_TOL times the span late
-EVENT_TOL = 1e-13
-SLIVER = 10 * EVENT_TOL   # [s] (times the run's length in s where longer) a piece this short
-#                           beside a breakpoint or inside a run of events that close: unchecked
+EVENT_TOL = 1e-13  # [s] the exact method's default event-time tolerance (``Stepper`` tol)
+SLIVER = 10 * EVENT_TOL   # [s] a piece this short beside a breakpoint or between events: unchecked
 
 
 def verify(trajectory: Trajectory, gait: Gait | None = None, *,
@@ -128,8 +123,7 @@ def verify(trajectory: Trajectory, gait: Gait | None = None, *,
 
     Every difference is judged beyond the rounding of what it compares (``ROUNDING`` eps of the
     largest terms): an event's time is only known to eps |t| and the exact method's tolerance
-    ``EVENT_TOL`` (1e-13 s, or 1e-13 of the run's length in seconds where that is longer: dt),
-    so a velocity is known to eps max|v| + a dt, a = (|F_ext| + sum f) / M +
+    ``EVENT_TOL`` (dt), so a velocity is known to eps max|v| + a dt, a = (|F_ext| + sum f) / M +
     max|e''| the largest acceleration, a position to eps max|x| + max|v| dt, a required force to
     eps (its scale) + M max|e'''| dt; a gait's rates to eps |l| / tau (tau its period, else the
     run; 64 times that for a gait sampled into pieces); the replay between two samples adds the
@@ -161,7 +155,7 @@ def verify(trajectory: Trajectory, gait: Gait | None = None, *,
     t_abs = float(np.abs(t).max())
     a_scale = max(_sampled_acceleration(tr), kin.get('a_scale', 0.0))
     # a velocity's rounding: an event's time is known to eps |t| and the search's tolerance
-    dv = u * v_max + a_scale * (u * t_abs + _event_tol(t))
+    dv = u * v_max + a_scale * (u * t_abs + EVENT_TOL)
     # the impulses are sums over the events (rounding grows like the root of their number)
     n_sums = 1.0 + math.sqrt(len(tr.events))
     mom_floor = M * dv + u * (M * (np.abs(V) + abs(V[0])) + abs(fext) * np.abs(dt)
@@ -215,12 +209,6 @@ def verify(trajectory: Trajectory, gait: Gait | None = None, *,
                         shooting_position_rel=beyond_kin.get('shooting_position', 0.0)
                         / (v_max * T),
                         kinematic=bool(kin))
-
-
-def _event_tol(t: NDArray[np.float64]) -> float:
-    """How far [s] the exact method may place an event from its time (``EVENT_TOL``): 1e-13 s,
-    or 1e-13 of the run's length in seconds (the span its search takes a row's noise over)."""
-    return EVENT_TOL * max(1.0, float(t[-1] - t[0]))
 
 
 def _sampled_acceleration(tr: Trajectory) -> float:
@@ -277,8 +265,7 @@ def _kinematic(tr: Trajectory, gait, n_sub: int) -> dict:
     next_ev = np.searchsorted(ev_t, b_pts, side='left')
     inside = (prev_ev >= 0) & (next_ev < ev_t.size)
     flips = np.zeros(a_pts.size, bool)
-    sliver_t = SLIVER / EVENT_TOL * _event_tol(t)
-    flips[inside] = ev_t[next_ev[inside]] - ev_t[prev_ev[inside]] <= sliver_t
+    flips[inside] = ev_t[next_ev[inside]] - ev_t[prev_ev[inside]] <= SLIVER
     frac = (np.arange(n_sub) + 0.5) / n_sub
     sub = a_pts[:, None] + (b_pts - a_pts)[:, None] * frac[None, :]
     # each piece read just inside its ends (``_inside``), so a gait breakpoint there reads the
@@ -298,7 +285,6 @@ def _kinematic(tr: Trajectory, gait, n_sub: int) -> dict:
     j_scale = _jerk_scale(gait, float(t[0]), float(t[-1]), pts, edd)
     x_abs = float(max(np.abs(tr.x).max(), np.abs(e).max()))
     u = ROUNDING * _EPS
-    ev_tol = _event_tol(t)
     # a gait's lengths are known to eps |l|, so over its time scale (its period, else the run)
     # its rates to eps |l| / tau and its l'' to eps |l| / tau^2; a gait of Python functions is
     # sampled to 64 times that (``solvers.proxy``, cheb_fit's rounding: a 1e-9 m stroke of a
@@ -329,16 +315,15 @@ def _kinematic(tr: Trajectory, gait, n_sub: int) -> dict:
             rx, rv = u * x_abs, u * v_scale
         # a velocity, a position and a force read at a time of size |t| (known to eps |t|)
         # (and the event search's tolerance): an event moved by dt_t moves V by a dt_t
-        dt_t = u * max(abs(float(ta)), abs(float(tb))) + ev_tol
+        dt_t = u * max(abs(float(ta)), abs(float(tb))) + EVENT_TOL
         dv_t = u * (v_scale + l_rate) + a_scale * dt_t
-        # a sliver (10 times the exact method's event tolerance) beside a breakpoint, or
+        # a sliver (1e-12 s: 10 times the exact method's default tol) beside a breakpoint, or
         # inside a run of events that close (modes flipped and back within the event search's
         # tolerance, as where several bodies switch at one instant, or a sampled gait's
         # velocity touches zero), holds no violation worth the name: its mode, or the side of
         # the breakpoint its l'' is read on, is rounding, and so is its velocity change (a h)
-        sliver = flips[k] or (tb - ta <= sliver_t
-                              and bool(np.any(np.abs(breaks - ta) <= sliver_t)
-                                       or np.any(np.abs(breaks - tb) <= sliver_t)))
+        sliver = flips[k] or (tb - ta <= SLIVER and (np.any(np.abs(breaks - ta) <= SLIVER)
+                                                      or np.any(np.abs(breaks - tb) <= SLIVER)))
         # a frictionless body feels no friction whatever its claimed contact state (solvers
         # need not report its events): it is free, never part of a stick, no sign to check
         stuck = np.nonzero((s == 0) & ~free)[0]
