@@ -175,8 +175,11 @@ def test_sim_node_logs_an_error_naming_the_path_and_keeps_recording(tmp_path):
 
     mcap = record_dir / 'run' / 'run_0.mcap'
     try:
-        until(lambda: 'recording to' in log() and mcap.is_file() and mcap.stat().st_size > 4096,
-              'no recording started')
+        # ready (a sim that may own /clock listens a few seconds first), and states on disk:
+        # the file grew past what it held at creation (its channels and schemas)
+        until(lambda: 'ready:' in log() and mcap.is_file(), 'no recording started')
+        created = mcap.stat().st_size
+        until(lambda: mcap.stat().st_size > created, 'no states recorded')
         shutil.rmtree(record_dir)
         removed_at = time.monotonic()
         until(lambda: '[ERROR]' in log(), 'no ERROR after record_dir was removed', DEADLINE)
