@@ -232,7 +232,9 @@ def _as_node(scene: Any, as_node: dict) -> Any:
                     preload=mode == 'preload', duration=r.t_end + 1.0 if mode == 'preload'
                     else 0.0)
     kw: dict[str, Any] = {'dt': r.dt} if r.dt else {}
-    if r.method == 'exact':
+    from ..core.solvers.base import capabilities
+
+    if not capabilities(r.method).fixed_step:     # the event-driven method's options
         kw.update(tol=r.tol, max_step=r.max_step)
     return simulate_as_node(plant, scene.gait, stream, r.t_end, **kw)
 

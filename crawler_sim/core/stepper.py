@@ -13,6 +13,7 @@ from numpy.typing import ArrayLike, NDArray
 from .dense import DenseOutput
 from .gaits import Gait, _positive as positive
 from .model import Crawler
+from .solvers.base import capabilities, solver_class
 from .solvers.exact import ExactSolver
 from .solvers.implicit import ImplicitSolver
 from .solvers.penalty import PenaltySolver
@@ -20,15 +21,13 @@ from .trajectory import Event, State, Trajectory
 
 __all__ = ['METHODS', 'Stepper', 'simulate']
 
-#: the methods and their solvers: each takes (crawler, gait, t0=, x0=, v0=, **options) with the
-#: options its ``options`` classmethod picks and checks from ``Stepper``'s, and runs a whole
-#: span with ``simulate(t_end, times, include_events, dt)`` -> (times, outputs, info)
+#: the methods and their solvers, which keep the contract of ``solvers.base`` (what a solver
+#: provides; ``capabilities(method)``: what it can do)
 METHODS = {'exact': ExactSolver, 'implicit': ImplicitSolver, 'penalty': PenaltySolver}
 
 
 def _check_method(method: str) -> str:
-    if method not in METHODS:
-        raise ValueError(f'method must be one of {", ".join(METHODS)}; got {method!r}')
+    solver_class(method)        # ValueError naming the methods
     return method
 
 
@@ -83,19 +82,23 @@ class Stepper:
     tol : event time tolerance of "exact" [s]; max_step : largest step between event checks [s].
     keep_history : keep every segment / event for later sampling (``simulate`` does); streaming
         use leaves it off and drains events with ``pop_events``.
-    periodic_skip : let "exact" skip gait periods that repeat (see ``ExactSolver``).
+    periodic_skip : let a method that can (``capabilities(method).periodic_skip``) skip gait
+        periods that repeat; None (default): decided from the scene (see ``ExactSolver``).
+
+    A failed step raises ``solvers.base.SolverError`` (the solver's ``status`` and ``message``)
+    or, for a gait value or state that is not finite, ValueError.
     """
 
     def __init__(self, crawler: Crawler, gait: Gait, method: str = 'exact', *, t0: float = 0.0,
                  x0: float = 0.0, v0: float = 0.0, dt: float | None = None,
                  penalty: ArrayLike | None = None, tol: float = 1e-13,
                  max_step: float | None = None, keep_history: bool = False,
-                 periodic_skip: bool = True) -> None:
+                 periodic_skip: bool | None = None) -> None:
         self.method = _check_method(method)
         t0, x0, v0 = _check_finite('t0', t0), _check_finite('x0', x0), _check_finite('v0', v0)
         check_gait(gait, crawler, t0)
         self.crawler = crawler
-        cls = METHODS[method]
+        cls = solver_class(method)
         self._options = cls.options(dt=dt, penalty=penalty, tol=tol, max_step=max_step,
                                     keep_history=keep_history, periodic_skip=periodic_skip)
         self._solver = cls(crawler, gait, t0=t0, x0=x0, v0=v0, **self._options)
@@ -176,7 +179,7 @@ def simulate(crawler: Crawler, gait: Gait, t_end: float, method: str = 'exact', 
              dt: float | None = None, t_eval: ArrayLike | None = None, v0: float = 0.0,
              x0: float = 0.0, penalty: ArrayLike | None = None, tol: float = 1e-13,
              max_step: float | None = None, include_events: bool = True,
-             periodic_skip: bool = True) -> Trajectory:
+             periodic_skip: bool | None = None) -> Trajectory:
     """Simulate the crawler under ``gait`` on [0, t_end] and return the sampled ``Trajectory``.
 
     With method "exact" the values at ``t_eval`` are exact (closed form, not interpolated) and,
@@ -197,10 +200,10 @@ def simulate(crawler: Crawler, gait: Gait, t_end: float, method: str = 'exact', 
     solver.check_span(gait, t_end, st._options)
     times = None if t_eval is None else _check_times(t_eval, t_end)
     times, out, info = solver.simulate(t_end, times, include_events, dt)
-    # the exact run's pieces stay with its Trajectory: state_at evaluates them (dense output)
+    # a closed-form run's pieces stay with its Trajectory: state_at evaluates them
     dense = (DenseOutput(crawler, solver.gait, solver.segments, (0.0, solver.t),
                          tol=solver.tol, max_step=solver.max_step)
-             if method == 'exact' else None)
+             if capabilities(method).dense_output else None)
     return Trajectory(t=times, x=out['x'], v=out['v'], friction=out['friction'],
                       contact=np.asarray(out['contact'], dtype=np.int8),
                       linkage_force=out['linkage_force'], impulse=out['impulse'],

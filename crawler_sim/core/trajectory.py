@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .model import Crawler
+from .solvers.base import Capabilities, capabilities
 
 if TYPE_CHECKING:      # dense imports the solvers, which import this module
     from .dense import DenseOutput
@@ -147,6 +148,11 @@ class State(NamedTuple):
     indeterminate: bool = False
 
 
+def _caps(method: str) -> Capabilities:
+    """What the run's method can do (none for a label no solver has: a hand-built run)."""
+    return capabilities(method, strict=False)
+
+
 def _trapezoid(y: NDArray, t: NDArray) -> float:
     return float(np.sum(0.5 * (y[1:] + y[:-1]) * np.diff(t)))
 
@@ -251,8 +257,8 @@ class Trajectory:
         """
         if self.dense is None:
             why = (f'method {self.method!r} keeps no interpolant of its steps'
-                   if self.method != 'exact' else 'this Trajectory holds no dense output '
-                   '(only simulate sets it)')
+                   if not _caps(self.method).dense_output
+                   else 'this Trajectory holds no dense output (only simulate sets it)')
             raise RuntimeError(f"state_at is the exact method's dense output: {why}; sample "
                                'the run at the times you need with simulate(..., t_eval=...)')
         times = np.asarray(t, dtype=float)
@@ -286,7 +292,7 @@ class Trajectory:
         k = int(np.searchsorted(self.t, t))
         if k < self.t.size and self.t[k] == t:
             return float(self.com[k])
-        if self.dense is not None or self.method == 'exact':
+        if self.dense is not None or _caps(self.method).dense_output:
             m = self.crawler.masses
             return float(self.state_at(t).x @ (m / m.sum()))
         return float(np.interp(t, self.t, self.com))
@@ -416,7 +422,7 @@ class Trajectory:
         the trapezoidal rule over the samples (exact in stick, accurate to the step
         elsewhere).
         """
-        if self.method != 'exact':
+        if not _caps(self.method).closed_form:
             return _trapezoid(-np.sum(self.friction * self.v, axis=1), self.t)
         fwd, back = self.sliding_distance()
         c = self.crawler
@@ -431,7 +437,7 @@ class Trajectory:
         :attr:`dissipated_energy` minus the work of gravity along the slope, all exact. For
         "implicit" and "penalty", the trapezoidal rule over the samples.
         """
-        if self.method != 'exact':
+        if not _caps(self.method).closed_form:
             return _trapezoid(np.sum(self.linkage_force * self.rates, axis=1), self.t)
         c = self.crawler
         kinetic = 0.5 * c.masses @ (self.v[-1] ** 2 - self.v[0] ** 2)

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from ..core.scene import Scene
+from ..core.solvers.base import capabilities
 from ..core.stepper import simulate
 from ..core.trajectory import Trajectory
 from ..core.verify import verify
@@ -150,9 +151,10 @@ def scene_figures(scene: Scene, periods: int, samples_per_period: int) -> dict[s
     r = scene.run
     t_end = periods * period
     n = periods * samples_per_period
-    if r.method == 'exact':
-        # dt only sets the sample grid of "exact": linspace(0, t_end, n + 1) plus the events
-        tr = simulate(scene.crawler, scene.gait, t_end, 'exact', dt=t_end / n, v0=r.v0, x0=r.x0,
+    if not capabilities(r.method).fixed_step:
+        # dt only sets the sample grid of an event-driven method: linspace(0, t_end, n + 1)
+        # plus the events
+        tr = simulate(scene.crawler, scene.gait, t_end, r.method, dt=t_end / n, v0=r.v0, x0=r.x0,
                       tol=r.tol, max_step=r.max_step)
     else:
         tr = simulate(scene.crawler, scene.gait, t_end, r.method, dt=r.dt, v0=r.v0, x0=r.x0,

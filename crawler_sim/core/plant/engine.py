@@ -30,10 +30,16 @@ import numpy as np
 from ..actuator import Actuator, ActuatorLimits, Pieces, TrajectoryReference
 from ..gaits import Cubic, Gait, PiecewiseCubic
 from ..model import Crawler
+from ..solvers.base import SolverError, capabilities
 from ..stepper import Stepper
 from ..trajectory import Event, State
 from .inputs import PreparedTrajectory
 from ..simtime import to_seconds
+
+#: what a tick's integration may raise without stopping the plant: a failed step
+#: (``SolverError``), a command the solver cannot take (ValueError: a gait of the wrong shape or
+#: not finite), a runaway state overflowing a float conversion (ArithmeticError)
+_FAILURES = (SolverError, ValueError, ArithmeticError)
 
 __all__ = ['Engine', 'EngineConfig', 'Journal']
 
@@ -334,7 +340,7 @@ class Engine:
         runs = self._drain()
         t1 = to_seconds(self.t_ns)
         try:
-            if self.stepper.method != 'exact':
+            if capabilities(self.stepper.method).fixed_step:
                 # time stepping: one call per tick keeps its steps on the tick grid
                 starts, pieces = self._ticks(runs)
                 ends = starts[1:] + [t1]
@@ -344,9 +350,9 @@ class Engine:
                 gait = self._gait(runs)
                 try:
                     self.stepper.advance(t1, gait)
-                except (ValueError, RuntimeError, ArithmeticError) as exc:
+                except _FAILURES as exc:
                     self._fallback(t1, gait, exc)
-        except (ValueError, RuntimeError, ArithmeticError) as exc:
+        except _FAILURES as exc:
             self._contain(exc)
             return
         self._events.extend(self.stepper.pop_events())

@@ -27,6 +27,7 @@ from ..gaits import Gait
 from ..model import Crawler
 from ..trajectory import Event
 from . import _stepping
+from .base import Capabilities, register
 
 __all__ = ['ImplicitSolver', 'ImplicitBatch', 'TimeStepper', 'MAX_STEPS', 'MAX_ROWS',
            'check_steps', 'step_times', 'output_arrays']
@@ -228,12 +229,15 @@ class TimeStepper:
         return {'steps': self.n_steps, 'dt': self.dt}
 
 
+@register('implicit')
 class ImplicitSolver(TimeStepper):
     """Moreau-Jean stepping for one crawler, transitions placed inside their step.
 
     ``locate_transitions=False`` gives the plain Moreau-Jean step (transitions at step ends,
     what ``ImplicitBatch`` does): first order too, but with an erratic constant.
     """
+
+    capabilities = Capabilities(fixed_step=True, streaming=True)
 
     def __init__(self, crawler: Crawler, gait: Gait, *, dt: float, t0: float = 0.0,
                  x0: float = 0.0, v0: float = 0.0, locate_transitions: bool = True) -> None:

@@ -23,6 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..gaits import Gait
 from ..model import Crawler
 from . import _stepping
+from .base import Capabilities, register
 from .implicit import TimeStepper
 
 __all__ = ['PenaltySolver', 'penalty_bound', 'check_penalty']
@@ -48,9 +49,12 @@ def penalty_bound(crawler: Crawler, penalty: ArrayLike, t: float | NDArray) -> f
     return np.sqrt(2.0 * np.asarray(t) / crawler.total_mass * np.sum(f ** 2 / n))
 
 
+@register('penalty')
 class PenaltySolver(TimeStepper):
     """Backward Euler on the penalised ODE, exact solve of each step's monotone equation
     (compiled: ``_stepping.StepCore.penalty_step``)."""
+
+    capabilities = Capabilities(fixed_step=True, streaming=True)
 
     _method = _stepping.PENALTY
     method_name = 'penalty'
