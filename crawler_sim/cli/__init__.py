@@ -501,6 +501,10 @@ def build_parser() -> argparse.ArgumentParser:
             description: str) -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=help_, description=description)
         p.set_defaults(func=func)
+        # --debug after the command too (`crawler-sim simulate S.yaml --debug`); SUPPRESS
+        # keeps a --debug given before the command when this one is absent
+        p.add_argument('--debug', action='store_true', default=argparse.SUPPRESS,
+                       help='show the full traceback on errors')
         return p
 
     p = add('simulate', _cmd_simulate, 'run a scene offline and print its figures',

@@ -230,6 +230,9 @@ def test_an_unexpected_exception_is_one_line_unless_debug(monkeypatch, capsys):
     assert_one_error_line(proc, 'internal error (TypeError: unsupported operand)', '--debug')
     with pytest.raises(TypeError):
         cli.main(['--debug', 'simulate', str(CONFIG / 'bang_bang.yaml')])
+    # anywhere on the line (issue 43: it worked only before the command)
+    with pytest.raises(TypeError):
+        cli.main(['simulate', str(CONFIG / 'bang_bang.yaml'), '--debug'])
 
 
 @pytest.mark.parametrize('command', ['info', 'plot', 'replay', 'recover'])
