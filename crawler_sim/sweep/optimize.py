@@ -44,6 +44,7 @@ from ..core.actuator import ActuatorLimits
 from ..core.plant import PlantConfig
 from ..core.plant.streams import Stream, simulate_as_node
 from ..core.scene import Scene, scene_to_dict
+from ..core.solvers.base import capabilities
 from .metrics import run_figures, scene_figures
 from .spec import SpecError
 from crawler_sim.core.simtime import to_seconds
@@ -227,7 +228,7 @@ class Objective:
         stream = replace(self.stream, duration=min(self.stream.duration,
                                                    t_end + 2.0 / self.stream.rate))
         n = self.periods * self.samples_per_period
-        if plant.values['method'] == 'exact':      # dt: the sample grid, plus every event
+        if not capabilities(plant.values['method']).fixed_step:   # the grid, plus every event
             tr = simulate_as_node(plant, gait, stream, t_end, dt=t_end / n)
         else:                                      # the node's step, sampled on the grid
             tr = simulate_as_node(plant, gait, stream, t_end, dt=to_seconds(plant.dt_ns),
