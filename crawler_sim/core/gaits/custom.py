@@ -66,11 +66,11 @@ class Custom(Gait):
             self.n_links = int(probe.shape[1])
             # checked array callables (closures over the functions, not over the gait: the
             # table that keeps them must not keep the gait alive, see ``_weak_method``)
-            self._vfns = tuple(_checked(fn, name, self.n_links) for name, fn in
+            self._vfns = tuple(_Checked(fn, name, self.n_links) for name, fn in
                                (('length', length), ('velocity', velocity),
                                 ('acceleration', acceleration)))
             # the scalar view (one float -> (n_links,)), where Python reads one time
-            self._fns = tuple(_at_one(fn) for fn in self._vfns)
+            self._fns = tuple(_AtOne(fn) for fn in self._vfns)
         else:
             self._vfns = None
             self._fns = (length, velocity, acceleration)
@@ -135,25 +135,35 @@ class Custom(Gait):
         return jb
 
 
-def _checked(fn: Callable[[NDArray[np.float64]], ArrayLike], name: str,
-             n_links: int) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
+
+class _Checked:
     """``fn`` of an array of times (n,) whose values are checked: an array of shape
-    (n, n_links), finite, else a one-line ValueError naming ``name`` and the shape."""
-    def call(t: NDArray[np.float64]) -> NDArray[np.float64]:
-        v = np.asarray(fn(t), dtype=float)
-        if v.shape != (t.size, n_links):
-            raise ValueError(f'Custom gait (vectorized=True): {name}(t) for t of shape '
-                             f'({t.size},) must return shape ({t.size}, {n_links}), got shape '
-                             f'{v.shape}')
+    (n, n_links), finite, else a one-line ValueError naming ``name`` and the shape. A class,
+    not a closure: a gait of module-level functions stays picklable (a sweep sends gaits to
+    its workers)."""
+
+    def __init__(self, fn: Callable[[NDArray[np.float64]], ArrayLike], name: str,
+                 n_links: int) -> None:
+        self.fn, self.name, self.n_links = fn, name, n_links
+
+    def __call__(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        v = np.asarray(self.fn(t), dtype=float)
+        if v.shape != (t.size, self.n_links):
+            raise ValueError(f'Custom gait (vectorized=True): {self.name}(t) for t of shape '
+                             f'({t.size},) must return shape ({t.size}, {self.n_links}), got '
+                             f'shape {v.shape}')
         if not np.isfinite(v).all():
             k = int(np.argwhere(~np.isfinite(v))[0, 0])
-            raise ValueError(f'Custom gait (vectorized=True): {name}(t) must be finite, got '
-                             f'{v[k].tolist()} at t = {float(t[k])!r} s')
+            raise ValueError(f'Custom gait (vectorized=True): {self.name}(t) must be finite, '
+                             f'got {v[k].tolist()} at t = {float(t[k])!r} s')
         return v
-    return call
 
 
-def _at_one(fn: Callable[[NDArray[np.float64]], NDArray[np.float64]]
-            ) -> Callable[[float], NDArray[np.float64]]:
-    """The checked array function ``fn`` at one float time: shape (n_links,)."""
-    return lambda t: fn(np.array([float(t)]))[0]
+class _AtOne:
+    """A checked array function (``_Checked``) at one float time: shape (n_links,)."""
+
+    def __init__(self, fn: _Checked) -> None:
+        self.fn = fn
+
+    def __call__(self, t: float) -> NDArray[np.float64]:
+        return self.fn(np.array([float(t)]))[0]

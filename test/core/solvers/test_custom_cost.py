@@ -201,3 +201,42 @@ def test_series_evaluation_agrees_with_numpy_chebval():
     np.testing.assert_allclose(proxy._series_at(c, a, b, t), want, rtol=0, atol=1e-14)
     at_nodes = proxy._series_at(c, a, b, proxy._nodes(a, b))
     np.testing.assert_allclose(proxy._at_own_nodes(c), at_nodes, rtol=0, atol=1e-13)
+
+
+def _pl(t):
+    return 1.0 + 0.1 * np.sin(3.0 * t)[:, None] * np.ones(2)
+
+
+def _pv(t):
+    return 0.3 * np.cos(3.0 * t)[:, None] * np.ones(2)
+
+
+def _pa(t):
+    return -0.9 * np.sin(3.0 * t)[:, None] * np.ones(2)
+
+
+def test_vectorized_gait_of_module_functions_is_picklable():
+    # a sweep sends gaits to its workers: the checked wrappers must pickle (closures did not)
+    import pickle
+    g = Custom(_pl, _pv, _pa, vectorized=True, max_step=0.05)
+    h = pickle.loads(pickle.dumps(g))
+    cr = cs.Crawler([1.0, 1.0, 1.0], [1.0, 2.0, 1.5])
+    x = cs.simulate(cr, g, 2.0, t_eval=np.linspace(0.0, 2.0, 5)).x
+    np.testing.assert_array_equal(cs.simulate(cr, h, 2.0, t_eval=np.linspace(0.0, 2.0, 5)).x, x)
+    scalar = Custom(*((lambda f: lambda t: f(np.array([t]))[0])(f) for f in (_pl, _pv, _pa)),
+                    max_step=0.05)
+    want = cs.simulate(cr, scalar, 2.0, t_eval=np.linspace(0.0, 2.0, 5)).x
+    assert np.abs(x - want).max() <= 1e-12
+
+
+def test_vectorized_one_linkage_against_float_functions():
+    # one linkage: (n, 1) arrays, read from Python as (1,) (the float path's _scalar is off)
+    fns = (lambda t: 1.0 + 0.2 * math.sin(5.0 * t), lambda t: math.cos(5.0 * t),
+           lambda t: -5.0 * math.sin(5.0 * t))
+    g = Custom(*_rows(fns), vectorized=True)
+    cr = cs.Crawler([1.0, 2.0], [1.0, 3.0])
+    grid = np.linspace(0.0, 3.0, 7)
+    got = cs.simulate(cr, g, 3.0, t_eval=grid)
+    want = cs.simulate(cr, Custom(*fns), 3.0, t_eval=grid)
+    np.testing.assert_array_equal(got.x, want.x)
+    assert g.n_links == 1 and g(0.5)[0].shape == (1,)
