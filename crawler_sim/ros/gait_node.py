@@ -218,7 +218,15 @@ class GaitNode(Node):
         if unknown:
             raise ValueError('; '.join(unknown))
         settings = GaitSettings.from_values(values)
+        #: the sim's number of linkages as its latest parameter event gives it (None: none
+        #: seen); only followed when the node asked the sim for it (no n_links, no gait_file)
+        self._sim_links: int | None = None
+        self._sim_events = None
         if settings.gait is None:
+            # listen before asking: a change of masses between the answer and a later
+            # subscription would otherwise go unnoticed, and an event is never older than
+            # the answer it arrives after (it is sent once the change is accepted)
+            self._sim_events = self._follow_sim_bodies(settings.values)
             settings = settings.with_links(self._ask_sim(settings.values))
         self.settings = settings
         self.gait = settings.gait
@@ -292,7 +300,39 @@ class GaitNode(Node):
         self.get_logger().info(f'{client.srv_name}: {n_links} linkage(s)')
         return n_links
 
+    def _follow_sim_bodies(self, v: dict) -> Any:
+        """Follow the sim's ``masses`` through its parameter events (rclpy's
+        ParameterEventHandler, on /parameter_events filtered on the sim's node name): a change
+        of the number of bodies at run time (``ros2 param set /crawler_sim masses ...``) would
+        otherwise leave this node sending lengths of the old size, every one rejected by the
+        sim. The handler only notes the new count; the timer switches the gait (one thread
+        owns the gait). Returns the handler (kept: dropping it ends the subscription)."""
+        from rclpy.parameter_event_handler import ParameterEventHandler
+        sim = self.resolve_service_name(v['sim_node'])
+        handler = ParameterEventHandler(self)
+
+        def on_masses(param: Any) -> None:
+            value = param.value
+            # dynamic typing: masses:=[1,1,1] comes as integers
+            entries = list(value.double_array_value) or list(value.integer_array_value)
+            if 1 <= len(entries) - 1 <= MAX_LINKS:
+                self._sim_links = len(entries) - 1
+        self._masses_handle = handler.add_parameter_callback('masses', sim, on_masses)
+        return handler
+
+    def _follow_sim(self) -> None:
+        """Switch to the number of linkages the sim last reported, if it changed."""
+        n = self._sim_links
+        if n is None or n == self.gait.n_links:
+            return
+        old = self.gait.n_links
+        self.settings = self.settings.with_links(n)
+        self.gait = self.settings.gait
+        self.get_logger().info(f'the sim now has {n + 1} bodies: playing the gait on {n} '
+                               f'linkage(s) (was {old})')
+
     def _on_timer(self) -> None:
+        self._follow_sim()
         now = self.get_clock().now().nanoseconds
         if self._t0_ns is None:
             self._t0_ns = now

@@ -469,3 +469,43 @@ def test_several_namespaced_sims_share_one_monotonic_clock_and_keep_their_topics
                           str(tmp_path / 'follower')], capture_output=True, text=True,
                          env=ament_env, timeout=600)
     assert rep.returncode == 0 and 'max |dx|  0 m' in rep.stdout, rep.stdout + rep.stderr
+
+
+def test_gait_node_follows_a_change_of_the_number_of_bodies_at_run_time(ament_env, peer,
+                                                                         tmp_path):
+    """Issue 43: the sim's masses set to three bodies while gait_node (no n_links) plays:
+    gait_node's commands get two entries and the sim accepts them (before, it kept sending
+    one length, every command rejected)."""
+    sim = Proc(tmp_path, ament_env, 'sim_node', '-p', 'real_time_factor:=4.0',
+               '-p', 'diagnostics_period:=0.2', '-p', 'publish_markers:=false')
+    gait = Proc(tmp_path, ament_env, 'gait_node', '-p', 'use_sim_time:=true')
+    try:
+        diags: list[DiagnosticArray] = []
+        sizes: list[int] = []
+        peer.node.create_subscription(DiagnosticArray, '/diagnostics', diags.append, 100)
+        peer.node.create_subscription(Float64MultiArray, 'linkage_cmd',
+                                      lambda m: sizes.append(len(m.data)), 1000)
+        count = lambda key, d: int(diagnostics_values(d)[key])  # noqa: E731
+        peer.until(lambda: diags and count('commands_accepted', diags[-1]) > 20 and sizes,
+                   'one-length commands from gait_node', timeout=60.0)
+        assert sizes[-1] == 1
+        masses = ParameterMsg(name='masses', value=ParameterValue(
+            type=ParameterType.PARAMETER_DOUBLE_ARRAY, double_array_value=[1.0, 1.0, 1.0]))
+        reply = peer.call(SetParameters, '/crawler_sim/set_parameters',
+                          SetParameters.Request(parameters=[masses]))
+        assert reply.results[0].successful, reply.results[0].reason
+        peer.until(lambda: sizes[-1] == 2, 'two-length commands from gait_node', timeout=60.0)
+        first = len(diags)
+        # the sim stops rejecting: a stretch of reports after the switch in which more than
+        # 20 commands are accepted and none rejected (a few may be rejected around the change)
+        peer.until(lambda: any(
+            count('commands_accepted', diags[-1]) - count('commands_accepted', d) > 20
+            and count('commands_rejected', diags[-1]) == count('commands_rejected', d)
+            for d in diags[first:-1]), 'accepted two-length commands', timeout=60.0)
+        codes = [gait.stop(signal.SIGINT), sim.stop(signal.SIGINT)]
+    finally:
+        gait.kill()
+        sim.kill()
+    for code, err in codes:
+        assert code == 0 and 'Traceback' not in err, err
+    assert set(sizes[sizes.index(2):]) == {2}         # never back to one length
