@@ -26,7 +26,7 @@ ROS = {'rclpy', 'rcl_interfaces', 'ament_index_python', 'builtin_interfaces', 's
        'std_srvs', 'sensor_msgs', 'geometry_msgs', 'nav_msgs', 'trajectory_msgs',
        'visualization_msgs', 'diagnostic_msgs', 'rosgraph_msgs', 'rosidl_parser'}
 #: modules only the sweep extra brings (imported by crawler_sim.sweep and its CLI commands)
-SWEEP = {'pandas', 'pyarrow', 'distributed'}
+SWEEP = {'pandas', 'pyarrow', 'distributed', 'dask'}   # dask[distributed]: both modules
 
 
 def imported() -> set[str]:
