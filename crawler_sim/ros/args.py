@@ -8,16 +8,24 @@ without a word, is reported in one line naming the argument (``main`` exits with
   default gait without a word;
 - parameters given for the node that it does not declare (``-p frequncy:=1.0``), with the
   nearest declared name: rclpy ignores them silently.
+
+``-h``/``--help`` (outside ``--ros-args``) is answered here too, before ``rclpy.init``:
+``help_text`` lists a node's parameters from its parameter table (type, description, range,
+default, read-only), as ``ros2 param describe`` would show them on a running node. Without it
+``--help`` was refused as a stray argument, and a Jazzy user without the ros2 CLI had no way to
+see the parameters short of reading the source.
 """
 from __future__ import annotations
 
 import difflib
-from typing import TYPE_CHECKING, Iterable, Sequence
+import textwrap
+from typing import TYPE_CHECKING, Any, Iterable, Mapping, Sequence
 
 if TYPE_CHECKING:
     from rclpy.node import Node
 
-__all__ = ['ArgsError', 'check_args', 'check_params_files', 'unknown_parameters']
+__all__ = ['ArgsError', 'check_args', 'check_params_files', 'help_requested', 'help_text',
+           'print_help_and_exit', 'unknown_parameters']
 
 #: parameters rclpy or the middleware declare or read on every node
 _ROS_OWN = ('use_sim_time', 'start_type_description_service')
@@ -78,6 +86,98 @@ def check_args(argv: Sequence[str], executable: str) -> None:
                         f'(without --ros-args the file is not read)')
     raise ArgsError(f'unexpected argument(s) {" ".join(stray)}: {executable} takes only ROS '
                     f'arguments (after --ros-args: -p name:=value, --params-file FILE, -r ...)')
+
+
+HELP_FLAGS = ('-h', '--help')
+
+
+def help_requested(argv: Sequence[str]) -> bool:
+    """True when ``-h`` or ``--help`` is among the program's own arguments (``argv[0]`` is the
+    program; inside a ``--ros-args`` section the words belong to ROS)."""
+    inside = False
+    for arg in argv[1:]:
+        if arg == '--ros-args':
+            inside = True
+        elif arg == '--' and inside:
+            inside = False
+        elif not inside and arg in HELP_FLAGS:
+            return True
+    return False
+
+
+def _type_name(default: Any) -> str:
+    """The parameter type ``ros2 param describe`` names for a default value (an empty list is
+    a double array: the nodes' list parameters are numbers)."""
+    if isinstance(default, bool):
+        return 'boolean'
+    if isinstance(default, int):
+        return 'integer'
+    if isinstance(default, float):
+        return 'double'
+    if isinstance(default, str):
+        return 'string'
+    if isinstance(default, (list, tuple)):
+        if default and all(isinstance(x, str) for x in default):
+            return 'string array'
+        if default and all(isinstance(x, int) and not isinstance(x, bool) for x in default):
+            return 'integer array'
+        return 'double array'
+    return 'not set' if default is None else type(default).__name__
+
+
+def _value(value: Any) -> str:
+    """A value as it is typed on the command line (``-p name:=VALUE``)."""
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, str):
+        return repr(value) if value == '' else value
+    if isinstance(value, (list, tuple)):
+        return '[' + ', '.join(_value(x) for x in value) + ']'
+    if value is None:
+        return '(not set)'
+    return repr(value)
+
+
+def help_text(executable: str, node_name: str, summary: str,
+              parameters: Mapping[str, tuple]) -> str:
+    """The ``--help`` text of a node: usage, ``summary`` and every parameter of its table.
+
+    ``parameters`` maps a name to ``(default, description, range or None[, read_only])`` (the
+    shape of sim_node's, gait_node's and replay_node's tables; a default of None is a
+    parameter declared without a value). Each is listed as ``ros2 param describe`` lists it,
+    plus its default value.
+    """
+    width = 100
+    lines = [f'usage: {executable} [-h] [--ros-args [-p NAME:=VALUE ...] [--params-file FILE] '
+             '[-r FROM:=TO ...]]', '']
+    lines += textwrap.wrap(summary, width)
+    lines.append('')
+    lines += textwrap.wrap(f'Parameters of node {node_name} (-p NAME:=VALUE after --ros-args, '
+                           f'or a --params-file section "{node_name}: ros__parameters:"):',
+                           width)
+    for name, entry in parameters.items():
+        default, desc, rng = entry[0], entry[1], entry[2]
+        read_only = bool(entry[3]) if len(entry) > 3 else False
+        lines += ['', f'Parameter name: {name}', f'  Type: {_type_name(default)}']
+        lines += textwrap.wrap(f'Description: {desc}', width, initial_indent='  ',
+                               subsequent_indent='    ')
+        lines.append(f'  Default value: {_value(default)}')
+        if rng is not None or read_only:
+            lines.append('  Constraints:')
+        if rng is not None:
+            lines += [f'    Min value: {rng[0]:g}', f'    Max value: {rng[1]:g}']
+        if read_only:
+            lines.append('    Read only: true (set at start only)')
+    return '\n'.join(lines) + '\n'
+
+
+def print_help_and_exit(argv: Sequence[str], executable: str, node_name: str, summary: str,
+                        parameters: Mapping[str, tuple]) -> None:
+    """If ``argv`` asks for help, print ``help_text`` to stdout and exit with code 0 (before
+    rclpy.init: no ROS context, no DDS participant for a question about the command line)."""
+    if help_requested(argv):
+        print(help_text(executable, node_name, summary, parameters), end='', flush=True)
+        raise SystemExit(0)
 
 
 def ros_sections(args: Sequence[str]) -> list[str]:

@@ -95,6 +95,11 @@ PARAMETERS: dict[str, tuple[Any, str, tuple[float, float] | None]] = {
                  'n_links is 0 (relative: in this node\'s namespace)', None),
     'wait_for_sim': (10.0, 'Seconds to wait for that sim_node, in [0, 3600]', (0.0, 3600.0)),
 }
+#: the first paragraph of ``gait_node --help``
+HELP_SUMMARY = ('Plays a gait of the core on linkage_cmd (or as trajectories on '
+                'linkage_trajectory) at rate Hz of ROS time (sim time with use_sim_time:=true). '
+                'Without n_links it asks the running sim_node for its number of linkages and '
+                'follows a change of its masses at run time. Parameters are read at start.')
 _GAIT_PARAMETERS = ('gait', 'mean', 'amplitude', 'frequency', 'asymmetry', 'phase_lag')
 _UNITS = {'mean': ' m', 'amplitude': ' m', 'frequency': ' Hz', 'phase_lag': ' rad',
           'rate': ' Hz', 'duration': ' s', 'horizon': ' s', 'wait_for_sim': ' s'}
@@ -389,8 +394,9 @@ class GaitNode(Node):
 
 def main(args: list[str] | None = None) -> None:
     """Entry point of ``ros2 run crawler_sim gait_node``."""
-    from crawler_sim.ros.args import ArgsError, check_args
+    from crawler_sim.ros.args import ArgsError, check_args, print_help_and_exit
     argv = list(sys.argv if args is None else args)
+    print_help_and_exit(argv, 'gait_node', 'gait_node', HELP_SUMMARY, PARAMETERS)
     try:
         check_args(argv, 'gait_node')
     except ArgsError as exc:

@@ -460,8 +460,34 @@ class ReplayNode(Node):
                 i += 1
 
 
+#: replay_node's parameters for ``--help``: name -> (default, description, range or None);
+#: the values ``ReplayNode`` declares (None: declared without a value)
+HELP_PARAMETERS: dict[str, tuple[Any, str, tuple[float, float] | None]] = {
+    'bag': ('', 'Bag directory or .mcap file to play (required)', None),
+    'rate': (1.0, 'Playback speed factor, > 0 (2 plays twice as fast)', None),
+    'loop': (False, 'Start again from start_offset at the end of the bag, sim time continued',
+             None),
+    'start_offset': (0.0, 'Seconds of log time after the start of the bag at which playback '
+                     'starts, >= 0', None),
+    'publish_clock': (True, 'Publish /clock with the log time of every batch', None),
+    'topics': (None, 'Topics to play (string array); not set: every topic of the bag except '
+               'the latched scene topic', None),
+    'wait_for_subscribers': (0, 'Before playing, wait until every publisher has at least this '
+                             'many matched subscribers', None),
+    'start_paused': (False, 'Start paused before the first message; ~/pause false starts it',
+                     None),
+}
+HELP_SUMMARY = ('Publishes a bag\'s topics with their original timing (like ros2 bag play), '
+                '/clock included; service ~/pause. Exit code 0 at the end of the bag, 2 for a '
+                'missing or unreadable bag or invalid parameters.')
+
+
 def main(args: list[str] | None = None) -> None:
-    """Entry point of ``ros2 run crawler_sim replay_node``."""
+    """Entry point of ``ros2 run crawler_sim replay_node`` (``--help``: its parameters,
+    exit 0, before rclpy starts)."""
+    from crawler_sim.ros.args import print_help_and_exit
+    print_help_and_exit(list(sys.argv if args is None else args), 'replay_node', NODE_NAME,
+                        HELP_SUMMARY, HELP_PARAMETERS)
     rclpy.init(args=args)
     node: ReplayNode | None = None
     executor: SingleThreadedExecutor | None = None

@@ -3,7 +3,8 @@
 misspelt name is reported whichever way it was given."""
 from __future__ import annotations
 
-from crawler_sim.ros.args import _wildcard_names, given_names, ros_sections
+from crawler_sim.ros.args import (_wildcard_names, given_names, help_requested, help_text,
+                                  ros_sections)
 
 
 def test_only_arguments_inside_ros_args_sections_count():
@@ -38,3 +39,45 @@ def test_an_unreadable_params_file_gives_no_names(tmp_path):
     argv = ['prog', '--ros-args', '--params-file', str(tmp_path / 'bad.yaml'),
             '--params-file', str(tmp_path / 'missing.yaml')]
     assert given_names(argv, 'n', '/n') == []
+
+
+def test_help_is_asked_outside_ros_args_only():
+    assert help_requested(['sim_node', '--help'])
+    assert help_requested(['gait_node', '-h', '--ros-args', '-p', 'n_links:=1'])
+    assert not help_requested(['sim_node', '--ros-args', '-p', 'masses:=[1.0, 1.0]'])
+    # inside a --ros-args section the word is ROS's (rcl refuses it there, in one line)
+    assert not help_requested(['sim_node', '--ros-args', '--help'])
+    assert help_requested(['sim_node', '--ros-args', '-p', 'a:=1', '--', '--help'])
+
+
+def test_help_lists_each_parameter_with_its_type_description_range_default_and_read_only():
+    table = {'masses': ([0.5, 1.0], 'Body masses [kg]', None, False),
+             'slope': (0.0, 'Incline [rad]', (-1.5, 1.5), False),
+             'record': (False, 'Record a bag', None, True),
+             'n_links': (0, 'Number of linkages', (0, 63)),     # gait_node's shape: 3 fields
+             'topics': (None, 'Topics to play', None)}
+    text = help_text('sim_node', 'crawler_sim', 'Simulates a crawler.', table)
+    assert text.startswith('usage: sim_node [-h] [--ros-args')
+    blocks = {b.splitlines()[0]: b for b in text.split('\n\n')}
+    assert blocks['Parameter name: masses'].splitlines()[1:] == [
+        '  Type: double array', '  Description: Body masses [kg]', '  Default value: [0.5, 1.0]']
+    assert blocks['Parameter name: slope'].splitlines()[1:] == [
+        '  Type: double', '  Description: Incline [rad]', '  Default value: 0.0',
+        '  Constraints:', '    Min value: -1.5', '    Max value: 1.5']
+    assert '  Type: boolean' in blocks['Parameter name: record']
+    assert '    Read only: true (set at start only)' in blocks['Parameter name: record']
+    assert '  Type: integer' in blocks['Parameter name: n_links']
+    assert '  Type: not set' in blocks['Parameter name: topics']
+
+
+def test_every_node_table_is_in_its_help():
+    """The tables the nodes declare from (sim_node, gait_node) and replay_node's: each name
+    appears once, with its default."""
+    from crawler_sim.ros.gait_node import PARAMETERS as GAIT
+    from crawler_sim.ros.replay_node import HELP_PARAMETERS as REPLAY
+    from crawler_sim.ros.sim.params import PARAMETERS as SIM
+    for table in (SIM, GAIT, REPLAY):
+        text = help_text('x', 'x', 'x', table)
+        for name in table:
+            assert text.count(f'Parameter name: {name}\n') == 1, name
+        assert all(len(line) <= 100 for line in text.splitlines())

@@ -509,3 +509,19 @@ def test_gait_node_follows_a_change_of_the_number_of_bodies_at_run_time(ament_en
     for code, err in codes:
         assert code == 0 and 'Traceback' not in err, err
     assert set(sizes[sizes.index(2):]) == {2}         # never back to one length
+
+
+@pytest.mark.parametrize('name,node,param', [('sim_node', 'crawler_sim', 'masses'),
+                                             ('gait_node', 'gait_node', 'n_links'),
+                                             ('replay_node', 'replay_node', 'bag')])
+def test_help_prints_the_parameters_and_exits_0_before_ros_starts(ament_env, name, node,
+                                                                   param):
+    """Issue 43: ``sim_node --help`` was refused (exit 2, an argument outside --ros-args).
+    It is answered before rclpy.init: a remap rule rcl would refuse does not matter."""
+    proc = subprocess.run([str(executable(name)), '--help', '--ros-args', '-r',
+                           '__ns:=/bad-name'], env=ament_env, capture_output=True, text=True,
+                          timeout=PROCESS_DEADLINE * 3)
+    assert proc.returncode == 0 and proc.stderr == '', proc.stderr
+    assert proc.stdout.startswith(f'usage: {name} [-h]')
+    assert f'Parameters of node {node} ' in proc.stdout
+    assert f'\nParameter name: {param}\n  Type: ' in proc.stdout

@@ -4,10 +4,11 @@ The simulation loop runs in the main thread; ROS callbacks (services, parameters
 thread. On SIGINT/SIGTERM the loop stops between two ticks; the executor thread is joined before
 anything is destroyed, then the bag is closed, the node destroyed and rclpy shut down.
 
-Before rclpy parses them, the arguments are checked (``crawler_sim.ros.args``): a
-``--params-file`` that is missing, not YAML, or not a ROS parameter file, or an argument
-outside ``--ros-args``, gives one line naming it and exit code 2, instead of an rcl traceback
-or silence.
+``-h``/``--help`` prints the parameters (``crawler_sim.ros.args.help_text``) and exits 0
+before rclpy starts. Before rclpy parses them, the arguments are checked
+(``crawler_sim.ros.args``): a ``--params-file`` that is missing, not YAML, or not a ROS
+parameter file, or an argument outside ``--ros-args``, gives one line naming it and exit code
+2, instead of an rcl traceback or silence.
 """
 from __future__ import annotations
 
@@ -22,12 +23,22 @@ __all__ = ['main']
 
 SPIN_TIMEOUT = 2.0       # s, the longest wait of the executor thread for a callback
 
+#: the first paragraph of ``sim_node --help``
+HELP_SUMMARY = ('Simulates a friction crawler of p bodies joined by p-1 imposed linkages: takes '
+                'lengths on linkage_cmd (or linkage_trajectory), publishes joint_states, '
+                'body_states, contacts, odom, markers, /clock and /diagnostics; services '
+                '~/reset, ~/pause, ~/step. Node name crawler_sim; parameters change at run '
+                'time unless read only (docs/node.md).')
+
 
 def main(args: list[str] | None = None) -> None:
     """Run sim_node until SIGINT/SIGTERM."""
-    from .node import SimNode
-    from crawler_sim.ros.args import ArgsError, check_args, unknown_parameters
+    from crawler_sim.ros.args import (ArgsError, check_args, print_help_and_exit,
+                                      unknown_parameters)
+    from .params import NODE_NAME, PARAMETERS
     argv = sys.argv if args is None else args
+    print_help_and_exit(list(argv), 'sim_node', NODE_NAME, HELP_SUMMARY, PARAMETERS)
+    from .node import SimNode
     try:
         check_args(list(argv), 'sim_node')
     except ArgsError as exc:
