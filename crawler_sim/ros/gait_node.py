@@ -26,10 +26,14 @@ points, ``streams.trajectory_points``):
   it at every publish tick of a flat-out sim.
 
 ``n_links`` 0 (the default) asks the running sim_node (``sim_node`` names it, in this node's
-namespace) for its number of linkages and length limits, waiting up to ``wait_for_sim`` s; a
-``gait_file`` gives its own. Every parameter is checked at start: a bad value, a parameter the
-node does not have (``-p frequncy:=1.0``) or an argument outside ``--ros-args`` ends the node
-with one line naming it and its allowed range (exit code 1, 2 for arguments).
+namespace) for its number of linkages and length limits, waiting up to ``wait_for_sim`` s, and
+then follows the sim's parameter events: when its ``masses`` change the number of bodies at run
+time, the next command has the new number of lengths (the sim would reject every command of
+the old size). A ``gait_file`` gives its own number, which stays. ``--help`` lists the
+parameters (``crawler_sim.ros.args.help_text``). Every parameter is checked at start: a bad
+value, a parameter the node does not have (``-p frequncy:=1.0``) or an argument outside
+``--ros-args`` ends the node with one line naming it and its allowed range (exit code 1, 2 for
+arguments).
 
 A message it cannot read (a /clock message or a parameter request rclpy fails to convert) is
 skipped, counted and reported (a WARN line and a ``/diagnostics`` status ``<node>: input`` at
