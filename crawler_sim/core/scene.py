@@ -64,7 +64,7 @@ import yaml
 
 from . import gaits
 from .model import Crawler
-from .stepper import METHODS, simulate
+from .stepper import METHODS, GaitLengthError, check_lengths, simulate
 from .trajectory import Trajectory
 
 __all__ = ['SceneError', 'RunOptions', 'Scene', 'GAIT_TYPES', 'LIMITS', 'load_scene',
@@ -472,8 +472,13 @@ class Scene:
     def simulate(self, **kwargs: Any) -> Trajectory:
         """Run `crawler_sim.simulate` with the scene's options (``kwargs`` go to simulate)."""
         r = self.run
-        return simulate(self.crawler, self.gait, r.t_end, r.method, dt=r.dt, v0=r.v0, x0=r.x0,
-                        penalty=r.penalty, tol=r.tol, max_step=r.max_step, **kwargs)
+        kwargs.setdefault('lengths_check', 'raise')    # a scene's gait: refused, not warned
+        try:
+            return simulate(self.crawler, self.gait, r.t_end, r.method, dt=r.dt, v0=r.v0,
+                            x0=r.x0, penalty=r.penalty, tol=r.tol, max_step=r.max_step,
+                            **kwargs)
+        except GaitLengthError as exc:      # the scene's gait field, one line, exit 2
+            raise SceneError(f'scene.gait ({self.gait_spec["type"]}): {exc}') from None
 
 
 _SCENE_KEYS = ('name', 'description', 'crawler', 'gait', 'run', 'bench')
@@ -495,7 +500,14 @@ def scene_from_dict(data: Any, *, name: str = 'scene') -> Scene:
                          f'got {bench!r}')
     crawler = _crawler(d['crawler'])
     gait, gait_spec = _gait(d['gait'], crawler.p)
-    return Scene(name=name, crawler=crawler, gait=gait, run=_run(d.get('run'), crawler.p),
+    run = _run(d.get('run'), crawler.p)
+    try:
+        # a length <= 0 within the run known from the gait's closed form: refused at load, so
+        # every use of the scene (offline, --as-node, a sweep) says so before any work
+        check_lengths(gait, 0.0, run.t_end)
+    except GaitLengthError as exc:
+        raise SceneError(f'scene.gait ({gait_spec["type"]}): {exc}') from None
+    return Scene(name=name, crawler=crawler, gait=gait, run=run,
                  gait_spec=gait_spec, description=description, bench=dict(bench))
 
 

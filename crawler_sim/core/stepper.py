@@ -6,12 +6,14 @@ is the same stepper run over [0, t_end] and sampled into a ``Trajectory``.
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .dense import DenseOutput
 from .gaits import Gait, _positive as positive
+from .gaits.base import BuiltinGait
 from .model import Crawler
 from .solvers.base import capabilities, solver_class
 from .solvers.exact import ExactSolver
@@ -19,7 +21,7 @@ from .solvers.implicit import ImplicitSolver
 from .solvers.penalty import PenaltySolver
 from .trajectory import Event, State, Trajectory
 
-__all__ = ['METHODS', 'Stepper', 'simulate']
+__all__ = ['METHODS', 'GaitLengthError', 'Stepper', 'simulate']
 
 #: the methods and their solvers, which keep the contract of ``solvers.base`` (what a solver
 #: provides; ``capabilities(method)``: what it can do)
@@ -69,6 +71,48 @@ def check_gait(gait: Gait, crawler: Crawler, t: float) -> None:
             raise ValueError(f'gait {name} must be finite, got {arr.tolist()} at t = {t} s')
 
 
+class GaitLengthError(ValueError):
+    """A gait whose length reaches <= 0 in the run: l_j = x[j+1] - x[j] <= 0 means bodies j
+    and j+1 meet or cross, which no crawler does (the model itself would run on: it uses l'
+    and l'' only, so without this check such a run passed silently, issue 43).
+    ``linkage``, ``time`` [s] and ``value`` [m] name the first such length found."""
+
+    def __init__(self, linkage: int, time: float, value: float) -> None:
+        self.linkage, self.time, self.value = int(linkage), float(time), float(value)
+        super().__init__(f'gait length of linkage {self.linkage} reaches {self.value:.6g} m at '
+                         f't = {self.time:.6g} s: lengths must stay > 0 (bodies {self.linkage} '
+                         f'and {self.linkage + 1} would cross)')
+
+
+def _first_bad(times: NDArray, values: NDArray) -> None:
+    """Raise GaitLengthError for the earliest length <= 0 of ``values`` (per linkage, at
+    ``times``), if any."""
+    if values.min() > 0:
+        return                      # the common case in one reduction
+    bad = np.flatnonzero(values <= 0)
+    if bad.size:
+        j = int(bad[np.argmin(times[bad])])
+        raise GaitLengthError(j, times[j], values[j])
+
+
+def check_lengths(gait: Gait, t0: float, t1: float) -> bool:
+    """Refuse (GaitLengthError) a gait whose length reaches <= 0 on [t0, t1], from its closed
+    form ``length_minimum`` before any work; returns False when the gait gives none (then
+    ``simulate`` checks the run's samples). Only a built-in gait that runs as its own compiled
+    kind is asked: a subclass that overrides an evaluation runs through its Python methods, so
+    its parent's closed form may not be what the solver sees."""
+    if type(gait).length_minimum is Gait.length_minimum:
+        return False            # the common streaming case (PiecewiseCubic): one lookup
+    native = isinstance(gait, BuiltinGait) and gait.compiled() is gait.__dict__.get('_native_kind')
+    if not native:
+        return False
+    found = gait.length_minimum(t0, t1)
+    if found is None:
+        return False
+    _first_bad(*found)
+    return True
+
+
 class Stepper:
     """Incremental integration of one crawler for streaming use.
 
@@ -86,7 +130,10 @@ class Stepper:
         periods that repeat; None (default): decided from the scene (see ``ExactSolver``).
 
     A failed step raises ``solvers.base.SolverError`` (the solver's ``status`` and ``message``)
-    or, for a gait value or state that is not finite, ValueError.
+    or, for a gait value or state that is not finite, ValueError. ``advance`` refuses a gait
+    whose closed-form minimum length (``Gait.length_minimum``: Sinusoid, Scallop) is <= 0 on
+    [t, t1] with ``GaitLengthError`` (a ValueError) before any work; other gaits are not
+    checked while streaming (the node bounds its lengths by ``min_length`` itself).
     """
 
     def __init__(self, crawler: Crawler, gait: Gait, method: str = 'exact', *, t0: float = 0.0,
@@ -126,6 +173,7 @@ class Stepper:
             raise ValueError(f't1 must be >= the current time {self.t} s, got {t1}')
         if gait is not None:
             check_gait(gait, self.crawler, self.t)
+        check_lengths(self.gait if gait is None else gait, self.t, t1)
         self._solver.advance(t1, gait)
 
     def _row(self) -> dict:
@@ -175,11 +223,29 @@ def _events(events):
     return events.compact() if hasattr(events, 'compact') else list(events)
 
 
+def _check_samples(times: NDArray, lengths: NDArray, lengths_check: str) -> None:
+    """The first sampled length <= 0 of a gait without a closed-form minimum (the run's own
+    samples, no extra evaluation of the gait): a UserWarning, or GaitLengthError when
+    ``lengths_check`` is 'raise'. A warning, not a refusal, by default: it is found only after
+    the work, and the model itself needs l' and l'' alone (gaits of any lengths are in use as
+    offsets, e.g. random constant-jerk pieces in the tests)."""
+    lengths = np.asarray(lengths)
+    if lengths.size and not lengths.min() > 0:       # (a NaN is the solver's to report)
+        bad = lengths <= 0
+        if bad.any():
+            k = int(np.argmax(bad.any(axis=1)))      # the first sample with one
+            j = int(np.argmax(bad[k]))
+            err = GaitLengthError(j, float(times[k]), float(lengths[k, j]))
+            if lengths_check == 'raise':
+                raise err
+            warnings.warn(str(err), UserWarning, stacklevel=3)
+
+
 def simulate(crawler: Crawler, gait: Gait, t_end: float, method: str = 'exact', *,
              dt: float | None = None, t_eval: ArrayLike | None = None, v0: float = 0.0,
              x0: float = 0.0, penalty: ArrayLike | None = None, tol: float = 1e-13,
              max_step: float | None = None, include_events: bool = True,
-             periodic_skip: bool | None = None) -> Trajectory:
+             periodic_skip: bool | None = None, lengths_check: str = 'warn') -> Trajectory:
     """Simulate the crawler under ``gait`` on [0, t_end] and return the sampled ``Trajectory``.
 
     With method "exact" the values at ``t_eval`` are exact (closed form, not interpolated) and,
@@ -187,10 +253,19 @@ def simulate(crawler: Crawler, gait: Gait, t_end: float, method: str = 'exact', 
     default uniform samples. "implicit" and "penalty" step with ``dt`` (default 1e-3 s) and land
     a step on every requested time. v0 / x0: initial velocity / position of body 0.
     ``tol`` / ``max_step`` / ``periodic_skip``: see ``Stepper``.
+
+    A gait length l_j(t) <= 0 within the run (bodies j and j+1 would cross) raises
+    ``GaitLengthError`` (a ValueError naming the linkage, the time and the value) before any
+    work when the gait knows its minimum in closed form (``Gait.length_minimum``: Sinusoid,
+    Scallop); for other gaits the run's samples are checked after it (the first sampled length
+    <= 0; a dip between two samples is not seen): a UserWarning with the same facts, or with
+    ``lengths_check='raise'`` the GaitLengthError (scenes ask for it).
     """
     if not isinstance(crawler, Crawler):
         raise ValueError(f'crawler must be a crawler_sim.Crawler, got {type(crawler).__name__}')
     _check_method(method)
+    if lengths_check not in ('warn', 'raise'):
+        raise ValueError(f"lengths_check must be 'warn' or 'raise', got {lengths_check!r}")
     t_end = _check_positive('t_end', t_end)
     if dt is not None:
         dt = _check_positive('dt', dt)
@@ -199,7 +274,10 @@ def simulate(crawler: Crawler, gait: Gait, t_end: float, method: str = 'exact', 
     solver = st.solver
     solver.check_span(gait, t_end, st._options)
     times = None if t_eval is None else _check_times(t_eval, t_end)
+    known = check_lengths(gait, 0.0, t_end)
     times, out, info = solver.simulate(t_end, times, include_events, dt)
+    if not known:
+        _check_samples(times, out['lengths'], lengths_check)
     # a closed-form run's pieces stay with its Trajectory: state_at evaluates them
     dense = (DenseOutput(crawler, solver.gait, solver.segments, (0.0, solver.t),
                          tol=solver.tol, max_step=solver.max_step)

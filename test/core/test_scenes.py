@@ -291,3 +291,31 @@ def test_crawler_sim_simulate_exits_2_naming_the_field_for_a_degenerate_value(
     for internal in ('min() arg', 'division by zero', 'infinity to integer', 'internal error'):
         assert internal not in err
 
+
+
+# --- lengths <= 0 (issue 43) ------------------------------------------------------------------
+
+def test_a_scene_whose_gait_length_reaches_zero_is_refused_in_one_line_naming_the_gait():
+    seed = yaml.safe_load((CONFIG / 'scenes' / 'scallop_2body.yaml').read_text())
+    seed['scene']['gait']['amplitude'] = 0.2                  # 0.1 +/- 0.2 m: down to -0.1 m
+    with pytest.raises(SceneError, match=r'^scene\.gait \(scallop\): gait length of linkage 0 '
+                                         r'reaches -0\.1 m at t = 0 s'):
+        scene_from_dict(seed)                                 # at load, before any work
+    spline = {'crawler': {'masses': [1.0, 1.0], 'mu': 0.3}, 'run': {'t_end': 2.0},
+              'gait': {'type': 'spline', 'times': [0, 0.5, 1, 2],
+                       'lengths': [0.1, 0.02, -0.05, 0.1]}}   # known from the run's samples
+    with pytest.raises(SceneError, match=r'^scene\.gait \(spline\): gait length of linkage 0 '
+                                         r'reaches -0\.000338608 m at t = 0\.592 s') as info:
+        scene_from_dict(spline).simulate()
+    assert '\n' not in str(info.value)
+
+
+def test_the_cli_refuses_such_a_scene_with_exit_code_2(tmp_path, capsys):
+    from crawler_sim.cli import main
+    seed = yaml.safe_load((CONFIG / 'scenes' / 'scallop_2body.yaml').read_text())
+    seed['scene']['gait']['amplitude'] = 0.2
+    path = tmp_path / 'crossing.yaml'
+    path.write_text(yaml.safe_dump(seed))
+    assert main(['simulate', str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and 'scene.gait (scallop): gait length of linkage 0 reaches' in err[0]

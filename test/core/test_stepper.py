@@ -7,6 +7,7 @@ cost of transport, dissipated energy and linkage forces checked against hand val
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -418,3 +419,79 @@ def test_bounded_and_sampled_event_searches_find_the_same_events(scene):
         assert abs(a.time - b.time) <= 1e-12
     assert np.allclose(state_a.x, state_b.x, rtol=0, atol=1e-12)
     assert np.array_equal(state_a.contact, state_b.contact)
+
+
+# --- lengths <= 0 refused (issue 43: the offline API ran a Scallop down to -0.1 m) -----------
+
+SEED = cs.Crawler(masses=[0.5, 1.0], mu=0.3)
+
+
+def test_simulate_refuses_a_scallop_whose_length_goes_below_zero_before_any_work():
+    gait = gaits.Scallop(mean=0.1, amplitude=0.2, frequency=2.0, asymmetry=0.2, phase=1.0)
+    with pytest.raises(ValueError, match=r'linkage 0 reaches -0\.1 m at t = 0\.4204') as info:
+        cs.simulate(SEED, gait, 20.0)
+    err = info.value
+    assert (err.linkage, err.value) == (0, pytest.approx(-0.1))
+    assert err.time == pytest.approx((2 * math.pi - 1.0) / (4 * math.pi))   # w t + phase = 2 pi
+    # a run shorter than the time of the lowest point: its lowest is at an end
+    gait = gaits.Sinusoid([0.1, 0.1], [0.02, 0.2], 1.0, [0.0, math.pi])
+    with pytest.raises(ValueError, match=r'linkage 1 reaches .* m at t = 0\.1 s') as info:
+        cs.simulate(cs.Crawler(masses=[1.0, 1.0, 1.0], mu=0.3), gait, 0.1)
+    assert info.value.value == pytest.approx(0.1 + 0.2 * math.sin(0.2 * math.pi + math.pi))
+
+
+def test_simulate_warns_of_a_custom_gait_from_the_run_samples_or_refuses_when_asked():
+    gait = gaits.Custom(lambda t: 0.05 + 0.1 * math.sin(t), lambda t: 0.1 * math.cos(t),
+                        lambda t: -0.1 * math.sin(t))
+    said = r'linkage 0 reaches -0\.00127693 m at t = 3\.68 s'
+    with pytest.warns(UserWarning, match=said):
+        run = cs.simulate(SEED, gait, 20.0)
+    assert run.t[-1] == 20.0                  # found after the work: the run is kept
+    with pytest.raises(ValueError, match=said):
+        cs.simulate(SEED, gait, 20.0, lengths_check='raise')
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        cs.simulate(SEED, gait, 3.5)          # before its length reaches 0: silent
+
+
+def test_stepper_advance_refuses_a_length_below_zero_on_the_span_it_integrates():
+    gait = gaits.Sinusoid(0.1, 0.15, 1.0)           # 0.1 + 0.15 sin(2 pi t): < 0 from t = 0.616
+    st = cs.Stepper(SEED, gait)
+    st.advance(0.5)                                  # still > 0 on [0, 0.5]
+    with pytest.raises(ValueError, match=r'linkage 0 reaches -0\.05 m at t = 0\.75 s'):
+        st.advance(1.0)
+    assert st.t == 0.5                               # refused before any work
+
+
+def test_valid_runs_are_unchanged_by_the_length_check():
+    gait = gaits.Scallop(mean=0.1, amplitude=0.02, frequency=2.0, asymmetry=0.2)
+    run = cs.simulate(SEED, gait, 20.0)
+    assert run.displacement == 0.2914990946299904    # the seed crawl before the check, bit for bit
+
+
+# --- closed-form minimum length (issue 43: lengths <= 0 refused before any work) -------------
+
+@pytest.mark.parametrize('gait', [
+    gaits.Sinusoid([0.1, 0.2], [0.03, -0.05], 1.3, [0.4, -2.0]),
+    gaits.Scallop([0.1, 0.2], [0.03, 0.05], 1.3, 0.15, [0.4, -2.0]),
+    gaits.Scallop(0.1, 0.02, 2.0, 0.2),
+])
+@pytest.mark.parametrize('span', [(0.0, 5.0), (0.31, 0.52), (1.07, 1.2), (3.0, 3.0001)])
+def test_length_minimum_is_the_smallest_sampled_length_and_where_it_is_first(gait, span):
+    t0, t1 = span
+    times, lowest = gait.length_minimum(t0, t1)
+    grid = np.linspace(t0, t1, 200001)
+    sampled = gait.length(grid)                                 # (N, n_links)
+    assert np.all(lowest <= sampled.min(axis=0) + 1e-15)       # a bound of every sample ...
+    np.testing.assert_allclose(lowest, sampled.min(axis=0), atol=1e-9)    # ... reached on the grid
+    assert np.all((times >= t0) & (times <= t1))
+    np.testing.assert_allclose(gait.length(times).diagonal(), lowest, atol=1e-14)   # reached at times
+    for j in range(gait.n_links):          # the first time: every earlier sample is higher
+        before = sampled[grid < times[j] - 1e-3, j]
+        assert before.size == 0 or before.min() > lowest[j]
+
+
+def test_gaits_without_a_closed_form_minimum_say_none():
+    custom = gaits.Custom(lambda t: 0.1, lambda t: 0.0, lambda t: 0.0)
+    assert custom.length_minimum(0.0, 1.0) is None
+    assert gaits.Fourier(0.1, ([0.01], [0.0]), 1.0).length_minimum(0.0, 1.0) is None

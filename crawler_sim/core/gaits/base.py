@@ -228,6 +228,14 @@ class Gait:
         is proven with; a user's gait is sampled into pieces that are checked against it."""
         return None
 
+    def length_minimum(self, t0: float, t1: float
+                       ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+        """The smallest length of each linkage on [t0, t1] and the first time it is reached,
+        as (times [s], lengths [m]) of shape (n_links,), or None when not known in closed
+        form (default). ``simulate`` and ``Stepper`` refuse a gait whose length reaches <= 0
+        from it before any work; without it ``simulate`` checks the run's samples after."""
+        return None
+
     def snap_bound(self, t0: float, t1: float) -> NDArray[np.float64] | None:
         """Upper bounds of |l''''| [m/s^4] per linkage on [t0, t1] between breakpoints, or None
         when unknown or when l''' jumps inside (a built-in gait's search then bounds the

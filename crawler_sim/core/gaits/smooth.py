@@ -13,6 +13,26 @@ from numpy.typing import ArrayLike, NDArray
 from .base import BuiltinGait, _finite, _n_links, _per_link, _positive
 
 
+def _first_minimum(gait: BuiltinGait, lowest: NDArray[np.float64], w: float,
+                   phase: NDArray[np.float64], t0: float, t1: float
+                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``length_minimum`` of a stroke whose length is lowest (``lowest`` [m]) where w t +
+    phase = 0 (mod 2 pi) and that rises and falls once between two of those times: the first
+    such time in [t0, t1] if there is one, else the lower end (a stroke that has not reached
+    its lowest point since t0 is at most once rising then falling, so its minimum on the
+    interval is at an end). Closed form, O(n_links): no sampling."""
+    # Python floats, not numpy: a few linkages, and simulate asks once per run (~1 us)
+    tau, wt0 = 2.0 * math.pi, w * t0
+    t_low = np.array([t0 + (-(wt0 + ph) % tau) / w for ph in phase.tolist()])
+    if t_low.max() <= t1:
+        return t_low, lowest        # a whole run of periods: no evaluation at the ends
+    l0, l1 = gait.at(t0)[0], gait.at(t1)[0]
+    ends_t = np.where(l1 < l0, t1, t0)
+    ends_l = np.minimum(l0, l1)
+    inside = t_low <= t1
+    return np.where(inside, t_low, ends_t), np.where(inside, lowest, ends_l)
+
+
 class Sinusoid(BuiltinGait):
     """l_j(t) = mean_j + amplitude_j sin(2 pi frequency t + phase_j).
 
@@ -38,6 +58,14 @@ class Sinusoid(BuiltinGait):
         a = self.amplitude
         return fourier(self.frequency, self.mean, (a * np.sin(self.phase))[:, None],
                        (a * np.cos(self.phase))[:, None])
+
+    def length_minimum(self, t0: float, t1: float
+                       ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        # lowest where w t + phase = -pi/2 (amplitude > 0) or +pi/2 (< 0), mod 2 pi
+        a = self.amplitude
+        shift = np.where(a < 0, -0.5 * math.pi, 0.5 * math.pi)
+        return _first_minimum(self, self.mean - np.abs(a), 2.0 * math.pi * self.frequency,
+                              self.phase + shift, float(t0), float(t1))
 
 
 class Fourier(BuiltinGait):
@@ -159,6 +187,12 @@ class Scallop(BuiltinGait):
         rows = np.column_stack([self.amplitude, self.phase - math.pi * self.asymmetry,
                                 np.full(self.n_links, self._c), np.full(self.n_links, self._s)])
         return scallop(self.frequency, self.mean, rows, jerk, snap)
+
+    def length_minimum(self, t0: float, t1: float
+                       ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        # lowest (mean - amplitude) where w t + phase = 0 (mod 2 pi), see the class docstring
+        return _first_minimum(self, self.mean - self.amplitude, self._w, self.phase,
+                              float(t0), float(t1))
 
     @property
     def _bins(self) -> int:
