@@ -14,14 +14,24 @@ Figures (median of ``--repeats`` runs, 5 by default), sim_node's default plant (
   call; the oracle runs through the engine as it was (one ``tick()``, one ``step`` per tick).
 
 Each line gives the compiled figure, the oracle's and their ratio, and checks that both
-produced the same pieces bit for bit. Reproduce with::
+produced the same pieces bit for bit.
+
+``--engine`` (issues 41/42): the node's ``Engine`` (default sim_node plant, exact method) in CPU
+time (``time.process_time``), with the cubic tables built as now (the joins handed to
+``table``, ``gaits.cubic.table_jumps``) and as before (``table`` searching them itself),
+alternated in this process, the states compared bit for bit: flat out for 10 simulated seconds
+(a 2 Hz sine command at 50 Hz, ``tick_to_grid`` to each 100 Hz publish tick), ms of CPU per
+simulated second; and driven step by step (``command`` + ``run_to`` one 1 kHz tick, then the
+state), steps per CPU second. Reproduce with::
 
     .venv/bin/python setup.py build_ext --inplace
-    .venv/bin/python -m benchmarks.actuator [--repeats 5] [--links 1]
+    .venv/bin/python -m benchmarks.actuator [--repeats 5] [--links 1] [--engine]
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
+import math
 import statistics
 import time
 
@@ -110,12 +120,102 @@ def _same_output(a, b) -> bool:
             and _rows(a.pieces) == _rows(b.pieces))
 
 
+def _engine():
+    """An Engine of sim_node's default plant (two bodies, 1 kHz ticks, publish at 100 Hz)."""
+    from crawler_sim.core.plant import Engine
+    from crawler_sim.ros.sim.params import PARAMETERS, SimConfig
+    return Engine(SimConfig.from_values({k: v[0] for k, v in PARAMETERS.items()}).engine_config())
+
+
+def _sine(t: float) -> list[float]:
+    return [0.1 + 0.02 * math.sin(2.0 * math.pi * 2.0 * t)]
+
+
+def engine_flat(seconds: float = 10.0) -> tuple[float, list]:
+    """CPU [s] of ``seconds`` of sim time flat out, and the state at every publish tick."""
+    engine, out, k = _engine(), [], 0
+    end = round(seconds * 1e9)
+    t0 = time.process_time()
+    while engine.t_ns < end:
+        if k % 2 == 0:                  # 50 Hz commands, publish ticks at 100 Hz
+            engine.command(_sine(engine.t))
+        engine.tick_to_grid()
+        st = engine.stepper.state
+        out.append((st.x.tolist(), st.v.tolist()))
+        k += 1
+    return time.process_time() - t0, out
+
+
+def engine_steps(n: int = 3000) -> tuple[float, list]:
+    """CPU [s] of ``n`` steps of command + run_to one 1 kHz tick + state, and the states."""
+    engine, out = _engine(), []
+    t0 = time.process_time()
+    for _ in range(n):
+        engine.command(_sine(engine.t))
+        engine.run_to(engine.t_ns + engine.cfg.dt_ns)
+        st = engine.state
+        out.append((st.x.tolist(), st.v.tolist()))
+    return time.process_time() - t0, out
+
+
+@contextlib.contextmanager
+def _tables_search_their_joins():
+    """The cubic gaits' ``_kind`` as before issues 41/42: ``table`` classifies every join."""
+    from crawler_sim.core.solvers._gait import table
+
+    def one(self):
+        return table(np.array([self._rows], dtype=float), starts=np.array([-math.inf]),
+                     anchors=np.array([self.t0]))
+
+    def many(self):
+        if self._arrays is not None:
+            starts, anchors, coef = self._arrays
+            return table(coef, starts=starts, anchors=anchors)
+        return table(np.array([pc._rows for pc in self.pieces], dtype=float),
+                     starts=np.array(self._starts), anchors=np.array([pc.t0 for pc in self.pieces]))
+
+    saved = gaits.Cubic._kind, gaits.PiecewiseCubic._kind
+    gaits.Cubic._kind, gaits.PiecewiseCubic._kind = one, many
+    try:
+        yield
+    finally:
+        gaits.Cubic._kind, gaits.PiecewiseCubic._kind = saved
+
+
+def engine_figures(repeats: int) -> None:
+    """Print the engine's figures (``--engine``): now and before, alternated, medians."""
+    print(f'Engine, sim_node default plant, exact; median of {repeats}, CPU time; now, before '
+          '(table searching its joins), speed-up, states')
+    for name, fn, figure, higher in (
+            ('flat out 10 s, 50 Hz sine commands [ms CPU per sim s]', engine_flat,
+             lambda cpu: cpu / 10.0 * 1e3, False),
+            ('command + run_to per 1 kHz tick [steps per CPU s]', engine_steps,
+             lambda cpu: 3000 / cpu, True)):
+        now, before, same = [], [], True
+        for _ in range(repeats):
+            cpu, a = fn()
+            now.append(figure(cpu))
+            with _tables_search_their_joins():
+                cpu, b = fn()
+            before.append(figure(cpu))
+            same = same and a == b
+        m_now, m_before = statistics.median(now), statistics.median(before)
+        gain = m_now / m_before if higher else m_before / m_now
+        print(f'{name:56s} {m_now:9.1f} {m_before:9.1f} {gain:6.2f}x  '
+              f'{"same" if same else "DIFFERENT"}')
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--repeats', type=int, default=5)
     ap.add_argument('--links', type=int, default=1, help='linkages of the per-tick figures')
     ap.add_argument('--ticks', type=int, default=240_000, help='ticks of actuator_output')
+    ap.add_argument('--engine', action='store_true',
+                    help="only the engine's per-sync figures (issues 41/42)")
     args = ap.parse_args()
+    if args.engine:
+        engine_figures(args.repeats)
+        return
     r, nl = args.repeats, args.links
     n = 20_000
     print(f'median of {r}; {nl} linkage(s), dt = 1 ms; us per tick unless said otherwise')

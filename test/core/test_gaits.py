@@ -640,6 +640,47 @@ def test_piecewise_cubic_joins_within_rounding_are_not_breakpoints_and_real_jump
         starts[k], starts[k + 1]]
 
 
+@pytest.mark.parametrize('seed', range(4))
+def test_cubic_tables_find_the_breakpoints_of_tables_own_classification(seed):
+    """``Cubic`` and ``PiecewiseCubic`` hand ``table`` the joins where l'' jumps
+    (``table_jumps``, issues 41/42: its own search was half of a table's build): the same
+    breakpoints, and so the same compiled gait, as ``table`` deciding itself, at joins within
+    a few ulps of the threshold, real jumps, anchors off the starts, large times, zeros, NaN."""
+    from crawler_sim.core.gaits.cubic import cubic_values, table_jumps
+    from crawler_sim.core.solvers._gait import table
+    rng = np.random.default_rng(seed)
+    found = 0
+    for _ in range(150):
+        n, nl = int(rng.integers(1, 30)), int(rng.integers(1, 4))
+        dt = 10.0 ** rng.uniform(-4, -1)
+        starts = rng.uniform(-1e4, 1e4) * rng.integers(0, 2) + dt * np.arange(n)
+        anchors = starts + rng.choice([0.0, 1e-9, -dt / 3], n) * rng.integers(0, 2)
+        coef = np.empty((n, nl, 4))
+        coef[0] = rng.normal(size=(nl, 4))
+        for k in range(1, n):
+            coef[k, :, :3] = np.array(cubic_values(*coef[k - 1].T, starts[k] - anchors[k - 1])).T
+            coef[k, :, 3] = rng.normal(size=nl)
+            r = rng.random()
+            if r < 0.2:                 # a real jump
+                coef[k, :, 2] += rng.normal(size=nl)
+            elif r < 0.5:               # a few ulps either way: around the threshold
+                coef[k, :, 2] *= 1.0 + rng.integers(-12, 13, size=nl) * 2.0 ** -52
+        if rng.random() < 0.3:
+            coef[:, :, 1:][rng.random((n, nl, 3)) < 0.3] = 0.0
+        if rng.random() < 0.05:
+            coef[rng.integers(n), 0, rng.integers(4)] = np.nan
+        own = table(coef, starts=starts, anchors=anchors)
+        given = PiecewiseCubic.from_arrays(starts, anchors, coef)._kind()
+        lo, hi = starts[0] - 1.0, starts[-1] + 1.0
+        assert given.breakpoints(lo, hi).tolist() == own.breakpoints(lo, hi).tolist()
+        found += int(np.sum(table_jumps(starts, anchors, coef)))
+        one = Cubic.trusted(float(anchors[0]), *coef[0].T.tolist())
+        single = table(coef[:1], starts=np.array([-math.inf]), anchors=anchors[:1])
+        assert one._kind().breakpoints(-1e9, 1e9).tolist() == single.breakpoints(
+            -1e9, 1e9).tolist() == []
+    assert found > 100
+
+
 def _random_cubics(n, seed):
     """n constant-jerk pieces of uneven widths from t = 0, C2 at the joins (by construction:
     each starts from the previous one's end state), and their (starts, jerks)."""

@@ -10,6 +10,67 @@ from numpy.typing import ArrayLike, NDArray
 
 from .base import BuiltinGait, _per_link
 
+_EPS = float(np.finfo(float).eps)
+
+
+#: tables of up to this many (piece, linkage) pairs are classified in Python floats, larger ones
+#: with numpy (its per-call overhead, some 10 us for the expression, outweighs a loop of
+#: 0.2 us a pair below it; the engine's syncs hand over 10 pieces of one linkage)
+_LOOP_MAX = 48
+
+
+def table_jumps(starts: NDArray[np.float64], anchors: NDArray[np.float64],
+                coef: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """(n,) bool: where l'' jumps at the start of piece k of a table that is not periodic,
+    bit for bit what the compiled ``table`` decides when not given ``jumps`` (the same
+    expressions on the same floats, element by element), for ``table(..., jumps=)``.
+
+    Why: ``table``'s own classification (four ``np.roll`` of the whole table and a mask for a
+    first piece from -inf) was half of building a table, and the engine builds one per sync
+    (issues 41 and 42). A small table is a loop over Python floats (IEEE doubles as numpy's,
+    the same operations in the same order), a large one slices of the neighbouring pieces;
+    piece 0 never jumps (no join before it), so a one-piece table needs no arithmetic.
+    ``starts`` and ``anchors`` (n,) [s], ``coef`` (n, n_links, 4)."""
+    n, nl = coef.shape[0], coef.shape[1]
+    if n < 2:
+        return np.zeros(n, dtype=bool)
+    if n * nl <= _LOOP_MAX:
+        return np.array(_jumps_loop(starts.tolist(), anchors.tolist(),
+                                    coef[:, :, 2:].tolist()), dtype=bool)
+    jumps = np.zeros(n, dtype=bool)
+    prev_a, prev_j = coef[:-1, :, 2], coef[:-1, :, 3]
+    before = anchors[:-1]
+    d = starts[1:] - before
+    end_acc = prev_a + d[:, None] * prev_j
+    # the rounding of that expression and of d (see ``table``); a size that is not finite
+    # counts as 0 there, as the first piece's from -inf does
+    size = np.abs(starts[1:]) + np.abs(before)
+    size[~np.isfinite(size)] = 0.0
+    noise = 4.0 * _EPS * (np.abs(prev_a) + np.abs(d[:, None] * prev_j)
+                          + size[:, None] * np.abs(prev_j))
+    jumps[1:] = np.any(np.abs(end_acc - coef[1:, :, 2]) > noise, axis=1)
+    return jumps
+
+
+def _jumps_loop(starts: list[float], anchors: list[float],
+                acc_jerk: list[list[list[float]]]) -> list[bool]:
+    """``table_jumps`` of a small table: ``acc_jerk`` [k][j] = (a0, jerk) of piece k, linkage j.
+    Each comparison is ``table``'s: |end_acc - a0| > noise, False for NaN as there."""
+    out = [False] * len(starts)
+    scale = 4.0 * _EPS
+    for k in range(1, len(starts)):
+        before = anchors[k - 1]
+        d = starts[k] - before
+        size = abs(starts[k]) + abs(before)
+        if not math.isfinite(size):
+            size = 0.0
+        for (a, j), (a0, _) in zip(acc_jerk[k - 1], acc_jerk[k]):
+            dj = d * j
+            if abs((a + dj) - a0) > scale * ((abs(a) + abs(dj)) + size * abs(j)):
+                out[k] = True
+                break
+    return out
+
 
 def cubic_values(l0: ArrayLike, v0: ArrayLike, a0: ArrayLike, jerk: ArrayLike, d: ArrayLike
                  ) -> tuple:
@@ -80,8 +141,9 @@ class Cubic(BuiltinGait):
 
     def _kind(self):
         from ..solvers._gait import table
+        # one piece: no join, so no jump (what ``table`` would find, without its search)
         return table(np.array([self._rows], dtype=float), starts=np.array([-math.inf]),
-                     anchors=np.array([self.t0]))
+                     anchors=np.array([self.t0]), jumps=np.zeros(1, dtype=bool))
 
     def is_constant(self, t0: float, t1: float) -> bool:
         return self._constant
@@ -166,8 +228,14 @@ class PiecewiseCubic(BuiltinGait):
     def _kind(self):
         from ..solvers._gait import table
         if self._arrays is not None:
-            starts, anchors, coef = self._arrays
-            return table(coef, starts=starts, anchors=anchors)
-        return table(np.array([pc._rows for pc in self.pieces], dtype=float),
-                     starts=np.array(self._starts), anchors=np.array([pc.t0 for pc in
-                                                                      self.pieces]))
+            # (float64 and contiguous already, as ``from_arrays`` asks: then no copy; table
+            # itself reads them so)
+            starts, anchors, coef = (np.ascontiguousarray(x, dtype=np.float64)
+                                     for x in self._arrays)
+        else:
+            coef = np.array([pc._rows for pc in self.pieces], dtype=float)
+            starts = np.array(self._starts, dtype=float)
+            anchors = np.array([pc.t0 for pc in self.pieces], dtype=float)
+        # the breakpoints found here, cheaper than ``table``'s own search (the same answer)
+        return table(coef, starts=starts, anchors=anchors,
+                     jumps=table_jumps(starts, anchors, coef))

@@ -256,3 +256,33 @@ def test_a_failure_the_fallback_cannot_absorb_leaves_the_plant_at_rest_not_an_ex
     st = eng.state
     assert st.t == eng.t and list(st.lengths) == list(eng.cfg.initial_lengths)
     assert np.all(st.v == 0.0)
+
+
+@pytest.mark.parametrize('step_by_step', [False, True])
+def test_a_sync_builds_its_table_without_tables_own_classification(monkeypatch, step_by_step):
+    """Issues 41/42: the classification of the cubic pieces was half of every sync. The engine's
+    gaits hand ``table`` their joins (``cubic.table_jumps``): at most one table per sync, and
+    ``table``'s own search of the joins never runs (the states are unchanged: the bit-for-bit
+    tests above)."""
+    from crawler_sim.core.solvers import _gait
+    calls = {'table': 0, 'own': 0}
+    real = _gait.table
+
+    def counted(coef, **kw):
+        calls['table'] += 1
+        calls['own'] += kw.get('jumps') is None
+        return real(coef, **kw)
+
+    monkeypatch.setattr(_gait, 'table', counted)
+    engine = Engine(config(2, 10))
+    syncs = 0
+    for k in range(300):
+        engine.command([0.1 + 0.02 * np.sin(0.05 * k)])
+        if step_by_step:
+            engine.run_to(engine.t_ns + engine.cfg.dt_ns)
+            engine.sync()
+        else:
+            engine.tick_to_grid()
+        syncs += 1
+    assert calls['own'] == 0
+    assert 0 < calls['table'] <= syncs + 1          # (+ the rest piece the engine starts from)
