@@ -156,15 +156,17 @@ def random_spec(rng: np.random.Generator, p_range: tuple[int, int] = (2, 12)) ->
     slope = float(rng.uniform(-0.5, 0.5)) if rng.random() < 0.3 else 0.0
     freq = float(10.0 ** rng.uniform(-0.5, 1.0))
     n = p - 1
+    # amplitudes up to 0.1 m about a mean of 0.2 m: a Fourier gait's harmonics add up to at
+    # most 1.83 x 0.1 m, so every length stays > 0 (a gait whose bodies cross is refused)
     if rng.random() < 0.5:
-        gait = {'type': 'sinusoid', 'mean': 0.1,
+        gait = {'type': 'sinusoid', 'mean': 0.2,
                 'amplitude': (10.0 ** rng.uniform(-3, -1, n)).tolist(),
                 'frequency': freq, 'phase': rng.uniform(0, 2 * math.pi, n).tolist()}
     else:
         K = int(rng.integers(1, 4))
         amp = 10.0 ** rng.uniform(-3, -1, (n, 1)) / np.arange(1, K + 1)
         ph = rng.uniform(0, 2 * math.pi, (n, K))
-        gait = {'type': 'fourier', 'mean': 0.1, 'cos': (amp * np.cos(ph)).tolist(),
+        gait = {'type': 'fourier', 'mean': 0.2, 'cos': (amp * np.cos(ph)).tolist(),
                 'sin': (amp * np.sin(ph)).tolist(), 'frequency': freq}
     v0 = float(rng.normal(0.0, 0.05)) if rng.random() < 0.3 else 0.0
     return {'masses': masses, 'friction': f.tolist(), 'friction_backward': fb.tolist(),

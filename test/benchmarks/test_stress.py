@@ -44,15 +44,17 @@ def scene_specs(draw) -> dict:
     n = p - 1
     frequency = 10.0 ** draw(st.floats(-0.5, 1.0))
     phases = [draw(st.floats(0.0, TWO_PI)) for _ in range(n)]
+    # amplitudes up to 0.1 m about a mean of 0.2 m: a Fourier gait's harmonics add up to at
+    # most 1.83 x 0.1 m, so every length stays > 0 (a gait whose bodies cross is refused)
     amplitudes = [10.0 ** draw(st.floats(-3.0, -1.0)) for _ in range(n)]
     if draw(st.booleans()):
-        gait = {'type': 'sinusoid', 'mean': 0.1, 'amplitude': amplitudes, 'frequency': frequency,
+        gait = {'type': 'sinusoid', 'mean': 0.2, 'amplitude': amplitudes, 'frequency': frequency,
                 'phase': phases}
     else:
         K = draw(st.integers(1, 3))
         extra = [[draw(st.floats(0.0, TWO_PI)) for _ in range(K)] for _ in range(n)]
         amp = [[a / (k + 1) for k in range(K)] for a in amplitudes]
-        gait = {'type': 'fourier', 'mean': 0.1, 'frequency': frequency,
+        gait = {'type': 'fourier', 'mean': 0.2, 'frequency': frequency,
                 'cos': [[a * math.cos(ph) for a, ph in zip(ar, pr)] for ar, pr in zip(amp, extra)],
                 'sin': [[a * math.sin(ph) for a, ph in zip(ar, pr)] for ar, pr in zip(amp, extra)]}
     v0 = draw(st.one_of(st.just(0.0), st.floats(-0.1, 0.1)))
