@@ -40,6 +40,7 @@ from crawler_sim.core.plant.streams import simulate_as_node
 from crawler_sim.core.scene import scene_from_dict, scene_to_dict
 from crawler_sim.sweep.metrics import scene_figures
 from crawler_sim.sweep.optimize import STREAM, Objective, family, plant_for
+from test.support.quadrature import positive_work_reference
 
 G = cs.gaits
 README = cs.Crawler(masses=[0.5, 1.0], mu=0.3)
@@ -200,37 +201,6 @@ def state_at_rows(n: int) -> float:
     return worst
 
 
-def _independent_positive_work(crawler: cs.Crawler, g, t_end: float, a: float,
-                                b: float) -> float:
-    """Integral of max(power, 0) over [a, b] from runs sampled at chosen times: sign changes
-    on a 40,001-point grid (plus the events) narrowed by brentq (one run per evaluation), then
-    20-point Gauss-Legendre on stretches of <= 5 ms between events and roots."""
-    from scipy.optimize import brentq
-
-    ev = np.array([e.time for e in cs.simulate(crawler, g, t_end).events if a < e.time < b])
-    grid = np.union1d(np.linspace(a, b, 40001), ev)
-    s = cs.simulate(crawler, g, t_end, t_eval=grid)
-    P = np.sum(s.linkage_force * s.rates, axis=1)
-
-    def power(t):
-        r = cs.simulate(crawler, g, t_end, t_eval=[t])
-        return float(np.sum(r.linkage_force * r.rates))
-    roots = []
-    for k in np.flatnonzero(np.sign(P[1:]) != np.sign(P[:-1])):
-        x0, x1 = np.nextafter(grid[k], grid[k + 1]), np.nextafter(grid[k + 1], grid[k])
-        if np.sign(power(x0)) != np.sign(power(x1)):
-            roots.append(brentq(power, x0, x1, xtol=1e-15, rtol=1e-15))
-    edges = np.union1d(np.union1d([a, b], ev), roots)
-    cuts = [np.linspace(lo, hi, int(np.ceil((hi - lo) / 0.005)) + 1)
-            for lo, hi in zip(edges, edges[1:]) if hi > lo]
-    lo = np.concatenate([c[:-1] for c in cuts])
-    hi = np.concatenate([c[1:] for c in cuts])
-    u, w = np.polynomial.legendre.leggauss(20)
-    nodes = (0.5 * (lo + hi)[:, None] + 0.5 * (hi - lo)[:, None] * u).ravel()
-    weights = (0.5 * (hi - lo)[:, None] * w).ravel()
-    order = np.argsort(nodes)
-    s = cs.simulate(crawler, g, t_end, t_eval=nodes[order])
-    return float(np.maximum(np.sum(s.linkage_force * s.rates, axis=1), 0.0) @ weights[order])
 
 
 def positive_work_rows() -> float:
@@ -244,7 +214,7 @@ def positive_work_rows() -> float:
                           ('slope 0.1 rad', cs.Crawler(masses=[0.5, 1.0], mu=0.3, slope=0.1))):
         g = _scallop(1.37)
         tr = cs.simulate(crawler, g, T_END)
-        ref = _independent_positive_work(crawler, g, T_END, 1.3, 17.77)
+        ref = positive_work_reference(crawler, g, T_END, 1.3, 17.77)
         got = tr.positive_work(1.3, 17.77)
         sel = (tr.t >= 1.3) & (tr.t <= 17.77)
         pw = np.maximum(np.sum(tr.linkage_force[sel] * tr.rates[sel], axis=1), 0.0)

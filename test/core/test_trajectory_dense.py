@@ -18,6 +18,7 @@ import pytest
 
 import crawler_sim as cs
 from crawler_sim.core import gaits
+from test.support.quadrature import positive_work_reference
 
 # The README's first example at the frequency of issue 39: t_end - period is not a sample of the
 # default grid, and 25 of its 27 periods are skipped (one stored block)
@@ -307,40 +308,6 @@ def test_sliding_distance_of_a_light_body_dragged_by_a_stuck_heavy_one():
         tr.sliding_distance(-1.0, 2.0)
 
 
-def _positive_work_independent(crawler, g, t_end, a, b, joins=()):
-    """Integral of max(power, 0) over [a, b] by runs sampled at chosen times only: the power's
-    sign changes bracketed on a 40,001-point grid (plus the events) and narrowed by brentq,
-    each evaluation a run sampled at that time; then 20-point Gauss-Legendre on stretches of at
-    most 5 ms between events, ``joins`` (times where the gait's jerk jumps) and roots."""
-    from scipy.optimize import brentq
-
-    events = np.array([e.time for e in cs.simulate(crawler, g, t_end).events
-                       if a < e.time < b])
-    joins = np.asarray(joins, dtype=float)
-    events = np.union1d(events, joins[(joins > a) & (joins < b)])
-    grid = np.union1d(np.linspace(a, b, 40001), events)
-    s = cs.simulate(crawler, g, t_end, t_eval=grid)
-    P = np.sum(s.linkage_force * s.rates, axis=1)
-
-    def power(t):
-        r = cs.simulate(crawler, g, t_end, t_eval=[t])
-        return float(np.sum(r.linkage_force * r.rates))
-    roots = []
-    for k in np.flatnonzero(np.sign(P[1:]) != np.sign(P[:-1])):
-        x0, x1 = np.nextafter(grid[k], grid[k + 1]), np.nextafter(grid[k + 1], grid[k])
-        if np.sign(power(x0)) != np.sign(power(x1)):      # not a jump at an event
-            roots.append(brentq(power, x0, x1, xtol=1e-15, rtol=1e-15))
-    edges = np.union1d(np.union1d([a, b], events), roots)
-    cuts = [np.linspace(lo, hi, int(np.ceil((hi - lo) / 0.005)) + 1)
-            for lo, hi in zip(edges, edges[1:]) if hi > lo]
-    lo = np.concatenate([c[:-1] for c in cuts])
-    hi = np.concatenate([c[1:] for c in cuts])
-    u, w = np.polynomial.legendre.leggauss(20)
-    nodes = (0.5 * (lo + hi)[:, None] + 0.5 * (hi - lo)[:, None] * u).ravel()
-    weights = (0.5 * (hi - lo)[:, None] * w).ravel()
-    order = np.argsort(nodes)
-    s = cs.simulate(crawler, g, t_end, t_eval=nodes[order])
-    return float(np.maximum(np.sum(s.linkage_force * s.rates, axis=1), 0.0) @ weights[order])
 
 
 def test_positive_work_exact_across_skipped_periods():
@@ -349,7 +316,7 @@ def test_positive_work_exact_across_skipped_periods():
     g = _scallop()
     tr = cs.simulate(crawler, g, T_END)
     assert tr.info['skipped_periods'] > 10
-    expected = _positive_work_independent(crawler, g, T_END, 1.3, 17.77)
+    expected = positive_work_reference(crawler, g, T_END, 1.3, 17.77)
     assert tr.positive_work(1.3, 17.77) == pytest.approx(expected, rel=1e-12)
     trapezoid = _trapezoid_positive(tr, 1.3, 17.77)
     assert abs(trapezoid - expected) > 1e-4 * expected          # what the samples gave
@@ -401,7 +368,7 @@ def test_positive_work_of_constant_jerk_pieces_exact(masses, slope, n, dt):
     tr = cs.simulate(crawler, g, t_end)
     assert len(tr.events) > 5
     for a, b in ((0.0, t_end), (0.1234, 0.77 * t_end)):
-        expected = _positive_work_independent(crawler, g, t_end, a, b, g.starts)
+        expected = positive_work_reference(crawler, g, t_end, a, b, g.starts)
         assert expected > 0
         assert tr.positive_work(a, b) == pytest.approx(expected, rel=1e-12)
 
@@ -429,7 +396,7 @@ def test_positive_work_of_a_node_run_exact():
     played = tr.dense.gait                      # the actuator's output, as run
     assert isinstance(played, gaits.PiecewiseCubic) and played.starts.size > 1000
     a, b = 0.05, t_end - 0.03
-    expected = _positive_work_independent(tr.crawler, played, t_end, a, b, played.starts)
+    expected = positive_work_reference(tr.crawler, played, t_end, a, b, played.starts)
     assert tr.positive_work(a, b) == pytest.approx(expected, rel=1e-12)
 
 
@@ -461,7 +428,7 @@ def test_positive_work_of_gait_families_exact(name):
     assert tr.info['skipped_periods'] > 3
     joins = g.breakpoints(0.0, t_end)
     for a, b in ((0.0, t_end), (0.37 * g.period + 1.1, t_end - 0.61 * g.period - 0.9)):
-        expected = _positive_work_independent(crawler, g, t_end, a, b, joins)
+        expected = positive_work_reference(crawler, g, t_end, a, b, joins)
         assert expected > 0
         assert tr.positive_work(a, b) == pytest.approx(expected, rel=1e-12), (a, b)
 
@@ -475,7 +442,7 @@ def test_positive_work_of_cubic_pieces_built_from_objects():
     got = cs.simulate(CRAWLER, objects, 2.0).positive_work(a, b)
     assert got == pytest.approx(cs.simulate(CRAWLER, arrays, 2.0).positive_work(a, b),
                                 rel=1e-14)
-    expected = _positive_work_independent(CRAWLER, objects, 2.0, a, b, arrays.starts)
+    expected = positive_work_reference(CRAWLER, objects, 2.0, a, b, arrays.starts)
     assert got == pytest.approx(expected, rel=1e-12)
 
 
@@ -489,5 +456,5 @@ def test_positive_work_of_eight_bodies_finds_close_roots():
     crawler = cs.Crawler(masses=rng.uniform(0.2, 1.0, 8), mu=0.3, slope=0.05)
     tr = cs.simulate(crawler, fourier, 2.0)
     for a, b in ((0.0, 2.0), (0.123, 1.7)):
-        expected = _positive_work_independent(crawler, fourier, 2.0, a, b)
+        expected = positive_work_reference(crawler, fourier, 2.0, a, b)
         assert tr.positive_work(a, b) == pytest.approx(expected, rel=1e-12)
