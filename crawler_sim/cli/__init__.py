@@ -67,24 +67,21 @@ def _positive(text: str) -> float:
     return x
 
 
-def _non_negative_int(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'must be an integer >= 0, got {text!r}') from None
-    if n < 0:
-        raise argparse.ArgumentTypeError(f'must be an integer >= 0, got {text!r}')
-    return n
+def _int_at_least(low: int) -> Callable[[str], int]:
+    """An argparse type: an integer >= ``low``, else a message naming the range."""
+    def parse(text: str) -> int:
+        try:
+            n = int(text)
+        except ValueError:
+            n = None
+        if n is None or n < low:
+            raise argparse.ArgumentTypeError(f'must be an integer >= {low}, got {text!r}')
+        return n
+    return parse
 
 
-def _positive_int(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'must be an integer >= 1, got {text!r}') from None
-    if n < 1:
-        raise argparse.ArgumentTypeError(f'must be an integer >= 1, got {text!r}')
-    return n
+_non_negative_int = _int_at_least(0)
+_positive_int = _int_at_least(1)
 
 
 def _existing(path: str, what: str = 'file') -> Path:
