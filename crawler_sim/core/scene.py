@@ -530,19 +530,26 @@ def load_scene(path: str | Path) -> Scene:
         raise SceneError(f'{path}: {exc}') from None
 
 
+def read_text(path: Path, most: int, what: str, error: type[Exception]) -> str:
+    """The UTF-8 text of ``path``, reading at most ``most`` bytes (a huge file or a device is
+    not read): more, or bytes that are not UTF-8, raise ``error`` naming the file (``what`` is
+    the file's kind in the message, e.g. 'scene file')."""
+    with open(path, 'rb') as fh:
+        raw = fh.read(most + 1)
+    if len(raw) > most:
+        raise error(f'{path}: {what} must have at most {most} bytes, got more')
+    try:
+        return raw.decode('utf-8')
+    except UnicodeDecodeError as exc:
+        raise error(f'{path}: not UTF-8 text ({exc.reason} at byte {exc.start})') from None
+
+
 def read_section(path: Path, key: str, kind: str, error: type[Exception]) -> Any:
     """The value under the top-level ``key`` of the YAML file ``path`` (safe loader, YAML 1.2
     floats). Malformed YAML or a missing key raise ``error`` naming the file, and the line
     and column where known (OSError if the file cannot be read).
     """
-    with open(path, 'rb') as fh:      # at most the limit: a huge file or a device is not read
-        raw = fh.read(MAX_SCENE_BYTES + 1)
-    if len(raw) > MAX_SCENE_BYTES:
-        raise error(f'{path}: {kind} file must have at most {MAX_SCENE_BYTES} bytes, got more')
-    try:
-        text = raw.decode('utf-8')
-    except UnicodeDecodeError as exc:
-        raise error(f'{path}: not UTF-8 text ({exc.reason} at byte {exc.start})') from None
+    text = read_text(path, MAX_SCENE_BYTES, f'{kind} file', error)
     try:
         data = yaml.load(text, Loader=YamlLoader)  # noqa: S506 (a SafeLoader subclass)
     except yaml.YAMLError as exc:

@@ -55,7 +55,8 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 import yaml
 
-from ..core.scene import MAX_SCENE_BODIES, Scene, SceneError, YamlLoader, scene_from_dict
+from ..core.scene import (MAX_SCENE_BODIES, Scene, SceneError, YamlLoader, read_text,
+                          scene_from_dict)
 
 __all__ = ['SpecError', 'SweepSpec', 'LIMITS', 'load_spec', 'spec_from_dict', 'apply_params']
 
@@ -526,15 +527,7 @@ def _read_yaml(path: Path) -> Any:
     before the constructor builds anything: whatever a PyYAML release does with aliases and
     merge keys ``<<`` (releases before 6.0.4 copy merged keys once per use), nothing has been
     expanded when a bomb is refused."""
-    most = LIMITS['file_bytes']
-    with open(path, 'rb') as fh:         # read no more than allowed: /dev/zero has no size
-        raw = fh.read(most + 1)
-    if len(raw) > most:
-        raise SpecError(f'{path}: a sweep spec file must have at most {most} bytes, got more')
-    try:
-        text = raw.decode('utf-8')
-    except UnicodeDecodeError as exc:
-        raise SpecError(f'{path}: not UTF-8 text ({exc.reason} at byte {exc.start})') from None
+    text = read_text(path, LIMITS['file_bytes'], 'a sweep spec file', SpecError)
     loader = YamlLoader(text)        # the scene files' loader, composing first
     try:
         node = loader.get_single_node()
