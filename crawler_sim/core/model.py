@@ -76,19 +76,19 @@ def _check_derived(masses: NDArray, fp: NDArray, fm: NDArray, slope: float,
                          f'got {acc!r}; reduce friction or raise masses')
 
 
-def _forces(m: NDArray[np.float64], mu: ArrayLike, mu_backward: ArrayLike | None,
-            slope: float, gravity: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Friction forces [N] f_i = mu_i m_i g cos(slope), forward and backward; ValueError naming
-    the coefficient when a force would exceed ``DERIVED_LIMIT``."""
-    mu_f = _check_vector('mu', mu, m.size, positive=False)
-    mu_b = mu_f if mu_backward is None else _check_vector(
-        'mu_backward', mu_backward, m.size, positive=False)
+def _forces(m: NDArray[np.float64], coefficients: dict[str, NDArray[np.float64]],
+            slope: float, gravity: float) -> tuple[NDArray[np.float64], ...]:
+    """Friction forces [N] f_i = mu_i m_i g cos(slope) of each checked coefficient array (in
+    the order given); ValueError naming the coefficient when a force would exceed
+    ``DERIVED_LIMIT``."""
     slope = _check_scalar('slope', slope, allowed='in (-pi/2, pi/2) rad')
     gravity = _check_scalar('gravity', gravity, lo=0.0, allowed='>= 0 m/s^2')
     with np.errstate(over='ignore', invalid='ignore'):
         normal = m * gravity * math.cos(slope)
-        f_fwd, f_bwd = mu_f * normal, mu_b * normal
-    for name, mu_arr, f in (('mu', mu_f, f_fwd), ('mu_backward', mu_b, f_bwd)):
+    out = []
+    for name, mu_arr in coefficients.items():
+        with np.errstate(over='ignore', invalid='ignore'):
+            f = mu_arr * normal
         bad = ~(f <= DERIVED_LIMIT)
         if np.any(bad):
             i = int(np.argmax(bad))
@@ -96,7 +96,59 @@ def _forces(m: NDArray[np.float64], mu: ArrayLike, mu_backward: ArrayLike | None
                              f'gravity * cos(slope) must be <= {DERIVED_LIMIT:g} N, got '
                              f'{float(f[i])!r} (mu {float(mu_arr[i])!r}, mass {float(m[i])!r}'
                              ' kg)')
-    return f_fwd, f_bwd
+        out.append(f)
+    return tuple(out)
+
+
+# the keyword arguments of each kind: forces [N] or coefficients (mixing them is refused)
+_FORCE_KIND = ('friction_backward', 'static_friction', 'static_friction_backward')
+_COEFF_KIND = ('mu_backward', 'mu_static', 'mu_static_backward')
+
+
+def _check_kinds(forces: bool, given: dict) -> None:
+    """Refuse a coefficient keyword with ``friction`` or a force keyword with ``mu``, naming
+    both."""
+    base, wrong, other = (('friction', _COEFF_KIND, 'mu') if forces
+                          else ('mu', _FORCE_KIND, 'friction'))
+    for name in wrong:
+        if given[name] is not None:
+            mate = dict(zip(_COEFF_KIND + _FORCE_KIND, _FORCE_KIND + _COEFF_KIND))[name]
+            raise ValueError(f'{name} goes with {other}, not with {base}: with {base} give '
+                             f'{mate} (forces [N] and coefficients cannot be mixed)')
+
+
+def _static_defaults(fwd: NDArray, bwd: NDArray, isotropic: bool, static: ArrayLike | None,
+                     static_backward: ArrayLike | None, name: str, p: int
+                     ) -> tuple[NDArray, NDArray]:
+    """The static bounds (or coefficients) ``name`` and ``name + '_backward'``, checked to be
+    at least their kinetic ones ``fwd`` / ``bwd``. Defaults: forward = the kinetic forward;
+    backward = the static forward when no backward kinetic value was given (``isotropic``: an
+    isotropic crawler stays isotropic), else the kinetic backward."""
+    s = fwd if static is None else _check_vector(name, static, p, positive=False)
+    name_b = name + '_backward'
+    if static_backward is not None:
+        sb = _check_vector(name_b, static_backward, p, positive=False)
+    else:
+        sb = s if isotropic else bwd
+    kinetic = 'mu' if name.startswith('mu') else 'friction'
+    for field, stat, kin, kname in ((name, s, fwd, kinetic),
+                                    (name_b, sb, bwd, kinetic + '_backward')):
+        low = stat < kin
+        if np.any(low):
+            i = int(np.argmax(low))
+            raise ValueError(f'{field}[{i}] must be >= {kname}[{i}] = {float(kin[i])!r} (static '
+                             f'friction is at least the kinetic one), got {float(stat[i])!r}')
+    return s, sb
+
+
+def _check_derived_static(fs: NDArray, fsb: NDArray) -> None:
+    """The static bounds' total, as ``_check_derived`` checks the kinetic one: a stuck
+    cluster's event rows add them."""
+    with np.errstate(over='ignore', invalid='ignore'):
+        total = float(np.sum(fs) + np.sum(fsb))
+    if not total <= DERIVED_LIMIT:
+        raise ValueError(f'static_friction: sum(static_friction) + sum(static_friction_backward)'
+                         f' must be <= {DERIVED_LIMIT:g} N, got {total!r}')
 
 
 @dataclass(frozen=True, init=False, eq=False)
@@ -119,6 +171,15 @@ class Crawler:
     mu, mu_backward : float or array_like, shape (p,), keyword only
         Friction coefficients instead of forces: f_i = mu_i m_i g cos(slope)
         (``Crawler([0.5, 1.0], mu=0.3)``; the same as :meth:`from_coefficients`).
+    static_friction, static_friction_backward : float or array_like, shape (p,), keyword only
+        Static friction bounds [N] (with ``friction``): a stuck body holds while the force it
+        needs is within ``[-static_friction[i], static_friction_backward[i]]`` (STICTION.md).
+        Defaults: ``static_friction`` = ``friction``; ``static_friction_backward`` =
+        ``static_friction`` when ``friction_backward`` is not given (an isotropic crawler stays
+        isotropic), else ``friction_backward``. Each must be >= its kinetic bound.
+    mu_static, mu_static_backward : float or array_like, shape (p,), keyword only
+        The same as coefficients (with ``mu``), with the same defaults from ``mu`` and
+        ``mu_backward``. Forces and coefficients cannot be mixed.
 
     Derived quantities are checked too (ValueError naming the field): sum(masses) [kg], the
     total friction sum(friction) + sum(friction_backward) [N], the weight gravity * sum(masses)
@@ -130,47 +191,73 @@ class Crawler:
     masses: NDArray[np.float64]
     friction: NDArray[np.float64]
     friction_backward: NDArray[np.float64]
+    static_friction: NDArray[np.float64]
+    static_friction_backward: NDArray[np.float64]
     slope: float
     gravity: float
 
     def __init__(self, masses: ArrayLike, friction: ArrayLike | None = None,
                  friction_backward: ArrayLike | None = None, slope: float = 0.0,
                  gravity: float = 9.81, *, mu: ArrayLike | None = None,
-                 mu_backward: ArrayLike | None = None) -> None:
+                 mu_backward: ArrayLike | None = None,
+                 static_friction: ArrayLike | None = None,
+                 static_friction_backward: ArrayLike | None = None,
+                 mu_static: ArrayLike | None = None,
+                 mu_static_backward: ArrayLike | None = None) -> None:
         m = _check_vector('masses', masses, None, positive=True)
         if m.size < 2:
             raise ValueError(f'masses must list p >= 2 bodies, got p = {m.size}')
         p = m.size
         if (friction is None) == (mu is None):
             raise ValueError('give friction forces [N] or coefficients mu, exactly one of them')
+        _check_kinds(friction is not None, {
+            'friction_backward': friction_backward, 'static_friction': static_friction,
+            'static_friction_backward': static_friction_backward, 'mu_backward': mu_backward,
+            'mu_static': mu_static, 'mu_static_backward': mu_static_backward})
         if mu is not None:
-            if friction_backward is not None:
-                raise ValueError('friction_backward [N] goes with friction; with mu give '
-                                 'mu_backward')
-            friction, friction_backward = _forces(m, mu, mu_backward, slope, gravity)
-        elif mu_backward is not None:
-            raise ValueError('mu_backward goes with mu; with friction give friction_backward')
+            mu_f = _check_vector('mu', mu, p, positive=False)
+            mu_b = mu_f if mu_backward is None else _check_vector(
+                'mu_backward', mu_backward, p, positive=False)
+            mu_s, mu_sb = _static_defaults(mu_f, mu_b, mu_backward is None, mu_static,
+                                           mu_static_backward, 'mu_static', p)
+            friction, friction_backward, static_friction, static_friction_backward = _forces(
+                m, {'mu': mu_f, 'mu_backward': mu_b, 'mu_static': mu_s,
+                    'mu_static_backward': mu_sb}, slope, gravity)
         f = _check_vector('friction', friction, p, positive=False)
         fb = f if friction_backward is None else _check_vector(
             'friction_backward', friction_backward, p, positive=False)
+        fs, fsb = _static_defaults(f, fb, friction_backward is None, static_friction,
+                                   static_friction_backward, 'static_friction', p)
         slope = _check_scalar('slope', slope, allowed='in (-pi/2, pi/2) rad')
         if not abs(slope) < math.pi / 2:
             raise ValueError(f'slope must be in (-pi/2, pi/2) rad, got {slope!r}')
         gravity = _check_scalar('gravity', gravity, lo=0.0, allowed='>= 0 m/s^2')
         _check_derived(m, f, fb, slope, gravity)
+        _check_derived_static(fs, fsb)
         object.__setattr__(self, 'masses', m)
         object.__setattr__(self, 'friction', f)
         object.__setattr__(self, 'friction_backward', fb)
+        object.__setattr__(self, 'static_friction', fs)
+        object.__setattr__(self, 'static_friction_backward', fsb)
         object.__setattr__(self, 'slope', slope)
         object.__setattr__(self, 'gravity', gravity)
 
     @classmethod
     def from_coefficients(cls, masses: ArrayLike, mu: ArrayLike,
                           mu_backward: ArrayLike | None = None, slope: float = 0.0,
-                          gravity: float = 9.81) -> Crawler:
+                          gravity: float = 9.81, *, mu_static: ArrayLike | None = None,
+                          mu_static_backward: ArrayLike | None = None) -> Crawler:
         """Build from friction coefficients: f_i = mu_i m_i g cos(slope) (the same as
         ``Crawler(masses, mu=mu, ...)``)."""
-        return cls(masses, slope=slope, gravity=gravity, mu=mu, mu_backward=mu_backward)
+        return cls(masses, slope=slope, gravity=gravity, mu=mu, mu_backward=mu_backward,
+                   mu_static=mu_static, mu_static_backward=mu_static_backward)
+
+    @property
+    def has_stiction(self) -> bool:
+        """True when any static bound is above its kinetic one (``core.friction``)."""
+        from .friction import has_stiction
+        return has_stiction(self.friction, self.friction_backward, self.static_friction,
+                            self.static_friction_backward)
 
     @property
     def p(self) -> int:
@@ -193,15 +280,25 @@ class Crawler:
         return -self.total_mass * self.gravity * math.sin(self.slope)
 
     def to_dict(self) -> dict:
-        """Plain-data description (for scenes and bags)."""
-        return {'masses': self.masses.tolist(), 'friction': self.friction.tolist(),
-                'friction_backward': self.friction_backward.tolist(),
-                'slope': self.slope, 'gravity': self.gravity}
+        """Plain-data description (for scenes and bags): ``Crawler(**d)`` rebuilds it. The
+        static bounds are included only when they differ from the kinetic ones
+        (``has_stiction``), so the description of a crawler without stiction is what it was
+        before stiction existed."""
+        d = {'masses': self.masses.tolist(), 'friction': self.friction.tolist(),
+             'friction_backward': self.friction_backward.tolist(),
+             'slope': self.slope, 'gravity': self.gravity}
+        if self.has_stiction:
+            d['static_friction'] = self.static_friction.tolist()
+            d['static_friction_backward'] = self.static_friction_backward.tolist()
+        return d
 
     def __repr__(self) -> str:
+        static = (f', static_friction={self.static_friction.tolist()}, '
+                  f'static_friction_backward={self.static_friction_backward.tolist()}'
+                  if self.has_stiction else '')
         return (f'Crawler(masses={self.masses.tolist()}, friction={self.friction.tolist()}, '
                 f'friction_backward={self.friction_backward.tolist()}, slope={self.slope}, '
-                f'gravity={self.gravity})')
+                f'gravity={self.gravity}{static})')
 
 
 def offsets(lengths: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .dense import DenseOutput
+from .friction import DEFAULT_RULE, check_rule
 from .gaits import Gait, _positive as positive
 from .gaits.base import BuiltinGait
 from .model import Crawler
@@ -113,6 +114,37 @@ def check_lengths(gait: Gait, t0: float, t1: float) -> bool:
     return True
 
 
+def check_stiction(crawler: Crawler, method: str) -> None:
+    """Refuse (ValueError naming ``method``) a crawler with stiction for a method that cannot
+    simulate it (``capabilities(method).stiction`` False)."""
+    if crawler.has_stiction and not capabilities(method).stiction:
+        able = [name for name in METHODS if capabilities(name).stiction]
+        raise ValueError(f'method {method!r} cannot simulate static friction above kinetic '
+                         f'(the crawler has static_friction > friction): use '
+                         f'{" or ".join(map(repr, able)) or "no method yet"}')
+
+
+def check_initial_stuck(crawler: Crawler, gait: Gait, t0: float, v0: float,
+                        initial_stuck: int | None) -> int | None:
+    """``initial_stuck`` checked: None, or the index of a body at rest at t0 (body 0 moves at
+    v0 [m/s]; body i at v0 + s_i'(t0), s_i its offset from body 0). ValueError naming
+    ``initial_stuck`` otherwise."""
+    if initial_stuck is None:
+        return None
+    if isinstance(initial_stuck, bool) or not isinstance(initial_stuck, (int, np.integer)) \
+            or not 0 <= initial_stuck < crawler.p:
+        raise ValueError(f'initial_stuck must be None or a body index in [0, {crawler.p - 1}], '
+                         f'got {initial_stuck!r}')
+    i = int(initial_stuck)
+    ld = np.asarray(gait.at(t0)[1], dtype=float)
+    v_i = v0 + float(np.sum(ld[:i]))        # s_i' = l_0' + ... + l_{i-1}'
+    if v_i != 0.0:
+        raise ValueError(f'initial_stuck: body {i} must be at rest at t0 = {t0} s to count as '
+                         f'stuck before it, but it moves at {v_i!r} m/s (v0 = {v0!r} m/s); '
+                         f'give v0 = {v0 - v_i!r} to start it at rest')
+    return i
+
+
 class Stepper:
     """Incremental integration of one crawler for streaming use.
 
@@ -128,6 +160,19 @@ class Stepper:
         use leaves it off and drains events with ``pop_events``.
     periodic_skip : let a method that can (``capabilities(method).periodic_skip``) skip gait
         periods that repeat; None (default): decided from the scene (see ``ExactSolver``).
+    stiction_rule : the rule at a coincident rest of a crawler with stiction
+        (``core.friction.RULES``): 'incumbent' (Rule S, default: the cluster stuck just before
+        holds first, then the largest static margin) or 'margin' (largest margin alone).
+        STICTION.md T5 is where they differ. Without stiction it changes nothing.
+    initial_stuck : None (default: no body counts as stuck before t0, so Rule S chooses the
+        mode at t0 from the margins), or the index of a body at rest at t0 whose cluster counts
+        as stuck just before t0 (the incumbent; ValueError naming ``initial_stuck`` if that body
+        is not at rest: v0 plus its offset rate from body 0 must be 0). To start with body i
+        stuck, give the v0 that puts it at rest and ``initial_stuck=i``.
+
+    A crawler with stiction (``crawler.has_stiction``) needs a method whose
+    ``capabilities(method).stiction`` is True; the others are refused (ValueError naming
+    ``method``).
 
     A failed step raises ``solvers.base.SolverError`` (the solver's ``status`` and ``message``)
     or, for a gait value or state that is not finite, ValueError. ``advance`` refuses a gait
@@ -140,14 +185,19 @@ class Stepper:
                  x0: float = 0.0, v0: float = 0.0, dt: float | None = None,
                  penalty: ArrayLike | None = None, tol: float = 1e-13,
                  max_step: float | None = None, keep_history: bool = False,
-                 periodic_skip: bool | None = None) -> None:
+                 periodic_skip: bool | None = None, stiction_rule: str = DEFAULT_RULE,
+                 initial_stuck: int | None = None) -> None:
         self.method = _check_method(method)
         t0, x0, v0 = _check_finite('t0', t0), _check_finite('x0', x0), _check_finite('v0', v0)
         check_gait(gait, crawler, t0)
+        check_stiction(crawler, method)
+        check_rule(stiction_rule)
+        initial_stuck = check_initial_stuck(crawler, gait, t0, v0, initial_stuck)
         self.crawler = crawler
         cls = solver_class(method)
         self._options = cls.options(dt=dt, penalty=penalty, tol=tol, max_step=max_step,
-                                    keep_history=keep_history, periodic_skip=periodic_skip)
+                                    keep_history=keep_history, periodic_skip=periodic_skip,
+                                    stiction_rule=stiction_rule, initial_stuck=initial_stuck)
         self._solver = cls(crawler, gait, t0=t0, x0=x0, v0=v0, **self._options)
         self._keep = keep_history
         self._n_events_read = 0
@@ -183,8 +233,10 @@ class Stepper:
     def state(self) -> State:
         """The crawler at the current time (left limit at an event)."""
         r = self._row()
+        inc = r.get('incumbent')
         return State(self.t, r['x'], r['v'], r['friction'], r['contact'].astype(np.int8),
-                     r['linkage_force'], r['lengths'], r['rates'], bool(r['indeterminate']))
+                     r['linkage_force'], r['lengths'], r['rates'], bool(r['indeterminate']),
+                     None if inc is None else np.asarray(inc, dtype=bool).copy())
 
     def pop_events(self) -> list[Event]:
         """Contact events since the last call, in time order."""
@@ -245,14 +297,18 @@ def simulate(crawler: Crawler, gait: Gait, t_end: float, method: str = 'exact', 
              dt: float | None = None, t_eval: ArrayLike | None = None, v0: float = 0.0,
              x0: float = 0.0, penalty: ArrayLike | None = None, tol: float = 1e-13,
              max_step: float | None = None, include_events: bool = True,
-             periodic_skip: bool | None = None, lengths_check: str = 'warn') -> Trajectory:
+             periodic_skip: bool | None = None, lengths_check: str = 'warn',
+             stiction_rule: str = DEFAULT_RULE, initial_stuck: int | None = None
+             ) -> Trajectory:
     """Simulate the crawler under ``gait`` on [0, t_end] and return the sampled ``Trajectory``.
 
     With method "exact" the values at ``t_eval`` are exact (closed form, not interpolated) and,
     unless ``t_eval`` is given or ``include_events`` is False, the event times are added to the
     default uniform samples. "implicit" and "penalty" step with ``dt`` (default 1e-3 s) and land
     a step on every requested time. v0 / x0: initial velocity / position of body 0.
-    ``tol`` / ``max_step`` / ``periodic_skip``: see ``Stepper``.
+    ``tol`` / ``max_step`` / ``periodic_skip`` / ``stiction_rule`` / ``initial_stuck``: see
+    ``Stepper`` (a crawler with static friction above kinetic needs a method whose
+    ``capabilities(method).stiction`` is True).
 
     A gait length l_j(t) <= 0 within the run (bodies j and j+1 would cross) raises
     ``GaitLengthError`` (a ValueError naming the linkage, the time and the value) before any
@@ -270,7 +326,8 @@ def simulate(crawler: Crawler, gait: Gait, t_end: float, method: str = 'exact', 
     if dt is not None:
         dt = _check_positive('dt', dt)
     st = Stepper(crawler, gait, method, x0=x0, v0=v0, dt=dt, penalty=penalty, tol=tol,
-                 max_step=max_step, keep_history=True, periodic_skip=periodic_skip)
+                 max_step=max_step, keep_history=True, periodic_skip=periodic_skip,
+                 stiction_rule=stiction_rule, initial_stuck=initial_stuck)
     solver = st.solver
     solver.check_span(gait, t_end, st._options)
     times = None if t_eval is None else _check_times(t_eval, t_end)

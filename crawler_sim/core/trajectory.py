@@ -133,6 +133,9 @@ class State(NamedTuple):
     ``x``, ``v``, ``friction``, ``contact`` have shape (p,); ``lengths``, ``rates``,
     ``linkage_force`` shape (p-1,). Units: s, m, m/s, N. ``indeterminate`` is True when several
     bodies stick together and only their total friction is determined (MODEL.md section 2.5).
+    ``incumbent`` (p,) bool marks the bodies of the cluster stuck just before t (all False:
+    none), the one bit of state a crawler with stiction needs beyond (t, x, v) (STICTION.md
+    s. 7); None where it is not known (a state built by hand, a method without stiction).
     ``Trajectory.state_at`` of N times returns the same fields with a leading time axis:
     ``t`` (N,), ``x`` (N, p), ..., ``indeterminate`` (N,) bool.
     """
@@ -146,6 +149,7 @@ class State(NamedTuple):
     lengths: NDArray[np.float64]
     rates: NDArray[np.float64]
     indeterminate: bool = False
+    incumbent: NDArray[np.bool_] | None = None
 
 
 def _caps(method: str) -> Capabilities:

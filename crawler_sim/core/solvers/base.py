@@ -48,7 +48,9 @@ class Capabilities:
     periodic_skip : bool
         It can skip gait periods that repeat (``periodic_skip`` option).
     stiction : bool
-        Static friction above the sliding one (not yet provided by any method).
+        Static friction above the kinetic one (``Crawler.has_stiction``), with Rule S and its
+        ``stiction_rule`` / ``initial_stuck`` options (``core.friction``); a crawler with
+        stiction is refused by a method without it.
     batched : bool
         Steps several crawlers at once (not yet provided through ``Stepper``).
     """

@@ -35,6 +35,7 @@ from typing import Any, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..friction import DEFAULT_RULE, check_rule
 from ..gaits import Gait, _positive
 from ..model import Crawler
 from ..trajectory import EventLog, new_event
@@ -93,8 +94,11 @@ class ExactSolver:
 
     def __init__(self, crawler: Crawler, gait: Gait, *, t0: float = 0.0, x0: float = 0.0,
                  v0: float = 0.0, tol: float = 1e-13, max_step: float | None = None,
-                 keep_segments: bool = True, periodic_skip: bool | None = None) -> None:
+                 keep_segments: bool = True, periodic_skip: bool | None = None,
+                 stiction_rule: str = DEFAULT_RULE, initial_stuck: int | None = None) -> None:
         self.crawler = crawler
+        self.stiction_rule = check_rule(stiction_rule)
+        self.initial_stuck = initial_stuck
         self.gait = gait
         self._cg = gait.compiled()
         self.tol = float(tol)
@@ -265,12 +269,15 @@ class ExactSolver:
     @classmethod
     def options(cls, *, tol: float = 1e-13, max_step: float | None = None,
                 keep_history: bool = False, periodic_skip: bool | None = None,
+                stiction_rule: str = DEFAULT_RULE, initial_stuck: int | None = None,
                 **_ignored: Any) -> dict:
-        """The constructor's keyword arguments from ``Stepper``'s (validated)."""
+        """The constructor's keyword arguments from ``Stepper``'s (validated;
+        ``initial_stuck`` is checked against the state by ``Stepper``)."""
         return {'tol': _positive('tol', tol, 's'),
                 'max_step': None if max_step is None else _positive('max_step', max_step, 's'),
                 'keep_segments': bool(keep_history),
-                'periodic_skip': None if periodic_skip is None else bool(periodic_skip)}
+                'periodic_skip': None if periodic_skip is None else bool(periodic_skip),
+                'stiction_rule': check_rule(stiction_rule), 'initial_stuck': initial_stuck}
 
     @staticmethod
     def check_span(gait: Gait, t_end: float, options: dict) -> None:
