@@ -215,15 +215,18 @@ def _record(out: Path, scene: Any, tr: Any, as_node: dict | None = None) -> None
 def _as_node(scene: Any, as_node: dict) -> Any:
     """The scene's run as sim_node runs it when gait_node plays the scene's gait with
     ``as_node`` (``mode``: preload, trajectory or command; ``rate`` [Hz]): the node's actuator
-    and tick grid (default parameters, at rest at the gait's first lengths), then the core."""
+    and tick grid (default parameters, at rest at ``as_node['initial_lengths']`` [m] when
+    given, as sim_node at its ``initial_lengths``, else at the gait's first lengths), then the
+    core."""
     import numpy as np
 
     from ..core.plant import PlantConfig
     from ..core.plant.streams import Stream, simulate_as_node
 
     r = scene.run
-    plant = PlantConfig.for_crawler(scene.crawler, np.atleast_1d(scene.gait.length(0.0)),
-                                    method=r.method, initial_position=r.x0)
+    start = as_node.get('initial_lengths') or np.atleast_1d(scene.gait.length(0.0))
+    plant = PlantConfig.for_crawler(scene.crawler, start, method=r.method,
+                                    initial_position=r.x0)
     mode = as_node['mode']
     stream = Stream('command' if mode == 'command' else 'trajectory', float(as_node['rate']),
                     preload=mode == 'preload', duration=r.t_end + 1.0 if mode == 'preload'
@@ -266,8 +269,17 @@ def _simulate(args: argparse.Namespace, source: Path) -> int:
         figure_output(args.plot)
     r = scene.run
     as_node = None
+    if args.initial_lengths and not args.as_node:
+        raise UsageError('--initial-lengths: only with --as-node (an offline run starts at '
+                         'rest at the gait\'s first lengths)')
     if args.as_node:
         as_node = {'mode': args.as_node, 'rate': args.rate}
+        if args.initial_lengths:
+            links = scene.crawler.p - 1
+            if len(args.initial_lengths) not in (1, links):
+                raise UsageError(f'--initial-lengths: one length for every linkage or one '
+                                 f'each ({links}), got {len(args.initial_lengths)}')
+            as_node['initial_lengths'] = list(args.initial_lengths)
         if r.v0:
             raise UsageError(f'--as-node starts at rest as sim_node does, but scene.run.v0 = '
                              f'{r.v0} m/s')
@@ -375,7 +387,15 @@ def _recorded_as_node(run: Any) -> dict | None:
     if (isinstance(rate, bool) or not isinstance(rate, (int, float))
             or not (math.isfinite(rate) and rate > 0)):
         raise UsageError(f'{where}.rate: must be a finite number > 0 [Hz], got {rate!r}')
-    return {'mode': mode, 'rate': float(rate)}
+    start = as_node.get('initial_lengths')
+    if start is None:
+        return {'mode': mode, 'rate': float(rate)}
+    if not (isinstance(start, list) and start and all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+            and x > 0 for x in start)):
+        raise UsageError(f'{where}.initial_lengths: must be a list of finite numbers > 0 [m], '
+                         f'got {start!r}')
+    return {'mode': mode, 'rate': float(rate), 'initial_lengths': [float(x) for x in start]}
 
 
 def _replay(run: Any, method: str | None, tol: float) -> dict:
@@ -527,6 +547,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "node's actuator and tick grid, without ROS)")
     p.add_argument('--rate', type=_positive, default=50.0, metavar='HZ',
                    help='with --as-node: gait_node\'s rate [Hz] (default 50)')
+    p.add_argument('--initial-lengths', type=_positive, nargs='+', metavar='L',
+                   help='with --as-node: the linkage lengths [m] the servo rests at before the '
+                   "run, as sim_node's initial_lengths (one for all linkages or one each; "
+                   "default: the gait's first lengths)")
 
     p = add('replay', _cmd_replay, 're-simulate a recorded run and compare',
             'Re-run a recorded run with the core: a sim_node bag through the node\'s engine with '
