@@ -42,10 +42,12 @@ setup(
     # the message packages) comes from a Jazzy install, or from the ros-jazzy-* wheels: the
     # `ros` extra. colcon reads package.xml instead.
     install_requires=['numpy>=1.26', 'scipy>=1.11', 'PyYAML>=6', 'mcap>=1.6,<2',
-                      'zstandard>=0.19', 'lz4>=4', 'matplotlib>=3.8', 'rosbags>=0.11.9'],
+                      'zstandard>=0.19', 'lz4>=4', 'matplotlib>=3.8', 'rosbags>=0.11.9',
+                      'gymnasium>=1.0'],
     extras_require={
         'ros': ['ros-jazzy-rclpy[fastrtps]>=7.1,<8', 'ros-jazzy-common-interfaces>=5.3,<6'],
         'sweep': ['pandas>=2.2', 'pyarrow>=15', 'dask[distributed]>=2024.1'],
+        'bench': ['gymnasium[mujoco]>=1.0'],     # benchmarks/gym_speed.py: MuJoCo Swimmer-v5
         'test': ['pytest>=8', 'hypothesis>=6.100', 'mcap-ros2-support>=0.6,<1',
                  'yourdfpy>=0.0.60', 'ruff>=0.6'],
     },

@@ -46,6 +46,10 @@ except ImportError as _exc:      # only on failure: an import that works costs n
 # `import crawler_sim.gaits` and `from crawler_sim.gaits import X` keep working (public API).
 _sys.modules[__name__ + '.gaits'] = gaits
 
+# gymnasium's `crawler_sim/Crawl-v0`, registered once gymnasium is imported (not imported here)
+from .envs import register_when_imported as _register_envs   # noqa: E402
+_register_envs()
+
 __version__ = '0.1.0'
 
 __all__ = ['Crawler', 'Event', 'ImplicitBatch', 'METHODS', 'State', 'Stepper', 'Trajectory',
