@@ -14,6 +14,10 @@ A scene file has one top-level key ``scene``::
         mu_backward: [0.6, 0.6]           # ... optional, defaults to mu
         # friction: [2.9, 2.9]            # ... or friction forces [N] instead of mu
         # friction_backward: [5.9, 5.9]
+        mu_static: 0.5                    # optional static (stiction) bounds, >= the kinetic
+        mu_static_backward: 0.7           # ones: defaults in crawler_sim.Crawler (no stiction);
+        # static_friction: [4.9, 4.9]     # ... forces [N] with friction, coefficients with mu
+        # static_friction_backward: [6.9, 6.9]
         slope: 0.0                        # rad, uphill is +x (or slope_deg: degrees)
         gravity: 9.81                     # m/s^2
       gait:
@@ -31,6 +35,8 @@ A scene file has one top-level key ``scene``::
         max_step: null                    # s (exact)
         x0: 0.0                           # m, body 0
         v0: 0.0                           # m/s, body 0
+        stiction_rule: incumbent          # incumbent or margin (crawler_sim.core.friction)
+        initial_stuck: null               # a body at rest at t = 0 counted as stuck before it
       bench: {}                           # optional, options of crawler_sim.bench (not read here)
 
 Every invalid value raises :class:`SceneError` with one line naming the field and the allowed
@@ -40,7 +46,7 @@ errors too (a typo must not silently fall back to a default).
 Besides sign and finiteness, a scene's values must lie in physical ranges (``LIMITS``) wide
 enough for any crawler and narrow enough that no value reaches the solvers as a degenerate
 case (a 1e-30 s run, a 1e-12 asymmetry, a tolerance of 1 s): masses in [1e-9, 1e9] kg, mu in
-[0, 1e3], friction forces in [0, 1e12] N, gravity in [0, 1e3] m/s^2, gait lengths, rates,
+[0, 1e3], friction forces in [0, 1e12] N (static ones too), gravity in [0, 1e3] m/s^2, gait lengths, rates,
 accelerations and coefficients within 1e6 in magnitude, frequency in [1e-3, 1e4] Hz, asymmetry
 in [1e-3, 0.999], gait times within [-1e7, 1e7] s at least 1e-6 s apart, t_end in [1e-6, 1e7] s,
 tol in [1e-15, 1e-6] s, max_step >= max(1e-6 s, t_end / 1e7), dt >= max(1e-9 s, t_end / 1e8),
@@ -64,12 +70,14 @@ import yaml
 
 from . import gaits
 from .model import Crawler
-from .stepper import METHODS, GaitLengthError, check_lengths, simulate
+from .friction import DEFAULT_RULE, RULES
+from .stepper import (METHODS, GaitLengthError, check_initial_stuck, check_lengths,
+                      check_stiction, simulate)
 from .trajectory import Trajectory
 
 __all__ = ['SceneError', 'RunOptions', 'Scene', 'GAIT_TYPES', 'LIMITS', 'load_scene',
            'scene_from_dict', 'scene_to_dict', 'crawler_from_mapping', 'MAX_SCENE_BODIES',
-           'MAX_ENTRIES', 'MAX_SCENE_BYTES', 'YamlLoader']
+           'MAX_ENTRIES', 'MAX_SCENE_BYTES', 'YamlLoader', 'FRICTION_KEYS']
 
 
 class SceneError(ValueError):
@@ -136,6 +144,8 @@ def _optional(path: str, value: Any, rule: str, **kw: Any) -> float | None:
 LIMITS: dict[str, tuple[float, float, str]] = {
     'masses': (1e-9, 1e9, 'kg'), 'mu': (0.0, 1e3, ''), 'mu_backward': (0.0, 1e3, ''),
     'friction': (0.0, 1e12, 'N'), 'friction_backward': (0.0, 1e12, 'N'),
+    'mu_static': (0.0, 1e3, ''), 'mu_static_backward': (0.0, 1e3, ''),
+    'static_friction': (0.0, 1e12, 'N'), 'static_friction_backward': (0.0, 1e12, 'N'),
     'gravity': (0.0, 1e3, 'm/s^2'),
     'mean': (-1e6, 1e6, 'm'), 'amplitude': (-1e6, 1e6, 'm'), 'l0': (-1e6, 1e6, 'm'),
     'v0_gait': (-1e6, 1e6, 'm/s'), 'lengths': (-1e6, 1e6, 'm'),
@@ -236,16 +246,23 @@ def _plain(value: Any) -> Any:
 # ---------------------------------------------------------------------------------------------
 # Crawler
 
-_CRAWLER_KEYS = ('masses', 'mu', 'mu_backward', 'friction', 'friction_backward', 'slope',
+#: the friction keys of a crawler: (kinetic forward, kinetic backward, static forward, static
+#: backward), as coefficients or as forces [N]; a crawler takes one kind
+FRICTION_KEYS = {'mu': ('mu', 'mu_backward', 'mu_static', 'mu_static_backward'),
+                 'friction': ('friction', 'friction_backward', 'static_friction',
+                              'static_friction_backward')}
+_CRAWLER_KEYS = ('masses', *FRICTION_KEYS['mu'], *FRICTION_KEYS['friction'], 'slope',
                  'slope_deg', 'gravity')
 
 
 def crawler_from_mapping(spec: Any, path: str = 'crawler') -> Crawler:
     """The one validator of a crawler description (scenes, sweeps, the bench, the node's
     parameters, replay): ``masses`` [kg], ``mu`` or ``friction`` [N] (one or one per body),
-    optional ``mu_backward`` / ``friction_backward``, ``slope`` [rad] or ``slope_deg``,
-    ``gravity`` [m/s^2]. SceneError (a ValueError) names the field under ``path`` and its
-    allowed range."""
+    optional ``mu_backward`` / ``friction_backward``, the static (stiction) bounds
+    ``mu_static``, ``mu_static_backward`` / ``static_friction``, ``static_friction_backward``
+    (of the same kind as the kinetic ones; each >= its kinetic bound; their defaults are
+    `Crawler`'s: no stiction), ``slope`` [rad] or ``slope_deg``, ``gravity`` [m/s^2].
+    SceneError (a ValueError) names the field under ``path`` and its allowed range."""
     def k(name: str) -> str:
         return f'{path}.{name}' if path else name
     d = _mapping(path or 'crawler', spec, _CRAWLER_KEYS, ('masses',))
@@ -275,22 +292,22 @@ def crawler_from_mapping(spec: Any, path: str = 'crawler') -> Crawler:
     if has_mu == has_f:
         raise SceneError(f'{path or "crawler"}: give exactly one of mu (coefficients) or '
                          f'friction (forces [N]), got {"both" if has_mu else "neither"}')
-    if has_mu and 'friction_backward' in d or has_f and 'mu_backward' in d:
-        raise SceneError(f'{path or "crawler"}: do not mix mu/mu_backward with '
-                         'friction/friction_backward')
-    key = 'mu' if has_mu else 'friction'
-    fwd = _per_body(k(key), d[key], p, positive=False, limit=key)
-    bwd = (_per_body(k(key + '_backward'), d[f'{key}_backward'], p, positive=False,
-                     limit=f'{key}_backward')
-           if f'{key}_backward' in d else None)
-    _in_range(k(key), fwd, key)
-    if bwd is not None:
-        _in_range(k(key + '_backward'), bwd, f'{key}_backward')
+    kind, other = ('mu', 'friction') if has_mu else ('friction', 'mu')
+    for own, foreign in zip(FRICTION_KEYS[kind], FRICTION_KEYS[other]):
+        if foreign in d:
+            raise SceneError(f'{k(foreign)}: do not mix coefficients (mu, mu_backward, '
+                             f'mu_static, mu_static_backward) with forces (friction, '
+                             f'friction_backward, static_friction, static_friction_backward); '
+                             f'with {kind} give {own}')
+    # each given bound: one value or one per body, in range (absent ones: Crawler's defaults)
+    bounds = {}
+    for key in FRICTION_KEYS[kind]:
+        if key in d:
+            bounds[key] = _per_body(k(key), d[key], p, positive=False, limit=key)
+            _in_range(k(key), bounds[key], key)
     try:
-        if has_mu:
-            return Crawler.from_coefficients(masses, fwd, bwd, slope, gravity)
-        return Crawler(masses, fwd, bwd, slope, gravity)
-    except ValueError as exc:     # derived quantities (sums, products); the message names them
+        return Crawler(masses, slope=slope, gravity=gravity, **bounds)
+    except ValueError as exc:     # derived quantities, static < kinetic; the message names them
         raise SceneError(f'{path}.{exc}' if path else str(exc)) from None
 
 
@@ -384,7 +401,9 @@ class RunOptions:
     """How to simulate a scene (the keyword arguments of `crawler_sim.simulate`).
 
     t_end [s] > 0; method in METHODS; dt [s] > 0 or None; penalty [N s/m] one float or one per
-    body (required for "penalty"); tol [s] > 0; max_step [s] > 0 or None; x0 [m], v0 [m/s].
+    body (required for "penalty"); tol [s] > 0; max_step [s] > 0 or None; x0 [m], v0 [m/s];
+    stiction_rule in ``core.friction.RULES``; initial_stuck None or the index of a body at
+    rest at t = 0 whose cluster counts as stuck before it (``Stepper``).
     """
 
     t_end: float = 10.0
@@ -395,11 +414,14 @@ class RunOptions:
     max_step: float | None = None
     x0: float = 0.0
     v0: float = 0.0
+    stiction_rule: str = DEFAULT_RULE
+    initial_stuck: int | None = None
 
     def to_dict(self) -> dict:
         return {'t_end': self.t_end, 'method': self.method, 'dt': self.dt,
                 'penalty': self.penalty, 'tol': self.tol, 'max_step': self.max_step,
-                'x0': self.x0, 'v0': self.v0}
+                'x0': self.x0, 'v0': self.v0, 'stiction_rule': self.stiction_rule,
+                'initial_stuck': self.initial_stuck}
 
 
 _RUN_KEYS = tuple(RunOptions().to_dict())
@@ -422,6 +444,15 @@ def _run(spec: Any, p: int) -> RunOptions:
     elif method == 'penalty':
         raise SceneError(f'{path}.penalty: required for method penalty (the seed\'s n, '
                          'finite and > 0 N s/m)')
+    rule = d.get('stiction_rule', DEFAULT_RULE)
+    if not isinstance(rule, str) or rule not in RULES:
+        raise SceneError(f'{path}.stiction_rule: unknown rule {rule!r}; expected one of '
+                         f'{", ".join(RULES)}')
+    stuck = d.get('initial_stuck')
+    if stuck is not None and (isinstance(stuck, bool) or not isinstance(stuck, int)
+                              or not 0 <= stuck < p):
+        raise SceneError(f'{path}.initial_stuck: must be null or a body index in [0, {p - 1}], '
+                         f'got {stuck!r}')
     pos = 'finite and > 0 s'
     opts = RunOptions(
         t_end=_number(f'{path}.t_end', d.get('t_end', 10.0), pos, lo=0.0, lo_open=True),
@@ -431,7 +462,8 @@ def _run(spec: Any, p: int) -> RunOptions:
         tol=_number(f'{path}.tol', d.get('tol', 1e-13), pos, lo=0.0, lo_open=True),
         max_step=_optional(f'{path}.max_step', d.get('max_step'), pos, lo=0.0, lo_open=True),
         x0=_number(f'{path}.x0', d.get('x0', 0.0), 'finite [m]'),
-        v0=_number(f'{path}.v0', d.get('v0', 0.0), 'finite [m/s]'))
+        v0=_number(f'{path}.v0', d.get('v0', 0.0), 'finite [m/s]'),
+        stiction_rule=rule, initial_stuck=stuck)
     for key in ('t_end', 'tol', 'x0', 'v0'):
         _in_range(f'{path}.{key}', getattr(opts, key), key)
     if opts.penalty is not None:
@@ -467,7 +499,9 @@ class Scene:
         if not changes:
             return self
         merged = {**self.run.to_dict(), **changes}
-        return replace(self, run=_run(merged, self.crawler.p))
+        run = _run(merged, self.crawler.p)
+        _check_run(self.crawler, self.gait, run)
+        return replace(self, run=run)
 
     def simulate(self, **kwargs: Any) -> Trajectory:
         """Run `crawler_sim.simulate` with the scene's options (``kwargs`` go to simulate)."""
@@ -476,9 +510,24 @@ class Scene:
         try:
             return simulate(self.crawler, self.gait, r.t_end, r.method, dt=r.dt, v0=r.v0,
                             x0=r.x0, penalty=r.penalty, tol=r.tol, max_step=r.max_step,
+                            stiction_rule=r.stiction_rule, initial_stuck=r.initial_stuck,
                             **kwargs)
         except GaitLengthError as exc:      # the scene's gait field, one line, exit 2
             raise SceneError(f'scene.gait ({self.gait_spec["type"]}): {exc}') from None
+
+
+def _check_run(crawler: Crawler, gait: gaits.Gait, run: RunOptions) -> None:
+    """The run options that depend on the crawler and the gait: a method that can simulate
+    its stiction, and an ``initial_stuck`` body at rest at t = 0 (``Stepper``'s checks, named
+    under scene.run)."""
+    try:
+        check_stiction(crawler, run.method)
+    except ValueError as exc:
+        raise SceneError(f'scene.run.method: {exc}') from None
+    try:
+        check_initial_stuck(crawler, gait, 0.0, run.v0, run.initial_stuck)
+    except ValueError as exc:
+        raise SceneError(f'scene.run.{exc}') from None
 
 
 _SCENE_KEYS = ('name', 'description', 'crawler', 'gait', 'run', 'bench')
@@ -507,6 +556,7 @@ def scene_from_dict(data: Any, *, name: str = 'scene') -> Scene:
         check_lengths(gait, 0.0, run.t_end)
     except GaitLengthError as exc:
         raise SceneError(f'scene.gait ({gait_spec["type"]}): {exc}') from None
+    _check_run(crawler, gait, run)
     return Scene(name=name, crawler=crawler, gait=gait, run=run,
                  gait_spec=gait_spec, description=description, bench=dict(bench))
 
@@ -565,10 +615,7 @@ def read_section(path: Path, key: str, kind: str, error: type[Exception]) -> Any
 def scene_to_dict(scene: Scene) -> dict:
     """Plain data (lists, floats, str, bool, None) that `scene_from_dict` turns back into an
     equal scene; friction is given as forces so the crawler is rebuilt bit for bit."""
-    c = scene.crawler
     return {'name': scene.name, 'description': scene.description,
-            'crawler': {'masses': c.masses.tolist(), 'friction': c.friction.tolist(),
-                        'friction_backward': c.friction_backward.tolist(),
-                        'slope': c.slope, 'gravity': c.gravity},
+            'crawler': scene.crawler.to_dict(),
             'gait': dict(scene.gait_spec), 'run': scene.run.to_dict(),
             **({'bench': dict(scene.bench)} if scene.bench else {})}

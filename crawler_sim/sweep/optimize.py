@@ -172,10 +172,12 @@ def family(name: str, base: Scene, limits: ActuatorLimits, harmonics: int = 3) -
 
 
 def plant_for(base: Scene, fam: Family, limits: ActuatorLimits) -> PlantConfig:
-    """sim_node's plant for the base scene's crawler and method, at rest at the family's mean
+    """sim_node's plant for the base scene's crawler (its static bounds, the fixed values of
+    the optimisation, too), method and stiction rule, at rest at the family's mean
     lengths, with the actuator ``limits`` (the length limits wide enough for the family)."""
     return PlantConfig.for_crawler(base.crawler, fam.mean, limits, method=base.run.method,
-                                   initial_position=float(base.run.x0))
+                                   initial_position=float(base.run.x0),
+                                   stiction_rule=base.run.stiction_rule)
 
 
 def _violation(gait: gaits.Gait, fam: Family, z: np.ndarray, limits: ActuatorLimits,
@@ -395,8 +397,8 @@ def gait_node_params(result: OptimizeResult, scene_file: str | None = None) -> d
 
 def sim_node_params(result: OptimizeResult) -> dict | None:
     """The sim_node parameter file content (``crawler_sim: ros__parameters: ...``) of the plant
-    the stroke was scored on (score "node"; None for "ideal"): the crawler as friction forces,
-    the actuator limits, the length limits and the method."""
+    the stroke was scored on (score "node"; None for "ideal"): the crawler as friction forces
+    (the static ones and the stiction rule too when it has stiction), the actuator limits, the length limits and the method."""
     if result.plant is None:
         return None
     names = ('masses', 'friction', 'friction_backward', 'slope', 'gravity', 'initial_lengths',
@@ -404,6 +406,8 @@ def sim_node_params(result: OptimizeResult) -> dict | None:
              'actuator_max_speed', 'actuator_max_acceleration', 'integration_rate',
              'publish_rate')
     v = result.plant.values
+    if result.plant.crawler.has_stiction:     # the static bounds, as forces (with stiction only)
+        names += ('static_friction', 'static_friction_backward', 'stiction_rule')
     return {'crawler_sim': {'ros__parameters': {
         name: (list(v[name]) if isinstance(v[name], (list, tuple)) else v[name])
         for name in names}}}

@@ -22,8 +22,11 @@ A spec file has one top-level key ``sweep``::
 
 A parameter is a dotted path into the base scene (``crawler.masses``, ``crawler.slope_deg``,
 ``gait.type``, ``gait.amplitude`` ...; ``crawler.masses[1]`` sets one entry of a list) or the
-special name ``bodies`` (number of bodies p: the masses, and per-body friction lists, are the
-base's first entry repeated p times). Grid values are a list or ``{linspace: [a, b, n]}`` /
+special name ``bodies`` (number of bodies p: the masses, and per-body friction lists, kinetic
+and static, are the base's first entry repeated p times). The static (stiction) bounds are axes
+like any key of the crawler: ``crawler.mu_static``, ``crawler.mu_static_backward`` (with mu),
+``crawler.static_friction``, ``crawler.static_friction_backward`` (with friction), and
+``run.stiction_rule``. Grid values are a list or ``{linspace: [a, b, n]}`` /
 ``{logspace: [a, b, n]}`` (a, b the end values, not exponents). Random draws are
 ``{uniform: [a, b]}``, ``{loguniform: [a, b]}``, ``{integers: [a, b]}`` (both ends included) or
 ``{choice: [...]}``. Scene k draws from its own generator: numpy's PCG64 seeded with the k-th
@@ -55,8 +58,8 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 import yaml
 
-from ..core.scene import (MAX_SCENE_BODIES, Scene, SceneError, YamlLoader, read_text,
-                          scene_from_dict)
+from ..core.scene import (FRICTION_KEYS, MAX_SCENE_BODIES, Scene, SceneError, YamlLoader,
+                          read_text, scene_from_dict)
 
 __all__ = ['SpecError', 'SweepSpec', 'LIMITS', 'load_spec', 'spec_from_dict', 'apply_params']
 
@@ -82,7 +85,7 @@ _SPEC_KEYS = ('name', 'description', 'base', 'periods', 'samples_per_period', 'g
 _GRID_KINDS = ('linspace', 'logspace')
 _RANDOM_KINDS = ('uniform', 'loguniform', 'integers', 'choice')
 _PATH = re.compile(r'^(bodies|(crawler|gait|run)\.[A-Za-z_]+(\[\d+\])?)$')
-_PER_BODY = ('masses', 'mu', 'mu_backward', 'friction', 'friction_backward')
+_PER_BODY = ('masses', *FRICTION_KEYS['mu'], *FRICTION_KEYS['friction'])
 
 
 class SpecError(ValueError):

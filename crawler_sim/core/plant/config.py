@@ -17,13 +17,14 @@ import math
 from typing import Any, Mapping, Sequence
 
 from ..actuator import ActuatorLimits
+from ..friction import DEFAULT_RULE, RULES, check_rule
 from ..model import Crawler
-from ..scene import LIMITS, crawler_from_mapping
-from ..stepper import METHODS
+from ..scene import FRICTION_KEYS, LIMITS, crawler_from_mapping
+from ..stepper import METHODS, check_stiction
 from ..simtime import NS_PER_S
 from .engine import EngineConfig
 
-__all__ = ['PARAMETERS', 'PlantConfig', 'MAX_BODIES', 'as_float']
+__all__ = ['PARAMETERS', 'PlantConfig', 'MAX_BODIES', 'LATER_PARAMETERS', 'as_float']
 
 #: the most bodies the live node takes, chosen from measurement: at p = 64 sim_node (exact,
 #: 1 kHz ticks, every output at 100 Hz with a subscriber) keeps a real-time factor of 1.000 on
@@ -47,6 +48,20 @@ PARAMETERS: dict[str, tuple[Any, str, tuple[float, float] | None]] = {
                  'it replaces mu', None),
     'friction_backward': ([], 'Friction force resisting backward sliding [N] (as friction); '
                           'empty: from mu_backward', None),
+    'mu_static': ([], 'Static (stiction) coefficient against forward sliding: a stuck body '
+                  'holds while the force it needs is within it (as mu; each >= its mu); empty '
+                  '(the default): mu, no stiction', None),
+    'mu_static_backward': ([], 'Static coefficient against backward sliding (as mu_static, '
+                           '>= mu_backward); empty: mu_backward', None),
+    'static_friction': ([], 'Static friction force against forward sliding [N] (as friction, '
+                        '>= the forward kinetic force); empty: from mu_static; when set it '
+                        'replaces mu_static', None),
+    'static_friction_backward': ([], 'Static friction force against backward sliding [N] (as '
+                                 'static_friction); empty: from mu_static_backward', None),
+    'stiction_rule': (DEFAULT_RULE, 'With static friction above kinetic: who holds when several '
+                      'parts of the crawler come to rest at once, one of ' + ', '.join(RULES)
+                      + ' (incumbent: the part stuck before holds first, then the largest '
+                      'static margin; margin: the largest margin alone)', None),
     'slope': (0.0, 'Incline [rad], uphill is +x', (-1.5, 1.5)),
     'gravity': (9.81, 'Gravitational acceleration [m/s^2] (acts through the slope)',
                 (0.0, 100.0)),
@@ -111,27 +126,50 @@ def _as_list(name: str, value: Any, n_max: float) -> list[float]:
     return [float(x) for x in out]
 
 
+#: the friction parameters, as (coefficients, forces [N]) per bound: kinetic forward, kinetic
+#: backward, static forward, static backward (``scene.FRICTION_KEYS``)
+_BOUNDS = tuple(zip(FRICTION_KEYS['mu'], FRICTION_KEYS['friction']))
+#: the parameters added after sim_node bags began: a bag recorded without them ran with these
+#: values (their defaults: no stiction), so its journal still replays
+LATER_PARAMETERS = ('mu_static', 'mu_static_backward', 'static_friction',
+                    'static_friction_backward', 'stiction_rule')
+
+
 def _crawler(v: Mapping[str, Any]) -> Crawler:
-    """The crawler of the node's parameters (``scene.crawler_from_mapping``): friction forces
-    where they are set, else the coefficients."""
+    """The crawler of the node's parameters (``scene.crawler_from_mapping``): each bound
+    (kinetic and static, forward and backward) as forces where they are set, else from its
+    coefficients; an empty static bound is `Crawler`'s default (its kinetic bound)."""
     masses = _as_list('masses', v['masses'], math.inf)
     if not 2 <= len(masses) <= MAX_BODIES:
         raise ValueError(f'masses must list 2 to {MAX_BODIES} bodies (the live node\'s limit; '
                          f'offline runs take any number), got {len(masses)}')
-    fwd = _as_list('friction', v['friction'], MAX_BODIES)
-    bwd = _as_list('friction_backward', v['friction_backward'], MAX_BODIES)
     spec: dict[str, Any] = {'masses': masses, 'slope': v['slope'], 'gravity': v['gravity']}
-    if not fwd and not bwd:
-        spec.update(mu=_as_list('mu', v['mu'], MAX_BODIES),
-                    mu_backward=_as_list('mu_backward', v['mu_backward'], MAX_BODIES))
-        return crawler_from_mapping(spec, '')
-    if not fwd or not bwd:
-        # one side as forces, the other from its coefficient: that side's forces first
-        coeff = crawler_from_mapping({**spec, 'mu': v['mu'] if not fwd else 0.0,
-                                      'mu_backward': v['mu_backward'] if not bwd else 0.0}, '')
-        fwd = fwd or coeff.friction.tolist()
-        bwd = bwd or coeff.friction_backward.tolist()
-    return crawler_from_mapping({**spec, 'friction': fwd, 'friction_backward': bwd}, '')
+    coeffs = {mu: _as_list(mu, v[mu], MAX_BODIES) for mu, _ in _BOUNDS}
+    forces = {f: _as_list(f, v[f], MAX_BODIES) for _, f in _BOUNDS}
+    if not any(forces.values()):
+        return crawler_from_mapping({**spec, **{mu: c for mu, c in coeffs.items()
+                                                if c or mu in ('mu', 'mu_backward')}}, '')
+    # some bounds as forces: the others' forces first, from their coefficients (a bound given
+    # as a force is 0 here, so the static >= kinetic check sees only coefficients given)
+    need = {mu: coeffs[mu] for mu, f in _BOUNDS
+            if not forces[f] and (coeffs[mu] or mu in ('mu', 'mu_backward'))}
+    if need:
+        kinetic = {mu: need.get(mu, 0.0) for mu in ('mu', 'mu_backward')}
+        coeff = crawler_from_mapping({**spec, **kinetic, **{mu: c for mu, c in need.items()
+                                                            if mu not in kinetic}}, '')
+        of = {'mu': coeff.friction, 'mu_backward': coeff.friction_backward,
+              'mu_static': coeff.static_friction,
+              'mu_static_backward': coeff.static_friction_backward}
+        for mu, f in _BOUNDS:
+            if mu in need:
+                forces[f] = of[mu].tolist()
+    try:
+        return crawler_from_mapping({**spec, **{f: x for f, x in forces.items() if x}}, '')
+    except ValueError as exc:       # a bound converted from a coefficient: name that one
+        mu = next((mu for mu, f in _BOUNDS if mu in need and str(exc).startswith(f)), None)
+        if mu is None:
+            raise
+        raise ValueError(f'{mu} (as forces, {mu} m g cos(slope)): {exc}') from None
 
 
 @dataclass(frozen=True)
@@ -169,7 +207,8 @@ class PlantConfig:
         v = self.values
         return EngineConfig(self.crawler, v['method'], self.dt_ns, self.publish_every,
                             self.initial_lengths, float(v['initial_position']), self.limits,
-                            self.penalty_n, {name: v[name] for name in PARAMETERS})
+                            self.penalty_n, {name: v[name] for name in PARAMETERS},
+                            v['stiction_rule'])
 
     def __post_init__(self) -> None:
         for name, value in self.values.items():
@@ -195,6 +234,11 @@ class PlantConfig:
                              f'{hi_n:g}] N s/m, got {_short(pen)}')
         if not isinstance(v['method'], str) or v['method'] not in METHODS:   # (a recorded list)
             raise ValueError(f'method must be one of {", ".join(METHODS)}, got {v["method"]!r}')
+        if not isinstance(v['stiction_rule'], str):       # (a list is unhashable)
+            raise ValueError(f'stiction_rule must be one of {", ".join(RULES)}, got '
+                             f'{_short(v["stiction_rule"])}')
+        check_rule(v['stiction_rule'])
+        check_stiction(crawler, v['method'])
         lo, hi = v['min_length'], v['max_length']
         if not lo < hi:
             raise ValueError(f'min_length ({lo}) must be < max_length ({hi})')
@@ -213,7 +257,7 @@ class PlantConfig:
             raise ValueError(f'publish_rate ({pub} Hz) must be <= integration_rate ({rate} Hz)')
         limits = ActuatorLimits(v['actuator_bandwidth'], v['actuator_max_speed'],
                                 v['actuator_max_acceleration'], lo, hi)
-        for name in ('masses', 'mu', 'mu_backward', 'friction', 'friction_backward', 'penalty',
+        for name in ('masses', *(n for pair in _BOUNDS for n in pair), 'penalty',
                      'initial_lengths'):
             v[name] = _as_list(name, v[name], MAX_BODIES)
         return cls(v, crawler, tuple(lengths), limits, max(1, round(NS_PER_S / rate)),
@@ -232,6 +276,8 @@ class PlantConfig:
         values: dict[str, Any] = {
             'masses': crawler.masses.tolist(), 'friction': crawler.friction.tolist(),
             'friction_backward': crawler.friction_backward.tolist(),
+            'static_friction': crawler.static_friction.tolist(),
+            'static_friction_backward': crawler.static_friction_backward.tolist(),
             'slope': float(crawler.slope), 'gravity': float(crawler.gravity),
             'initial_lengths': [float(x) for x in lengths],
             'min_length': min(lo, 0.05 * min(lengths)), 'max_length': max(hi, 2 * max(lengths)),

@@ -14,6 +14,16 @@ are queued and the core ``Stepper`` integrates them exactly in one call at each 
 so sync points are part of the determinism contract: the publish grid (every ``publish_every``
 ticks) and explicit ``sync()`` calls. Times are integer nanoseconds.
 
+With stiction (static friction above kinetic, STICTION.md) the state has one more part: the
+cluster stuck just before now (the incumbent, ``State.incumbent``), which Rule S needs at a
+coincident rest. It lives in the core ``Stepper`` across sync cuts; where the engine starts a
+new stepper it is handed on: a reconfigure (new crawler, method, step or ``stiction_rule``)
+starts the new stepper with the old one's incumbent (``initial_stuck``), and a start, a reset
+or a contained failure begins at rest with every body counted as stuck before it (a crawler
+at rest in its initial configuration has been at rest: ``initial_stuck=0``, the whole
+crawler's cluster). Without stiction nothing of this is passed, so such runs are bit for bit
+what they were before stiction.
+
 Runs of ticks with no input in between (``tick_to_grid``, ``run_to``) are one compiled run of
 the actuator (``Actuator.run``, the pieces as arrays) and reach the exact solver as one
 array-built ``PiecewiseCubic``: the same pieces, gaits and states, bit for bit, as ``tick()``
@@ -28,6 +38,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from ..actuator import Actuator, ActuatorLimits, Pieces, TrajectoryReference
+from ..friction import DEFAULT_RULE
 from ..gaits import Cubic, Gait, PiecewiseCubic
 from ..model import Crawler
 from ..solvers.base import SolverError, capabilities
@@ -63,6 +74,24 @@ class EngineConfig:
     limits: ActuatorLimits
     penalty: Sequence[float] | None = None
     values: dict | None = field(default=None, compare=False, repr=False)
+    stiction_rule: str = DEFAULT_RULE    # Rule S at a coincident rest (core.friction.RULES)
+
+    def stepper_options(self) -> dict[str, Any]:
+        """The stiction options of a core ``Stepper`` of this plant: none without stiction
+        (the stepper's defaults; runs stay what they were before stiction)."""
+        if not self.crawler.has_stiction:
+            return {}
+        return {'stiction_rule': self.stiction_rule}
+
+    def rest_options(self) -> dict[str, Any]:
+        """``stepper_options`` of a start at rest in the initial configuration (a start, a
+        reset): with stiction, the crawler has been at rest, so every body counts as stuck
+        before the start (``initial_stuck=0``: body 0's cluster, the whole crawler while the
+        lengths are constant)."""
+        opts = self.stepper_options()
+        if opts:
+            opts['initial_stuck'] = 0
+        return opts
 
 
 class Engine:
@@ -110,15 +139,17 @@ class Engine:
 
     def reconfigure(self, cfg: EngineConfig) -> bool:
         """New parameters from the current tick boundary. A change of p starts again at rest
-        in the initial configuration (returns True); a new crawler, method or step keeps the
-        bodies' positions and velocities; new actuator limits keep its state."""
+        in the initial configuration (returns True); a new crawler, method, step or stiction
+        rule keeps the bodies' positions and velocities, and with stiction the cluster stuck
+        before (``_handover``); new actuator limits keep its state."""
         old = self.cfg
         if cfg.crawler.p != old.crawler.p:
             self._build(cfg, self.t_ns)
             self._note('configure', cfg)
             return True
         if (cfg.crawler.to_dict() != old.crawler.to_dict() or cfg.method != old.method
-                or cfg.dt_ns != old.dt_ns or cfg.penalty != old.penalty):
+                or cfg.dt_ns != old.dt_ns or cfg.penalty != old.penalty
+                or cfg.stepper_options() != old.stepper_options()):
             self._restart_stepper(cfg)
         else:
             self.sync()
@@ -164,7 +195,7 @@ class Engine:
         t = to_seconds(t_ns)
         rest = Cubic(t, list(cfg.initial_lengths), 0.0, 0.0, 0.0)
         self.stepper = Stepper(cfg.crawler, rest, cfg.method, t0=t, x0=cfg.initial_position,
-                               v0=0.0, dt=dt, penalty=cfg.penalty)
+                               v0=0.0, dt=dt, penalty=cfg.penalty, **cfg.rest_options())
         self.stepper.pop_events()
         # the queue of ticks not integrated yet: single ticks (tick()) as start times and Cubic
         # pieces, and runs of ticks as (number of single ticks queued before it, Pieces)
@@ -182,8 +213,9 @@ class Engine:
         ls, vs, as_ = zip(*self.actuator.state())
         here = Cubic(t, list(ls), list(vs), list(as_), 0.0)
         self._events.extend(self.stepper.pop_events())
+        v0, opts = _handover(st, here, cfg)
         self.stepper = Stepper(cfg.crawler, here, cfg.method, t0=t, x0=float(st.x[0]),
-                               v0=float(st.v[0]), dt=to_seconds(cfg.dt_ns), penalty=cfg.penalty)
+                               v0=v0, dt=to_seconds(cfg.dt_ns), penalty=cfg.penalty, **opts)
         self.stepper.pop_events()
         self.cfg = cfg
 
@@ -362,8 +394,9 @@ class Engine:
         stops the node; the failure is kept in ``failures``."""
         self.failures.append(f'{self.stepper.method} solver failed before t = {t1} s: {exc}')
         st = self.stepper.state
+        v0, opts = _handover(st, gait, self.cfg)
         self.stepper = Stepper(self.cfg.crawler, gait, 'implicit', t0=float(st.t),
-                               x0=float(st.x[0]), v0=float(st.v[0]), dt=to_seconds(self.cfg.dt_ns))
+                               x0=float(st.x[0]), v0=v0, dt=to_seconds(self.cfg.dt_ns), **opts)
         self.stepper.advance(t1, gait)
 
     def _contain(self, exc: Exception) -> None:
@@ -404,3 +437,23 @@ class Engine:
         """Contact events integrated so far and not yet popped, in time order."""
         out, self._events = self._events, []
         return out
+
+
+def _handover(st: State, gait: Gait, cfg: EngineConfig) -> tuple[float, dict[str, Any]]:
+    """(v0 [m/s] of body 0, stiction options) of a new ``Stepper`` that continues from the
+    state ``st`` under ``gait`` with ``cfg``: body 0's velocity, and with stiction the cluster
+    stuck just before now (``st.incumbent``; a stepper that does not know it: the bodies at
+    rest, ``contact == 0``, which describes the interval before ``st.t``) as ``initial_stuck``,
+    its first body. That body's velocity is set to exactly 0 (v0 = -(l_0' + ... + l_{i-1}'),
+    as ``Stepper`` computes it), which it is up to rounding."""
+    opts = cfg.stepper_options()
+    v0 = float(st.v[0])
+    if not opts:
+        return v0, opts
+    stuck = st.incumbent if st.incumbent is not None else np.asarray(st.contact) == 0
+    if np.any(stuck):
+        i = int(np.argmax(stuck))
+        rates = np.asarray(gait.at(float(st.t))[1], dtype=float)
+        v0 = -float(np.sum(rates[:i]))
+        opts['initial_stuck'] = i
+    return v0, opts

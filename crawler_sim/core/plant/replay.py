@@ -26,7 +26,7 @@ from typing import Any, Callable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
-from .config import PARAMETERS, PlantConfig, _short
+from .config import LATER_PARAMETERS, PARAMETERS, PlantConfig, _short
 from .engine import Engine
 from .inputs import TrajectoryArrays, check_command, check_trajectory
 from ..simtime import to_seconds
@@ -103,8 +103,11 @@ class Snapshots:
 
 
 def plant_config(values: Mapping[str, Any], method: str | None = None) -> PlantConfig:
-    """The plant configuration of recorded parameter values (``method`` overrides theirs)."""
+    """The plant configuration of recorded parameter values (``method`` overrides theirs);
+    values recorded before the ``LATER_PARAMETERS`` existed take their defaults."""
     v = {name: values[name] for name in PARAMETERS if name in values}
+    for name in LATER_PARAMETERS:     # a bag recorded before they existed ran without them
+        v.setdefault(name, PARAMETERS[name][0])
     missing = [name for name in PARAMETERS if name not in v]
     if missing:
         raise ValueError(f'the recorded parameters lack {", ".join(missing)}')
