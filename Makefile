@@ -1,10 +1,13 @@
 # Two entry points: `make run` (the demo crawl) and `make test` (the whole suite).
 # Both set up everything from PyPI on a fresh machine; later runs reuse .venv and take seconds.
+# `make run`'s venv holds what the demo needs (requirements.txt); `make test` adds the test and
+# lint tools and the sweep extra (requirements-test.txt) to it without rebuilding anything.
 SHELL := /bin/bash
 PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
+TEST_STAMP := $(VENV)/.installed-test
 INSTALL_STAMP := install/.built
 
 # AMENT_PREFIX_PATH: the colcon install (for `ros2 run`-style lookup) and the venv (for .msg files).
@@ -19,10 +22,10 @@ export MPLBACKEND := Agg
 run: build
 	$(PY) -m crawler_sim.ros.demo
 
-test: build
+test: build $(TEST_STAMP)
 	$(PY) -m pytest -q -p no:cacheprovider test
 
-bench: build
+bench: build $(TEST_STAMP)
 	$(PY) -m benchmarks.solvers --out bench_out
 
 venv: $(STAMP)
@@ -32,6 +35,11 @@ $(STAMP): requirements.txt
 	touch $(VENV)/COLCON_IGNORE
 	$(PY) -m pip install --upgrade pip
 	$(PY) -m pip install -r requirements.txt
+	touch $@
+
+# added to the run venv; the colcon build does not depend on this stamp, so nothing recompiles
+$(TEST_STAMP): $(STAMP) requirements-test.txt requirements-sweep.txt
+	$(PY) -m pip install -r requirements-test.txt
 	touch $@
 
 build: $(INSTALL_STAMP)

@@ -48,8 +48,10 @@ setup(
         'ros': ['ros-jazzy-rclpy[fastrtps]>=7.1,<8', 'ros-jazzy-common-interfaces>=5.3,<6'],
         'sweep': ['pandas>=2.2', 'pyarrow>=15', 'dask[distributed]>=2024.1'],
         'bench': ['gymnasium[mujoco]>=1.0'],     # benchmarks/gym_speed.py: MuJoCo Swimmer-v5
+        # the test and lint tools (with `sweep`, what `make test` adds: requirements-test.txt)
         'test': ['pytest>=8', 'hypothesis>=6.100', 'mcap-ros2-support>=0.6,<1',
-                 'yourdfpy>=0.0.60', 'ruff>=0.6'],
+                 'yourdfpy>=0.0.60'],
+        'lint': ['ruff>=0.6'],
     },
     ext_modules=compiled_core(),
     zip_safe=False,

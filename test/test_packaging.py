@@ -14,8 +14,12 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 import re
+import shutil
+import subprocess
 import sys
 import xml.etree.ElementTree as ET
+
+import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 NOT_IN_ROSDISTRO = {'python3-mcap', 'python3-mcap-ros2-support', 'python3-rosbags'}
@@ -80,6 +84,65 @@ def depends() -> set[str]:
 
 def test_no_bag_dependency_uses_a_key_missing_from_rosdistro():
     assert not depends() & NOT_IN_ROSDISTRO
+
+
+#: what `make run` installs besides the package's requirements: the build (colcon, Cython)
+BUILD = {'cython', 'colcon-common-extensions', 'ros-jazzy-ament-package'}
+
+
+def requirement_lines(name: str) -> dict[str, str]:
+    """name -> requirement (comments and spaces cut) of one requirements file, without the
+    files it includes (``-r``)."""
+    out = {}
+    for line in (REPO / name).read_text().splitlines():
+        req = line.split('#')[0].replace(' ', '')
+        if req and not req.startswith('-'):
+            out[_name(req)] = req
+    return out
+
+
+def test_the_requirement_files_are_setup_pys_lists_split_as_make_installs_them():
+    """``make run`` installs requirements.txt (install_requires, the ros extra, the build) and
+    no test or lint tool; ``make test`` adds requirements-test.txt (requirements-sweep.txt, the
+    test and lint extras). The same specifiers in both places (issue 43: a lean run venv)."""
+    kw = setup_kwargs()
+    extras = kw['extras_require']
+
+    def spec(reqs: list[str]) -> dict[str, str]:
+        return {_name(r): r.replace(' ', '') for r in reqs}
+
+    run = requirement_lines('requirements.txt')
+    assert {k: v for k, v in run.items() if k not in BUILD} == spec(
+        kw['install_requires'] + extras['ros'])
+    assert BUILD <= set(run)
+    assert requirement_lines('requirements-sweep.txt') == spec(extras['sweep'])
+    assert requirement_lines('requirements-test.txt') == spec(extras['test'] + extras['lint'])
+    assert '-r requirements-sweep.txt' in (REPO / 'requirements-test.txt').read_text()
+    tools = {'pytest', 'hypothesis', 'ruff', 'yourdfpy', 'trimesh', 'mcap-ros2-support'}
+    assert not tools & set(run), 'a test or lint tool in make run\'s requirements'
+
+
+def _make_dry_run(target: str) -> str:
+    """The commands ``make TARGET`` would run with every target out of date (``-B -n``: nothing
+    runs)."""
+    proc = subprocess.run(['make', '-B', '-n', target], cwd=REPO, capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    return proc.stdout
+
+
+@pytest.mark.skipif(shutil.which('make') is None, reason='needs make')
+def test_make_run_installs_no_test_tool_and_make_test_adds_them_without_rebuilding():
+    run = _make_dry_run('run')
+    assert 'pip install -r requirements.txt' in run
+    assert 'requirements-test.txt' not in run
+    test = _make_dry_run('test')
+    assert 'pip install -r requirements-test.txt' in test
+    # the compiled build does not wait for the test tools: adding them leaves it up to date
+    prereqs = subprocess.run(['make', '-p', '-n', '-q', 'build'], cwd=REPO, capture_output=True,
+                             text=True, timeout=120).stdout
+    built = next(line for line in prereqs.splitlines() if line.startswith('install/.built:'))
+    assert '.installed-test' not in built and 'requirements-test' not in built, built
 
 
 def test_the_bag_libraries_are_declared_with_their_rosdistro_keys():
