@@ -10,6 +10,16 @@ split every transition lands on a step end and its O(h) velocity error integrate
 position error whose size jumps from one dt to the next; with it the first-order error is the
 quadrature X_{k+1} = X_k + h V_{k+1}, about (h / 2) (V(t) - V(0)): order 1, a steady constant.
 
+Implicit with stiction (a crawler whose static bounds exceed its kinetic ones, STICTION.md): the
+step is no longer one convex minimisation, so ``st_step`` continues the current mode in closed
+form (sliding: V affine under the kinetic forces; a stuck cluster: V = -e_r') and, where the
+mode stops holding inside the step (located as above), selects the next one by Rule S from the
+instant's data (``st_decide``: the incumbent cluster with its static bounds, then the arriving
+clusters, then the unique kinetic slide pattern). The incumbent is the cluster stuck on the
+piece before the instant: a body whose relative velocity only passes through zero there is an
+arrival, never incumbent (STICTION.md s. 9's pitfall). Position is the same quadrature
+X_{k+1} = X_k + h V_{k+1}; order 1. Without stiction the kinetic path above runs unchanged.
+
 Penalty (MODEL.md section 4): backward Euler on the seed's Moreau-Yosida ODE,
 
     M (V_{k+1} - V_k) / h = F_ext - sum_i clip(n_i (V_{k+1} + e_i'(t_{k+1})), -f_minus_i, f_plus_i),
@@ -29,9 +39,12 @@ from crawler_sim.core.solvers._gait cimport (CompiledGait, GaitData, gait_eval, 
                                              gait_lengths)
 from crawler_sim.core.solvers._inclusion cimport inclusion
 
-__all__ = ['StepCore', 'batch_step', 'IMPLICIT', 'PENALTY', 'MAX_DEPTH', 'BISECT_REL']
+__all__ = ['StepCore', 'batch_step', 'IMPLICIT', 'PENALTY', 'MAX_DEPTH', 'BISECT_REL',
+           'RULE_INCUMBENT', 'RULE_MARGIN']
 
 IMPLICIT, PENALTY = 0, 1
+#: Rule S at a coincident rest (``core.friction.RULES``, in that order)
+RULE_INCUMBENT, RULE_MARGIN = 0, 1
 #: most transitions placed inside one step (more fall back to the plain Moreau-Jean step)
 MAX_DEPTH = 8
 #: bisection stops when the bracket is below this fraction of the step (about 1e-12 h)
@@ -87,8 +100,14 @@ cdef class StepCore:
     ``penalty.PenaltySolver``)."""
 
     cdef readonly int p, method, max_depth
+    cdef readonly bint stiction       # static bounds above kinetic ones: ``st_step``
+    cdef readonly int rule            # RULE_INCUMBENT or RULE_MARGIN (Rule S at a coincident rest)
+    cdef public long n_choices        # instants where more than one continuation was consistent
     cdef double M, fext
     cdef double[::1] w, fp, fm, m_, grav, n_pen
+    cdef double[::1] sfp, sfm         # static bounds [N] (the kinetic ones without stiction)
+    cdef signed char[::1] inc0        # the incumbent at t0 (1: counts as stuck before t0)
+    cdef int[::1] clus
     cdef public double t, X, V, A, dt
     cdef public double scan_step      # largest spacing of the transition scan [s]
     cdef signed char[::1] contact
@@ -107,10 +126,10 @@ cdef class StepCore:
     cdef double[::1] ld, ldd, ld3, epb, eppb, ep, epp, kinks, kbuf, fpb, fmb, brk, l, e
     cdef int[::1] idx
     cdef unsigned char[::1] zmask
-    cdef signed char[::1] newc, tmp
+    cdef signed char[::1] newc, tmp, kmode, snew
 
     def __init__(self, masses, fp, fm, double fext, grav, double dt, int method,
-                 int max_depth, penalty=None):
+                 int max_depth, penalty=None, static_fp=None, static_fm=None, int rule=0):
         p = len(masses)
         self.p = p
         self.method = method
@@ -121,6 +140,14 @@ cdef class StepCore:
         self.w = m / self.M
         self.fp = np.array(fp, dtype=np.float64)
         self.fm = np.array(fm, dtype=np.float64)
+        self.sfp = np.array(fp if static_fp is None else static_fp, dtype=np.float64)
+        self.sfm = np.array(fm if static_fm is None else static_fm, dtype=np.float64)
+        self.stiction = bool(np.any(np.asarray(self.sfp) > np.asarray(self.fp))
+                             or np.any(np.asarray(self.sfm) > np.asarray(self.fm)))
+        self.rule = rule
+        self.n_choices = 0
+        self.inc0 = np.zeros(p, np.int8)
+        self.clus = np.zeros(p, np.intc)
         self.grav = np.array(grav, dtype=np.float64)
         self.n_pen = np.array(penalty if penalty is not None else np.ones(p), dtype=np.float64)
         self.fext = fext
@@ -164,6 +191,8 @@ cdef class StepCore:
         self.zmask = np.zeros(p, np.uint8)
         self.newc = np.zeros(p, np.int8)
         self.tmp = np.zeros(p, np.int8)
+        self.kmode = np.zeros(p, np.int8)
+        self.snew = np.zeros(p, np.int8)
         self.last_t = NAN
 
     # ------------------------------------------------------------------ Python access
@@ -258,10 +287,13 @@ cdef class StepCore:
         self.accel_mode(force, epp, out, &s)
 
     cdef void interval_friction(self, const signed char* contact, double V0, double V1,
-                                double h, double* R) noexcept:
+                                double h, double* R, const double* sp,
+                                const double* sm) noexcept:
         """Mean friction [N] on an interval of length h > 0 from V0 to V1 in mode ``contact``:
         sliding bodies their Coulomb force, stuck ones share what momentum balance requires
-        (each at the same fraction of its interval [-fp_i, fm_i]: only the total is unique)."""
+        (each at the same fraction of its stuck interval [-sp_i, sm_i], ``friction.split_stuck``:
+        only the total is unique; sp, sm the static bounds, the kinetic ones without
+        stiction)."""
         cdef int p = self.p, i
         cdef double total = self.M * (V1 - V0) / h - self.fext, lo = 0.0, width = 0.0, theta
         for i in range(p):
@@ -273,12 +305,12 @@ cdef class StepCore:
                 R[i] = self.fm[i]
                 total -= self.fm[i]
             else:
-                lo -= self.fp[i]
-                width += self.fp[i] + self.fm[i]
+                lo -= sp[i]
+                width += sp[i] + sm[i]
         theta = 0.0 if width <= 0.0 else min(max((total - lo) / width, 0.0), 1.0)
         for i in range(p):
             if contact[i] == 0:
-                R[i] = -self.fp[i] + theta * (self.fp[i] + self.fm[i])
+                R[i] = -sp[i] + theta * (sp[i] + sm[i])
 
     cdef void log_changes(self, double t, signed char* contact, const signed char* newc) noexcept:
         cdef int i
@@ -372,7 +404,7 @@ cdef class StepCore:
             self.new_mode(contact, vt, &self.ep[0], &self.epp[0], newc)
             hh = tau - lo
             if hh > 0.0:
-                self.interval_friction(contact, V, vt, hh, &self.R[0])
+                self.interval_friction(contact, V, vt, hh, &self.R[0], &self.fp[0], &self.fm[0])
                 X += hh * vt
                 for i in range(p):
                     self.K[i] += hh * self.R[i]
@@ -381,7 +413,7 @@ cdef class StepCore:
             lo = tau
         hh = tb - lo
         if hh > 0.0:
-            self.interval_friction(newc, V, u, hh, &self.R[0])
+            self.interval_friction(newc, V, u, hh, &self.R[0], &self.fp[0], &self.fm[0])
         X += hh * u
         for i in range(p):
             self.K[i] += hh * self.R[i]
@@ -419,7 +451,8 @@ cdef class StepCore:
             rj = -self.M * self.eppb[j] - self.fext - ri
             if not (-self.fp[j] <= rj <= self.fm[j]):
                 return False
-            self.interval_friction(&self.contact[0], self.V, u, h, &self.R[0])
+            self.interval_friction(&self.contact[0], self.V, u, h, &self.R[0], &self.fp[0],
+                                   &self.fm[0])
         else:
             return False
         self.X += h * u
@@ -428,6 +461,224 @@ cdef class StepCore:
         self.A = (u - self.V) / h
         self.V = u
         return True
+
+    # ------------------------------------------------------------------ stiction (Rule S)
+    cdef double st_need(self, int r, const signed char* member, const signed char* sig,
+                        const double* epp, double* lo, double* hi) noexcept:
+        """The ground force [N] a stuck cluster (``member``[i] != 0, representative r) needs
+        at an instant where the other bodies slide with signs ``sig`` under their kinetic
+        forces: M V' = F_ext + sum R with V' = -e_r'' (STICTION.md s. 2, with the friction
+        sign of ``core.friction``); lo, hi receive the cluster's static interval
+        [-sum static_forward, +sum static_backward] (``friction.stuck_interval``)."""
+        cdef int i
+        cdef double need = -self.M * epp[r] - self.fext
+        lo[0] = 0.0
+        hi[0] = 0.0
+        for i in range(self.p):
+            if member[i]:
+                lo[0] -= self.sfp[i]
+                hi[0] += self.sfm[i]
+            elif sig[i] > 0:
+                need += self.fp[i]
+            else:
+                need -= self.fm[i]
+        return need
+
+    cdef bint st_changed(self, const signed char* contact, double V, const double* ep,
+                         const double* epp) noexcept:
+        """Whether the mode ``contact`` no longer holds (Rule S, persistence) at an instant
+        where its continuation moves the centre of mass at V: a sliding body at or past zero
+        velocity, the stuck cluster splitting (a member's e' differs), or the force the stuck
+        cluster needs outside its static interval (closed: on the bound it holds)."""
+        cdef int p = self.p, i, j
+        cdef double need, lo, hi
+        for i in range(p):
+            if contact[i] > 0 and V + ep[i] <= 0.0:
+                return True
+            if contact[i] < 0 and V + ep[i] >= 0.0:
+                return True
+        j = first_stuck(contact, p)
+        if j < 0:
+            return False
+        for i in range(p):
+            self.tmp[i] = contact[i] == 0
+            if self.tmp[i] and ep[i] != ep[j]:
+                return True
+        need = self.st_need(j, &self.tmp[0], contact, epp, &lo, &hi)
+        return not (lo <= need <= hi)
+
+    cdef void st_decide(self, double V, const double* ep, const double* epp,
+                        const signed char* contact, signed char* out) noexcept:
+        """Rule S at an instant (STICTION.md s. 3 and 5): the mode after it, given the mode
+        ``contact`` on the piece before it and the continuation's centre-of-mass velocity V.
+
+        The bodies at rest: the incumbent (stuck before: contact 0) and the arrivals (sliding
+        bodies at or past zero velocity), grouped into clusters rigid just after the instant
+        (equal e' and e''). A cluster is a stick candidate when the force it needs, the others
+        sliding their way (bodies at rest by the sign of their relative e'', else e'), is
+        inside its static interval. 'incumbent': an incumbent cluster that can hold holds (the
+        largest margin among them), else the arriving one with the largest margin; 'margin':
+        the largest margin of all. Exact ties go to the lowest body index. Without a
+        candidate, the kinetic inclusion (the unique slide pattern). ``n_choices`` counts the
+        instants with more than one consistent continuation."""
+        cdef int p = self.p, i, k, r, nc = 0, best = -1, n_ok = 0
+        cdef int* clus = &self.clus[0]
+        cdef signed char* sig = &self.tmp[0]
+        cdef signed char* member = &self.newc[0]
+        cdef double v, d, need, lo, hi, margin, best_margin = -1.0, force, s
+        cdef bint inc, best_inc = False, slide_ok
+        # who is at rest, and the sliding bodies' signs
+        for i in range(p):
+            v = V + ep[i]
+            if contact[i] == 0:
+                self.zmask[i] = True
+            else:
+                self.zmask[i] = (contact[i] > 0 and v <= 0.0) or (contact[i] < 0 and v >= 0.0)
+            out[i] = 0 if self.zmask[i] else contact[i]
+            clus[i] = -1
+        # clusters of the bodies at rest (rigid just after: equal e' and e'')
+        for i in range(p):
+            if self.zmask[i] and clus[i] < 0:
+                for k in range(i, p):
+                    if self.zmask[k] and clus[k] < 0 and ep[k] == ep[i] and epp[k] == epp[i]:
+                        clus[k] = i          # a cluster is named by its lowest body
+                nc += 1
+        # the stick candidates
+        for r in range(p):
+            if clus[r] != r:
+                continue
+            inc = False
+            for i in range(p):
+                member[i] = clus[i] == r
+                inc = inc or (member[i] and contact[i] == 0)
+                if self.zmask[i] and not member[i]:
+                    d = epp[i] - epp[r]
+                    if d == 0.0:
+                        d = ep[i] - ep[r]
+                    sig[i] = 1 if d > 0.0 else -1
+                elif not member[i]:
+                    sig[i] = out[i]
+            need = self.st_need(r, member, sig, epp, &lo, &hi)
+            if not (lo <= need <= hi):
+                continue
+            n_ok += 1
+            margin = min(need - lo, hi - need)
+            if self.rule == RULE_INCUMBENT and best >= 0 and best_inc != inc:
+                if inc:                     # an incumbent beats any arrival
+                    best, best_inc, best_margin = r, inc, margin
+                continue
+            if best < 0 or margin > best_margin:
+                best, best_inc, best_margin = r, inc, margin
+        # the slide pattern (kinetic inclusion); consistent iff it leaves nobody stuck
+        force = self.fext + slide_sum(out, &self.fp[0], &self.fm[0], p)
+        self.accel_mode(force, epp, &self.kmode[0], &s)
+        slide_ok = True
+        for i in range(p):
+            if self.zmask[i] and self.kmode[i] == 0:
+                slide_ok = False
+        if n_ok + (1 if slide_ok else 0) > 1:
+            self.n_choices += 1
+        if best < 0:
+            for i in range(p):
+                if self.zmask[i]:
+                    out[i] = self.kmode[i]
+            return
+        for i in range(p):
+            if self.zmask[i]:
+                if clus[i] == best:
+                    out[i] = 0
+                else:
+                    d = epp[i] - epp[best]
+                    if d == 0.0:
+                        d = ep[i] - ep[best]
+                    out[i] = 1 if d > 0.0 else -1
+
+    cdef int st_step(self, GaitData* g, double tb) except -1:
+        """One step [t, tb] of a crawler with stiction (module doc): the mode continued in
+        closed form, split where it stops holding (scan and bisection as ``implicit_step``)
+        and continued in the mode Rule S selects there (at most max_depth times; beyond, the
+        selection is made at tb)."""
+        cdef int p = self.p, i, j, depth, it, n_scan
+        cdef double lo = self.t, h, u = self.V, a_lo, a, b, mid, vm, tau, vt, hh
+        cdef double V = self.V, X = self.X, V0 = self.V
+        cdef bint chg = False, found
+        cdef signed char* contact = &self.contact[0]
+        cdef signed char* newc = &self.snew[0]
+        cdef double* epb = &self.epb[0]
+        cdef double* eppb = &self.eppb[0]
+        for depth in range(self.max_depth + 1):
+            h = tb - lo
+            chg = False
+            if h <= 0.0:                    # a transition exactly at the step end
+                u = V
+                break
+            j = first_stuck(contact, p)
+            a_lo = (self.fext + slide_sum(contact, &self.fp[0], &self.fm[0], p)) / self.M
+            u = -epb[j] if j >= 0 else V + a_lo * h
+            chg = self.st_changed(contact, u, epb, eppb)
+            if not chg and h / SCAN <= self.scan_step:
+                break
+            if depth == self.max_depth or h <= C_BISECT_REL * self.dt:
+                break
+            a = lo
+            b = tb
+            found = False
+            n_scan = SCAN
+            if (tb - lo) / SCAN > self.scan_step:      # a step longer than the gait's scale
+                n_scan = <int>min(4096.0, ceil((tb - lo) / self.scan_step))
+            for it in range(n_scan):
+                mid = lo + (tb - lo) * (C_BISECT_REL if it == 0 else <double>it / n_scan)
+                if not (a < mid < b):
+                    continue
+                if self.rates(g, mid, &self.ep[0], &self.epp[0]):
+                    return 1
+                vm = -self.ep[j] if j >= 0 else V + a_lo * (mid - lo)
+                if self.st_changed(contact, vm, &self.ep[0], &self.epp[0]):
+                    b = mid
+                    found = True
+                    break
+                a = mid
+            if not found and not chg:
+                break                       # a long step whose mode holds throughout
+            for it in range(BISECT):
+                if b - a <= C_BISECT_REL * self.dt:
+                    break
+                mid = a + 0.5 * (b - a)
+                if self.rates(g, mid, &self.ep[0], &self.epp[0]):
+                    return 1
+                vm = -self.ep[j] if j >= 0 else V + a_lo * (mid - lo)
+                if self.st_changed(contact, vm, &self.ep[0], &self.epp[0]):
+                    b = mid
+                else:
+                    a = mid
+            tau = b
+            if self.rates(g, tau, &self.ep[0], &self.epp[0]):
+                return 1
+            vt = -self.ep[j] if j >= 0 else V + a_lo * (tau - lo)
+            self.st_decide(vt, &self.ep[0], &self.epp[0], contact, newc)
+            hh = tau - lo
+            if hh > 0.0:
+                self.interval_friction(contact, V, vt, hh, &self.R[0], &self.sfp[0],
+                                       &self.sfm[0])
+                X += hh * vt
+                for i in range(p):
+                    self.K[i] += hh * self.R[i]
+            self.log_changes(tau, contact, newc)
+            V = vt
+            lo = tau
+        hh = tb - lo
+        if hh > 0.0:
+            self.interval_friction(contact, V, u, hh, &self.R[0], &self.sfp[0], &self.sfm[0])
+        X += hh * u
+        for i in range(p):
+            self.K[i] += hh * self.R[i]
+        if chg:                             # out of splits: the selection at the step end
+            self.st_decide(u, epb, eppb, contact, newc)
+            self.log_changes(tb, contact, newc)
+        self.A = (u - V0) / (tb - self.t)
+        self.V = u
+        self.X = X
+        return 0
 
     cdef void penalty_step(self, double tb) noexcept:
         """Backward Euler on the penalised ODE (module doc): the monotone piecewise-linear
@@ -516,6 +767,9 @@ cdef class StepCore:
         rel_rates(&self.w[0], &self.lddb[0], &self.eppb[0], self.p)
         if self.method == PENALTY:
             self.penalty_step(tb)
+        elif self.stiction:
+            if self.st_step(g, tb):
+                return 1
         elif not (self.p == 2 and self.two_body_step(tb)):
             if self.implicit_step(g, tb):
                 return 1
@@ -595,12 +849,17 @@ cdef class StepCore:
             ind[k] = n_stuck > 1
         return REACHED, n
 
-    def reset(self, CompiledGait gait, double t0, double x0, double v0):
+    def reset(self, CompiledGait gait, double t0, double x0, double v0,
+              int initial_stuck=-1):
         """Back to t0 with body 0 at x0 [m] moving at v0 [m/s]; the contact state at t0 is the
-        instantaneous mode (bodies at zero velocity stick or leave as the inclusion says)."""
+        instantaneous mode (bodies at zero velocity stick or leave as the inclusion says; with
+        stiction as Rule S selects, the cluster of body ``initial_stuck`` (>= 0, at rest)
+        counting as stuck just before t0)."""
         cdef GaitData* g = &gait.d
         cdef int p = self.p, i
         cdef double force = self.fext, a, s, vi, tot, wsum = 0.0, fps = 0.0, th
+        if self.stiction:
+            return self.st_reset(gait, t0, x0, v0, initial_stuck)
         gait_lengths(g, t0, &self.l[0])
         if self.rates(g, t0, &self.ep[0], &self.epp[0]):
             return NONFINITE
@@ -639,6 +898,59 @@ cdef class StepCore:
         self.n_ev = 0
         self.last_t = NAN
         return REACHED
+
+    cdef int st_reset(self, CompiledGait gait, double t0, double x0, double v0,
+                      int initial_stuck) except -1:
+        """``reset`` of a crawler with stiction: the mode at t0 by Rule S (``st_decide``) with
+        the incumbent the bodies at rest rigid with ``initial_stuck`` (none when < 0), the
+        stuck cluster's friction what it needs at t0, split by ``friction.split_stuck``."""
+        cdef GaitData* g = &gait.d
+        cdef int p = self.p, i, j
+        cdef double vi
+        gait_lengths(g, t0, &self.l[0])
+        if self.rates(g, t0, &self.ep[0], &self.epp[0]):
+            return NONFINITE
+        for i in range(p - 1):
+            if not isfinite(self.l[i]):
+                self.bad_time = t0
+                return NONFINITE
+        rel_rates(&self.w[0], &self.l[0], &self.e[0], p)
+        self.t = t0
+        self.X = x0 - self.e[0]
+        self.V = v0 - self.ep[0]
+        for i in range(p):
+            vi = self.V + self.ep[i]
+            # the incumbent: at rest and moving with the initial stuck body (its cluster);
+            # any other body at rest is an arrival (a sliding sign at zero velocity)
+            self.inc0[i] = (initial_stuck >= 0 and vi == 0.0
+                            and self.ep[i] == self.ep[initial_stuck])
+            self.snew[i] = 0 if self.inc0[i] else (1 if vi >= 0.0 else -1)
+        self.st_decide(self.V, &self.ep[0], &self.epp[0], &self.snew[0], &self.contact[0])
+        j = first_stuck(&self.contact[0], p)
+        for i in range(p):
+            self.R[i] = (-self.fp[i] if self.contact[i] > 0 else
+                         (self.fm[i] if self.contact[i] < 0 else 0.0))
+        if j >= 0:
+            self.A = -self.epp[j]
+            # the split of ``interval_friction`` at the force needed (M A - F_ext - slides)
+            self.interval_friction(&self.contact[0], 0.0, self.A, 1.0, &self.R[0],
+                                   &self.sfp[0], &self.sfm[0])
+        else:
+            self.A = (self.fext + slide_sum(&self.contact[0], &self.fp[0], &self.fm[0], p)) \
+                / self.M
+        for i in range(p):
+            self.K[i] = 0.0
+            self.rmode[i] = self.contact[i]
+        self.n_steps = 0
+        self.n_ev = 0
+        self.n_choices = 0
+        self.last_t = NAN
+        return REACHED
+
+    @property
+    def incumbent0(self):
+        """The bodies counted as stuck just before the reset's t0 (bool, p)."""
+        return np.asarray(self.inc0).astype(bool)
 
     def row(self, CompiledGait gait):
         """The state at the current time as one output row (dict of arrays)."""

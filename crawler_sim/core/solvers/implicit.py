@@ -9,6 +9,16 @@ velocity. A step in which the contact mode changes is split where the transition
 (located to about 1e-12 of the step from the instantaneous mode), so the method converges at
 order 1 with a steady constant: the error of X is about (h / 2) (V(t) - V(0)).
 
+With stiction (``crawler.has_stiction``: a static bound above its kinetic one) the step is no
+longer a convex minimisation: the mode is continued in closed form and, where it stops holding
+inside the step, the next one is selected by Rule S (``core.friction``; the incumbent cluster
+with its static bounds, then the arriving clusters, then the kinetic slide pattern; the
+``stiction_rule`` option decides a coincident rest; ``initial_stuck`` names the incumbent at
+t0). The incumbent is the cluster stuck on the piece before an instant, carried in the contact
+state across steps and calls; a body whose velocity only passes through zero at a step end is
+an arrival (STICTION.md s. 9). Order 1 as without stiction. Without stiction the crawler runs
+the kinetic path unchanged, bit for bit.
+
 Every gait and every p run in the compiled loop (``_stepping``); ``TimeStepper`` is the Python
 side shared with method "penalty". A run is limited to ``MAX_STEPS`` steps per ``advance`` (and
 per ``simulate``): a smaller dt or a longer interval raises ValueError naming dt and the allowed
@@ -23,6 +33,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..friction import DEFAULT_RULE, RULES, bounds, check_rule
 from ..gaits import Gait
 from ..model import Crawler
 from ..trajectory import Event
@@ -105,20 +116,27 @@ class TimeStepper:
 
     def __init__(self, crawler: Crawler, gait: Gait, *, dt: float, t0: float = 0.0,
                  x0: float = 0.0, v0: float = 0.0, penalty: NDArray | None = None,
-                 max_depth: int = _stepping.MAX_DEPTH) -> None:
+                 max_depth: int = _stepping.MAX_DEPTH, stiction_rule: str = DEFAULT_RULE,
+                 initial_stuck: int | None = None) -> None:
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise ValueError(f'dt must be a finite step > 0 s, got {dt!r}')
         self.crawler = crawler
         self.gait = gait
         self._cg = gait.compiled()
         self.dt = float(dt)
-        self._core = _stepping.StepCore(crawler.masses, crawler.friction,
-                                        crawler.friction_backward,
+        self.stiction_rule = check_rule(stiction_rule)
+        self.initial_stuck = initial_stuck
+        b = bounds(crawler)
+        # the static bounds reach the compiled step only when they differ from the kinetic
+        # ones: it then takes the Rule S path (``_stepping.st_step``), else the convex one
+        self._core = _stepping.StepCore(crawler.masses, b.kinetic_forward, b.kinetic_backward,
                                         float(crawler.external_force), crawler.gravity_forces,
-                                        self.dt, self._method, max_depth, penalty)
+                                        self.dt, self._method, max_depth, penalty,
+                                        b.static_forward, b.static_backward,
+                                        RULES.index(self.stiction_rule))
         self.status, self.message = 'ok', ''
         self._scan_scale()
-        self.reset(t0=t0, x0=x0, v0=v0)
+        self.reset(t0=t0, x0=x0, v0=v0, initial_stuck=initial_stuck)
 
     def _scan_scale(self) -> None:
         # a step holding a transition is scanned at 1/64 of the gait's period at least (a step
@@ -134,9 +152,14 @@ class TimeStepper:
     K = property(lambda self: self._core.K_array)
     n_steps = property(lambda self: self._core.n_steps)
 
-    def reset(self, *, t0: float = 0.0, x0: float = 0.0, v0: float = 0.0) -> None:
-        """Back to t0 with body 0 at x0 [m] moving at v0 [m/s] (events cleared)."""
-        if self._core.reset(self._cg, float(t0), float(x0), float(v0)) != _stepping.REACHED:
+    def reset(self, *, t0: float = 0.0, x0: float = 0.0, v0: float = 0.0,
+              initial_stuck: int | None = None) -> None:
+        """Back to t0 with body 0 at x0 [m] moving at v0 [m/s] (events cleared); with
+        stiction, the cluster of body ``initial_stuck`` (at rest at t0, checked by ``Stepper``)
+        counts as stuck just before t0 (None: no incumbent, Rule S chooses by margin)."""
+        stuck = -1 if initial_stuck is None else int(initial_stuck)
+        if self._core.reset(self._cg, float(t0), float(x0), float(v0),
+                            stuck) != _stepping.REACHED:
             self._nonfinite()
         self.events: list[Event] = []
 
@@ -183,8 +206,12 @@ class TimeStepper:
                 return
 
     def current(self) -> dict:
-        """The state at self.t as one row of output arrays."""
-        return self._core.row(self._cg)
+        """The state at self.t as one row of output arrays, with ``incumbent`` (p,) bool: the
+        bodies stuck on the last piece before t (at t0: the reset's incumbent)."""
+        row = self._core.row(self._cg)
+        row['incumbent'] = (self._core.incumbent0 if self._core.n_steps == 0
+                            else row['contact'] == 0)
+        return row
 
     def run(self, times: NDArray[np.float64]) -> dict:
         """Step through the sorted ``times`` (>= t) and return the output rows there."""
@@ -226,7 +253,12 @@ class TimeStepper:
         return times, self.run(times), self.info(times)
 
     def info(self, times: NDArray[np.float64]) -> dict:
-        return {'steps': self.n_steps, 'dt': self.dt}
+        out = {'steps': self.n_steps, 'dt': self.dt}
+        if self._core.stiction:
+            # instants where Rule S had more than one consistent continuation to choose from
+            out['stiction_rule'] = self.stiction_rule
+            out['choices'] = self._core.n_choices
+        return out
 
 
 @register('implicit')
@@ -237,12 +269,24 @@ class ImplicitSolver(TimeStepper):
     what ``ImplicitBatch`` does): first order too, but with an erratic constant.
     """
 
-    capabilities = Capabilities(fixed_step=True, streaming=True)
+    capabilities = Capabilities(fixed_step=True, streaming=True, stiction=True)
 
     def __init__(self, crawler: Crawler, gait: Gait, *, dt: float, t0: float = 0.0,
-                 x0: float = 0.0, v0: float = 0.0, locate_transitions: bool = True) -> None:
+                 x0: float = 0.0, v0: float = 0.0, locate_transitions: bool = True,
+                 stiction_rule: str = DEFAULT_RULE, initial_stuck: int | None = None) -> None:
         super().__init__(crawler, gait, dt=dt, t0=t0, x0=x0, v0=v0,
-                         max_depth=_stepping.MAX_DEPTH if locate_transitions else 0)
+                         max_depth=_stepping.MAX_DEPTH if locate_transitions else 0,
+                         stiction_rule=stiction_rule, initial_stuck=initial_stuck)
+
+    @classmethod
+    def options(cls, *, dt: float | None = None, stiction_rule: str = DEFAULT_RULE,
+                initial_stuck: int | None = None, **_ignored: Any) -> dict:
+        """``dt``, and Rule S's ``stiction_rule`` and ``initial_stuck`` (``Stepper`` checks
+        the body is at rest); both change nothing without stiction."""
+        out = super().options(dt=dt)
+        out['stiction_rule'] = check_rule(stiction_rule)
+        out['initial_stuck'] = initial_stuck
+        return out
 
 
 class ImplicitBatch:

@@ -12,6 +12,11 @@ the scheme is stable for any h and any n (n = 1e12 included).
 
 A priori error (seed, Prop. 1 with the mass factor restored): for the exact ODE solution,
 sup_{[0,t]} |V^n - V| <= sqrt(2 t / M * sum_i max(f_plus_i, f_minus_i)^2 / n_i).
+
+No stiction: the regularisation is the derivative of a convex envelope, and a friction law
+with static bounds above kinetic ones has no convex potential (STICTION.md s. 1, F1; a
+Stribeck-type smoothing would select answers by its shape near v = 0, s. 9), so a crawler with
+``has_stiction`` is refused (``STICTION_REFUSAL``).
 """
 from __future__ import annotations
 
@@ -26,7 +31,11 @@ from . import _stepping
 from .base import Capabilities, register
 from .implicit import TimeStepper
 
-__all__ = ['PenaltySolver', 'penalty_bound', 'check_penalty']
+__all__ = ['PenaltySolver', 'penalty_bound', 'check_penalty', 'STICTION_REFUSAL']
+
+#: why method "penalty" refuses a crawler with static friction above kinetic (module doc)
+STICTION_REFUSAL = ('the Moreau-Yosida regularisation has no stiction analogue (static above '
+                    'kinetic friction has no convex potential to regularise)')
 
 
 def check_penalty(penalty: ArrayLike | None, p: int) -> NDArray[np.float64]:
@@ -61,6 +70,10 @@ class PenaltySolver(TimeStepper):
 
     def __init__(self, crawler: Crawler, gait: Gait, *, dt: float, penalty: ArrayLike,
                  t0: float = 0.0, x0: float = 0.0, v0: float = 0.0) -> None:
+        if crawler.has_stiction:
+            raise ValueError(f'method "penalty" cannot simulate a crawler with static friction '
+                             f'above kinetic: {STICTION_REFUSAL}; use method "exact" or '
+                             f'"implicit"')
         self.n = check_penalty(penalty, crawler.p)
         super().__init__(crawler, gait, dt=dt, t0=t0, x0=x0, v0=v0, penalty=self.n)
 
