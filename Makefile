@@ -9,6 +9,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 TEST_STAMP := $(VENV)/.installed-test
 INSTALL_STAMP := install/.built
+INTERFACES_STAMP := $(VENV)/.interfaces
 
 # AMENT_PREFIX_PATH: the colcon install (for `ros2 run`-style lookup) and the venv (for .msg files).
 export AMENT_PREFIX_PATH := $(CURDIR)/install/crawler_sim:$(CURDIR)/$(VENV)
@@ -42,7 +43,13 @@ $(TEST_STAMP): $(STAMP) requirements-test.txt requirements-sweep.txt
 	$(PY) -m pip install -r requirements-test.txt
 	touch $@
 
-build: $(INSTALL_STAMP)
+build: $(INSTALL_STAMP) $(INTERFACES_STAMP)
+
+# simulation_interfaces and tf2_msgs (not on PyPI): built into the venv from interfaces/ when the
+# environment lacks them (a Jazzy install has them: nothing is built); rebuilt when they change
+$(INTERFACES_STAMP): $(STAMP) requirements-interfaces.txt tools/build_interfaces.py $(wildcard interfaces/*/* interfaces/*/*/*)
+	$(PY) tools/build_interfaces.py
+	touch $@
 
 $(INSTALL_STAMP): $(STAMP) setup.py setup.cfg pyproject.toml package.xml $(wildcard config/*/* launch/*.py scripts/*) $(wildcard crawler_sim/*.py crawler_sim/*/*.py crawler_sim/*/*/*.py crawler_sim/*/*.pyx crawler_sim/*/*/*.pyx crawler_sim/*/*/*.pxd)
 	source $(VENV)/bin/activate && colcon --log-base log build --paths . --build-base build --install-base install --symlink-install

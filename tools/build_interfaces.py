@@ -46,14 +46,22 @@ def _log(line: str) -> None:
 
 
 def provided_elsewhere(prefix: Path) -> list[str]:
-    """The packages that an ament prefix other than ``prefix`` (the venv) provides: a Jazzy
-    install, or another workspace on ``AMENT_PREFIX_PATH``."""
+    """The packages that something other than ``prefix`` (the venv, where this script builds
+    them) provides: an ament prefix on ``AMENT_PREFIX_PATH`` (a Jazzy install, another
+    workspace), or a module this interpreter imports from outside ``prefix``."""
     found = []
     for entry in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep):
         if not entry or Path(entry).resolve() == prefix.resolve():
             continue
         index = Path(entry) / 'share' / 'ament_index' / 'resource_index' / 'packages'
         found += [name for name in PACKAGES if (index / name).is_file()]
+    for name, module in PACKAGES.items():
+        done = subprocess.run([sys.executable, '-c', f'import {module} as m; print(m.__file__)'],
+                              capture_output=True, text=True, check=False)
+        where = done.stdout.strip()
+        if done.returncode == 0 and where and not Path(where).resolve().is_relative_to(
+                prefix.resolve()):
+            found.append(name)
     return sorted(set(found))
 
 
