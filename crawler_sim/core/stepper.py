@@ -119,8 +119,10 @@ def check_stiction(crawler: Crawler, method: str) -> None:
     simulate it (``capabilities(method).stiction`` False)."""
     if crawler.has_stiction and not capabilities(method).stiction:
         able = [name for name in METHODS if capabilities(name).stiction]
+        why = getattr(solver_class(method), 'stiction_refusal', '')   # the method's reason
         raise ValueError(f'method {method!r} cannot simulate static friction above kinetic '
-                         f'(the crawler has static_friction > friction): use '
+                         f'(the crawler has static_friction > friction'
+                         f'{"; " + why if why else ""}): use '
                          f'{" or ".join(map(repr, able)) or "no method yet"}')
 
 

@@ -34,8 +34,8 @@ from .implicit import TimeStepper
 __all__ = ['PenaltySolver', 'penalty_bound', 'check_penalty', 'STICTION_REFUSAL']
 
 #: why method "penalty" refuses a crawler with static friction above kinetic (module doc)
-STICTION_REFUSAL = ('the Moreau-Yosida regularisation has no stiction analogue (static above '
-                    'kinetic friction has no convex potential to regularise)')
+STICTION_REFUSAL = ('the Moreau-Yosida regularisation has no stiction analogue: static above '
+                    'kinetic friction has no convex potential to regularise')
 
 
 def check_penalty(penalty: ArrayLike | None, p: int) -> NDArray[np.float64]:
@@ -67,13 +67,15 @@ class PenaltySolver(TimeStepper):
 
     _method = _stepping.PENALTY
     method_name = 'penalty'
+    #: why a crawler with stiction is refused (``stepper.check_stiction`` names it)
+    stiction_refusal = STICTION_REFUSAL
 
     def __init__(self, crawler: Crawler, gait: Gait, *, dt: float, penalty: ArrayLike,
                  t0: float = 0.0, x0: float = 0.0, v0: float = 0.0) -> None:
         if crawler.has_stiction:
-            raise ValueError(f'method "penalty" cannot simulate a crawler with static friction '
-                             f'above kinetic: {STICTION_REFUSAL}; use method "exact" or '
-                             f'"implicit"')
+            raise ValueError(f"method 'penalty' cannot simulate static friction above kinetic "
+                             f'(the crawler has static_friction > friction; '
+                             f'{STICTION_REFUSAL})')
         self.n = check_penalty(penalty, crawler.p)
         super().__init__(crawler, gait, dt=dt, t0=t0, x0=x0, v0=v0, penalty=self.n)
 
