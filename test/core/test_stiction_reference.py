@@ -323,3 +323,31 @@ def test_the_exact_method_with_stiction_agrees_with_the_reference_on_random_scen
     err = np.abs(got - want)
     assert err.max() <= 1e-9, (f'seed {seed}, rule {rule}: times {_times(sc).tolist()}, '
                                f'exact {got.tolist()}, reference {want.tolist()}')
+
+
+# ----------------------------------------------------------------------------------------------
+# initial_stuck: T5's crawler on its stroke shifted by 1 s, so t = 0 is the reversal with both
+# bodies at rest (l'(0) = 0, v0 = 0): l'' = +0.5 on [0, 1), -0.5 on [1, 3), +0.5 on [3, 4).
+# At t = 0 (link extending): body 0 stuck needs -1.5 (margin 0.5), body 1 stuck +1.5 (margin
+# 1.0). No incumbent: Rule S takes the margin, body 1 holds, body 0 moves with the link:
+# x_0(1) - x_0(0) = -(l(1) - l(0)) = -int_0^1 0.5 t dt = -0.25. initial_stuck=0: body 0 is the
+# incumbent and can hold: x_0(1) - x_0(0) = 0. initial_stuck=1: body 1, -0.25.
+# ----------------------------------------------------------------------------------------------
+SHIFTED_KIN, SHIFTED_BREAKS = piecewise_accel(1.0, 0.0, [0, 1, 3, 4], [0.5, -0.5, 0.5], 4.0)
+
+
+@pytest.mark.parametrize('stuck, dx0', [(None, -0.25), (0, 0.0), (1, -0.25)])
+def test_initial_stuck_names_the_incumbent_at_a_start_from_coincident_rest(stuck, dx0):
+    ref = StictionReference([1.0, 1.0], 1.0, 1.0, [2.0, 2.5], [2.0, 2.5], SHIFTED_KIN,
+                            breakpoints=SHIFTED_BREAKS(1.0))
+    sol = ref.solve(1.0, h=1e-3, initial_stuck=stuck)
+    assert sol.state_at(1.0)[0][0] - sol.state_at(0.0)[0][0] == pytest.approx(dx0, abs=1e-12)
+    crawler = cs.Crawler([1.0, 1.0], 1.0, static_friction=[2.0, 2.5])
+    gait = gaits.PiecewiseParabolic([0, 1, 3, 4], [0.5, -0.5, 0.5], l0=1.0)
+    try:
+        run = cs.simulate(crawler, gait, 1.0, initial_stuck=stuck)
+    except TypeError as exc:
+        if 'initial_stuck' not in str(exc):
+            raise
+        pytest.skip(f'simulate has no initial_stuck yet ({exc})')
+    assert run.state_at(1.0).x[0] - run.state_at(0.0).x[0] == pytest.approx(dx0, abs=1e-12)
