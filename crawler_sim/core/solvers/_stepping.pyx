@@ -920,10 +920,10 @@ cdef class StepCore:
         self.V = v0 - self.ep[0]
         for i in range(p):
             vi = self.V + self.ep[i]
-            # the incumbent: at rest and moving with the initial stuck body (its cluster);
-            # any other body at rest is an arrival (a sliding sign at zero velocity)
-            self.inc0[i] = (initial_stuck >= 0 and vi == 0.0
-                            and self.ep[i] == self.ep[initial_stuck])
+            # the incumbent: the initial stuck body (the candidate cluster holding it, the
+            # bodies rigid with it just after t0, is incumbent); any other body at rest is an
+            # arrival (a sliding sign at zero velocity)
+            self.inc0[i] = i == initial_stuck
             self.snew[i] = 0 if self.inc0[i] else (1 if vi >= 0.0 else -1)
         self.st_decide(self.V, &self.ep[0], &self.epp[0], &self.snew[0], &self.contact[0])
         j = first_stuck(&self.contact[0], p)
