@@ -253,9 +253,15 @@ class Stepper:
                 self._solver.forget_history()
         return list(out)
 
-    def reset(self, *, t0: float = 0.0, x0: float = 0.0, v0: float = 0.0) -> None:
-        """Back to an initial state (events are cleared)."""
-        self._solver.reset(t0=t0, x0=x0, v0=v0)
+    def reset(self, *, t0: float = 0.0, x0: float = 0.0, v0: float = 0.0,
+              initial_stuck: int | None = None) -> None:
+        """Back to an initial state (events are cleared); ``initial_stuck`` as in the
+        constructor (None: no incumbent; it is not carried over from before the reset)."""
+        initial_stuck = check_initial_stuck(self.crawler, self.gait, t0, v0, initial_stuck)
+        if initial_stuck is None:
+            self._solver.reset(t0=t0, x0=x0, v0=v0)
+        else:       # (a method without stiction has no incumbent to set)
+            self._solver.reset(t0=t0, x0=x0, v0=v0, initial_stuck=initial_stuck)
         self._n_events_read = 0
 
 

@@ -222,13 +222,15 @@ cdef class ClosedForm:
     cdef double* fp
     cdef double* fm
     cdef double* grav
+    cdef double* sfp          # static bounds (= fp, fm without stiction): a stuck group's split
+    cdef double* sfm
     cdef double* e            # work: e, e', e'' of one row (3 p)
 
-    def __cinit__(self, masses, fp, fm, double fext, grav, W, C):
+    def __cinit__(self, masses, fp, fm, double fext, grav, W, C, sfp=None, sfm=None):
         cdef int p = len(masses), nl = p - 1, i, j
         self.p = p
         self.nl = nl
-        self.mem = <double*>PyMem_Calloc(2 * p * max(nl, 1) + 7 * p, sizeof(double))
+        self.mem = <double*>PyMem_Calloc(2 * p * max(nl, 1) + 9 * p, sizeof(double))
         if self.mem == NULL:
             raise MemoryError()
         self.W = self.mem
@@ -237,11 +239,16 @@ cdef class ClosedForm:
         self.fp = self.m + p
         self.fm = self.fp + p
         self.grav = self.fm + p
-        self.e = self.grav + p
+        self.sfp = self.grav + p
+        self.sfm = self.sfp + p
+        self.e = self.sfm + p
         w, c = np.asarray(W, dtype=float), np.asarray(C, dtype=float)
-        for i, (mi, a, b, g) in enumerate(zip(*(np.asarray(q, dtype=float).tolist()
-                                                for q in (masses, fp, fm, grav)))):
+        sfp = fp if sfp is None else sfp
+        sfm = fm if sfm is None else sfm
+        for i, (mi, a, b, g, sa, sb) in enumerate(zip(*(np.asarray(q, dtype=float).tolist()
+                                                for q in (masses, fp, fm, grav, sfp, sfm)))):
             self.m[i], self.fp[i], self.fm[i], self.grav[i] = mi, a, b, g
+            self.sfp[i], self.sfm[i] = sa, sb
             for j in range(nl):
                 self.W[i * nl + j] = w[i, j]
                 self.C[i * nl + j] = c[i, j]
@@ -420,8 +427,10 @@ cdef class ClosedForm:
                 fm_g = 0.0
                 for i in range(p):
                     if grp[sg * p + i]:
-                        wg += self.fp[i] + self.fm[i]
-                        fm_g += self.fm[i]
+                        # the documented split (core/friction.py: split_stuck): each member
+                        # at the same point of its static interval
+                        wg += self.sfp[i] + self.sfm[i]
+                        fm_g += self.sfm[i]
                 if wg > 0.0:
                     total = self.M * A - f_slide
                     theta = min(max((-total + fm_g) / wg, 0.0), 1.0)
@@ -429,9 +438,9 @@ cdef class ClosedForm:
                     q = (-imp + fm_g * d) / wg
                     for i in range(p):
                         if grp[sg * p + i]:
-                            w = self.fp[i] + self.fm[i]
-                            R[kp + i] = self.fm[i] - theta * w
-                            K[kp + i] = K0_s[sg * p + i] + (self.fm[i] * d - q * w)
+                            w = self.sfp[i] + self.sfm[i]
+                            R[kp + i] = self.sfm[i] - theta * w
+                            K[kp + i] = K0_s[sg * p + i] + (self.sfm[i] * d - q * w)
                 else:
                     for i in range(p):
                         if grp[sg * p + i]:
@@ -442,7 +451,7 @@ cdef class ClosedForm:
                 lam[k * (p - 1) + i] = acc
             for i in range(p):
                 c = contact_s[sg * p + i]
-                if self.fp[i] + self.fm[i] == 0.0:
+                if self.sfp[i] + self.sfm[i] == 0.0:      # frictionless (static >= kinetic)
                     c = 1 if v[kp + i] > 0 else (-1 if v[kp + i] < 0 else 0)
                 state[kp + i] = c
             ind[k] = n_group > 1
@@ -476,9 +485,22 @@ cdef class ExactCore:
     cdef double* C                # (p, nl) offsets from body 0
     cdef double* fp
     cdef double* fm
+    cdef double* sfp              # static bounds [N] (core/friction.py; = fp, fm without stiction)
+    cdef double* sfm
     cdef double* m_
     cdef double* grav
     cdef unsigned char* free
+    # stiction (STICTION.md): Rule S decides the mode on top of the kinetic inclusion, only
+    # when a static bound is above its kinetic one (else the code paths are today's, bit for
+    # bit); ``margin_rule``: largest margin without incumbency (``stiction_rule='margin'``)
+    cdef public bint stiction, margin_rule
+    cdef unsigned char* inc       # (p,) the cluster stuck just before t (the incumbent)
+    cdef unsigned char* ck_inc    # (p,) the incumbent a period earlier
+    cdef int n_cons               # consistent continuations at the last decision (``rule_s``)
+    cdef bint tie                 # ... and whether the margin had an exact tie
+    cdef public long n_choice
+    cdef double* ch_t             # (n_buf,) times where the rule chose (several consistent)
+    cdef long* ch_n               # (2 n_buf,) their number of continuations, tie (0/1)
     # settings
     cdef public double tol, tscale, cap
     # state: body 0 follows from X, V and the gait (X, V: centre of mass [m, m/s])
@@ -589,12 +611,13 @@ cdef class ExactCore:
         self.n_buf = n_buf
         # doubles: state first (K, ck_K, last_f, last_R, last_K0 are what ``save`` copies)
         nd = (p + p + 6 + p + p                       # K, ck_K, last_f, last_R, last_K0
-              + 4 * p + 2 * p * nl                    # fp, fm, m_, grav, W, C
+              + 6 * p + 2 * p * nl                    # fp, fm, sfp, sfm, m_, grav, W, C
               + 8 * nl + 10 * p                       # l .. snap, e .. fmz
               + 7 * nr + 2 * nr * nl + 18 * nr        # c0 .. noise, RL, B3, A1 .. qd
               + 6 * n_buf + 2 * p * n_buf + n_evr)        # sf, sR, sK0, et
         nb = (p + p + p + p + p + p + p               # contact zero cache_group ck_contact ck_zero
               + p + p + p + p + p                     # last_contact last_group free hits group
+              + p + p                                 # inc ck_inc
               + p + p + p                             # group2 new_contact new2
               + 3 * nr + 2 * p * n_buf)               # watch hit mirror, scontact sgroup
         self._mem = <char*>PyMem_Calloc(1, nd * sizeof(double) + nb + 16
@@ -611,6 +634,8 @@ cdef class ExactCore:
         self._n_state = 3 * p + p + 6          # doubles of the state block above
         self.fp = d; d += p
         self.fm = d; d += p
+        self.sfp = d; d += p
+        self.sfm = d; d += p
         self.m_ = d; d += p
         self.grav = d; d += p
         self.W = d; d += p * nl
@@ -664,6 +689,8 @@ cdef class ExactCore:
         self.ck_zero = u; u += p
         self.last_contact = <signed char*>u; u += p
         self.last_group = u; u += p
+        self.inc = u; u += p                # (after last_group: ``save`` copies them together)
+        self.ck_inc = u; u += p
         self.free = u; u += p
         self.hits = u; u += p
         self.group = u; u += p
@@ -675,13 +702,17 @@ cdef class ExactCore:
         self.mirror = u; u += nr
         self.scontact = <signed char*>u; u += p * n_buf
         self.sgroup = u; u += p * n_buf
-        self._snap = <char*>PyMem_Calloc(1, self._n_state * sizeof(double) + 8 * p + 16)
-        if self._snap == NULL:
+        self._snap = <char*>PyMem_Calloc(1, self._n_state * sizeof(double) + 10 * p + 16)
+        self.ch_t = <double*>PyMem_Calloc(n_buf, sizeof(double))
+        self.ch_n = <long*>PyMem_Calloc(2 * n_buf, sizeof(long))
+        if self._snap == NULL or self.ch_t == NULL or self.ch_n == NULL:
             raise MemoryError()
 
     def __dealloc__(self):
         PyMem_Free(self._mem)
         PyMem_Free(self._snap)
+        PyMem_Free(self.ch_t)
+        PyMem_Free(self.ch_n)
 
     def __init__(self, ClosedForm closed, double tol):
         """The segment loop of the crawler whose constants ``closed`` holds (its masses [kg],
@@ -693,6 +724,8 @@ cdef class ExactCore:
         memcpy(self.m_, closed.m, p * sizeof(double))
         memcpy(self.fp, closed.fp, p * sizeof(double))
         memcpy(self.fm, closed.fm, p * sizeof(double))
+        memcpy(self.sfp, closed.sfp, p * sizeof(double))
+        memcpy(self.sfm, closed.sfm, p * sizeof(double))
         memcpy(self.grav, closed.grav, p * sizeof(double))
         if nw:
             memcpy(self.W, closed.W, nw * sizeof(double))
@@ -703,7 +736,10 @@ cdef class ExactCore:
         for i in range(p):
             self.M += self.m_[i]
             self.f_total += self.fp[i] + self.fm[i]
-            self.free[i] = (self.fp[i] + self.fm[i]) == 0.0
+            # frictionless: no static bound either (a body with kinetic 0 < static can stick)
+            self.free[i] = (self.sfp[i] + self.sfm[i]) == 0.0
+            if self.sfp[i] > self.fp[i] or self.sfm[i] > self.fm[i]:
+                self.stiction = True
         self.fext = fext
         self.v_acc = (self.f_total + abs(fext)) / self.M
         self.tol = tol
@@ -713,6 +749,22 @@ cdef class ExactCore:
         self.last_valid = False
 
     # ------------------------------------------------------------------ Python access
+    @property
+    def incumbent_array(self):
+        """(p,) bool: the bodies of the cluster stuck just before t (STICTION.md s. 7)."""
+        return np.array(<unsigned char[:self.p]>self.inc).astype(bool)
+
+    @incumbent_array.setter
+    def incumbent_array(self, value):
+        cdef int i
+        for i, x in enumerate(np.asarray(value).tolist()):
+            self.inc[i] = bool(x)
+
+    def choices(self, int n):
+        """The call's first n instants where Rule S chose among several consistent
+        continuations: a list of (time [s], number of continuations, exact tie of margins)."""
+        return [(self.ch_t[k], self.ch_n[2 * k], bool(self.ch_n[2 * k + 1])) for k in range(n)]
+
     @property
     def K_array(self):
         return np.array(<double[:self.p]>self.K)
@@ -792,7 +844,7 @@ cdef class ExactCore:
         cdef int p = self.p
         memcpy(self._snap, self.K, self._n_state * sizeof(double))
         cdef char* b = self._snap + self._n_state * sizeof(double)
-        memcpy(b, self.contact, 7 * p)           # contact .. last_group, contiguous
+        memcpy(b, self.contact, 9 * p)           # contact .. last_group, inc, ck_inc
         self._snap_f[0] = self.t
         self._snap_f[1] = self.X
         self._snap_f[2] = self.V
@@ -818,7 +870,7 @@ cdef class ExactCore:
     def restore(self):
         cdef int p = self.p
         memcpy(self.K, self._snap, self._n_state * sizeof(double))
-        memcpy(self.contact, self._snap + self._n_state * sizeof(double), 7 * p)
+        memcpy(self.contact, self._snap + self._n_state * sizeof(double), 9 * p)
         self.t = self._snap_f[0]
         self.X = self._snap_f[1]
         self.V = self._snap_f[2]
@@ -842,6 +894,7 @@ cdef class ExactCore:
         self.last_gait = self._saved_gait
         self.n_seg = 0
         self.n_ev = 0
+        self.n_choice = 0
 
     def forget_mode(self):
         """The next segment chooses its mode anew (a gait switch that is not C2)."""
@@ -874,6 +927,7 @@ cdef class ExactCore:
                 self.contact[i] = 1 if v > 0.0 else (-1 if v < 0.0 else 0)
                 self.zero[i] = v == 0.0
             self.K[i] = 0.0
+            self.inc[i] = 0       # no incumbent (``ExactSolver.reset``: initial_stuck sets one)
         self.ref = -1
         self.x_ref = 0.0
         self.cache_ok = False
@@ -907,6 +961,7 @@ cdef class ExactCore:
             self.ck_K[i] = self.K[i]
             self.ck_contact[i] = self.contact[i]
             self.ck_zero[i] = self.zero[i]
+            self.ck_inc[i] = self.inc[i]
         self.ck_valid = True
         return D, dK
 
@@ -1031,8 +1086,7 @@ cdef class ExactCore:
             A[0] = tot / self.M
             ref[0] = -1
             return 0
-        amb = self.solve_mode(self.epp, self.contact, AMBIGUOUS, True,
-                              self.new_contact, self.group, A, ref)
+        amb = self.select(self.epp, AMBIGUOUS, True, A, ref)
         span = max(ts - t, 0.0)
         n_group = 0
         for i in range(p):
@@ -1050,11 +1104,124 @@ cdef class ExactCore:
                 gait_rates(g, t + dt, self.ld2, self.ldd2, self.ld3)
                 for i in range(p):
                     self.epp2[i] = dot(self.W, i, self.ldd2, self.nl)
-                amb = self.solve_mode(self.epp2, self.contact, 1e-14, not loose,
-                                      self.new_contact, self.group, A, ref)
+                amb = self.select(self.epp2, 1e-14, not loose, A, ref)
                 if not amb:
                     break
         return 0
+
+    cdef int select(self, const double* epp, double slack, bint merge, double* A,
+                    int* ref) noexcept:
+        """The mode of the bodies at rest into ``new_contact``, ``group``, A, ref: the kinetic
+        inclusion (``solve_mode``), then, for a crawler with stiction, Rule S over it
+        (``rule_s``). Returns 1 when the choice is degenerate (decided a little later)."""
+        cdef int amb = self.solve_mode(epp, self.contact, slack, merge, self.new_contact,
+                                       self.group, A, ref)
+        self.n_cons = 1
+        self.tie = False
+        if self.stiction:
+            amb = self.rule_s(slack, A, ref) or amb
+        return amb
+
+    cdef int rule_s(self, double slack, double* A, int* ref) noexcept:
+        """Rule S (STICTION.md s. 3, 5) over the kinetic answer that ``solve_mode`` just
+        wrote (its merged kinks in ``kinks``, the bodies at rest in ``zidx``): every cluster
+        of bodies at rest (equal kinks, i.e. rigid at t+) is a stick candidate, consistent when
+        the ground force it needs, the others sliding at their kinetic bounds in the
+        directions its own acceleration gives them, is within its summed static interval
+        [-sum sfp, sum sfm]. The incumbent's cluster (a member stuck just before t) holds
+        first unless ``margin_rule``; otherwise the largest static margin, exact ties to the
+        lowest body index (flagged: ``tie``). With no consistent candidate the kinetic answer
+        stays (then the unique slide pattern). ``n_cons``: the consistent continuations (the
+        candidates, and the slide pattern when the kinetic answer has no stuck body). Returns
+        1 when a candidate's margin or two clusters' kinks are within ``slack`` of a tie
+        (decided a little later, on t+ data)."""
+        cdef int p = self.p, i, j, k, k2, nz = 0, best = -1, amb = 0, low, n_cons = 0
+        cdef double force = self.fext, acc_scale, f_scale, kap, rc, lo, hi, margin
+        cdef double best_m = -INFINITY
+        cdef bint incm, best_inc = False, dup, tie = False
+        cdef int* zi = self.zidx
+        for i in range(p):
+            if self.zero[i]:
+                nz += 1
+            elif self.contact[i] > 0:
+                force -= self.fp[i]
+            elif self.contact[i] < 0:
+                force += self.fm[i]
+        acc_scale = (self.f_total + fabs(force)) / self.M
+        for k in range(nz):
+            if fabs(self.kinks[k]) > acc_scale:
+                acc_scale = fabs(self.kinks[k])
+        if acc_scale < 1e-300:
+            acc_scale = 1e-300
+        f_scale = self.M * acc_scale
+        for k in range(nz):
+            kap = self.kinks[k]
+            dup = False
+            for k2 in range(k):
+                if self.kinks[k2] == kap:
+                    dup = True
+                    break
+            if dup:
+                continue            # the cluster was met at its lowest body (zidx ascends)
+            # the ground force the cluster needs: M A = F_ext + sum of ground forces, A = kap
+            rc = self.M * kap - force
+            lo = 0.0
+            hi = 0.0
+            incm = False
+            for k2 in range(nz):
+                j = zi[k2]
+                if self.kinks[k2] == kap:
+                    lo -= self.sfp[j]
+                    hi += self.sfm[j]
+                    incm = incm or self.inc[j]
+                else:
+                    if fabs(self.kinks[k2] - kap) <= slack * acc_scale:
+                        amb = 1
+                    if self.kinks[k2] < kap:
+                        rc += self.fp[j]        # j slides forward: ground force -fp[j]
+                    else:
+                        rc -= self.fm[j]        # j slides backward: +fm[j]
+            if hi - lo == 0.0:
+                continue
+            margin = min(rc - lo, hi - rc)
+            if fabs(margin) <= slack * f_scale:
+                amb = 1
+            if margin < 0.0:
+                continue
+            n_cons += 1
+            incm = incm and not self.margin_rule
+            if best < 0 or (incm and not best_inc) or (incm == best_inc and margin > best_m):
+                best = k
+                best_m = margin
+                best_inc = incm
+                tie = False
+            elif incm == best_inc and margin == best_m:
+                tie = True
+        if ref[0] < 0:
+            n_cons += 1                 # the slide pattern (the kinetic answer) is consistent
+        self.n_cons = n_cons
+        self.tie = tie
+        if best < 0:
+            return amb
+        kap = self.kinks[best]
+        if ref[0] >= 0 and A[0] == kap:
+            return amb                  # the kinetic answer sticks the same cluster
+        low = -1
+        for k in range(nz):
+            i = zi[k]
+            if self.kinks[k] == kap:
+                self.new_contact[i] = 0
+                self.group[i] = 1
+                if low < 0:
+                    low = i
+            else:
+                self.new_contact[i] = 1 if kap > self.kinks[k] else -1
+                self.group[i] = 0
+        if self.ref >= 0 and self.group[self.ref]:
+            low = self.ref
+        A[0] = kap
+        ref[0] = low
+        return amb
 
     cdef bint _any_zero(self) noexcept:
         cdef int i
@@ -1719,8 +1886,10 @@ cdef class ExactCore:
         hi = 0.0
         for i in range(p):
             if group[i]:
-                lo -= self.fp[i]
-                hi += self.fm[i]
+                # static bounds (core/friction.py: stuck_interval): with stiction only these
+                # constants differ from the kinetic rows (STICTION.md s. 7)
+                lo -= self.sfp[i]
+                hi += self.sfm[i]
             else:
                 f_slide += self.R[i]
         # the ground force the group needs: -M W_r l'' - f_slide, within [lo, hi]
@@ -1777,6 +1946,7 @@ cdef class ExactCore:
         cdef bint left, stale, moving, tiny, same, group_all
         self.n_seg = 0
         self.n_ev = 0
+        self.n_choice = 0
         self.k_at = -1
         self.bad_time = NAN
         if T > 0.0 and self.tl >= T and (g.kind != PROXY or g.period > 0.0):
@@ -1857,6 +2027,12 @@ cdef class ExactCore:
                     self.group[i] = self.cache_group[i]
             else:
                 self.mode(g, t, ts, &a, &r0)
+                if self.stiction and self.n_cons > 1:
+                    # an instant where Rule S chose among several consistent continuations
+                    self.ch_t[self.n_choice] = self.origin + t
+                    self.ch_n[2 * self.n_choice] = self.n_cons
+                    self.ch_n[2 * self.n_choice + 1] = self.tie
+                    self.n_choice += 1
             self.cache_ok = False
             if r0 >= 0:
                 if r0 != self.ref:
@@ -1947,8 +2123,8 @@ cdef class ExactCore:
                 fmg = 0.0
                 for i in range(p):
                     if self.group[i]:
-                        w += self.fp[i] + self.fm[i]
-                        fmg += self.fm[i]
+                        w += self.sfp[i] + self.sfm[i]
+                        fmg += self.sfm[i]
                     else:
                         self.K[i] += self.R[i] * d
                         f_slide += self.R[i]
@@ -1958,8 +2134,8 @@ cdef class ExactCore:
                 if w > 0.0:
                     for i in range(p):
                         if self.group[i]:
-                            self.K[i] += self.fm[i] * d - ((-imp + fmg * d) / w) * (
-                                self.fp[i] + self.fm[i])
+                            self.K[i] += self.sfm[i] * d - ((-imp + fmg * d) / w) * (
+                                self.sfp[i] + self.sfm[i])
             if n_hit > 0:
                 if r0 < 0:
                     gait_rates(g, t_ev, self.ld, self.ldd, self.ld3)
@@ -2006,6 +2182,8 @@ cdef class ExactCore:
             for i in range(p):
                 self.last_contact[i] = self.contact[i]
                 self.last_group[i] = self.group[i]
+                # the incumbent of the next decision: the cluster stuck on this segment
+                self.inc[i] = self.group[i] if r0 >= 0 else 0
                 self.last_R[i] = self.R[i]
                 self.last_K0[i] = self.sK0[self.n_seg * p + i]
             self.n_seg += 1
@@ -2043,6 +2221,12 @@ cdef class ExactCore:
                     for i in range(p):
                         if self.ck_contact[i] != self.contact[i] or self.ck_zero[i] != self.zero[i]:
                             same = False
+                if same and self.stiction:
+                    # the incumbent is state too: two states with the same (t, V) and
+                    # different incumbents can have different futures (STICTION.md s. 7)
+                    for i in range(p):
+                        if self.ck_inc[i] != self.inc[i]:
+                            same = False
                 if same and self.ref < 0:
                     # repeated to the solver's accuracy: event times are known to tol, so
                     # velocities to about tol times the largest friction acceleration
@@ -2064,6 +2248,7 @@ cdef class ExactCore:
                     self.ck_K[i] = self.K[i]
                     self.ck_contact[i] = self.contact[i]
                     self.ck_zero[i] = self.zero[i]
+                    self.ck_inc[i] = self.inc[i]
                 if g.kind != PROXY or g.period > 0.0:
                     # the next period in its own frame (a Python gait's pieces only once they
                     # repeat: before, they are built at the times the solver reaches); its

@@ -90,7 +90,7 @@ class ExactSolver:
     """
 
     capabilities = Capabilities(dense_output=True, closed_form=True, streaming=True,
-                                periodic_skip=True)
+                                periodic_skip=True, stiction=True)
 
     def __init__(self, crawler: Crawler, gait: Gait, *, t0: float = 0.0, x0: float = 0.0,
                  v0: float = 0.0, tol: float = 1e-13, max_step: float | None = None,
@@ -109,8 +109,9 @@ class ExactSolver:
         self._skip = periodic_skip is None or bool(periodic_skip)
         k = self._k = crawler_constants(crawler)
         self._core = _exact.ExactCore(k.closed, self.tol)
+        self._core.margin_rule = self.stiction_rule == 'margin'
         self.status, self.message = 'ok', ''
-        self.reset(t0=t0, x0=x0, v0=v0)
+        self.reset(t0=t0, x0=x0, v0=v0, initial_stuck=initial_stuck)
 
     # ------------------------------------------------------------------ state
     t = property(lambda self: self._core.t)
@@ -122,12 +123,25 @@ class ExactSolver:
     zero = property(lambda self: self._core.zero_array)
     n_evals = property(lambda self: self._core.n_evals)
 
-    def reset(self, *, t0: float = 0.0, x0: float = 0.0, v0: float = 0.0) -> None:
-        """Start at time t0 with body 0 at x0 [m] moving at v0 [m/s]."""
+    def reset(self, *, t0: float = 0.0, x0: float = 0.0, v0: float = 0.0,
+              initial_stuck: int | None = None) -> None:
+        """Start at time t0 with body 0 at x0 [m] moving at v0 [m/s]; ``initial_stuck``: None
+        (no incumbent) or a body at rest at t0 whose cluster counts as stuck just before t0
+        (``Stepper`` checks it is at rest)."""
         if not self._core.reset(self._cg, float(t0), float(x0), float(v0)):
             check_finite_gait(self._cg.at(float(t0)), t0)
+        if initial_stuck is not None:
+            inc = np.zeros(self.crawler.p, dtype=bool)
+            inc[int(initial_stuck)] = True
+            self._core.incumbent_array = inc
+        self.initial_stuck = initial_stuck
         self.segments = SegmentList()
         self.events = EventLog()
+        #: instants where Rule S chose among several consistent continuations (a crawler with
+        #: stiction): (time [s], number of continuations, exact tie of margins), those of the
+        #: periods integrated; ``n_choices`` counts the skipped periods' too
+        self.choices: list[tuple[float, int, bool]] = []
+        self.n_choices = 0
         self.n_segments = 0
         self.n_skipped_periods = 0
         self._last_gait = self.gait
@@ -220,6 +234,9 @@ class ExactSolver:
         """Keep the call's n segment records (as one ``SegmentChunk``, turned into ``Segment``
         objects only when read) and its n_ev contact changes as events."""
         core = self._core
+        if core.n_choice:
+            self.choices.extend(core.choices(core.n_choice))
+            self.n_choices += core.n_choice
         if n_ev:
             self.events.extend(core.events(n_ev, new_event))
         if not n:
@@ -237,6 +254,10 @@ class ExactSolver:
         new_events = self.events[core.ck_nev:]
         template = ([sg for sg in self.segments[core.ck_nseg:] if isinstance(sg, Segment)]
                     if self.keep_segments else [])
+        if self.choices:
+            # the period just completed repeats its choices in each skipped one (counted)
+            lo = np.searchsorted([c[0] for c in self.choices], t_k - T * (1 + 4 * _EPS))
+            self.n_choices += n * (len(self.choices) - int(lo))
         D, dK = core.skip_periods(n, T, k)
         if self.keep_segments:
             self.segments.append(PeriodicBlock(t_k, n, T, D, dK, template, (k - 1) * T))
@@ -341,12 +362,21 @@ class ExactSolver:
         self.segments.extend_chunk(merged)
 
     def info(self, times: NDArray[np.float64]) -> dict:
-        return {'segments': self.n_segments, 'skipped_periods': self.n_skipped_periods}
+        """The run's counters; with stiction also ``choices`` (the instants where Rule S
+        chose, skipped periods included) and ``choice_times`` [s] (those integrated)."""
+        out = {'segments': self.n_segments, 'skipped_periods': self.n_skipped_periods}
+        if self.crawler.has_stiction:
+            out['choices'] = self.n_choices
+            out['choice_times'] = np.array([c[0] for c in self.choices])
+        return out
 
     # ---------------------------------------------------------------- output
     def current(self) -> dict:
-        """The state at the current time as one output row (left limit at an event)."""
-        return self._core.current(self._cg)
+        """The state at the current time as one output row (left limit at an event), with
+        ``incumbent`` (p,) bool: the cluster stuck just before t."""
+        row = self._core.current(self._cg)
+        row['incumbent'] = self._core.incumbent_array
+        return row
 
     def sample(self, times: NDArray[np.float64]) -> dict:
         """Exact states at ``times`` (sorted, within the integrated span) from kept segments.

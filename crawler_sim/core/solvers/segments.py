@@ -15,6 +15,7 @@ import weakref
 import numpy as np
 from numpy.typing import NDArray
 
+from ..friction import bounds
 from ..gaits import Gait
 from ..model import Crawler
 
@@ -41,9 +42,10 @@ class CrawlerConstants:
         from ._exact import ClosedForm
         self.m = crawler.masses
         C, self.W = offset_matrices(crawler.masses)
-        self.closed = ClosedForm(self.m, crawler.friction, crawler.friction_backward,
+        b = bounds(crawler)
+        self.closed = ClosedForm(self.m, b.kinetic_forward, b.kinetic_backward,
                                  float(crawler.external_force), crawler.gravity_forces, self.W,
-                                 C)
+                                 C, b.static_forward, b.static_backward)
 
 
 _CONSTANTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
