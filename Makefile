@@ -35,12 +35,14 @@ $(STAMP): requirements.txt
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	touch $(VENV)/COLCON_IGNORE
 	$(PY) -m pip install --upgrade pip
-	$(PY) -m pip install -r requirements.txt
+	# --no-compile: no bytecode for modules nothing imports (~100 MB); Python writes it for the
+	# ones it imports, on first use
+	$(PY) -m pip install --no-compile -r requirements.txt
 	touch $@
 
 # added to the run venv; the colcon build does not depend on this stamp, so nothing recompiles
 $(TEST_STAMP): $(STAMP) requirements-test.txt requirements-sweep.txt
-	$(PY) -m pip install -r requirements-test.txt
+	$(PY) -m pip install --no-compile -r requirements-test.txt
 	touch $@
 
 build: $(INSTALL_STAMP) $(INTERFACES_STAMP)
