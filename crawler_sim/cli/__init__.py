@@ -31,6 +31,7 @@ from typing import Any, Callable, Sequence
 
 PROG = 'crawler-sim'
 METHODS = ('exact', 'implicit', 'penalty')   # crawler_sim.METHODS, without importing the core
+RULES = ('incumbent', 'margin')     # core.friction.RULES, the same (test_cli_stiction checks)
 EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 REPLAY_TOL = 1e-9      # default replay tolerance on positions [m] and velocities [m/s]
 AS_NODE_MODES = ('preload', 'trajectory', 'command')    # how gait_node plays a gait
@@ -226,7 +227,7 @@ def _as_node(scene: Any, as_node: dict) -> Any:
     r = scene.run
     start = as_node.get('initial_lengths') or np.atleast_1d(scene.gait.length(0.0))
     plant = PlantConfig.for_crawler(scene.crawler, start, method=r.method,
-                                    initial_position=r.x0)
+                                    initial_position=r.x0, stiction_rule=r.stiction_rule)
     mode = as_node['mode']
     stream = Stream('command' if mode == 'command' else 'trajectory', float(as_node['rate']),
                     preload=mode == 'preload', duration=r.t_end + 1.0 if mode == 'preload'
@@ -257,7 +258,8 @@ def _simulate(args: argparse.Namespace, source: Path) -> int:
         from ..core.plant.config import PARAMETERS
         penalty = PARAMETERS['penalty'][0][0]          # sim_node's default regularisation
         _info(f'method penalty: n = {penalty:g} N s/m (sim_node\'s default; --penalty N)')
-    scene = scene.with_run(method=args.method, t_end=args.t_end, dt=args.dt, penalty=penalty)
+    scene = scene.with_run(method=args.method, t_end=args.t_end, dt=args.dt, penalty=penalty,
+                           stiction_rule=args.stiction_rule)
     # the outputs are checked before a long run, not after it
     if args.out:
         check_new_folder(args.out)
@@ -531,6 +533,9 @@ def build_parser() -> argparse.ArgumentParser:
             'the verify check and the wall time.')
     p.add_argument('scene', metavar='SCENE.yaml', help='scene file (top-level key "scene:")')
     p.add_argument('--method', choices=METHODS, help='solver (overrides scene.run.method)')
+    p.add_argument('--stiction-rule', choices=RULES,
+                   help='with static friction above kinetic: who holds when several parts come '
+                   'to rest at once (overrides scene.run.stiction_rule; default incumbent)')
     p.add_argument('--t-end', type=_positive, metavar='T',
                    help='simulated time [s] (overrides scene.run.t_end)')
     p.add_argument('--dt', type=_positive, metavar='DT',

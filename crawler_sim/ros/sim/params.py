@@ -18,6 +18,7 @@ from crawler_sim.bag import topics
 from crawler_sim.bag.naming import check_record_name
 from crawler_sim.core.plant import config as plant
 from crawler_sim.core.plant.config import PlantConfig
+from crawler_sim.core.friction import RULES
 from crawler_sim.core.stepper import METHODS
 
 if TYPE_CHECKING:
@@ -88,6 +89,8 @@ def descriptor(name: str) -> ParameterDescriptor:
                                                      to_value=float(rng[1]), step=0.0)]
     if name == 'method':
         d.additional_constraints = 'one of: ' + ', '.join(METHODS)
+    elif name == 'stiction_rule':
+        d.additional_constraints = 'one of: ' + ', '.join(RULES)
     return d
 
 
