@@ -28,7 +28,10 @@ DISTRIBUTION = {'yaml': 'PyYAML', 'distributed': 'dask'}
 #: modules that come with ROS 2 (a Jazzy install, or the `ros` extra's wheels)
 ROS = {'rclpy', 'rcl_interfaces', 'ament_index_python', 'builtin_interfaces', 'std_msgs',
        'std_srvs', 'sensor_msgs', 'geometry_msgs', 'nav_msgs', 'trajectory_msgs',
-       'visualization_msgs', 'diagnostic_msgs', 'rosgraph_msgs', 'rosidl_parser'}
+       'visualization_msgs', 'diagnostic_msgs', 'rosgraph_msgs', 'rosidl_parser',
+       # the simulator-standard interfaces: a Jazzy install's, or built into install/ by
+       # `make build` from interfaces/ (requirements-interfaces.txt)
+       'simulation_interfaces', 'tf2_msgs'}
 #: modules only the sweep extra brings (imported by crawler_sim.sweep and its CLI commands)
 SWEEP = {'pandas', 'pyarrow', 'distributed', 'dask'}   # dask[distributed]: both modules
 
