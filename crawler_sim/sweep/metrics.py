@@ -16,7 +16,9 @@ Energy
 ------
 Between two consecutive events each body slides one way or sticks, and its friction force is
 constant while it slides, so the energy it dissipates is exactly f_i^+ (forward travel) + f_i^-
-(backward travel) (``Trajectory.sliding_distance``: exact for the exact method, every event
+(backward travel), f^+ and f^- its kinetic bounds (``core.friction``: a sliding body gets its
+kinetic force, with or without stiction; a stuck one dissipates nothing)
+(``Trajectory.sliding_distance``: exact for the exact method, every event
 read from its dense output). The actuator's positive work, the integral of max(G l', 0), is
 ``Trajectory.positive_work``: quadrature between the power's roots to ~1e-13 for the exact
 method, the trapezoid over the samples for the others.
@@ -28,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core import friction
 from ..core.scene import Scene
 from ..core.solvers.base import capabilities
 from ..core.stepper import simulate
@@ -120,7 +123,8 @@ def run_figures(tr: Trajectory, period: float, periods: int) -> dict[str, Any]:
     dx = float(X_b[-1] - X_b[k0])
     speed = dx / window
     fwd, back = tr.sliding_distance(t0, t1)
-    dissipated = float(c.friction @ fwd + c.friction_backward @ back)
+    law = friction.bounds(c)
+    dissipated = float(law.kinetic_forward @ fwd + law.kinetic_backward @ back)
     pos_work = tr.positive_work(t0, t1)
     denom = c.total_mass * c.gravity * abs(dx)
     report = verify(tr)
@@ -155,8 +159,10 @@ def scene_figures(scene: Scene, periods: int, samples_per_period: int) -> dict[s
         # dt only sets the sample grid of an event-driven method: linspace(0, t_end, n + 1)
         # plus the events
         tr = simulate(scene.crawler, scene.gait, t_end, r.method, dt=t_end / n, v0=r.v0, x0=r.x0,
-                      tol=r.tol, max_step=r.max_step)
+                      tol=r.tol, max_step=r.max_step, stiction_rule=r.stiction_rule,
+                      initial_stuck=r.initial_stuck)
     else:
         tr = simulate(scene.crawler, scene.gait, t_end, r.method, dt=r.dt, v0=r.v0, x0=r.x0,
-                      penalty=r.penalty, t_eval=np.linspace(0.0, t_end, n + 1))
+                      penalty=r.penalty, t_eval=np.linspace(0.0, t_end, n + 1),
+                      stiction_rule=r.stiction_rule, initial_stuck=r.initial_stuck)
     return run_figures(tr, period, periods)
