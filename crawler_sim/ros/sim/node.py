@@ -52,7 +52,7 @@ from crawler_sim.bag import journal, topics as T
 from crawler_sim.core.plant import Engine
 from crawler_sim.core.trajectory import State
 from crawler_sim.ros import messages as M
-from . import intake, loop
+from . import intake, loop, standard
 from .clock import SharedClock
 from .diagnostics import COUNTERS, Diagnostics, graph_count
 from .outputs import Outputs
@@ -128,6 +128,8 @@ class SimNode(Node):
             self.recorder.open(self._cfg.record_dir, self._cfg.record_name, scene,
                                dict.fromkeys(recorded))
             self._record_description()
+        # simulation_interfaces services and action, when the package is installed (.standard)
+        self.standard = standard.attach(self)
 
     # ------------------------------------------------------------------ read-only views
     @property
@@ -293,17 +295,23 @@ class SimNode(Node):
         return response
 
     def _on_pause(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
+        response.success = True
+        response.message = self.set_paused(request.data)
+        return response
+
+    def set_paused(self, paused: bool) -> str:
+        """Pause or resume (logged); return the line that says so (``~/pause`` and the
+        standard's set_simulation_state)."""
         with self._lock:
-            if request.data:
+            if paused:
                 self._engine.pause()
             else:
                 self._engine.resume()
             self._anchor_needed = True
-            response.success = True
-            response.message = (f'{"paused" if self.paused else "running"} at '
-                                f't = {to_seconds(self._t_ns):.9f} s')
-            self._log.info(response.message)
-        return response
+            line = (f'{"paused" if self.paused else "running"} at '
+                    f't = {to_seconds(self._t_ns):.9f} s')
+            self._log.info(line)
+        return line
 
     def _on_step(self, request: Trigger.Request, response: Trigger.Response
                  ) -> Trigger.Response:
@@ -369,6 +377,12 @@ class SimNode(Node):
     @property
     def config(self) -> SimConfig:
         return self._cfg
+
+    @property
+    def last_published(self) -> tuple[State | None, int]:
+        """The state last published and its sim time [ns] ((None, 0) before the first): what
+        a reader gets without cutting the integration off the publish grid."""
+        return self._last_state, self._last_row_ns
 
     def tick(self) -> None:
         """Advance one integration step (also callable directly, e.g. from tests)."""

@@ -27,6 +27,7 @@ from visualization_msgs.msg import MarkerArray
 from crawler_sim.bag import topics as T
 from crawler_sim.ros import messages as M
 from .model import robot_description
+from .tf import TfBroadcaster, load_tf_message
 from .params import OFF_GRID, OUTPUTS
 
 if TYPE_CHECKING:
@@ -74,6 +75,9 @@ class Outputs:
         self._model_key: tuple | None = None     # what the published description was made of
         #: the URDF last published on ``robot_description`` ('' before the first sync)
         self.description = ''
+        # /tf odom -> base_link at every publish tick (None without tf2_msgs: why in tf_missing)
+        tf_message, self.tf_missing = load_tf_message()
+        self.tf = TfBroadcaster(node, tf_message) if tf_message is not None else None
 
     def sync(self, cfg: SimConfig) -> bool:
         """Create the publishers of switched-on outputs, destroy those switched off; publish
@@ -160,6 +164,8 @@ class Outputs:
             self._clock_raw(M.clock_cdr(t_ns))
             self.clock_last_ns = t_ns
             self.clock_wall = time.perf_counter()
+        if self.tf is not None:
+            self.tf.publish(state, t_ns, masses)
         if record is not None:
             takers = self._grid
         else:
@@ -180,3 +186,5 @@ class Outputs:
     def refresh(self) -> None:
         """Read the subscriber counts at the next publish tick (e.g. after a reset)."""
         self._countdown = 0
+        if self.tf is not None:
+            self.tf.refresh()

@@ -1,0 +1,102 @@
+"""/tf of sim_node over real DDS (crawler_sim/ros/sim/tf.py): odom -> base_link at every publish
+tick, equal to ``odom``'s pose; distinct frames for a namespaced robot.
+
+Expected values: the transform must be ``odom``'s pose, field for field, at the same stamp (the
+two messages are compared with each other, and the centre of mass with sum m_i x_i / M computed
+here from ``body_states``)."""
+from __future__ import annotations
+
+import sys
+
+from nav_msgs.msg import Odometry
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from tf2_msgs.msg import TFMessage
+
+from crawler_sim.ros.messages import ns_from_stamp
+from crawler_sim.ros.sim_node import SimNode
+from test.support.ros import THREE_BODY, cmd, ticks
+
+TICK = 1_000_000        # ns (integration_rate 1 kHz); publish ticks every 10 ticks
+
+
+def test_tf_is_odoms_pose_at_every_publish_tick(ros):
+    sim = ros.sim(masses=[0.5, 1.0, 2.0])
+    tfs = ros.listen(TFMessage, '/tf')
+    odoms = ros.listen(Odometry, 'odom')
+    bodies = ros.listen(JointState, 'body_states')
+    pub = ros.publisher(Float64MultiArray, 'linkage_cmd')
+    ros.send(pub, cmd(0.2, 0.05), sim, 'commands_accepted')
+    ticks(sim, 300)
+    stamps = [k * 10 * TICK for k in range(1, 31)]
+    ros.until(lambda: len(tfs) >= 30 and len(odoms) >= 30 and len(bodies) >= 30,
+              'the 30 publish ticks')
+    by_stamp = {}
+    for msg in tfs:
+        assert len(msg.transforms) == 1
+        tr = msg.transforms[0]
+        by_stamp[ns_from_stamp(tr.header.stamp)] = tr
+    assert sorted(by_stamp)[-30:] == stamps        # one transform at each publish tick
+    com = {ns_from_stamp(b.header.stamp):
+           (0.5 * b.position[0] + 1.0 * b.position[1] + 2.0 * b.position[2]) / 3.5
+           for b in bodies}
+    moved = False
+    for odom in odoms:
+        t_ns = ns_from_stamp(odom.header.stamp)
+        tr = by_stamp[t_ns]
+        assert (tr.header.frame_id, tr.child_frame_id) == (odom.header.frame_id,
+                                                           odom.child_frame_id) \
+            == ('odom', 'base_link')
+        p, q = odom.pose.pose.position, odom.pose.pose.orientation
+        v, r = tr.transform.translation, tr.transform.rotation
+        assert (v.x, v.y, v.z) == (p.x, p.y, p.z)
+        assert (r.x, r.y, r.z, r.w) == (q.x, q.y, q.z, q.w) == (0.0, 0.0, 0.0, 1.0)
+        assert abs(v.x - com[t_ns]) <= 1e-15
+        moved |= v.x != odoms[0].pose.pose.position.x
+    assert moved                                    # the crawler moved: not a constant
+
+
+def test_a_namespaced_robot_has_its_own_frames(ros):
+    node = SimNode(context=ros.ctx, namespace='/r1', parameter_overrides=[
+        Parameter(k, value=v) for k, v in THREE_BODY.items()])
+    ros.ex.add_node(node)
+    ros.nodes.append(node)
+    tfs = ros.listen(TFMessage, '/tf')
+    ticks(node, 10)
+    ros.until(lambda: tfs, 'a transform')
+    tr = tfs[-1].transforms[0]
+    assert (tr.header.frame_id, tr.child_frame_id) == ('r1/odom', 'r1/base_link')
+    assert ns_from_stamp(tr.header.stamp) == 10 * TICK
+
+
+def test_a_paused_node_does_not_repeat_a_stamp_to_the_same_subscriber(ros):
+    """tf2 listeners warn on every repeated stamp (TF_REPEATED_DATA): the paused node's
+    republication of its state sends the transform only to a subscriber that joined since."""
+    sim = ros.sim()
+    first = ros.listen(TFMessage, '/tf')
+    ticks(sim, 10)
+    ros.until(lambda: first, 'the transform at 10 ms')
+    sim.republish()                                # what the loop does while paused
+    sim.republish()
+    late = []
+    sub = ros.obs.create_subscription(TFMessage, '/tf', late.append, 100)
+    ros.until(lambda: sim.outputs.tf._pub.get_subscription_count() == 2, 'the late subscriber')
+    sim.republish()
+    ros.until(lambda: late, 'the transform for the late subscriber')
+    ticks(sim, 10)
+    ros.until(lambda: len(late) >= 2, 'the next publish tick')
+    assert [ns_from_stamp(m.transforms[0].header.stamp) for m in late] == [10 * TICK, 20 * TICK]
+    assert 10 * TICK in [ns_from_stamp(m.transforms[0].header.stamp) for m in first]
+    ros.obs.destroy_subscription(sub)
+
+
+def test_without_tf2_msgs_the_node_runs_without_tf(ros, monkeypatch):
+    for name in [m for m in sys.modules if m.startswith('tf2_msgs')]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, 'tf2_msgs', None)     # import fails
+    sim = ros.sim()
+    assert sim.outputs.tf is None and 'tf2_msgs' in sim.outputs.tf_missing
+    ticks(sim, 10)
+    assert sim.sim_time_ns == 10 * TICK
+    assert ros.obs.count_publishers('/tf') == 0
