@@ -145,6 +145,15 @@ class Run:
         return float(self.t[-1] - self.t[0]) if len(self.t) > 1 else 0.0
 
     @property
+    def incumbent(self) -> NDArray[np.bool_]:
+        """(N, p) bool: the bodies of the cluster stuck just before each state (the
+        incumbent of a crawler with stiction, ``State.incumbent``). A recorded state is the
+        one on the interval ending at its time, and at most one cluster is stuck on an
+        interval, so these are its bodies with contact 0: the bag holds the incumbent without
+        a field of its own (False where a body did not exist)."""
+        return self.contact == 0
+
+    @property
     def masses(self) -> NDArray[np.float64] | None:
         """The body masses [kg] of the recorded scene, when it gives one per body."""
         crawler = self.scene.get('crawler') if isinstance(self.scene, dict) else None

@@ -108,3 +108,26 @@ def test_a_recorded_session_with_stiction_replays_with_zero_difference(ros, tmp_
     assert res['max_position_error'] == 0.0, res
     assert res['max_velocity_error'] == 0.0, res
     assert 'parameter change' in res['inputs'] and 'reset' in res['inputs']
+
+
+def test_the_incumbent_read_back_from_the_bag_is_the_engines(ros, tmp_path):
+    sim = ros.sim(seed=True, record=True, record_dir=str(tmp_path), record_name='incumbent',
+                  **HOLD)
+    pub = ros.publisher(Float64MultiArray, 'linkage_cmd')
+    seen = {0: sim.state.incumbent.copy()}
+    for target in (None, 0.16, 0.05, 0.2):
+        if target is not None:
+            ros.send(pub, cmd(target), sim, 'commands_accepted')
+        for _ in range(40):
+            ticks(sim, 10)                       # one publish period (100 Hz of 1 kHz ticks)
+            seen[sim.sim_time_ns] = sim.state.incumbent.copy()
+    sim.close()
+    run = bag.load(tmp_path / 'incumbent')
+    rows = {int(t): i for i, t in enumerate(run.t_ns)}
+    kinds = set()
+    for t_ns, inc in seen.items():
+        if t_ns == 0:
+            continue                 # at the start: counted stuck before it, not yet recorded
+        np.testing.assert_array_equal(run.incumbent[rows[t_ns]], inc, err_msg=str(t_ns))
+        kinds.add(tuple(inc))
+    assert len(kinds) >= 3, kinds              # held, one body held, none held were all seen
