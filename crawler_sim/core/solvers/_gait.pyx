@@ -803,8 +803,10 @@ def cheb_series(const double[:, :, ::1] acc, const double[::1] a, const double[:
                 _cheb_derive(c + 3 * width, snap, width, inv)
                 _cheb_derive(snap, d5, width, inv)
                 _cheb_derive(d5, d6, width, inv)
-                bj[k, j] = _sampled_bound(c + 3 * width, d5, width, grid, h2)
-                bs[k, j] = _sampled_bound(snap, d6, width, grid, h2)
+                # (over the l''' series' nonzero terms only: the derivatives have fewer)
+                nc = _nonzero_length(c + 3 * width, width)
+                bj[k, j] = _sampled_bound(c + 3 * width, d5, nc, grid, h2)
+                bs[k, j] = _sampled_bound(snap, d6, nc, grid, h2)
                 amax = 0.0
                 for q in range(n1):
                     amax += fabs(acc[k, q, j])
@@ -859,6 +861,13 @@ cdef void _cheb_integrate(const double* c, double* out, Py_ssize_t n, double sca
     for q in range(n):
         out[q] *= scale
     out[0] += start
+
+
+cdef inline Py_ssize_t _nonzero_length(const double* c, Py_ssize_t n) noexcept:
+    """The length of the series c of length n without its zero top coefficients."""
+    while n > 0 and c[n - 1] == 0.0:
+        n -= 1
+    return n
 
 
 cdef double _sampled_bound(const double* c, const double* c2, Py_ssize_t n,
@@ -983,4 +992,177 @@ def cheb_states(fn, ts, int nl, first=None):
                 if not isfinite(o[k, i, j]):
                     raise ValueError(f"gait {('length', 'velocity')[i]} must be finite, got "
                                      f'a non-finite value at t = {t!r} s')
+    return out
+
+
+def cheb_split(const double[::1] a, const double[::1] b, const double[:, :, ::1] f,
+               const double[::1] nodes, bl, br, const double[::1] tail, double wide):
+    """The pieces that replace each unresolved piece [a, b] (l'' ``f`` (K, N + 1, nl) at its
+    ``nodes``, from +1 down to -1; ``bl`` / ``br`` it starts / ends on a breakpoint, ``tail``
+    its fit's relative tail, ``cheb_fit``): cut in two where the slope of l'' turns far more
+    than anywhere else (a kink or a jump: where the lines through the samples either side
+    meet, exact for a kinked line; ``proxy._split_points`` in numpy), else in four where
+    ``tail`` > ``wide`` (a series that has not begun to converge: halving lowers a
+    converging one's last coefficients by about 2^-N, so a tail that far above the rounding
+    needs two halvings, sampled at once rather than one round after the other), else halved.
+
+    Returns (a, b, bl, br, parent) of the new pieces, in order of their parent and then of
+    time; ``parent`` the tail of the piece each one replaces."""
+    cdef Py_ssize_t K = a.shape[0], n1 = f.shape[1], nl = f.shape[2], N = n1 - 1
+    cdef Py_ssize_t m
+    cdef const unsigned char[::1] left = np.ascontiguousarray(bl, dtype=np.uint8)
+    cdef const unsigned char[::1] right = np.ascontiguousarray(br, dtype=np.uint8)
+    cdef double t[64]
+    cdef double best[4]
+    cdef double cuts[5]
+    cdef double* slope
+    if n1 > 64:
+        raise ValueError(f'cheb_split: at most 64 nodes, got {n1}')
+    slope = <double*>PyMem_Malloc(max(N * nl, 1) * sizeof(double))
+    if slope == NULL:
+        raise MemoryError()
+    out_a = np.empty(4 * K)
+    out_b = np.empty(4 * K)
+    out_l = np.zeros(4 * K, dtype=bool)
+    out_r = np.zeros(4 * K, dtype=bool)
+    out_p = np.empty(4 * K)
+    cdef double[::1] oa = out_a, ob = out_b, op = out_p
+    cdef unsigned char[::1] ol = out_l.view(np.uint8), orr = out_r.view(np.uint8)
+    m = 0
+    try:
+        _split_all(a, b, f, nodes, left, right, tail, wide, slope, t, best, cuts,
+                   oa, ob, ol, orr, op, &m)
+    finally:
+        PyMem_Free(slope)
+    return out_a[:m], out_b[:m], out_l[:m], out_r[:m], out_p[:m]
+
+
+cdef void _split_all(const double[::1] a, const double[::1] b, const double[:, :, ::1] f,
+                     const double[::1] nodes, const unsigned char[::1] left,
+                     const unsigned char[::1] right, const double[::1] tail, double wide,
+                     double* slope, double* t, double* best, double* cuts, double[::1] oa,
+                     double[::1] ob, unsigned char[::1] ol, unsigned char[::1] orr,
+                     double[::1] op, Py_ssize_t* count) noexcept:
+    """``cheb_split``'s loop over the pieces (into the output arrays, ``count`` set)."""
+    cdef Py_ssize_t K = a.shape[0], n1 = f.shape[1], nl = f.shape[2], N = n1 - 1
+    cdef Py_ssize_t k, i, j, kk, jj, kl, kr, m = 0, cnt, q
+    cdef double mid, half, top, d, x, y, sl, sr, fl, fr, tl, tr, meet, lo, hi
+    for k in range(K):
+        mid = 0.5 * (a[k] + b[k])
+        half = 0.5 * (b[k] - a[k])
+        for i in range(n1):                      # ascending: node N - i
+            t[i] = mid + half * nodes[N - i]
+        for i in range(N):
+            d = t[i + 1] - t[i]
+            for j in range(nl):
+                slope[i * nl + j] = (f[k, N - i - 1, j] - f[k, N - i, j]) / d
+        # the turn of the slope at each inner node (its largest over the linkages)
+        kk = 0
+        top = -1.0
+        best[0] = best[1] = best[2] = best[3] = 0.0
+        for i in range(N - 1):
+            x = 0.0
+            for j in range(nl):
+                d = fabs(slope[(i + 1) * nl + j] - slope[i * nl + j])
+                if d > x:
+                    x = d
+            if not isfinite(x):
+                x = 0.0
+            if x > top:
+                top = x
+                kk = i
+            # the four largest, sorted down (best[3]: the fourth)
+            for q in range(4):
+                if x > best[q]:
+                    y = best[q]
+                    best[q] = x
+                    x = y
+        cnt = 0
+        if N >= 5 and top > 16.0 * best[3]:
+            # the kink sits in gap kk or kk + 1: where the line through the gap before them
+            # meets the line through the gap after them
+            jj = 0
+            x = -1.0
+            for j in range(nl):
+                d = fabs(slope[(kk + 1) * nl + j] - slope[kk * nl + j])
+                if d > x:
+                    x = d
+                    jj = j
+            kl = kk - 1 if kk >= 1 else 0
+            kr = kk + 2 if kk + 2 <= N - 1 else N - 1
+            sl, sr = slope[kl * nl + jj], slope[kr * nl + jj]
+            fl, fr = f[k, N - (kl + 1), jj], f[k, N - kr, jj]
+            tl, tr = t[kl + 1], t[kr]
+            meet = (fr - fl + sl * tl - sr * tr) / (sl - sr)
+            lo, hi = t[kk], t[kk + 2 if kk + 2 <= N else N]
+            if not (isfinite(meet) and meet > lo and meet < hi):
+                meet = t[kk + 1]
+            if meet > a[k] + 1e-9 * (b[k] - a[k]) and meet < b[k] - 1e-9 * (b[k] - a[k]):
+                cuts[1] = meet
+                cnt = 2
+        if cnt == 0:
+            if tail[k] > wide:
+                cnt = 4
+                for q in range(1, 4):
+                    cuts[q] = a[k] + (b[k] - a[k]) * (0.25 * q)
+            else:
+                cnt = 2
+                cuts[1] = mid
+        cuts[0] = a[k]
+        cuts[cnt] = b[k]
+        for q in range(cnt):
+            oa[m] = cuts[q]
+            ob[m] = cuts[q + 1]
+            ol[m] = left[k] if q == 0 else 0
+            orr[m] = right[k] if q == cnt - 1 else 0
+            op[m] = tail[k]
+            m += 1
+    count[0] = m
+
+
+def cheb_node_max(const double[:, :, :, ::1] coef, int series, const double[:, ::1] tnodes):
+    """The largest magnitude of series ``series`` of each piece and linkage (``coef`` (K, nl,
+    4, width), as ``cheb_series`` returns) at the nodes (``tnodes`` (N + 1, >= width): T_q
+    there), and the node where it is reached: ((K, nl), (K, nl) int)."""
+    cdef Py_ssize_t K = coef.shape[0], nl = coef.shape[1], w = coef.shape[3]
+    cdef Py_ssize_t n1 = tnodes.shape[0], k, j, i
+    cdef double v
+    top_arr = np.zeros((K, nl))
+    at_arr = np.zeros((K, nl), dtype=np.intp)
+    cdef double[:, ::1] top = top_arr
+    cdef Py_ssize_t[:, ::1] at = at_arr
+    if tnodes.shape[1] < w:
+        raise ValueError(f'cheb_node_max: {tnodes.shape[1]} columns of T_q for {w} coefficients')
+    cdef Py_ssize_t nc
+    for k in range(K):
+        for j in range(nl):
+            nc = _nonzero_length(&coef[k, j, series, 0], w)
+            for i in range(n1):
+                v = fabs(cheb_dot(&coef[k, j, series, 0], &tnodes[i, 0], <int>nc))
+                if v > top[k, j]:
+                    top[k, j] = v
+                    at[k, j] = i
+    return top_arr, at_arr
+
+
+def cheb_times(const double[::1] a, const double[::1] b, bl, br, const double[::1] nodes,
+               double ulps):
+    """The times ``cheb_sample`` reads each piece [a, b] at (its arithmetic, to the float):
+    shape (K, len(nodes)), node 0 at b, the last at a (with more than one node), a piece's end
+    on a breakpoint (``bl``, ``br``) read ``ulps`` float spacings inside (``one_sided``). For
+    functions of an array of times (``Custom(vectorized=True)``): one call for them all."""
+    cdef Py_ssize_t K = a.shape[0], n1 = nodes.shape[0], k, i
+    cdef const unsigned char[::1] left = np.ascontiguousarray(bl, dtype=np.uint8)
+    cdef const unsigned char[::1] right = np.ascontiguousarray(br, dtype=np.uint8)
+    out = np.empty((K, n1))
+    cdef double[:, ::1] o = out
+    cdef double mid, half
+    for k in range(K):
+        mid = 0.5 * (a[k] + b[k])
+        half = 0.5 * (b[k] - a[k])
+        for i in range(n1):
+            o[k, i] = mid + half * nodes[i]
+        o[k, 0] = one_sided(b[k], a[k], ulps) if right[k] else b[k]
+        if n1 > 1:
+            o[k, n1 - 1] = one_sided(a[k], b[k], ulps) if left[k] else a[k]
     return out

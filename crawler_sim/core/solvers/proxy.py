@@ -43,7 +43,10 @@ spacings inside (``_gait.one_sided``), so a listed time matches a jump that clos
 (l'' with a kink) is legal: where the slope of the samples turns far more than elsewhere, the
 piece is split where the lines through the samples on either side meet, which is the kink of
 a kinked line (list such times in ``breakpoints=`` and each side is one polynomial at once).
-Other pieces are halved.
+Other pieces are halved, or cut in four where their series has not begun to converge (its
+last coefficients above ``WIDE`` of the values: a halving lowers a converging series' tail by
+about 2^-N, so two are needed; one round of sampling instead of two), except where the pieces
+are joined after (``period=``, ``max_step=``: ``_join`` joins halves).
 
 A bound of |l'''| the user gives (``jerk_bound``) is checked against every piece: the series'
 l''' at the piece's nodes must stay within it, beyond the rounding of the fit (else the bound
@@ -74,6 +77,7 @@ MIN_WIDTH = 1e-6        # of a cell: the narrowest piece halving makes
 KEEP = 1 << 21          # most coefficients kept (the oldest pieces go)
 _JUMP = 1e-3            # l'' differing across a narrowest piece by this share of its scale
 NOISE = 1e-8            # a tail (over the piece's values) this small that splitting keeps: noise
+WIDE = 1e-4             # a tail above this is cut in four (halving lowers it by ~2^-N only)
 MAX_PIECES = 100_000    # most pieces sampled in one build
 _EPS = np.finfo(float).eps
 _BIG = np.finfo(float).max
@@ -329,14 +333,7 @@ class ChebTable:
         # one call for every node of every piece, at the times ``cheb_sample`` reads (its
         # arithmetic, elementwise: the same floats), a start shared with the piece before
         # read again rather than copied (the same time: the same value)
-        t = 0.5 * (a + b)[:, None] + 0.5 * (b - a)[:, None] * u[None, :]
-        t[:, 0] = b
-        for k in np.flatnonzero(br).tolist():       # (a few: breakpoints, the window's end)
-            t[k, 0] = _one_sided(float(b[k]), float(a[k]))
-        if u.size > 1:
-            t[:, -1] = a
-            for k in np.flatnonzero(bl).tolist():
-                t[k, -1] = _one_sided(float(a[k]), float(b[k]))
+        t = _gait.cheb_times(a, b, bl, br, u, BREAK_ULPS)
         out = self._batch[0](t.reshape(-1)).reshape(t.shape + (self.nl,))
         self.calls += t.size
         self.batches += 1
@@ -348,6 +345,7 @@ class ChebTable:
         the unhappy ones halved until happy."""
         bl = np.concatenate(([first_left], br[:-1]))
         min_w = MIN_WIDTH * self.spacing
+        wide = math.inf if self.period or self.max_step else WIDE
         parent = np.full(a.size, np.inf)        # the tail of the piece each one halves
         out, count = [], 0
         while a.size:
@@ -376,11 +374,11 @@ class ChebTable:
             split = ~ok
             if not split.any():
                 break
-            m = _split_points(a[split], b[split], f[split])
-            a, b = np.concatenate([a[split], m]), np.concatenate([m, b[split]])
-            br, bl = (np.concatenate([np.zeros(m.size, bool), br[split]]),
-                      np.concatenate([bl[split], np.zeros(m.size, bool)]))
-            parent = np.concatenate([tail[split], tail[split]])
+            # halved (at a kink where there is one), in four where the series has not
+            # begun to converge (``_gait.cheb_split``: one round fewer), unless the pieces
+            # are to be joined (a density the user asked for: ``_join`` joins halves)
+            a, b, bl, br, parent = _gait.cheb_split(a[split], b[split], f[split], _U,
+                                                    bl[split], br[split], tail[split], wide)
         if len(out) == 1:
             return out[0]             # nothing split: still in order
         a, b, br, c = (np.concatenate(x) for x in zip(*out))
@@ -469,7 +467,7 @@ class ChebTable:
         if bad is not None:
             _refuse_ends(a, b, ends, st[1:], *bad)
         if self._jerk is not None:
-            self._check_jerk(a, b, coef)
+            self._check_jerk(a, b, coef, bj)
         self._end_state = st[-1]
         # (concatenations and leading-axis slices stay C-contiguous, as the struct reads them)
         if not self.knots.size:         # a fresh table: the window's arrays as they are
@@ -488,18 +486,18 @@ class ChebTable:
             self.ncoef, self.bj, self.bs = self.ncoef[drop:], self.bj[drop:], self.bs[drop:]
             self.rest = self.rest[drop:]
 
-    def _check_jerk(self, a: NDArray, b: NDArray, coef: NDArray) -> None:
+    def _check_jerk(self, a: NDArray, b: NDArray, coef: NDArray, bj: NDArray) -> None:
         """The pieces' l''' at their nodes within the user's ``jerk_bound``, beyond what the
         fit's rounding does to a derivative (Markov: an error of degree N and size e on a
         piece of width w has a slope up to 2 N^2 e / w; e: the rounding ``cheb_fit`` allows,
         or the noise floor a piece may keep) and 1e-9 of the bound. A ValueError names the
-        first piece where l''' exceeds it."""
-        jerk = np.abs(_at_own_nodes(np.moveaxis(coef[:, :, 3, :], 1, 2)))       # (K, N+1, nl)
+        first piece where l''' exceeds it. ``bj`` (K, nl): the pieces' bounds of |l'''|
+        (``cheb_series``), at least its values at the nodes."""
         acc = np.abs(coef[:, :, 2, :]).sum(axis=2)                               # (K, nl)
-        err = (NOISE * acc + 64.0 * _EPS * np.maximum(self.scale, self._quiet)
-               + _EPS * np.maximum(np.abs(a), np.abs(b))[:, None] * jerk.max(axis=1))
-        with np.errstate(over='ignore'):      # a piece of a few floats: no check (inf)
-            slack = 2.0 * N * N * err / (b - a)[:, None]
+        # e without its share of the values checked (eps |t| |l'''|, added below)
+        err = NOISE * acc + 64.0 * _EPS * np.maximum(self.scale, self._quiet)
+        with np.errstate(over='ignore', divide='ignore'):  # a piece of a few floats: inf
+            markov = 2.0 * N * N / (b - a)[:, None]
         # the bounds of every piece, then one comparison (a loop of comparisons, piece by
         # piece, was a quarter of a short run's cost); None: no bound there
         bound = np.empty((a.size, self.nl))
@@ -508,14 +506,26 @@ class ChebTable:
         for k in range(a.size if callable(self._jerk) else 0):
             got = self._jerk(float(a[k]), float(b[k]))
             bound[k] = math.inf if got is None else np.asarray(got, dtype=float)
-        over = jerk > (bound * (1.0 + 1e-9) + slack)[:, None, :]
+        limit = bound * (1.0 + 1e-9)
+        # a piece whose bound of |l'''| on the whole piece is within the limit with the
+        # smallest slack is within it at its nodes (the slack only grows with the values
+        # there): most pieces, without reading their series at the nodes
+        maybe = np.flatnonzero((bj > limit + markov * err).any(axis=1))
+        if not maybe.size:
+            return
+        # the largest |l'''| at the nodes of the others (compiled) and where it is reached
+        top, node = _gait.cheb_node_max(coef[maybe], 3, _T_NODES)
+        err = err[maybe] + _EPS * np.maximum(np.abs(a), np.abs(b))[maybe, None] * top
+        with np.errstate(invalid='ignore'):    # inf * 0: no check there
+            over = top > limit[maybe] + markov[maybe] * err
         if over.any():
-            k, i, j = map(int, np.argwhere(over)[0])        # the first piece, node, linkage
+            r, j = map(int, np.argwhere(over)[0])           # the first piece, linkage
+            k, i = int(maybe[r]), int(node[r, j])
             t = _nodes(a[k:k + 1], b[k:k + 1])[0, i]
             raise ValueError(
                 f"gait jerk_bound of linkage {j} on [{float(a[k])!r}, {float(b[k])!r}] s "
                 f"is {float(bound[k, j]):.6g} m/s^3, but the gait's l''' reaches "
-                f"{float(jerk[k, i, j]):.6g} m/s^3 at t = {float(t)!r} s: "
+                f"{float(top[r, j]):.6g} m/s^3 at t = {float(t)!r} s: "
                 "jerk_bound must bound |l'''| (or be left out)")
 
 
@@ -530,16 +540,6 @@ def _quiet(l0: NDArray, v0: NDArray, h: float) -> NDArray:
         q = (l0 + v0 * h) / h ** 2
     # NaN and +inf to the largest float (q >= 0: no -inf), as ``nan_to_num`` did, cheaper
     return np.where(np.isnan(q), _BIG, np.minimum(q, _BIG))
-
-
-def _one_sided(x: float, other: float) -> float:
-    """x moved ``BREAK_ULPS`` float spacings of |x| towards ``other``, at most to the middle
-    (``_gait.one_sided``'s arithmetic): where a piece on a breakpoint reads l''."""
-    h = BREAK_ULPS * (math.nextafter(abs(x), math.inf) - abs(x))
-    mid = 0.5 * (x + other)
-    if other > x:
-        return x + h if x + h < mid else mid
-    return x - h if x - h > mid else mid
 
 
 def _nodes(a: NDArray, b: NDArray) -> NDArray:
@@ -574,37 +574,6 @@ def _at_own_nodes(c: NDArray) -> NDArray:
     """Series ``c`` (K, n <= L, nl) at their pieces' own nodes (``_nodes``' order): (K, N + 1,
     nl), through the fixed matrix T_q(u_i) = cos(pi i q / N)."""
     return np.matmul(_T_NODES[:, :c.shape[1]], c)
-
-
-def _split_points(a: NDArray, b: NDArray, f: NDArray) -> NDArray:
-    """Where to halve each unresolved piece: at the node where the slope of l'' turns far
-    more than anywhere else (a kink or a jump of l''), else the middle. A split there narrows
-    a kink by the nodes' spacing (about N / pi) rather than by 2."""
-    t = _nodes(a, b)[:, ::-1]                                               # ascending
-    v = f[:, ::-1]                                                          # (K, N + 1, nl)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        slope = np.diff(v, axis=1) / np.diff(t, axis=1)[:, :, None]
-        turn = np.abs(np.diff(slope, axis=1)).max(axis=2)                   # (K, N - 1)
-    turn = np.where(np.isfinite(turn), turn, 0.0)
-    k = np.argmax(turn, axis=1)
-    r = np.arange(k.size)
-    top = turn[r, k]
-    rest = np.sort(turn, axis=1)[:, -4]        # the fourth largest (a kink moves two or three)
-    sharp = top > 16.0 * rest
-    # the kink sits in gap k or k + 1 (around node k + 1): where the line through the gap
-    # before them meets the line through the gap after them (exact for a kinked line)
-    j = np.argmax(np.abs(np.diff(slope, axis=1))[r, k], axis=1)          # its linkage
-    kl, kr = np.clip(k - 1, 0, N - 1), np.clip(k + 2, 0, N - 1)
-    sl, sr = slope[r, kl, j], slope[r, kr, j]
-    fl, fr = v[r, kl + 1, j], v[r, kr, j]
-    tl, tr = t[r, kl + 1], t[r, kr]
-    with np.errstate(divide='ignore', invalid='ignore'):
-        meet = (fr - fl + sl * tl - sr * tr) / (sl - sr)
-    node = t[r, k + 1]
-    lo_, hi_ = t[r, k], t[r, np.minimum(k + 2, N)]
-    meet = np.where(np.isfinite(meet) & (meet > lo_) & (meet < hi_), meet, node)
-    inside = (meet > a + 1e-9 * (b - a)) & (meet < b - 1e-9 * (b - a))
-    return np.where(sharp & inside, meet, 0.5 * (a + b))
 
 
 def _refuse_ends(a: NDArray, b: NDArray, ends: NDArray, user: NDArray, k: int, i: int,

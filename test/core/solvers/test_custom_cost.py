@@ -119,6 +119,21 @@ def test_vectorized_calls_each_function_once_a_round(period):
     assert fa.calls <= 2 and fl.calls <= 4 and fv.calls <= 3, (fl.calls, fv.calls, fa.calls)
 
 
+@pytest.mark.parametrize('vectorized', [True, False])
+def test_a_window_far_from_resolved_is_cut_in_four_at_once(vectorized):
+    # 20 periods, no period given: the first window's 8 pieces (2.5 periods each, 7.5 periods
+    # of the third harmonic) leave a tail of ~6e-3 of their values: halving lowers a series'
+    # last coefficients by ~2^-32 only once it converges, so they are cut in four at once
+    # (32 pieces of 0.62 periods, each resolved: degree ~24 of 32). Nodes: 8 x 33 + 32 x 33
+    # and the first instant; halving twice sampled 8 + 16 + 32 pieces (1,849 times)
+    fns = tuple(Counted(f) for f in (_vector() if vectorized else _scalar()))
+    got = _run(Custom(*fns, jerk_bound=JB, vectorized=vectorized), 20)
+    assert fns[2].points <= (8 + 32) * 33 + 1, fns[2].points
+    want = _run(_twin(), 20)
+    assert len(got.events) == len(want.events)
+    assert np.abs(got.x - want.x).max() <= 1e-12
+
+
 @pytest.mark.parametrize('period, most', [(None, 8 * 33 + 2), (1.0 / F, 32 * 32 + 1 + 2)])
 def test_scalar_l2_is_called_once_a_node(period, most):
     # a 2-period run: one window of 8 pieces (1/256 of the run a cell) or one period of 32
