@@ -235,13 +235,7 @@ class DenseOutput:
             return done, h * _positive_cubic(P @ _CHEB4_TO_B)
         if not isinstance(g, PiecewiseCubic):
             return none
-        if g._arrays is not None:           # the actuator's runs: built from arrays
-            starts, anchors, coef = g._arrays
-        else:
-            pcs = g.pieces
-            starts = np.asarray(g.starts, dtype=float)
-            anchors = np.array([pc.t0 for pc in pcs])
-            coef = np.array([np.stack([pc.l0, pc.v0, pc.a0, pc.jerk], axis=-1) for pc in pcs])
+        starts, anchors, coef = g.as_arrays()   # (the actuator's runs: its own arrays)
         seg = fit.seg
         if not done.all():                # (the node's runs: every piece fitted)
             lo, hi, seg = lo[done], hi[done], seg[done]

@@ -446,6 +446,27 @@ def test_positive_work_of_cubic_pieces_built_from_objects():
     assert got == pytest.approx(expected, rel=1e-12)
 
 
+def test_piecewise_cubic_gives_its_arrays():
+    """``PiecewiseCubic.as_arrays`` (what the dense output's closed form reads): a gait built
+    from arrays returns them as they are; one of Cubic objects the same values as arrays, from
+    which ``from_arrays`` builds the same gait (equal values to the bit)."""
+    rng = np.random.default_rng(3)
+    starts = np.arange(50) * 0.01
+    anchors = starts + rng.uniform(-1e-3, 1e-3, 50)
+    coef = rng.uniform(-1.0, 1.0, (50, 2, 4))
+    built = gaits.PiecewiseCubic.from_arrays(starts, anchors, coef)
+    assert all(x is y for x, y in zip(built.as_arrays(), (starts, anchors, coef)))
+    objects = gaits.PiecewiseCubic(starts, [gaits.Cubic(anchors[k], *coef[k].T)
+                                            for k in range(50)])
+    for got, want in zip(objects.as_arrays(), (starts, anchors, coef)):
+        assert got.dtype == np.float64
+        np.testing.assert_array_equal(got, want)
+    t = np.linspace(-0.1, 0.6, 301)
+    again = gaits.PiecewiseCubic.from_arrays(*objects.as_arrays())
+    for got, want in zip(again(t), objects(t)):
+        np.testing.assert_array_equal(got, want)
+
+
 def test_positive_work_of_eight_bodies_finds_close_roots():
     """A Fourier stroke of 8 bodies on a slope: its power has pairs of roots a few ms apart
     between events (9 probes a piece missed one pair: 4.0e-8 low). Its l'' spans only the

@@ -220,6 +220,17 @@ class PiecewiseCubic(BuiltinGait):
         """Start time of each piece [s]."""
         return np.array(self._starts)
 
+    def as_arrays(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """The pieces as arrays, what ``from_arrays`` takes: (starts (n,) [s], anchors (n,)
+        each piece's time origin [s], coef (n, n_links, 4) = (l0 [m], v0 [m/s], a0 [m/s^2],
+        jerk [m/s^3]) per piece and linkage). A gait built from arrays returns them as they
+        are (not copied: do not modify them), one built from pieces new arrays."""
+        if self._arrays is not None:
+            return self._arrays
+        pcs = self.pieces
+        return (np.array(self._starts, dtype=float), np.array([pc.t0 for pc in pcs], dtype=float),
+                np.array([pc._rows for pc in pcs], dtype=float).reshape(len(pcs), self.n_links, 4))
+
     def _index(self, t: float) -> int:
         if self._arrays is not None:        # bisect_right on the array
             return max(int(np.searchsorted(self._starts, t, side='right')) - 1, 0)
@@ -227,15 +238,10 @@ class PiecewiseCubic(BuiltinGait):
 
     def _kind(self):
         from ..solvers._gait import table
-        if self._arrays is not None:
-            # (float64 and contiguous already, as ``from_arrays`` asks: then no copy; table
-            # itself reads them so)
-            starts, anchors, coef = (np.ascontiguousarray(x, dtype=np.float64)
-                                     for x in self._arrays)
-        else:
-            coef = np.array([pc._rows for pc in self.pieces], dtype=float)
-            starts = np.array(self._starts, dtype=float)
-            anchors = np.array([pc.t0 for pc in self.pieces], dtype=float)
+        # (float64 and contiguous already when built from arrays, as ``from_arrays`` asks:
+        # then no copy; table itself reads them so)
+        starts, anchors, coef = (np.ascontiguousarray(x, dtype=np.float64)
+                                 for x in self.as_arrays())
         # the breakpoints found here, cheaper than ``table``'s own search (the same answer)
         return table(coef, starts=starts, anchors=anchors,
                      jumps=table_jumps(starts, anchors, coef))
