@@ -292,16 +292,10 @@ def crawler_from_mapping(spec: Any, path: str = 'crawler') -> Crawler:
     if has_mu == has_f:
         raise SceneError(f'{path or "crawler"}: give exactly one of mu (coefficients) or '
                          f'friction (forces [N]), got {"both" if has_mu else "neither"}')
-    kind, other = ('mu', 'friction') if has_mu else ('friction', 'mu')
-    for own, foreign in zip(FRICTION_KEYS[kind], FRICTION_KEYS[other]):
-        if foreign in d:
-            raise SceneError(f'{k(foreign)}: do not mix coefficients (mu, mu_backward, '
-                             f'mu_static, mu_static_backward) with forces (friction, '
-                             f'friction_backward, static_friction, static_friction_backward); '
-                             f'with {kind} give {own}')
-    # each given bound: one value or one per body, in range (absent ones: Crawler's defaults)
+    # each given bound: one value or one per body, in range (absent ones: Crawler's defaults;
+    # a coefficient mixed with forces is refused by Crawler, naming both)
     bounds = {}
-    for key in FRICTION_KEYS[kind]:
+    for key in FRICTION_KEYS['mu'] + FRICTION_KEYS['friction']:
         if key in d:
             bounds[key] = _per_body(k(key), d[key], p, positive=False, limit=key)
             _in_range(k(key), bounds[key], key)

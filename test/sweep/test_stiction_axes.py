@@ -77,6 +77,6 @@ def test_a_static_bound_below_its_kinetic_one_is_a_row_naming_it_not_a_lost_swee
 def test_the_first_scene_of_a_spec_is_checked_when_it_is_read():
     from crawler_sim.sweep.spec import SpecError
     bad = {**INCHWORM, 'crawler': {**INCHWORM['crawler'], 'mu_static': 0.5}}
-    with pytest.raises(SpecError, match='mu_static: do not mix'):
+    with pytest.raises(SpecError, match='mu_static goes with mu, not with friction'):
         spec_from_dict({'name': 'mixed', 'base': bad, 'periods': 4,
                         'grid': {'crawler.gravity': [9.81]}})
