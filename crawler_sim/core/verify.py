@@ -4,9 +4,11 @@ Sample checks (always):
 
 * Momentum balance (line iii): M (V(t) - V(t0)) = F_ext (t - t0) + sum_i K_i(t), with V the
   centre-of-mass velocity and K_i the integrated ground force on body i (``impulse``).
-* Friction law (lines iv-v): each reported ground force R_i is admissible for its body's velocity
-  v_i, i.e. -R_i in dphi_i(v_i): R_i in [-f_plus_i, f_minus_i] and the dissipation gap
-  phi_i(v_i) + R_i v_i (>= 0 for every admissible force) is zero (Fenchel equality).
+* Friction law (lines iv-v; with stiction STICTION.md s.1, bounds from ``core.friction``): each
+  reported ground force R_i is admissible for its body's velocity v_i: a stuck body's inside its
+  static interval [-static_forward_i, static_backward_i], a sliding body's at its kinetic value
+  (``contact``), and the dissipation gap phi_i(v_i) + R_i v_i (phi the kinetic potential) is
+  zero (Fenchel equality). Without stiction the static bounds are the kinetic ones.
 
 Kinematic checks (when the gait is known: ``verify(tr, gait)``). These do not trust the friction
 the solver reports (a solver clips it to the bound); they recompute what the kinematics require
@@ -20,7 +22,17 @@ state, and checked on a sub-grid of every piece between events:
   friction the momentum balance requires, F_C = F_ext - sum_{i not in C} F_i + M e_j''(t), stays in
   [-sum_C f_minus, sum_C f_plus] (a missed slip or a late release leaves it);
 * at the next sample the replayed state equals the sampled one (``shooting``): a wrong mode or a
-  shifted event changes the velocity the closed form reaches.
+  shifted event changes the velocity the closed form reaches;
+* with stiction (``Crawler.has_stiction``), the selection rule at every event and at the start
+  (``rule_s``, STICTION.md s.5): the bodies at rest there are grouped into clusters rigid just
+  after it, each a stick candidate when the force it needs (the others sliding their way) is
+  inside its static interval. Rule S holds a cluster when one can hold: an incumbent (stuck on
+  the piece before) first with ``stiction_rule='incumbent'``, else the largest static margin.
+  A run that lets bodies slide (or holds a worse candidate) where a candidate could hold is
+  flagged by that candidate's margin: a breakaway before the static bound, a body sliding on
+  after arriving where it could stick, kinetic answers on a crawler with stiction. A breakaway
+  at the bound has margin 0 and passes. At the start the incumbent is not known (``initial_
+  stuck``): there only "nothing held where something could" is flagged.
 
 Every check is judged beyond the rounding of the quantities it compares, estimated from their
 sizes (``verify``: positions of ~1 m, times of ~1e4 s, a sampled gait's pieces), so a correct
@@ -35,6 +47,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from .friction import DEFAULT_RULE, Bounds, bounds, check_rule, required_constants, stuck_interval
 from .gaits.base import BREAK_ULPS
 from .model import kinematics
 from .trajectory import Trajectory
@@ -73,6 +86,9 @@ class VerifyReport:
     requires beyond its admissible interval; scale max f + |F_ext| + M max|e''|.
     shooting [m/s], shooting_position [m]: (gait known) largest difference between the replayed
     and the sampled velocities / positions at the samples; scales max|v| and max|v| T.
+    rule_s [N]: (gait known, crawler with stiction) largest static margin of a stick candidate
+    the selection rule would have held at an event or the start, beyond the one the run chose
+    (module doc); scale that of ``required_force``.
     kinematic : whether the kinematic checks ran (a gait was given).
     """
 
@@ -94,6 +110,8 @@ class VerifyReport:
     shooting_rel: float = 0.0
     shooting_position: float = 0.0
     shooting_position_rel: float = 0.0
+    rule_s: float = 0.0
+    rule_s_rel: float = 0.0
     kinematic: bool = False
 
     @property
@@ -101,7 +119,7 @@ class VerifyReport:
         """Largest of the relative violations."""
         return max(self.momentum_rel, self.friction_bound_rel, self.complementarity_rel,
                    self.stuck_velocity_rel, self.slide_sign_rel, self.required_force_rel,
-                   self.shooting_rel, self.shooting_position_rel)
+                   self.shooting_rel, self.shooting_position_rel, self.rule_s_rel)
 
     def ok(self, tol: float = 1e-9) -> bool:
         """True when every relative violation is at most ``tol`` and contacts are consistent."""
@@ -113,13 +131,16 @@ SLIVER = 10 * EVENT_TOL   # [s] a piece this short beside a breakpoint or betwee
 
 
 def verify(trajectory: Trajectory, gait: Gait | None = None, *,
-           substeps: int = 16) -> VerifyReport:
+           substeps: int = 16, stiction_rule: str | None = None) -> VerifyReport:
     """Measure how well ``trajectory`` satisfies the momentum balance and the friction law.
 
     ``gait`` (the one the trajectory was simulated with; default ``trajectory.info['gait']`` when
     present) switches on the kinematic checks, which flag missed, shifted or wrong events; each
     piece between events is checked at ``substeps`` points. They hold to rounding for the exact
     method; the time-stepping methods ("implicit", "penalty") show their O(dt) error in them.
+    ``stiction_rule`` ('incumbent' or 'margin', ``core.friction.RULES``) is the rule a crawler
+    with stiction is audited against (``rule_s``); default the trajectory's
+    ``info['stiction_rule']`` when present, else 'incumbent' (Rule S).
 
     Every difference is judged beyond the rounding of what it compares (``ROUNDING`` eps of the
     largest terms): an event's time is only known to eps |t| and the exact method's tolerance
@@ -137,19 +158,25 @@ def verify(trajectory: Trajectory, gait: Gait | None = None, *,
     c = tr.crawler
     M = c.total_mass
     fp, fm, fext = c.friction, c.friction_backward, c.external_force
+    b = bounds(c)
+    sp, sm = b.static_forward, b.static_backward       # the kinetic ones without stiction
+    info = tr.info if isinstance(tr.info, dict) else {}
+    rule = check_rule(stiction_rule if stiction_rule is not None
+                      else info.get('stiction_rule', DEFAULT_RULE))
     t, v, R = tr.t, tr.v, tr.friction
     V = tr.com_velocity
     dt = t - t[0]
     K = tr.impulse - tr.impulse[0]
     mom = M * (V - V[0]) - fext * dt - K.sum(axis=1)
-    f_max = float(max(fp.max(), fm.max(), 1e-300))
+    f_max = float(max(sp.max(), sm.max(), 1e-300))
     v_max = float(max(np.abs(v).max(), 1e-300))
     # momentum scale: the largest body momentum the gait or friction can produce
     mom_scale = M * max(float(np.abs(V).max()), v_max) + (abs(fext) +
                                                           fp.sum() + fm.sum()) * float(dt[-1])
     if gait is None:
         gait = tr.info.get('gait') if isinstance(tr.info, dict) else None
-    kin = _kinematic(tr, gait, max(int(substeps), 1)) if gait is not None and t.size >= 2 else {}
+    kin = (_kinematic(tr, gait, max(int(substeps), 1), rule) if gait is not None and t.size >= 2
+           else {})
     v_max = max(v_max, kin.get('v_scale', 0.0))
     u = ROUNDING * _EPS
     t_abs = float(np.abs(t).max())
@@ -160,7 +187,9 @@ def verify(trajectory: Trajectory, gait: Gait | None = None, *,
     n_sums = 1.0 + math.sqrt(len(tr.events))
     mom_floor = M * dv + u * (M * (np.abs(V) + abs(V[0])) + abs(fext) * np.abs(dt)
                      + n_sums * (np.abs(tr.impulse).sum(axis=1) + np.abs(tr.impulse[0]).sum()))
-    excess = np.maximum(np.maximum(R - fm, -fp - R), 0.0)
+    # a stuck body's force may reach its static bound; a sliding one's is checked at its
+    # kinetic value below (``wrong_force``), inside the static interval too
+    excess = np.maximum(np.maximum(R - sm, -sp - R), 0.0)
     phi = fp * np.maximum(v, 0.0) + fm * np.maximum(-v, 0.0)
     gap = np.maximum(phi + R * v, 0.0)
     tiny = 1e-9 * v_max + dv
@@ -208,6 +237,8 @@ def verify(trajectory: Trajectory, gait: Gait | None = None, *,
                         shooting_position=kin.get('shooting_position', 0.0),
                         shooting_position_rel=beyond_kin.get('shooting_position', 0.0)
                         / (v_max * T),
+                        rule_s=kin.get('rule_s', 0.0),
+                        rule_s_rel=beyond_kin.get('rule_s', 0.0) / f_scale,
                         kinematic=bool(kin))
 
 
@@ -234,13 +265,15 @@ def _inside(t: NDArray[np.float64], other: NDArray[np.float64]) -> NDArray[np.fl
     return np.where(other > t, np.minimum(t + h, mid), np.maximum(t - h, mid))
 
 
-def _kinematic(tr: Trajectory, gait, n_sub: int) -> dict:
+def _kinematic(tr: Trajectory, gait, n_sub: int, rule: str = DEFAULT_RULE) -> dict:
     """Replay the claimed contact history between samples against the gait's kinematics: the
     largest raw difference of each check, and (``beyond``) the largest part beyond its
     rounding, which the replay carries along its steps (``verify``)."""
     c = tr.crawler
     m, M = c.masses, c.total_mass
     fp, fm, fext = c.friction, c.friction_backward, c.external_force
+    b = bounds(c)
+    sp, sm = b.static_forward, b.static_backward       # the kinetic ones without stiction
     t = tr.t
     X_s, V_s = tr.com, tr.com_velocity
     events = sorted((ev for ev in tr.events if t[0] < ev.time <= t[-1]), key=lambda e: e.time)
@@ -277,7 +310,7 @@ def _kinematic(tr: Trajectory, gait, n_sub: int) -> dict:
     le, lde, _ = (np.asarray(arr, float) for arr in gait(t))
     e_s, ed_s, _ = kinematics(m, le, lde, lde)
     v_scale = float(max(np.abs(tr.v).max(), np.abs(ed).max(), 1e-300))
-    f_scale = float(max(fp.max(), fm.max()) + abs(fext) + M * np.abs(edd).max()) or 1e-300
+    f_scale = float(max(sp.max(), sm.max()) + abs(fext) + M * np.abs(edd).max()) or 1e-300
     # rounding scales: the largest acceleration (the centre's under friction and F_ext, plus
     # e''), e''' (for the required force; from the gait's bound or the points of each piece,
     # which lie on one side of every breakpoint), the largest |x|
@@ -292,12 +325,15 @@ def _kinematic(tr: Trajectory, gait, n_sub: int) -> dict:
     tau = float(getattr(gait, 'period', None) or 0.0) or max(float(t[-1] - t[0]), 1e-300)
     l_rate = float(np.abs(l).max()) / tau * (SAMPLED if _sampled(gait) else 1.0)
     sample_of = np.searchsorted(t, a_pts, side='right') - 1     # sample at or before each piece
-    keys = ('slide_sign', 'required_force', 'shooting', 'shooting_position', 'stuck_velocity')
+    keys = ('slide_sign', 'required_force', 'shooting', 'shooting_position', 'stuck_velocity',
+            'rule_s')
     worst = dict.fromkeys(keys, 0.0)
     beyond = {key: (0.0, 0.0) for key in keys}
     scale = dict(slide_sign=v_scale, required_force=f_scale, shooting=v_scale,
                  shooting_position=v_scale * max(float(t[-1] - t[0]), 1e-300),
-                 stuck_velocity=v_scale)
+                 stuck_velocity=v_scale, rule_s=f_scale)
+    # the instants where the selection rule decides (stiction only): the events and the start
+    decisions = set(ev_t.tolist()) | {float(t[0])} if c.has_stiction else set()
 
     def note(key: str, value: float, floor: float, when: float) -> None:
         worst[key] = max(worst[key], float(value))
@@ -331,6 +367,13 @@ def _kinematic(tr: Trajectory, gait, n_sub: int) -> dict:
         force = np.where(free, 0.0, np.where(s > 0, fp, -fm))   # friction F_i of a sliding body
         taus = pts[k]
         dtb = tb - ta
+        if float(ta) in decisions and not sliver:
+            # e', e'' just inside the piece (its own side of a breakpoint): the t+ data
+            f_floor = u * (f_scale + M * l_rate / tau) + M * j_scale * dt_t
+            held = _rule_s(b, M, fext, V, ed[k, 0], edd[k, 0], s,
+                           modes[k - 1] if k > 0 else None, free, rv + dv_t,
+                           u * float(np.abs(edd[k, 0]).max()) + u, rule)
+            note('rule_s', held, f_floor, ta)
         if stuck.size == 0:
             acc = (fext - float(force.sum())) / M
             if slide.size and not sliver:
@@ -350,7 +393,7 @@ def _kinematic(tr: Trajectory, gait, n_sub: int) -> dict:
                     vel = ed[k][:, slide] - ed[k][:, [j]]
                     note('slide_sign', float(np.max(-s[slide] * vel)), dv_t, ta)
                 F = fext - float(force[slide].sum()) + M * edd[k][:, j]
-                up, dn = float(fp[stuck].sum()), float(fm[stuck].sum())
+                up, dn = float(sp[stuck].sum()), float(sm[stuck].sum())   # static
                 note('required_force', float(np.max(np.maximum(F - up, -dn - F))),
                      u * (f_scale + M * l_rate / tau) + M * j_scale * dt_t, ta)
             # closed form to tb: x_j stays put, V = -e_j'(tb)
@@ -393,3 +436,54 @@ def _jerk_scale(gait, t0: float, t1: float, pts: NDArray[np.float64],
         return 0.0
     slope = np.abs(np.diff(edd, axis=1)).max(axis=2)[wide] / h[wide]
     return 2.0 * float(slope.max())
+
+
+def _rule_s(b: Bounds, M: float, fext: float, V: float, ed: NDArray[np.float64],
+            edd: NDArray[np.float64], after: NDArray, before: NDArray | None,
+            free: NDArray[np.bool_], tol_v: float, tol_a: float, rule: str) -> float:
+    """How far the mode ``after`` an instant departs from the selection rule there [N]: the
+    static margin of the stick candidate the rule would hold, beyond that of the one the run
+    holds (0 when the run holds it, or when no candidate can hold: the kinetic slide pattern is
+    then the answer and the other checks judge it). ``ed``, ``edd``: e', e'' at the instant's
+    right side [m/s, m/s^2]; V the centre of mass's velocity; ``before`` the mode on the piece
+    before (None at the start: no incumbent known, only "nothing held where a candidate could"
+    is judged). Candidates and margins from ``core.friction`` (module doc)."""
+    vel = V + ed
+    rest = np.nonzero((np.abs(vel) <= tol_v) & ~free)[0]
+    if rest.size == 0:
+        return 0.0
+    # clusters of the bodies at rest that stay rigid just after: equal e' and e''
+    cluster = {}
+    for i in rest:
+        for r in cluster:
+            if abs(ed[i] - ed[r]) <= tol_v and abs(edd[i] - edd[r]) <= tol_a:
+                cluster[r].append(int(i))
+                break
+        else:
+            cluster[int(i)] = [int(i)]
+    stuck_after = [int(i) for i in rest if after[i] == 0]
+    chosen, candidates = None, []
+    for r, members in cluster.items():
+        sig = np.where(vel > 0, 1, -1)
+        for j in rest:
+            if j not in members:
+                d = edd[j] - edd[r]
+                sig[j] = 1 if (d if abs(d) > tol_a else ed[j] - ed[r]) > 0 else -1
+        need = -M * float(edd[r]) + required_constants(b, members, sig, fext)
+        lo, hi = stuck_interval(b, members)
+        margin = min(need - lo, hi - need)
+        incumbent = before is not None and bool(np.any(before[members] == 0))
+        if stuck_after and stuck_after[0] in members:
+            chosen = (margin, incumbent)
+        if margin >= 0.0:
+            candidates.append((margin, incumbent))
+    if not candidates:
+        return 0.0
+    if before is None:              # the start: the incumbent is not known
+        return 0.0 if chosen is not None else max(m for m, _ in candidates)
+    if rule == 'incumbent' and any(inc for _, inc in candidates):
+        candidates = [(m, inc) for m, inc in candidates if inc]
+    best = max(m for m, _ in candidates)
+    if chosen is None or (rule == 'incumbent' and candidates[0][1] and not chosen[1]):
+        return best
+    return max(best - chosen[0], 0.0)
