@@ -80,3 +80,30 @@ def test_the_first_scene_of_a_spec_is_checked_when_it_is_read():
     with pytest.raises(SpecError, match='mu_static goes with mu, not with friction'):
         spec_from_dict({'name': 'mixed', 'base': bad, 'periods': 4,
                         'grid': {'crawler.gravity': [9.81]}})
+
+
+def test_the_optimisers_plant_and_sim_node_file_carry_the_fixed_static_bounds_and_rule():
+    """The crawler is what the optimiser keeps fixed: its static bounds and rule go into the
+    plant it scores on and into the sim_node parameter file it writes, which rebuilds the
+    same crawler bit for bit; a crawler without stiction writes no static key."""
+    from crawler_sim.core.plant import PlantConfig
+    from crawler_sim.core.scene import scene_from_dict
+    from crawler_sim.sweep.optimize import optimize, sim_node_params
+    gait = {'type': 'scallop', 'mean': 0.1, 'amplitude': 0.02, 'frequency': 1.0,
+            'asymmetry': 0.3}
+    base = scene_from_dict({'crawler': {'masses': [1.0, 1.0], 'mu': 0.3, 'mu_static': 0.6,
+                                        'mu_static_backward': 0.45},
+                            'gait': gait, 'run': {'stiction_rule': 'margin'}})
+    result = optimize(base, maxiter=0, local_maxiter=0, popsize=1, periods=4)
+    assert result.plant.crawler.to_dict() == base.crawler.to_dict()
+    assert result.plant.values['stiction_rule'] == 'margin'
+    params = sim_node_params(result)['crawler_sim']['ros__parameters']
+    again = PlantConfig.defaults(**params)
+    for name in ('friction', 'friction_backward', 'static_friction',
+                 'static_friction_backward'):
+        assert getattr(again.crawler, name).tolist() == getattr(base.crawler, name).tolist()
+    assert again.values['stiction_rule'] == 'margin'
+    kinetic = scene_from_dict({'crawler': {'masses': [1.0, 1.0], 'mu': 0.3}, 'gait': gait})
+    params = sim_node_params(optimize(kinetic, maxiter=0, local_maxiter=0, popsize=1,
+                                      periods=4))['crawler_sim']['ros__parameters']
+    assert not {'static_friction', 'static_friction_backward', 'stiction_rule'} & set(params)
