@@ -46,13 +46,12 @@ from typing import TYPE_CHECKING, Any, Callable, Protocol
 from crawler_sim.bag.msgs import body_names
 from crawler_sim.core.simtime import to_seconds
 from crawler_sim.ros.messages import stamp_from_ns
+from .loop import Loopable
 from .tf import frame_prefix
 
 if TYPE_CHECKING:
     from crawler_sim.core.trajectory import State
-    from .clock import SharedClock
     from .outputs import Outputs
-    from .params import SimConfig
 
 __all__ = ['attach', 'Standard', 'Simulated', 'MAX_SERVICE_STEPS', 'MAX_ACTION_STEPS',
            'SERVICES', 'ACTION']
@@ -82,29 +81,19 @@ FEATURES = ('SIMULATION_STATE_GETTING', 'SIMULATION_STATE_SETTING', 'SIMULATION_
             'ENTITY_STATE_SETTING')
 
 
-class Simulated(Protocol):
-    """What this module uses of ``SimNode`` (besides rclpy's Node API: create_service,
+class Simulated(Loopable, Protocol):
+    """What this module uses of ``SimNode``: what the loop uses (lock, config, sim time,
+    paused, tick_locked, publish_state, clock), these, and rclpy's Node API (create_service,
     get_logger, get_namespace, executor)."""
 
-    clock: SharedClock
     outputs: Outputs
 
-    @property
-    def lock(self) -> threading.RLock: ...
-    @property
-    def config(self) -> SimConfig: ...
-    @property
-    def sim_time_ns(self) -> int: ...
-    @property
-    def paused(self) -> bool: ...
     @property
     def state(self) -> State: ...
     @property
     def last_published(self) -> tuple[State | None, int]: ...
     def set_paused(self, paused: bool) -> str: ...
     def reset(self) -> None: ...
-    def tick_locked(self, to_grid: bool = False) -> None: ...
-    def publish_state(self) -> None: ...
 
 
 def attach(node: Any) -> Standard | None:
@@ -347,40 +336,35 @@ class Standard:
                         f'{to_seconds(node.sim_time_ns):.9f} s' + note)
         return response
 
-    def _get_entities(self, request: Any, response: Any) -> Any:
-        state, _ = self._published()
+    def _get_entities(self, request: Any, response: Any, states: bool = False) -> Any:
+        state, t_ns = self._published()
         chosen, refusal = self._select(request.filters, len(state.x), state)
         if refusal is not None:
             response.result = refusal
             return response
         names = body_names(len(state.x))
         response.entities = [names[i] for i in chosen]
+        if states:
+            response.states = [self._entity_state(i, state, t_ns) for i in chosen]
         response.result = self._result()
         return response
 
     def _get_entities_states(self, request: Any, response: Any) -> Any:
-        state, t_ns = self._published()
-        chosen, refusal = self._select(request.filters, len(state.x), state)
-        if refusal is not None:
-            response.result = refusal
-            return response
-        names = body_names(len(state.x))
-        response.entities = [names[i] for i in chosen]
-        response.states = [self._entity_state(i, state, t_ns) for i in chosen]
-        response.result = self._result()
-        return response
+        return self._get_entities(request, response, states=True)
 
-    def _index(self, name: str, p: int) -> int | None:
+    def _find(self, name: str, p: int) -> tuple[int | None, Any]:
+        """The index of body ``name`` among ``p``, or None and a NOT_FOUND Result."""
         names = body_names(p)
-        return names.index(name) if name in names else None
+        if name in names:
+            return names.index(name), None
+        return None, self._result('RESULT_NOT_FOUND', f'entity {name!r} is not a body of this '
+                                                      f'crawler (body_0 ... body_{p - 1})')
 
     def _get_entity_state(self, request: Any, response: Any) -> Any:
         state, t_ns = self._published()
-        i = self._index(request.entity, len(state.x))
-        if i is None:
-            response.result = self._result(
-                'RESULT_NOT_FOUND', f'entity {request.entity!r} is not a body of this crawler '
-                f'(body_0 ... body_{len(state.x) - 1})')
+        i, refusal = self._find(request.entity, len(state.x))
+        if refusal is not None:
+            response.result = refusal
             return response
         response.state = self._entity_state(i, state, t_ns)
         response.result = self._result()
@@ -388,12 +372,9 @@ class Standard:
 
     def _set_entity_state(self, request: Any, response: Any) -> Any:
         state, _ = self._published()
-        p = len(state.x)
-        i = self._index(request.entity, p)
-        if i is None:
-            response.result = self._result(
-                'RESULT_NOT_FOUND', f'entity {request.entity!r} is not a body of this crawler '
-                f'(body_0 ... body_{p - 1})')
+        i, refusal = self._find(request.entity, len(state.x))
+        if refusal is not None:
+            response.result = refusal
             return response
         s = request.state
         pos, q = s.pose.position, s.pose.orientation
