@@ -125,7 +125,7 @@ cdef class StepCore:
     # work
     cdef double[::1] ld, ldd, ld3, epb, eppb, ep, epp, kinks, kbuf, fpb, fmb, brk, l, e
     cdef int[::1] idx
-    cdef unsigned char[::1] zmask
+    cdef unsigned char[::1] zmask, memb
     cdef signed char[::1] newc, tmp, kmode, snew
 
     def __init__(self, masses, fp, fm, double fext, grav, double dt, int method,
@@ -189,6 +189,7 @@ cdef class StepCore:
         self.ld3b = np.zeros(nl)
         self.idx = np.zeros(2 * p, np.intc)
         self.zmask = np.zeros(p, np.uint8)
+        self.memb = np.zeros(p, np.uint8)
         self.newc = np.zeros(p, np.int8)
         self.tmp = np.zeros(p, np.int8)
         self.kmode = np.zeros(p, np.int8)
@@ -240,24 +241,34 @@ cdef class StepCore:
                 out[i] = 0 if a == -epp[i] else (1 if a + epp[i] > 0.0 else -1)
         return a
 
+    cdef int moved(self, const signed char* contact, double V, const double* ep) noexcept:
+        """The kinematic part of a mode's end at an instant where the centre of mass moves at
+        V and the bodies' relative rates are ep: -2 when a sliding body is at or past zero
+        velocity or the stuck cluster splits (a member's e' differs), -1 when nobody is stuck,
+        else the first stuck body (``zmask`` then marks the stuck ones)."""
+        cdef int p = self.p, i, j
+        for i in range(p):
+            if contact[i] > 0 and V + ep[i] <= 0.0:
+                return -2
+            if contact[i] < 0 and V + ep[i] >= 0.0:
+                return -2
+        j = first_stuck(contact, p)
+        if j < 0:
+            return -1
+        for i in range(p):
+            self.zmask[i] = contact[i] == 0
+            if self.zmask[i] and ep[i] != ep[j]:
+                return -2
+        return j
+
     cdef bint changed(self, const signed char* contact, double V, const double* ep,
                       const double* epp) noexcept:
         """Whether the mode ``contact`` no longer holds at an instant where the centre of mass
         moves at V (its continuation) and the bodies' relative rates are ep, epp."""
-        cdef int p = self.p, i, j
+        cdef int p = self.p, i, j = self.moved(contact, V, ep)
         cdef double s
-        for i in range(p):
-            if contact[i] > 0 and V + ep[i] <= 0.0:
-                return True
-            if contact[i] < 0 and V + ep[i] >= 0.0:
-                return True
-        j = first_stuck(contact, p)
         if j < 0:
-            return False
-        for i in range(p):
-            self.zmask[i] = contact[i] == 0
-            if self.zmask[i] and ep[i] != ep[j]:
-                return True
+            return j == -2
         self.accel_mode(self.fext + slide_sum(contact, &self.fp[0], &self.fm[0], p), epp,
                         &self.tmp[0], &s)
         for i in range(p):
@@ -312,6 +323,21 @@ cdef class StepCore:
             if contact[i] == 0:
                 R[i] = -sp[i] + theta * (sp[i] + sm[i])
 
+    cdef double add_piece(self, const signed char* contact, double V0, double V1, double hh,
+                          double X, const double* sp, const double* sm, bint last) noexcept:
+        """A piece of a step of length hh >= 0 in mode ``contact`` from V0 to V1: its mean
+        friction (``interval_friction``, stuck bounds sp, sm) into R and its impulse into K;
+        returns X + hh V1 (the quadrature). An empty piece changes nothing unless ``last``
+        (the step's final piece adds hh = 0 as the step always did)."""
+        cdef int i
+        if hh > 0.0:
+            self.interval_friction(contact, V0, V1, hh, &self.R[0], sp, sm)
+        elif not last:
+            return X
+        for i in range(self.p):
+            self.K[i] += hh * self.R[i]
+        return X + hh * V1
+
     cdef void log_changes(self, double t, signed char* contact, const signed char* newc) noexcept:
         cdef int i
         for i in range(self.p):
@@ -323,14 +349,74 @@ cdef class StepCore:
                 self.n_ev += 1
                 contact[i] = newc[i]
 
+    # ------------------------------------------------------------------ transitions
+    cdef bint mode_ends(self, bint st, const signed char* contact, double V, const double* ep,
+                        const double* epp) noexcept:
+        """Whether the mode no longer holds: the convex law's test (``changed``), or with
+        stiction Rule S's (``st_changed``)."""
+        if st:
+            return self.st_changed(contact, V, ep, epp)
+        return self.changed(contact, V, ep, epp)
+
+    cdef int scan(self, GaitData* g, double lo, double tb, double V, double a_lo, int j,
+                  const signed char* contact, bint st, double* ab) except -1:
+        """The first probe of (lo, tb] where the mode ``contact`` (continued from V at lo: its
+        stuck body j's -e_j', else V + a_lo (t - lo)) no longer holds: a scan of the step (a
+        long step can hold several transitions, and the instant tb alone or a bisection may
+        miss the first: the piece before it would then hold a mode that did not hold). Writes
+        ab = (last probe where it held, first where it did not or tb, 1.0 if found else 0.0);
+        1 when a gait value is not finite."""
+        cdef int it, n_scan = SCAN
+        cdef double mid, vm
+        ab[0] = lo
+        ab[1] = tb
+        ab[2] = 0.0
+        if (tb - lo) / SCAN > self.scan_step:      # a step longer than the gait's scale
+            n_scan = <int>min(4096.0, ceil((tb - lo) / self.scan_step))
+        for it in range(n_scan):
+            # the first probe just after lo: the mode the step started in (the implicit
+            # step's O(h) stick test at the previous step end) may not hold at all
+            mid = lo + (tb - lo) * (C_BISECT_REL if it == 0 else <double>it / n_scan)
+            if not (ab[0] < mid < ab[1]):
+                continue
+            if self.rates(g, mid, &self.ep[0], &self.epp[0]):
+                return 1
+            vm = -self.ep[j] if j >= 0 else V + a_lo * (mid - lo)
+            if self.mode_ends(st, contact, vm, &self.ep[0], &self.epp[0]):
+                ab[1] = mid
+                ab[2] = 1.0
+                return 0
+            ab[0] = mid
+        return 0
+
+    cdef int bisect(self, GaitData* g, double lo, double V, double a_lo, int j,
+                    const signed char* contact, bint st, double* ab) except -1:
+        """Bisection of the bracket ab[0] < ab[1] (the mode holds at ab[0], not at ab[1]) to
+        ``BISECT_REL`` of the step; 1 when a gait value is not finite."""
+        cdef int it
+        cdef double mid, vm
+        for it in range(BISECT):
+            if ab[1] - ab[0] <= C_BISECT_REL * self.dt:
+                break
+            mid = ab[0] + 0.5 * (ab[1] - ab[0])
+            if self.rates(g, mid, &self.ep[0], &self.epp[0]):
+                return 1
+            vm = -self.ep[j] if j >= 0 else V + a_lo * (mid - lo)
+            if self.mode_ends(st, contact, vm, &self.ep[0], &self.epp[0]):
+                ab[1] = mid
+            else:
+                ab[0] = mid
+        return 0
+
     # ------------------------------------------------------------------ one step
     cdef int implicit_step(self, GaitData* g, double tb) except -1:
         """One Moreau-Jean step [t, tb] with e', e'' at tb in epb, eppb, split at each
         transition inside it (at most max_depth)."""
-        cdef int p = self.p, i, j, depth, it, n_scan
-        cdef double lo = self.t, h, u = self.V, s, a_lo, uc, a, b, mid, vm, tau, vt, hh
+        cdef int p = self.p, i, j, depth
+        cdef double lo = self.t, h, u = self.V, s, a_lo, uc, tau, vt
         cdef double V = self.V, X = self.X, V0 = self.V
-        cdef bint same, found
+        cdef double ab[3]
+        cdef bint same
         cdef signed char* contact = &self.contact[0]
         cdef signed char* newc = &self.newc[0]
         cdef double* epb = &self.epb[0]
@@ -358,65 +444,26 @@ cdef class StepCore:
             a_lo = (self.fext + slide_sum(contact, &self.fp[0], &self.fm[0], p)) / self.M
             uc = -epb[j] if j >= 0 else V + a_lo * h
             # the first time in (lo, tb] where the mode no longer holds: a scan of the step
-            # first (a long step can hold several transitions, and the instant tb alone or a
-            # bisection may miss the first: the piece before it would then hold a mode that
-            # did not hold), then bisection in the first interval where it shows
-            a = lo
-            b = tb
-            found = False
-            n_scan = SCAN
-            if (tb - lo) / SCAN > self.scan_step:      # a step longer than the gait's scale
-                n_scan = <int>min(4096.0, ceil((tb - lo) / self.scan_step))
-            for it in range(n_scan):
-                # the first probe just after lo: the mode the step started in (the implicit
-                # step's O(h) stick test at the previous step end) may not hold at all
-                mid = lo + (tb - lo) * (C_BISECT_REL if it == 0 else <double>it / n_scan)
-                if not (a < mid < b):
-                    continue
-                if self.rates(g, mid, &self.ep[0], &self.epp[0]):
-                    return 1
-                vm = -self.ep[j] if j >= 0 else V + a_lo * (mid - lo)
-                if self.changed(contact, vm, &self.ep[0], &self.epp[0]):
-                    b = mid
-                    found = True
-                    break
-                a = mid
-            if not found and not self.changed(contact, uc, epb, eppb):
+            # first, then bisection in the first interval where it shows
+            if self.scan(g, lo, tb, V, a_lo, j, contact, False, ab):
+                return 1
+            if ab[2] == 0.0 and not self.changed(contact, uc, epb, eppb):
                 u = uc                      # the prox's change was its O(h) stick test
                 for i in range(p):
                     newc[i] = contact[i]
                 break
-            for it in range(BISECT):
-                if b - a <= C_BISECT_REL * self.dt:
-                    break
-                mid = a + 0.5 * (b - a)
-                if self.rates(g, mid, &self.ep[0], &self.epp[0]):
-                    return 1
-                vm = -self.ep[j] if j >= 0 else V + a_lo * (mid - lo)
-                if self.changed(contact, vm, &self.ep[0], &self.epp[0]):
-                    b = mid
-                else:
-                    a = mid
-            tau = b
+            if self.bisect(g, lo, V, a_lo, j, contact, False, ab):
+                return 1
+            tau = ab[1]
             if self.rates(g, tau, &self.ep[0], &self.epp[0]):
                 return 1
             vt = -self.ep[j] if j >= 0 else V + a_lo * (tau - lo)
             self.new_mode(contact, vt, &self.ep[0], &self.epp[0], newc)
-            hh = tau - lo
-            if hh > 0.0:
-                self.interval_friction(contact, V, vt, hh, &self.R[0], &self.fp[0], &self.fm[0])
-                X += hh * vt
-                for i in range(p):
-                    self.K[i] += hh * self.R[i]
+            X = self.add_piece(contact, V, vt, tau - lo, X, &self.fp[0], &self.fm[0], False)
             self.log_changes(tau, contact, newc)
             V = vt
             lo = tau
-        hh = tb - lo
-        if hh > 0.0:
-            self.interval_friction(newc, V, u, hh, &self.R[0], &self.fp[0], &self.fm[0])
-        X += hh * u
-        for i in range(p):
-            self.K[i] += hh * self.R[i]
+        X = self.add_piece(newc, V, u, tb - lo, X, &self.fp[0], &self.fm[0], True)
         self.log_changes(tb, contact, newc)
         self.A = (u - V0) / (tb - self.t)
         self.V = u
@@ -463,7 +510,7 @@ cdef class StepCore:
         return True
 
     # ------------------------------------------------------------------ stiction (Rule S)
-    cdef double st_need(self, int r, const signed char* member, const signed char* sig,
+    cdef double st_need(self, int r, const unsigned char* member, const signed char* sig,
                         const double* epp, double* lo, double* hi) noexcept:
         """The ground force [N] a stuck cluster (``member``[i] != 0, representative r) needs
         at an instant where the other bodies slide with signs ``sig`` under their kinetic
@@ -490,21 +537,11 @@ cdef class StepCore:
         where its continuation moves the centre of mass at V: a sliding body at or past zero
         velocity, the stuck cluster splitting (a member's e' differs), or the force the stuck
         cluster needs outside its static interval (closed: on the bound it holds)."""
-        cdef int p = self.p, i, j
+        cdef int j = self.moved(contact, V, ep)
         cdef double need, lo, hi
-        for i in range(p):
-            if contact[i] > 0 and V + ep[i] <= 0.0:
-                return True
-            if contact[i] < 0 and V + ep[i] >= 0.0:
-                return True
-        j = first_stuck(contact, p)
         if j < 0:
-            return False
-        for i in range(p):
-            self.tmp[i] = contact[i] == 0
-            if self.tmp[i] and ep[i] != ep[j]:
-                return True
-        need = self.st_need(j, &self.tmp[0], contact, epp, &lo, &hi)
+            return j == -2
+        need = self.st_need(j, &self.zmask[0], contact, epp, &lo, &hi)
         return not (lo <= need <= hi)
 
     cdef void st_decide(self, double V, const double* ep, const double* epp,
@@ -524,7 +561,7 @@ cdef class StepCore:
         cdef int p = self.p, i, k, r, nc = 0, best = -1, n_ok = 0
         cdef int* clus = &self.clus[0]
         cdef signed char* sig = &self.tmp[0]
-        cdef signed char* member = &self.newc[0]
+        cdef unsigned char* member = &self.memb[0]
         cdef double v, d, need, lo, hi, margin, best_margin = -1.0, force, s
         cdef bint inc, best_inc = False, slide_ok
         # who is at rest, and the sliding bodies' signs
@@ -598,10 +635,11 @@ cdef class StepCore:
         closed form, split where it stops holding (scan and bisection as ``implicit_step``)
         and continued in the mode Rule S selects there (at most max_depth times; beyond, the
         selection is made at tb)."""
-        cdef int p = self.p, i, j, depth, it, n_scan
-        cdef double lo = self.t, h, u = self.V, a_lo, a, b, mid, vm, tau, vt, hh
+        cdef int p = self.p, i, j, depth
+        cdef double lo = self.t, h, u = self.V, a_lo, tau, vt
         cdef double V = self.V, X = self.X, V0 = self.V
-        cdef bint chg = False, found
+        cdef double ab[3]
+        cdef bint chg = False
         cdef signed char* contact = &self.contact[0]
         cdef signed char* newc = &self.snew[0]
         cdef double* epb = &self.epb[0]
@@ -620,58 +658,22 @@ cdef class StepCore:
                 break
             if depth == self.max_depth or h <= C_BISECT_REL * self.dt:
                 break
-            a = lo
-            b = tb
-            found = False
-            n_scan = SCAN
-            if (tb - lo) / SCAN > self.scan_step:      # a step longer than the gait's scale
-                n_scan = <int>min(4096.0, ceil((tb - lo) / self.scan_step))
-            for it in range(n_scan):
-                mid = lo + (tb - lo) * (C_BISECT_REL if it == 0 else <double>it / n_scan)
-                if not (a < mid < b):
-                    continue
-                if self.rates(g, mid, &self.ep[0], &self.epp[0]):
-                    return 1
-                vm = -self.ep[j] if j >= 0 else V + a_lo * (mid - lo)
-                if self.st_changed(contact, vm, &self.ep[0], &self.epp[0]):
-                    b = mid
-                    found = True
-                    break
-                a = mid
-            if not found and not chg:
+            if self.scan(g, lo, tb, V, a_lo, j, contact, True, ab):
+                return 1
+            if ab[2] == 0.0 and not chg:
                 break                       # a long step whose mode holds throughout
-            for it in range(BISECT):
-                if b - a <= C_BISECT_REL * self.dt:
-                    break
-                mid = a + 0.5 * (b - a)
-                if self.rates(g, mid, &self.ep[0], &self.epp[0]):
-                    return 1
-                vm = -self.ep[j] if j >= 0 else V + a_lo * (mid - lo)
-                if self.st_changed(contact, vm, &self.ep[0], &self.epp[0]):
-                    b = mid
-                else:
-                    a = mid
-            tau = b
+            if self.bisect(g, lo, V, a_lo, j, contact, True, ab):
+                return 1
+            tau = ab[1]
             if self.rates(g, tau, &self.ep[0], &self.epp[0]):
                 return 1
             vt = -self.ep[j] if j >= 0 else V + a_lo * (tau - lo)
             self.st_decide(vt, &self.ep[0], &self.epp[0], contact, newc)
-            hh = tau - lo
-            if hh > 0.0:
-                self.interval_friction(contact, V, vt, hh, &self.R[0], &self.sfp[0],
-                                       &self.sfm[0])
-                X += hh * vt
-                for i in range(p):
-                    self.K[i] += hh * self.R[i]
+            X = self.add_piece(contact, V, vt, tau - lo, X, &self.sfp[0], &self.sfm[0], False)
             self.log_changes(tau, contact, newc)
             V = vt
             lo = tau
-        hh = tb - lo
-        if hh > 0.0:
-            self.interval_friction(contact, V, u, hh, &self.R[0], &self.sfp[0], &self.sfm[0])
-        X += hh * u
-        for i in range(p):
-            self.K[i] += hh * self.R[i]
+        X = self.add_piece(contact, V, u, tb - lo, X, &self.sfp[0], &self.sfm[0], True)
         if chg:                             # out of splits: the selection at the step end
             self.st_decide(u, epb, eppb, contact, newc)
             self.log_changes(tb, contact, newc)
@@ -853,13 +855,11 @@ cdef class StepCore:
               int initial_stuck=-1):
         """Back to t0 with body 0 at x0 [m] moving at v0 [m/s]; the contact state at t0 is the
         instantaneous mode (bodies at zero velocity stick or leave as the inclusion says; with
-        stiction as Rule S selects, the cluster of body ``initial_stuck`` (>= 0, at rest)
-        counting as stuck just before t0)."""
+        stiction as Rule S selects, body ``initial_stuck`` (>= 0, at rest) counting as stuck
+        just before t0)."""
         cdef GaitData* g = &gait.d
         cdef int p = self.p, i
         cdef double force = self.fext, a, s, vi, tot, wsum = 0.0, fps = 0.0, th
-        if self.stiction:
-            return self.st_reset(gait, t0, x0, v0, initial_stuck)
         gait_lengths(g, t0, &self.l[0])
         if self.rates(g, t0, &self.ep[0], &self.epp[0]):
             return NONFINITE
@@ -871,26 +871,30 @@ cdef class StepCore:
         self.t = t0
         self.X = x0 - self.e[0]
         self.V = v0 - self.ep[0]
-        for i in range(p):
-            vi = self.V + self.ep[i]
-            self.zmask[i] = vi == 0.0
-            if not self.zmask[i]:
-                self.contact[i] = 1 if vi > 0 else -1
-                force += -self.fp[i] if vi > 0 else self.fm[i]
-        a = self.accel_mode(force, &self.epp[0], &self.contact[0], &s)
-        for i in range(p):
-            self.R[i] = (-self.fp[i] if self.contact[i] > 0 else
-                         (self.fm[i] if self.contact[i] < 0 else 0.0))
-            if self.contact[i] == 0:
-                wsum += self.fp[i] + self.fm[i]
-                fps += self.fp[i]
-        if wsum > 0.0:
-            tot = self.M * a - force
-            th = min(max((tot + fps) / wsum, 0.0), 1.0)
+        self.n_choices = 0
+        if self.stiction:
+            self.st_mode0(initial_stuck)
+        else:
             for i in range(p):
+                vi = self.V + self.ep[i]
+                self.zmask[i] = vi == 0.0
+                if not self.zmask[i]:
+                    self.contact[i] = 1 if vi > 0 else -1
+                    force += -self.fp[i] if vi > 0 else self.fm[i]
+            a = self.accel_mode(force, &self.epp[0], &self.contact[0], &s)
+            for i in range(p):
+                self.R[i] = (-self.fp[i] if self.contact[i] > 0 else
+                             (self.fm[i] if self.contact[i] < 0 else 0.0))
                 if self.contact[i] == 0:
-                    self.R[i] = -self.fp[i] + th * (self.fp[i] + self.fm[i])
-        self.A = a
+                    wsum += self.fp[i] + self.fm[i]
+                    fps += self.fp[i]
+            if wsum > 0.0:
+                tot = self.M * a - force
+                th = min(max((tot + fps) / wsum, 0.0), 1.0)
+                for i in range(p):
+                    if self.contact[i] == 0:
+                        self.R[i] = -self.fp[i] + th * (self.fp[i] + self.fm[i])
+            self.A = a
         for i in range(p):
             self.K[i] = 0.0
             self.rmode[i] = self.contact[i]
@@ -899,30 +903,16 @@ cdef class StepCore:
         self.last_t = NAN
         return REACHED
 
-    cdef int st_reset(self, CompiledGait gait, double t0, double x0, double v0,
-                      int initial_stuck) except -1:
-        """``reset`` of a crawler with stiction: the mode at t0 by Rule S (``st_decide``) with
-        the incumbent the bodies at rest rigid with ``initial_stuck`` (none when < 0), the
-        stuck cluster's friction what it needs at t0, split by ``friction.split_stuck``."""
-        cdef GaitData* g = &gait.d
+    cdef void st_mode0(self, int initial_stuck) noexcept:
+        """The mode at the reset's t0 of a crawler with stiction (e', e'' at t0 in ep, epp):
+        Rule S (``st_decide``) with body ``initial_stuck`` the incumbent (none when < 0; the
+        candidate cluster holding it, the bodies rigid with it just after t0, is incumbent;
+        any other body at rest is an arrival); the stuck cluster's friction what it needs at
+        t0, split as ``friction.split_stuck``."""
         cdef int p = self.p, i, j
         cdef double vi
-        gait_lengths(g, t0, &self.l[0])
-        if self.rates(g, t0, &self.ep[0], &self.epp[0]):
-            return NONFINITE
-        for i in range(p - 1):
-            if not isfinite(self.l[i]):
-                self.bad_time = t0
-                return NONFINITE
-        rel_rates(&self.w[0], &self.l[0], &self.e[0], p)
-        self.t = t0
-        self.X = x0 - self.e[0]
-        self.V = v0 - self.ep[0]
         for i in range(p):
             vi = self.V + self.ep[i]
-            # the incumbent: the initial stuck body (the candidate cluster holding it, the
-            # bodies rigid with it just after t0, is incumbent); any other body at rest is an
-            # arrival (a sliding sign at zero velocity)
             self.inc0[i] = i == initial_stuck
             self.snew[i] = 0 if self.inc0[i] else (1 if vi >= 0.0 else -1)
         self.st_decide(self.V, &self.ep[0], &self.epp[0], &self.snew[0], &self.contact[0])
@@ -938,14 +928,6 @@ cdef class StepCore:
         else:
             self.A = (self.fext + slide_sum(&self.contact[0], &self.fp[0], &self.fm[0], p)) \
                 / self.M
-        for i in range(p):
-            self.K[i] = 0.0
-            self.rmode[i] = self.contact[i]
-        self.n_steps = 0
-        self.n_ev = 0
-        self.n_choices = 0
-        self.last_t = NAN
-        return REACHED
 
     @property
     def incumbent0(self):
