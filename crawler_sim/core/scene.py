@@ -44,14 +44,15 @@ range, e.g. ``scene.crawler.masses[1]: must be finite and > 0, got -1.0``. Unkno
 errors too (a typo must not silently fall back to a default).
 
 Besides sign and finiteness, a scene's values must lie in physical ranges (``LIMITS``) wide
-enough for any crawler and narrow enough that no value reaches the solvers as a degenerate
-case (a 1e-30 s run, a 1e-12 asymmetry, a tolerance of 1 s): masses in [1e-9, 1e9] kg, mu in
-[0, 1e3], friction forces in [0, 1e12] N (static ones too), gravity in [0, 1e3] m/s^2, gait lengths, rates,
-accelerations and coefficients within 1e6 in magnitude, frequency in [1e-3, 1e4] Hz, asymmetry
-in [1e-3, 0.999], gait times within [-1e7, 1e7] s at least 1e-6 s apart, t_end in [1e-6, 1e7] s,
-tol in [1e-15, 1e-6] s, max_step >= max(1e-6 s, t_end / 1e7), dt >= max(1e-9 s, t_end / 1e8),
-x0 and v0 within 1e6, penalty in [1e-6, 1e15] N s/m. Derived quantities (the sum of the masses,
-the total friction, the weight) are checked by `Crawler` and reported under scene.crawler.
+enough for any crawler and narrow enough that no value reaches the solvers as a degenerate case
+(a 1e-30 s run, a 1e-12 asymmetry, a tolerance of 1 s): masses in [1e-9, 1e9] kg, mu in [0,
+1e3], friction forces in [0, 1e12] N (static ones too), gravity in [0, 1e3] m/s^2, gait
+lengths, rates, accelerations and coefficients within 1e6 in magnitude, frequency in [1e-3,
+1e4] Hz, asymmetry in [1e-3, 0.999], gait times within [-1e7, 1e7] s at least 1e-6 s apart,
+t_end in [1e-6, 1e7] s, tol in [1e-15, 1e-6] s, max_step >= max(1e-6 s, t_end / 1e7), dt >=
+max(1e-9 s, t_end / 1e8), x0 and v0 within 1e6, penalty in [1e-6, 1e15] N s/m. Derived
+quantities (the sum of the masses, the total friction, the weight) are checked by `Crawler` and
+reported under scene.crawler.
 
 :func:`scene_to_dict` gives the plain-data form written into bags (friction as forces, so the
 crawler is rebuilt bit for bit); :func:`scene_from_dict` reads it back.

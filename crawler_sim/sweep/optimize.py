@@ -398,7 +398,8 @@ def gait_node_params(result: OptimizeResult, scene_file: str | None = None) -> d
 def sim_node_params(result: OptimizeResult) -> dict | None:
     """The sim_node parameter file content (``crawler_sim: ros__parameters: ...``) of the plant
     the stroke was scored on (score "node"; None for "ideal"): the crawler as friction forces
-    (the static ones and the stiction rule too when it has stiction), the actuator limits, the length limits and the method."""
+    (the static ones and the stiction rule too when it has stiction), the actuator limits, the
+    length limits and the method."""
     if result.plant is None:
         return None
     names = ('masses', 'friction', 'friction_backward', 'slope', 'gravity', 'initial_lengths',
