@@ -188,3 +188,19 @@ def test_a_crawler_without_stiction_is_not_audited_for_a_rule():
     c, g, kin = _t3()
     r = cs.verify(cs.simulate(kin, g, 12.0), g)
     assert r.ok() and r.rule_s == 0.0
+
+
+@pytest.mark.parametrize('seed', [0, 1, 5, 10])
+def test_random_scenes_rule_s_runs_pass_and_their_kinetic_twins_are_flagged(seed):
+    # test_stiction_implicit's random scenes (2-3 bodies, static up to 2x kinetic): the exact
+    # method's Rule S runs pass to rounding; the kinetic answers (the same crawler without
+    # stiction, relabelled) let bodies slide where a candidate could hold (these seeds are
+    # scenes where stiction changes the motion), flagged by a margin of over 5 % of the
+    # force scale; the implicit run's audit shows its O(dt) at most
+    from test.core.solvers.test_stiction_implicit import _random_scene
+    c, g, _ = _random_scene(seed)
+    assert cs.verify(cs.simulate(c, g, 4.0), g).ok()
+    assert cs.verify(cs.simulate(c, g, 4.0, 'implicit', dt=1e-3), g).rule_s_rel < 1e-4
+    kin = cs.Crawler(c.masses, c.friction, c.friction_backward)
+    r = cs.verify(dataclasses.replace(cs.simulate(kin, g, 4.0), crawler=c, info={}), g)
+    assert r.rule_s_rel > 0.05

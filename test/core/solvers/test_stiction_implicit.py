@@ -213,6 +213,12 @@ def test_random_scenes_converge_at_order_one_to_an_independent_reference(seed, r
                          stiction_rule=rule)
         errs.append(np.abs(tr.x - x_ref).max())
     assert 0.9 <= _slope(DTS, errs) <= 1.1, errs
+    # and against the exact method with stiction (itself on the reference to 1e-9 m:
+    # test_stiction_reference)
+    ex = cs.simulate(crawler, g, T, t_eval=grid, stiction_rule=rule)
+    errs_ex = [np.abs(cs.simulate(crawler, g, T, 'implicit', dt=float(dt), t_eval=grid,
+                                  stiction_rule=rule).x - ex.x).max() for dt in DTS]
+    assert 0.9 <= _slope(DTS, errs_ex) <= 1.1, errs_ex
     kin = cs.Crawler(crawler.masses, crawler.friction, crawler.friction_backward)
     trk = cs.simulate(kin, g, T, 'implicit', dt=float(DTS[-1]), t_eval=grid)
     assert np.abs(trk.x - x_ref).max() > 10 * errs[-1]
