@@ -108,6 +108,9 @@ def test_a_recorded_session_with_stiction_replays_with_zero_difference(ros, tmp_
     assert res['max_position_error'] == 0.0, res
     assert res['max_velocity_error'] == 0.0, res
     assert 'parameter change' in res['inputs'] and 'reset' in res['inputs']
+    # the command itself: exit 0 at a tolerance below any rounding
+    from crawler_sim import cli
+    assert cli.main(['replay', str(tmp_path / 'stiction'), '--tol', '1e-300']) == 0
 
 
 def test_the_incumbent_read_back_from_the_bag_is_the_engines(ros, tmp_path):
