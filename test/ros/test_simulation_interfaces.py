@@ -347,3 +347,56 @@ def test_without_the_package_the_node_starts_without_the_services(ros, monkeypat
     assert sim.sim_time_ns == 10 * TICK
     names = [n for n, _ in ros.obs.get_service_names_and_types_by_node(sim.get_name(), '/')]
     assert NS + 'reset' in names and NS + 'step_simulation' not in names
+
+
+def test_the_installed_sim_node_process_answers_every_service_and_the_action(ament_env, peer,
+                                                                            tmp_path):
+    """The colcon-installed executable in its own process (the interface packages found as
+    `make build` leaves them): every service answers, step_simulation(50) moves /clock by
+    exactly 50 ticks, the action runs."""
+    from test.support.ros import Proc
+    sim = Proc(tmp_path, ament_env, 'sim_node', '-p', 'start_paused:=true')
+    try:
+        clocks = []
+        peer.node.create_subscription(Clock, '/clock', clocks.append, 100)
+        peer.until(lambda: clocks, 'the /clock of the paused sim')
+        t0 = ns_from_stamp(clocks[-1].clock)
+        requests = {'get_simulator_features': GetSimulatorFeatures.Request(),
+                    'get_simulation_state': GetSimulationState.Request(),
+                    'set_simulation_state': SetSimulationState.Request(
+                        state=SimulationState(state=SimulationState.STATE_PAUSED)),
+                    'reset_simulation': ResetSimulation.Request(
+                        scope=ResetSimulation.Request.SCOPE_STATE),
+                    'get_entities': GetEntities.Request(),
+                    'get_entity_state': GetEntityState.Request(entity='body_0'),
+                    'get_entities_states': GetEntitiesStates.Request(),
+                    'set_entity_state': SetEntityState.Request(entity='nothing')}
+        types = {'get_simulator_features': GetSimulatorFeatures,
+                 'get_simulation_state': GetSimulationState,
+                 'set_simulation_state': SetSimulationState, 'reset_simulation': ResetSimulation,
+                 'get_entities': GetEntities, 'get_entity_state': GetEntityState,
+                 'get_entities_states': GetEntitiesStates, 'set_entity_state': SetEntityState}
+        answers = {name: peer.call(types[name], NS + name, req) for name, req in requests.items()}
+        assert len(answers['get_simulator_features'].features.features) == len(NEEDS)
+        assert answers['get_simulation_state'].state.state == SimulationState.STATE_PAUSED
+        assert answers['set_simulation_state'].result.result == \
+            SetSimulationState.Response.ALREADY_IN_TARGET_STATE
+        assert answers['get_entities'].entities == ['body_0', 'body_1']       # the seed
+        assert answers['set_entity_state'].result.result == Result.RESULT_NOT_FOUND
+        assert all(a.result.result == Result.RESULT_OK for name, a in answers.items()
+                   if name in ('reset_simulation', 'get_entity_state', 'get_entities_states'))
+
+        got = peer.call(StepSimulation, NS + 'step_simulation', StepSimulation.Request(steps=50),
+                        attempts=1).result
+        assert got.result == Result.RESULT_OK, got.error_message
+        peer.until(lambda: ns_from_stamp(clocks[-1].clock) == t0 + 50 * TICK, '/clock + 50 ticks')
+
+        client = ActionClient(peer.node, SimulateSteps, NS + 'simulate_steps')
+        handle = _send_goal(peer, client, 5, [])
+        result = handle.get_result_async()
+        peer.until(result.done, 'the action result')
+        assert result.result().status == GoalStatus.STATUS_SUCCEEDED
+        peer.until(lambda: ns_from_stamp(clocks[-1].clock) == t0 + 55 * TICK, '/clock + 5 more')
+    finally:
+        code, err = sim.stop()
+    assert code == 0, err
