@@ -166,7 +166,8 @@ def _crawler(v: Mapping[str, Any]) -> Crawler:
     try:
         return crawler_from_mapping({**spec, **{f: x for f, x in forces.items() if x}}, '')
     except ValueError as exc:       # a bound converted from a coefficient: name that one
-        mu = next((mu for mu, f in _BOUNDS if mu in need and str(exc).startswith(f)), None)
+        field = str(exc).split('[')[0].split(':')[0].split(' ')[0]      # the field it names
+        mu = next((mu for mu, f in _BOUNDS if mu in need and field == f), None)
         if mu is None:
             raise
         raise ValueError(f'{mu} (as forces, {mu} m g cos(slope)): {exc}') from None

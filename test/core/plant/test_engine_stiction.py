@@ -78,6 +78,8 @@ def test_forces_replace_coefficients_bound_by_bound():
     ({'static_friction': [-1.0]}, 'static_friction[0]'),
     ({'static_friction': [1.0]}, 'static_friction[0] must be >= friction[0]'),
     ({'friction': [3.0], 'mu_static': [0.3]}, 'mu_static (as forces'),
+    ({'friction': [1.0], 'friction_backward': [3.0], 'mu_static': [0.5],
+      'mu_static_backward': [0.1]}, 'mu_static_backward (as forces'),
     ({'mu_static': 'high'}, 'mu_static must be a list of numbers'),
     ({'stiction_rule': 'sticky'}, "stiction_rule must be one of 'incumbent', 'margin'"),
     ({'stiction_rule': ['margin']}, 'stiction_rule must be one of'),
