@@ -1,0 +1,99 @@
+"""Speed of crawler_sim/Crawl-v0 (issue 41) against MuJoCo's Swimmer-v5, side by side in one
+process, CPU time (``time.process_time``), median of ``--repeats`` runs, the two alternated.
+
+* single env, p = 2, ``control_period=0.04`` (Swimmer's step: frame_skip 4 x 0.01 s), both
+  through ``gymnasium.make`` (wrappers included), uniform random actions drawn beforehand, a
+  reset at each truncation: steps per CPU second and the ratio crawler / Swimmer (floor 2);
+* vector env, p = 2, ``control_period=0.01``, ``--envs`` 256 envs through
+  ``gymnasium.make_vec(..., vectorization_mode="vector_entry_point")``: env-steps per CPU
+  second (floor 1e5, goal 1e6).
+
+Without mujoco (``pip install ".[bench]"``) the Swimmer line gives the issue's measured
+9,400 steps/s, labelled as cited. Reproduce::
+
+    .venv/bin/python setup.py build_ext --inplace -q
+    .venv/bin/python -m benchmarks.gym_speed [--repeats 5] [--steps 4000] [--envs 256]
+    .venv/bin/python -m benchmarks.gym_speed --profile      # cProfile of the vector step
+"""
+from __future__ import annotations
+
+import argparse
+import cProfile
+import pstats
+import statistics
+import time
+
+import gymnasium as gym
+import numpy as np
+
+import crawler_sim  # noqa: F401  (registers crawler_sim/Crawl-v0)
+
+SWIMMER_CITED = 9400.0        # steps/s, issue 41 (Swimmer-v5 through gymnasium.make)
+
+
+def _single_rate(env, steps: int, seed: int = 0) -> float:
+    """Steps per CPU second of ``steps`` random steps (resets included, as a learner sees)."""
+    acts = np.random.default_rng(seed).uniform(-1, 1, (steps,) + env.action_space.shape)
+    env.reset(seed=seed)
+    t0 = time.process_time()
+    for a in acts:
+        _, _, term, trunc, _ = env.step(a)
+        if term or trunc:
+            env.reset()
+    return steps / (time.process_time() - t0)
+
+
+def _vector_rate(env, steps: int, seed: int = 0) -> float:
+    acts = np.random.default_rng(seed).uniform(-1, 1, (steps,) + env.action_space.shape)
+    env.reset(seed=seed)
+    t0 = time.process_time()
+    for a in acts:
+        env.step(a)
+    return steps * env.num_envs / (time.process_time() - t0)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    ap.add_argument('--repeats', type=int, default=5)
+    ap.add_argument('--steps', type=int, default=4000, help='single-env steps per run')
+    ap.add_argument('--envs', type=int, default=256)
+    ap.add_argument('--vector-steps', type=int, default=40, help='vector steps per run')
+    ap.add_argument('--profile', action='store_true')
+    args = ap.parse_args()
+
+    crawl = gym.make('crawler_sim/Crawl-v0', control_period=0.04)
+    try:
+        swimmer = gym.make('Swimmer-v5')
+    except Exception as exc:          # mujoco missing: the cited figure
+        print(f'Swimmer-v5 unavailable ({type(exc).__name__}: {exc}); its figure is cited')
+        swimmer = None
+    vec = gym.make_vec('crawler_sim/Crawl-v0', num_envs=args.envs,
+                       vectorization_mode='vector_entry_point', control_period=0.01)
+    if args.profile:
+        cProfile.runctx('_vector_rate(vec, args.vector_steps)', globals(), locals(),
+                        '/tmp/gym_speed.prof')
+        pstats.Stats('/tmp/gym_speed.prof').sort_stats('tottime').print_stats(20)
+        return
+    c_rates, s_rates, v_rates = [], [], []
+    _single_rate(crawl, 200)                      # warm-up (first builds, caches)
+    for r in range(args.repeats):
+        c_rates.append(_single_rate(crawl, args.steps, r))
+        if swimmer is not None:
+            s_rates.append(_single_rate(swimmer, args.steps, r))
+        v_rates.append(_vector_rate(vec, args.vector_steps, r))
+    c = statistics.median(c_rates)
+    s = statistics.median(s_rates) if s_rates else SWIMMER_CITED
+    v = statistics.median(v_rates)
+    print(f'median of {args.repeats} runs, CPU time, one process')
+    print(f'  crawler_sim/Crawl-v0 p=2 control_period=0.04: {c:9,.0f} steps/s '
+          f'(runs: {", ".join(f"{x:,.0f}" for x in c_rates)})')
+    print(f'  Swimmer-v5{"" if s_rates else " (cited, issue 41)"}:                  '
+          f'{s:9,.0f} steps/s' + (f' (runs: {", ".join(f"{x:,.0f}" for x in s_rates)})'
+                                  if s_rates else ''))
+    print(f'  ratio crawler / Swimmer: {c / s:.2f} (floor 2)')
+    print(f'  vector env p=2 control_period=0.01 {args.envs} envs: {v:11,.0f} env-steps/s '
+          f'(floor 1e5; runs: {", ".join(f"{x:,.0f}" for x in v_rates)})')
+
+
+if __name__ == '__main__':
+    main()
