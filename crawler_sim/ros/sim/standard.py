@@ -271,6 +271,9 @@ class Standard:
             if stop is not None and stop():
                 why = 'cancelled'
                 break
+            if node.stopped:                # the node is shutting down
+                why = 'the node stopped'
+                break
             with node.lock:
                 if not node.paused:
                     why = 'resumed during the steps'
