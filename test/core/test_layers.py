@@ -21,6 +21,7 @@ ALLOWED = {
     'ros': {'ros', 'bag', 'core'},
     'sweep': {'sweep', 'bag', 'core'},
     'cli': {'cli', 'bag', 'core', 'ros', 'sweep'},
+    'envs': {'envs', 'core'},       # Gymnasium environments over the core's plant (no ROS)
 }
 ROS_MODULES = ('rclpy', 'rosidl_runtime_py', 'builtin_interfaces', 'std_msgs', 'sensor_msgs',
                'nav_msgs', 'geometry_msgs', 'visualization_msgs', 'diagnostic_msgs',
