@@ -9,8 +9,11 @@ tick at a time.
 """
 from __future__ import annotations
 
+import json
+from pathlib import Path
 import sys
 
+from ament_index_python.packages import get_package_share_directory
 import numpy as np
 import pytest
 from rclpy.action import ActionClient
@@ -400,3 +403,37 @@ def test_the_installed_sim_node_process_answers_every_service_and_the_action(ame
     finally:
         code, err = sim.stop()
     assert code == 0, err
+
+
+#: RIHS01 hashes of the standard's own definitions (ros-simulation/simulation_interfaces, branch
+#: jazzy, 1.5.1: its .msg/.srv/.action files built with the same rosidl generators, 2026-11-28):
+#: the installed package, ours or the real one, must have the same type hashes to talk with
+#: clients built against the real package
+STANDARD_HASHES = {
+    'action/SimulateSteps': 'f0837c898e1219cd73bf4c041feab41e8c533e8e1057e982744dba7b093467eb',
+    'msg/Bounds': 'e8624fe51f0f5548197542697d924c5699ac7198f1e4c68e50c3ca2af73f5b3f',
+    'msg/EntityCategory': '43bdf7933fddf75f6970f7a8fe7078524355d821d390b3954bb46ac36c03dfe1',
+    'msg/EntityFilters': '8e7b12e8ea062f14c55de4877221fe1b7cd9749665a7ad8a4ab855fc4b148303',
+    'msg/EntityState': '2e0464a85eb80a939025075d6c20761eca6a4cb9d6baf2c0ba373467c8b598d0',
+    'msg/Result': 'cf43a306adff3337a0a47143d8f5689933bc70a30478f13b077dc1fe3bc5ad17',
+    'msg/SimulationState': 'bb9f87ccdd98fba113052a512d9801e84ce732d0a2b3c2b0cb281828de36e415',
+    'msg/SimulatorFeatures': '8b101c8529bc0ea3dcf056078254768f39832b9ef0adaf93bd5cea96c0de3305',
+    'msg/TagsFilter': '5c3efc51e8ed04c266c09cb4691ec95b964cd410558e01d8c83646b038826b45',
+    'srv/GetEntities': 'cb90004c48cd50f37732fb008e22c34c261dd680a723bf0f85d8437ea4498bf7',
+    'srv/GetEntitiesStates': '0a76170d0c1c90e1eaf805cfab78ea801d1f82df309a28c1f0fae4b570f19754',
+    'srv/GetEntityState': '749c91f2a2353d98367b64f2995a0f5842ce92a08ec1ffb3e185540a91557fb5',
+    'srv/GetSimulationState': '3362dcebee4b1afebbf9c4beee5c79c1455385aded62092a892d61fde8644f30',
+    'srv/GetSimulatorFeatures': 'abb9439c8cf196722a469fb6c68b44b484f198c2a1356ac38849a29c2a20a794',
+    'srv/ResetSimulation': '4ce285d7ff9b8ac70dcc95161f32bf54c05a6f4b13427990e41ab40c36c39646',
+    'srv/SetEntityState': 'ca210e7d2b66629ae133c8e1edf5246e618106d75c78ed0556c0e7a33c59ee5e',
+    'srv/SetSimulationState': 'a868b916dce49974f637ba252141258c4b07b0c06858b88af560e3eb6bfbcb30',
+    'srv/StepSimulation': '913fe0653690ce6bf8f09f316e6a626747012e9fca31e26719910d417aa8565c',
+}
+
+
+@pytest.mark.parametrize('name', sorted(STANDARD_HASHES))
+def test_the_installed_types_have_the_standards_hashes(name):
+    share = Path(get_package_share_directory('simulation_interfaces'))
+    hashes = {h['type_name']: h['hash_string']
+              for h in json.loads((share / f'{name}.json').read_text())['type_hashes']}
+    assert hashes[f'simulation_interfaces/{name}'] == 'RIHS01_' + STANDARD_HASHES[name]

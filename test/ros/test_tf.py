@@ -6,8 +6,11 @@ two messages are compared with each other, and the centre of mass with sum m_i x
 here from ``body_states``)."""
 from __future__ import annotations
 
+import json
+from pathlib import Path
 import sys
 
+from ament_index_python.packages import get_package_share_directory
 from nav_msgs.msg import Odometry
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
@@ -100,3 +103,14 @@ def test_without_tf2_msgs_the_node_runs_without_tf(ros, monkeypatch):
     ticks(sim, 10)
     assert sim.sim_time_ns == 10 * TICK
     assert ros.obs.count_publishers('/tf') == 0
+
+
+def test_tfmessage_has_the_type_hash_of_jazzys_tf2_msgs():
+    """The installed TFMessage (ours or the real one) against rosbags' Jazzy type store, an
+    independent RIHS01 implementation over the real definition."""
+    from rosbags.typesys import Stores, get_typestore
+    share = Path(get_package_share_directory('tf2_msgs'))
+    hashes = {h['type_name']: h['hash_string'] for h in
+              json.loads((share / 'msg' / 'TFMessage.json').read_text())['type_hashes']}
+    expected = get_typestore(Stores.ROS2_JAZZY).hash_rihs01('tf2_msgs/msg/TFMessage')
+    assert hashes['tf2_msgs/msg/TFMessage'] == expected
