@@ -47,6 +47,7 @@ import math
 from typing import Callable, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import brentq, minimize_scalar
 
 Kin = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
@@ -202,6 +203,15 @@ class StictionReference:
         return tuple(np.broadcast_to(np.asarray(a, float), shape) @ self.E.T
                      for a in (l, ld, ldd))
 
+    def _side(self, t: float, side: int) -> float:
+        """A time a hair (1e-13 relative) after (side +1) or before (-1) ``t`` when ``t`` is a
+        declared breakpoint, else ``t``: the kinematics' own rounding of a breakpoint (t mod
+        period) must not pick the wrong piece of l''."""
+        tol = 1e-12 * max(1.0, abs(t))
+        if self.breaks.size and np.min(np.abs(self.breaks - t)) <= tol:
+            return t + side * 0.1 * tol
+        return t
+
     def _kf(self, sig: np.ndarray) -> float:
         """sum_i sigma_i f_i^{k,sigma_i} over the sliding bodies [N]."""
         return float(np.sum(np.where(sig > 0, self.fkp, 0.0) - np.where(sig < 0, self.fkm, 0.0)))
@@ -244,7 +254,7 @@ class StictionReference:
                 delta: float) -> tuple[Mode, int, bool]:
         """Candidates at t (STICTION.md s.3) and the one the rule selects; returns (mode, number
         of consistent continuations, tie)."""
-        tt = np.array([t, t + delta])
+        tt = np.array([self._side(t, 1), t + delta])
         e, ed, edd = self._offsets(tt)
         ext = self.load.f(tt)
         v = V + ed[0]
@@ -331,12 +341,13 @@ class StictionReference:
         """The first zero of the piece's rows in (t0, t1], or None."""
         if t1 - t0 <= 1e-12 * max(1.0, abs(t1)):
             return None
-        start = self._rows(pc, np.array([t0]))[0]
+        start = self._rows(pc, np.array([self._side(t0, 1)]))[0]
         scale = np.maximum(1e-9 * (1.0 + np.abs(start)), 1e-9)
         zero_at_start = np.abs(start) <= scale     # rows leaving zero: the decision made them > 0
         n = max(2, int(math.ceil((t1 - t0) / h)) + 1)
         grid = np.linspace(t0, t1, n)
-        grid[-1] = np.nextafter(t1, t0)              # the left limit of l'' at a breakpoint
+        grid[0] = self._side(t0, 1)                  # l'' of the piece that starts at t0
+        grid[-1] = self._side(t1, -1) if self._side(t1, -1) != t1 else np.nextafter(t1, t0)
         chunk = 1024
         for k0 in range(0, n - 1, chunk - 2):     # overlap by two: no grid minimum is lost
             tg = grid[k0:k0 + chunk]
@@ -400,6 +411,7 @@ class StictionReference:
                 raise ValueError(f'initial_stuck: body {initial_stuck} is not at rest at t = 0')
             incumbent = (int(initial_stuck),)
         delta = min(1e-3 * h, 1e-6)
+        stalled = 0
         for _ in range(max_decisions):
             nxt = self.breaks[self.breaks > t + 1e-12]
             seg_end = min(float(nxt[0]) if nxt.size else math.inf, t_end)
@@ -421,37 +433,41 @@ class StictionReference:
             sol.pieces.append(pc)
             X, V = self._advance(pc, pc.t1)
             incumbent = mode.stuck
+            stalled = stalled + 1 if pc.t1 <= t else 0
+            if stalled > 5:
+                raise ReferenceError_(f'no progress at t = {t!r} (mode {mode})')
             t = pc.t1
             if t >= t_end:
                 return sol
         raise ReferenceError_(f'more than {max_decisions} decisions before t = {t_end!r}')
 
 
-# -- kinematics helpers for the tests (vectorised l, l', l'' written here) -----------------------
-def piecewise_accel(l0: float, ld0: float, knots: Sequence[float], accels: Sequence[float],
+# -- kinematics and scenes for the tests and benchmarks.stiction_figure --------------------------
+# l, l', l'' are written here from each gait's formula; the core's gait objects are built only
+# to hand the same gait to crawler_sim (imported lazily: the solver above never uses them).
+def piecewise_accel(l0: ArrayLike, ld0: ArrayLike, knots: Sequence[float], accels: ArrayLike,
                     period: float) -> tuple[Kin, Callable[[float], list[float]]]:
-    """One linkage with l'' = accels[k] on [knots[k], knots[k+1]) repeated every ``period``
-    (knots[0] = 0, knots[-1] = period; l' must return to ld0 over a period). Returns the
-    vectorised kinematics (right-continuous l'') and a function giving the breakpoints in
-    (0, t_end]. l and l' by exact integration of the constant pieces."""
+    """Linkages with l'' = accels[k] on [knots[k], knots[k+1]) repeated every ``period``
+    (knots[0] = 0, knots[-1] = period; accels of shape (K,) or (K, n_links); l and l' must
+    return to l0, ld0 over a period). Returns the vectorised kinematics (right-continuous l'')
+    and a function giving the breakpoints in (0, t_end]. l and l' by exact integration of the
+    constant pieces."""
     kn = np.asarray(knots, float)
     acc = np.asarray(accels, float)
-    dts = np.diff(kn)
-    # l' and l at each knot within one period
-    ldk = ld0 + np.concatenate([[0.0], np.cumsum(acc * dts)])
-    lk = l0 + np.concatenate([[0.0], np.cumsum(ldk[:-1] * dts + 0.5 * acc * dts * dts)])
-    drift = lk[-1] - lk[0]
+    acc = acc[:, None] if acc.ndim == 1 else acc                     # (K, n)
+    dts = np.diff(kn)[:, None]
+    # l' and l at each knot within one period, (K + 1, n)
+    ldk = np.asarray(ld0, float) + np.vstack([np.zeros(acc.shape[1]), np.cumsum(acc * dts, 0)])
+    lk = np.asarray(l0, float) + np.vstack(
+        [np.zeros(acc.shape[1]), np.cumsum(ldk[:-1] * dts + 0.5 * acc * dts * dts, 0)])
 
     def kin(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         t = np.asarray(t, float)
-        n_per = np.floor(t / period)
-        u = t - n_per * period
+        u = t - np.floor(t / period) * period
         k = np.clip(np.searchsorted(kn, u, side='right') - 1, 0, len(acc) - 1)
-        s = u - kn[k]
-        ldd = acc[k]
-        ld = ldk[k] + acc[k] * s
-        l = lk[k] + n_per * drift + ldk[k] * s + 0.5 * acc[k] * s * s
-        return l[:, None], ld[:, None], ldd[:, None]
+        s = (u - kn[k])[:, None]
+        a = acc[k]
+        return lk[k] + ldk[k] * s + 0.5 * a * s * s, ldk[k] + a * s, a
 
     def breakpoints(t_end: float) -> list[float]:
         out = []
@@ -460,3 +476,98 @@ def piecewise_accel(l0: float, ld0: float, knots: Sequence[float], accels: Seque
         return out
 
     return kin, breakpoints
+
+
+def sinusoid_kin(mean: ArrayLike, amp: ArrayLike, freq: float, phase: ArrayLike) -> Kin:
+    """l_j = mean_j + amp_j sin(2 pi freq t + phase_j) and its derivatives."""
+    w = 2 * math.pi * freq
+
+    def kin(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        arg = w * np.asarray(t, float)[:, None] + phase
+        return mean + amp * np.sin(arg), amp * w * np.cos(arg), -amp * w * w * np.sin(arg)
+    return kin
+
+
+def fourier_kin(mean: ArrayLike, cos: np.ndarray, sin: np.ndarray, freq: float) -> Kin:
+    """l_j = mean_j + sum_k cos_jk cos(k w t) + sin_jk sin(k w t), w = 2 pi freq, and its
+    derivatives (cos, sin of shape (n_links, K))."""
+    w = 2 * math.pi * freq
+    k = np.arange(1, cos.shape[1] + 1)
+
+    def kin(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        arg = w * np.asarray(t, float)[:, None, None] * k          # (N, 1, K)
+        c, s = np.cos(arg), np.sin(arg)
+        l = mean + np.sum(cos * c + sin * s, axis=-1)
+        ld = np.sum((-cos * s + sin * c) * (w * k), axis=-1)
+        ldd = np.sum(-(cos * c + sin * s) * (w * k) ** 2, axis=-1)
+        return l, ld, ldd
+    return kin
+
+
+FAMILIES = ('sinusoid', 'fourier', 'bang-bang', 'reversal')
+GRAVITY = 9.81
+
+
+def random_scene(seed: int, *, stiction: bool = True, family: str | None = None) -> dict:
+    """A seeded scene of issue 40's agreement test: p = 2 (even seeds) or 3; masses 0.3-2 kg;
+    kinetic bounds 0.2-2.5 N each direction; static bounds 1-2x the kinetic ones (``stiction``,
+    else equal); slope within +-0.15 rad; a gait of ``family`` (default by seed: sinusoid,
+    fourier, bang-bang, reversal in turn) at 0.5-1.5 Hz, lengths 0.3 +- at most 0.2 m. Bang-bang: each
+    linkage extends (or contracts first) by 0.1-0.2 m in two pieces of +-A, dwells, returns,
+    dwells; the linkages share the knots, so a 3-body crawler is one rigid cluster in a dwell.
+
+    Returns the crawler's arguments (``masses``, ``friction``, ``friction_backward``,
+    ``static_friction``, ``static_friction_backward``, ``slope``), the core's ``gait``, the
+    ``ref`` (a ``StictionReference`` of the same scene), ``period`` and ``family``."""
+    from crawler_sim.core import gaits
+    rng = np.random.default_rng(1000 + seed)
+    p = 2 + seed % 2
+    n = p - 1
+    family = family or FAMILIES[(seed // 2) % len(FAMILIES)]
+    m = rng.uniform(0.3, 2.0, p)
+    fk, fkb = rng.uniform(0.2, 2.5, p), rng.uniform(0.2, 2.5, p)
+    fs = fk * rng.uniform(1.0, 2.0, p) if stiction else fk
+    fsb = fkb * rng.uniform(1.0, 2.0, p) if stiction else fkb
+    slope = float(rng.uniform(-0.15, 0.15))
+    freq = float(rng.uniform(0.5, 1.5))
+    breaks: Callable[[float], list[float]] = lambda t_end: []      # noqa: E731
+    if family == 'sinusoid':
+        amp, phase = rng.uniform(0.03, 0.1, n), rng.uniform(0, 2 * math.pi, n)
+        gait = gaits.Sinusoid(0.3, amp, freq, phase)
+        kin = sinusoid_kin(0.3, amp, freq, phase)
+    elif family == 'fourier':
+        cos, sin = rng.uniform(-0.05, 0.05, (n, 2)), rng.uniform(-0.05, 0.05, (n, 2))
+        gait = gaits.Fourier(0.3, (cos, sin), freq)
+        kin = fourier_kin(0.3, cos, sin, freq)
+    elif family == 'reversal':
+        # STICTION.md T5's stroke (l'' = +-a for half a period each, l' = 0 at T/4 and 3T/4),
+        # on flat ground: a stuck body and an arriving one at every reversal, where the two
+        # rules can differ
+        T = 1.0 / freq
+        slope = 0.0
+        a = rng.uniform(0.5, 1.5, n) * 4.0 * rng.uniform(0.05, 0.1) / T ** 2
+        sign = np.where(rng.uniform(size=n) < 0.5, 1.0, -1.0)
+        knots, accels = np.array([0.0, T / 2, T]), np.stack([sign * a, -sign * a])
+        ld0 = -sign * a * T / 4
+        l0 = np.full(n, 0.35)
+        gait = gaits.PiecewiseParabolic(knots, accels, l0=l0, v0=ld0)
+        kin, breaks = piecewise_accel(l0, ld0, knots, accels, T)
+    else:
+        T = 1.0 / freq
+        tau1, tau2 = rng.uniform(0.1, 0.2, 2) * T          # half-stroke durations
+        d1 = rng.uniform(0.05, 0.2) * T
+        knots = np.array([0.0, tau1, 2 * tau1, 2 * tau1 + d1, 2 * tau1 + d1 + tau2,
+                          2 * tau1 + d1 + 2 * tau2, T])
+        stroke = rng.uniform(0.1, 0.2, n)
+        sign = np.where(rng.uniform(size=n) < 0.5, 1.0, -1.0)
+        a1, a2 = sign * stroke / tau1 ** 2, sign * stroke / tau2 ** 2
+        accels = np.stack([a1, -a1, 0 * a1, -a2, a2, 0 * a1])          # (6, n)
+        l0 = 0.3 + np.where(sign < 0, stroke, 0.0) - 0.1
+        gait = gaits.PiecewiseParabolic(knots, accels, l0=l0)
+        kin, breaks = piecewise_accel(l0, np.zeros(n), knots, accels, T)
+    ref = StictionReference(m, fk, fkb, fs, fsb, kin,
+                            f_ext=-m.sum() * GRAVITY * math.sin(slope),
+                            breakpoints=breaks(4.0 / freq))
+    return dict(masses=m, friction=fk, friction_backward=fkb, static_friction=fs,
+                static_friction_backward=fsb, slope=slope, gait=gait, ref=ref,
+                period=1.0 / freq, family=family)
