@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .friction import bounds
 from .model import Crawler
 from .solvers.base import Capabilities, capabilities
 
@@ -420,7 +421,8 @@ class Trajectory:
     def dissipated_energy(self) -> float:
         """Energy dissipated by friction, integral of -sum_i friction_i v_i dt [J] (>= 0).
 
-        Each body's friction is constant while it slides one way, so this is
+        Each body's friction is constant while it slides one way (its kinetic bound: a stuck
+        body dissipates nothing, whatever its static bound), so this is
         sum_i friction_i * forward_i + friction_backward_i * backward_i over the distances
         of :meth:`sliding_distance`: exact for an exact run. For "implicit" and "penalty",
         the trapezoidal rule over the samples (exact in stick, accurate to the step
@@ -429,8 +431,8 @@ class Trajectory:
         if not _caps(self.method).closed_form:
             return _trapezoid(-np.sum(self.friction * self.v, axis=1), self.t)
         fwd, back = self.sliding_distance()
-        c = self.crawler
-        return float(c.friction @ fwd + c.friction_backward @ back)
+        b = bounds(self.crawler)
+        return float(b.kinetic_forward @ fwd + b.kinetic_backward @ back)
 
     @property
     def actuator_work(self) -> float:

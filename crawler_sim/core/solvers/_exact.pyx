@@ -40,6 +40,7 @@ from crawler_sim.core.solvers._gait cimport (CompiledGait, GaitData, FOURIER, SC
                                              gait_lengths, gait_bounds,
                                              gait_next_break, gait_is_constant)
 from crawler_sim.core.solvers._inclusion cimport inclusion
+from crawler_sim.core.solvers._friction cimport ground_force, split_theta, split_force
 
 __all__ = ['ExactCore', 'ClosedForm', 'REACHED', 'FULL', 'STALLED', 'NONFINITE', 'NO_STEPS',
            'PERIODIC']
@@ -433,13 +434,13 @@ cdef class ClosedForm:
                         fm_g += self.sfm[i]
                 if wg > 0.0:
                     total = self.M * A - f_slide
-                    theta = min(max((-total + fm_g) / wg, 0.0), 1.0)
+                    theta = split_theta(total, fm_g, wg)
                     imp = self.M * (V - fs[3]) - f_slide * d
                     q = (-imp + fm_g * d) / wg
                     for i in range(p):
                         if grp[sg * p + i]:
                             w = self.sfp[i] + self.sfm[i]
-                            R[kp + i] = self.sfm[i] - theta * w
+                            R[kp + i] = split_force(theta, self.sfp[i], self.sfm[i])
                             K[kp + i] = K0_s[sg * p + i] + (self.sfm[i] * d - q * w)
                 else:
                     for i in range(p):
@@ -982,12 +983,8 @@ cdef class ExactCore:
             if self.zero[i]:
                 zi[nz] = i
                 nz += 1
-            elif contact[i] > 0:
-                force -= self.fp[i]
-            elif contact[i] < 0:
-                force += self.fm[i]
-            else:
-                force += self.fm[i]       # a frictionless body (fm = 0)
+            else:       # a sliding body, or a frictionless one (0)
+                force += ground_force(contact[i], self.fp[i], self.fm[i])
         acc_scale = (self.f_total + fabs(force)) / self.M
         for i in range(p):
             if fabs(epp[i]) > acc_scale:
@@ -1082,7 +1079,7 @@ cdef class ExactCore:
             for i in range(p):
                 self.new_contact[i] = self.contact[i]
                 self.group[i] = 0
-                tot += -self.fp[i] if self.contact[i] > 0 else self.fm[i]
+                tot += ground_force(self.contact[i], self.fp[i], self.fm[i])
             A[0] = tot / self.M
             ref[0] = -1
             return 0
@@ -1143,10 +1140,8 @@ cdef class ExactCore:
         for i in range(p):
             if self.zero[i]:
                 nz += 1
-            elif self.contact[i] > 0:
-                force -= self.fp[i]
-            elif self.contact[i] < 0:
-                force += self.fm[i]
+            else:
+                force += ground_force(self.contact[i], self.fp[i], self.fm[i])
         acc_scale = (self.f_total + fabs(force)) / self.M
         for k in range(nz):
             if fabs(self.kinks[k]) > acc_scale:
@@ -1177,10 +1172,8 @@ cdef class ExactCore:
                 else:
                     if fabs(self.kinks[k2] - kap) <= slack * acc_scale:
                         amb = 1
-                    if self.kinks[k2] < kap:
-                        rc += self.fp[j]        # j slides forward: ground force -fp[j]
-                    else:
-                        rc -= self.fm[j]        # j slides backward: +fm[j]
+                    # j slides forward (its kink below the cluster's) or backward
+                    rc -= ground_force(1 if self.kinks[k2] < kap else -1, self.fp[j], self.fm[j])
             if hi - lo == 0.0:
                 continue
             margin = min(rc - lo, hi - rc)
@@ -2047,8 +2040,7 @@ cdef class ExactCore:
             self.ref = r0
             group_all = r0 >= 0
             for i in range(p):
-                self.R[i] = (-self.fp[i] if self.new_contact[i] > 0 else
-                             (self.fm[i] if self.new_contact[i] < 0 else 0.0))
+                self.R[i] = ground_force(self.new_contact[i], self.fp[i], self.fm[i])
                 if not self.group[i]:
                     group_all = False
             V0 = -self.ep[r0] if r0 >= 0 else self.V
@@ -2297,8 +2289,8 @@ cdef class ExactCore:
         else:
             x_ref = self.x_ref
         nc = np.array(<signed char[:p]>self.new_contact)
-        R = np.where(nc > 0, -np.array(<double[:p]>self.fp),
-                     np.where(nc < 0, np.array(<double[:p]>self.fm), 0.0))
+        R = np.array([ground_force(self.new_contact[i], self.fp[i], self.fm[i])
+                      for i in range(p)])
         f = np.array([self.t, self.t, X, V, a, x_ref])
         return self.closed.row(gait, f, r0, nc, np.array(<unsigned char[:p]>self.group), R,
                                np.array(<double[:p]>self.K), self.t)
