@@ -14,6 +14,13 @@ Without mujoco (``pip install ".[bench]"``) the Swimmer line gives the issue's m
     .venv/bin/python setup.py build_ext --inplace -q
     .venv/bin/python -m benchmarks.gym_speed [--repeats 5] [--steps 4000] [--envs 256]
     .venv/bin/python -m benchmarks.gym_speed --profile      # cProfile of the vector step
+    .venv/bin/python -m benchmarks.gym_speed --breakdown    # where one env-step's time goes
+
+``--breakdown``: one env-step (control_period 0.01, 10 ticks) of the plant taken apart into
+what ``Engine.command`` + ``Engine.run_to`` + ``Engine.state`` do in it (the command, the
+compiled actuator run, the exact solver's table of the 10 constant-jerk pieces, the exact
+integration, the state read), each timed in CPU time, the states checked bit for bit against
+an Engine stepped beside it: what a compiled batched step inside the plant would remove.
 """
 from __future__ import annotations
 
@@ -52,6 +59,47 @@ def _vector_rate(env, steps: int, seed: int = 0) -> float:
     return steps * env.num_envs / (time.process_time() - t0)
 
 
+def breakdown(steps: int = 3000) -> None:
+    """Print the CPU time of each part of one env-step (module doc)."""
+    from crawler_sim.core.gaits import PiecewiseCubic
+    from crawler_sim.envs.plant import CrawlPlant
+
+    pl, ref = CrawlPlant(control_period=0.01), CrawlPlant(control_period=0.01)
+    pl.reset(None)
+    ref.reset(None)
+    e = pl.engine
+    acts = np.random.default_rng(0).uniform(-1, 1, (steps, 1))
+    parts = dict.fromkeys(('Engine.command', 'Actuator.run (10 ticks)',
+                           'table of the pieces (PiecewiseCubic.compiled)',
+                           'exact integration (Stepper.advance)', 'state read (Stepper.state)'),
+                          0.0)
+    names = list(parts)
+    clock = time.process_time
+    for k in range(steps):
+        marks = [clock()]
+        e.command(pl.lengths_of(acts[k]).tolist())
+        marks.append(clock())
+        pieces = e.actuator.run(e.t_ns, e.cfg.dt_ns, pl.ticks)
+        marks.append(clock())
+        e.t_ns += pl.ticks * e.cfg.dt_ns
+        gait = PiecewiseCubic.from_arrays(pieces.starts, pieces.anchors, pieces.coef)
+        gait.compiled()
+        marks.append(clock())
+        e.stepper.advance(e.t, gait)
+        marks.append(clock())
+        st = e.stepper.state
+        marks.append(clock())
+        for name, a, b in zip(names, marks, marks[1:]):
+            parts[name] += b - a
+        ref.step(acts[k])
+        assert st.x.tobytes() == ref.x.tobytes(), 'the parts no longer make the plant\'s step'
+    total = sum(parts.values())
+    print(f'one env-step of the plant, control_period 0.01 (10 ticks), {steps} steps, CPU us:')
+    for name, v in parts.items():
+        print(f'  {name:48s} {1e6 * v / steps:6.1f} ({100 * v / total:4.1f} %)')
+    print(f'  {"sum":48s} {1e6 * total / steps:6.1f}')
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--repeats', type=int, default=5)
@@ -59,7 +107,11 @@ def main() -> None:
     ap.add_argument('--envs', type=int, default=256)
     ap.add_argument('--vector-steps', type=int, default=40, help='vector steps per run')
     ap.add_argument('--profile', action='store_true')
+    ap.add_argument('--breakdown', action='store_true')
     args = ap.parse_args()
+    if args.breakdown:
+        breakdown()
+        return
 
     crawl = gym.make('crawler_sim/Crawl-v0', control_period=0.04)
     try:
