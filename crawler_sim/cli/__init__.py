@@ -164,6 +164,10 @@ def _figures(scene: Any, tr: Any, wall: float) -> dict:
         'verify_worst': report.worst, 'verify_contact_errors': report.contact,
         'verify_ok': report.ok(1e-9), 'wall_time': wall,
         'real_time_factor': t_end / wall if wall > 0 else None,
+        # with stiction: the rule, and the instants where more than one continuation was
+        # consistent and it chose (the solver's count; None for a method that does not count)
+        **({'stiction_rule': scene.run.stiction_rule,
+            'stiction_choices': tr.info.get('choices')} if scene.crawler.has_stiction else {}),
     }
 
 
@@ -188,6 +192,10 @@ def _figure_rows(f: dict) -> list[tuple[str, str]]:
         ('actuator work', f'{f["actuator_work"]:.6g} J (positive part '
                           f'{f["positive_actuator_work"]:.6g} J)'),
         ('cost of transport', cot),
+        *([('stiction', f'rule {f["stiction_rule"]}, '
+                        + ('choices not counted by this method' if f['stiction_choices'] is None
+                           else f'{f["stiction_choices"]} instants where it chose'))]
+          if 'stiction_rule' in f else []),
         ('verify', f'worst relative violation {f["verify_worst"]:.3g}, '
                    f'{f["verify_contact_errors"]} contact errors ({verdict} at 1e-9)'),
         ('wall time', f'{f["wall_time"]:.3f} s'

@@ -47,6 +47,21 @@ def test_the_inchworm_scene_advances_the_stroke_per_period_with_stiction(capsys)
     np.testing.assert_allclose(X - X[0], [0.0, 2.5, 5.0, 7.5], rtol=0, atol=1e-12)
 
 
+def test_simulate_reports_the_rule_and_the_instants_where_it_chose(capsys):
+    # at t = 1 + 3k the stuck body's need flips to +1.5 N (l'' = -A): it holds (<= 2 N
+    # static), and the kinetic continuation (break away, both slide) is consistent too (the
+    # kinetic solution is always one, STICTION.md F2): two per period, 6 in 18 s. Elsewhere
+    # one continuation only (t = 0: 6.5 N > 2 N rules out body 1 and the slide pattern's
+    # a = 1.5 < 1.25 fails; at the dwells the pair at rest with no force stays at rest).
+    figures = simulate_json(capsys, str(INCHWORM))
+    assert figures['stiction_rule'] == 'incumbent' and figures['stiction_choices'] == 6
+    code = cli.main(['simulate', str(INCHWORM)])
+    assert code == 0
+    assert 'rule incumbent, 6 instants where it chose' in capsys.readouterr().out
+    assert 'stiction_rule' not in simulate_json(capsys, str(SCENES / 'bang_bang.yaml'),
+                                                '--t-end', '1')
+
+
 def test_the_inchworm_without_its_static_keys_glides_as_the_kinetic_crawler(tmp_path, capsys):
     data = yaml.safe_load(INCHWORM.read_text())
     for key in ('static_friction', 'static_friction_backward'):
