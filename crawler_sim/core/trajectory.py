@@ -284,11 +284,15 @@ class Trajectory:
         f = {k: np.asarray(v)[back] for k, v in out.items()}
         contact = f['contact'].astype(np.int8)
         ind = f['indeterminate'].astype(bool)
+        # the incumbent (N, p) bool when the dense output gives it (None otherwise)
+        inc = f.get('incumbent')
+        inc = None if inc is None else np.asarray(inc, dtype=bool)
         if times.ndim == 0:
             return State(float(times), f['x'][0], f['v'][0], f['friction'][0], contact[0],
-                         f['linkage_force'][0], f['lengths'][0], f['rates'][0], bool(ind[0]))
+                         f['linkage_force'][0], f['lengths'][0], f['rates'][0], bool(ind[0]),
+                         None if inc is None else inc[0])
         return State(flat.copy(), f['x'], f['v'], f['friction'], contact, f['linkage_force'],
-                     f['lengths'], f['rates'], ind)
+                     f['lengths'], f['rates'], ind, inc)
 
     def _com_at(self, t: float) -> float:
         """Centre of mass X(t) [m]: a sample's when t is one, else the exact dense output; for
