@@ -84,8 +84,8 @@ class CrawlPlant:
     ``integration_rate`` [Hz], ``actuator_bandwidth`` [Hz], ``actuator_max_speed`` [m/s],
     ``actuator_max_acceleration`` [m/s^2]: sim_node's parameters of the same names.
     ``randomize``: the relative spread r in [0, 0.9] of domain randomisation: at each reset
-    every mass and friction entry is multiplied by a factor drawn uniformly in [1 - r, 1 + r]
-    from the reset's generator (0: the crawler as given).
+    each body's mass, and all its friction entries together, are multiplied by factors drawn
+    uniformly in [1 - r, 1 + r] from the reset's generator (0: the crawler as given).
     ``journal``: sim_node's journal callback, handed to each episode's Engine.
     """
 
@@ -147,19 +147,22 @@ class CrawlPlant:
         return 4 * self.n_links + 2 * self.p
 
     def crawler_for(self, rng: np.random.Generator | None) -> Any:
-        """The crawler of an episode: the base one, or (``randomize`` > 0) its masses and
-        friction entries scaled by factors in [1 - r, 1 + r] drawn from ``rng`` (in the
-        mapping's key order, one per body), validated as a scene's."""
+        """The crawler of an episode: the base one, or (``randomize`` = r > 0) its masses
+        scaled by one factor per body and every friction entry of a body (forward, backward,
+        static, coefficients or forces) by another, both drawn uniformly in [1 - r, 1 + r] from
+        ``rng`` (masses first): one factor for all of a body's friction keeps their ratios
+        (static >= sliding, forward / backward). Validated as a scene's crawler."""
         if not self.randomize or rng is None:
             return self.base
         r = self.randomize
+        mass_f = rng.uniform(1.0 - r, 1.0 + r, self.p)
+        friction_f = rng.uniform(1.0 - r, 1.0 + r, self.p)
         spec = {}
         for key, value in self.spec.items():
             if _randomised(key):
                 arr = np.asarray(value, dtype=float)
-                spec[key] = (np.broadcast_to(arr, (self.p,)) if arr.size == 1 else arr) \
-                    * rng.uniform(1.0 - r, 1.0 + r, self.p)
-                spec[key] = spec[key].tolist()
+                arr = np.broadcast_to(arr, (self.p,)) if arr.size == 1 else arr
+                spec[key] = (arr * (mass_f if key == 'masses' else friction_f)).tolist()
             else:
                 spec[key] = value
         return crawler_from_mapping(spec, 'crawler')

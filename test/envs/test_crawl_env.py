@@ -141,3 +141,35 @@ def test_bad_actions_are_refused_naming_the_field(action, text):
     env.reset(seed=0)
     with pytest.raises(ValueError, match=text):
         env.step(action)
+
+
+def test_randomisation_keeps_each_bodys_friction_ratios_and_stiction_reaches_the_plant():
+    # one factor for all of a body's friction entries: backward / forward stays 0.4 / 0.3 and
+    # static / sliding 0.5 / 0.3 (a static bound below the sliding one would be refused)
+    env = CrawlEnv({'masses': [0.5, 1.0], 'mu': 0.3, 'mu_backward': 0.4, 'mu_static': 0.5},
+                   randomize=0.5)
+    seen = set()
+    for seed in range(4):
+        env.reset(seed=seed)
+        c = env.plant.engine.cfg.crawler
+        assert np.allclose(c.friction_backward / c.friction, 4 / 3, rtol=1e-14)
+        assert np.allclose(c.static_friction / c.friction, 5 / 3, rtol=1e-14)
+        assert np.all(np.abs(c.masses / np.array([0.5, 1.0]) - 1) <= 0.5)
+        seen.add(tuple(c.masses.tolist()))
+    assert len(seen) == 4
+
+
+def test_a_crawler_with_stiction_replays_through_the_journal_bit_for_bit():
+    inputs: list[Input] = []
+    env = CrawlEnv({'masses': [0.5, 1.0], 'mu': 0.3, 'mu_static': 0.45}, control_period=0.02,
+                   journal=lambda kind, t_ns, payload: inputs.append(Input(t_ns, kind, payload)))
+    env.reset(seed=0)
+    xs, ts = [], []
+    for a in _actions(100, seed=2):
+        _, _, _, _, info = env.step(a)
+        xs.append(info['x'])
+        ts.append(round(info['t'] * 1e9))
+    values = env.plant.plant_config.values
+    assert values['static_friction'] == pytest.approx([0.45 * 0.5 * 9.81, 0.45 * 9.81])
+    x, _ = replay(values, inputs, ts[-1]).at(ts, 2)
+    assert np.max(np.abs(x - np.array(xs))) == 0.0
