@@ -35,8 +35,9 @@ def register_envs() -> None:
 
 class _AfterImport:
     """A meta path finder (not derived from importlib.abc.MetaPathFinder, whose import costs
-    ~5-30 ms: importlib.resources, tempfile, random). Finds nothing itself: when ``gymnasium`` is about to be imported, wraps its loader so
-    that ``register_envs`` runs right after the module has executed, then removes itself."""
+    5-30 ms: importlib.resources, tempfile, random). Finds nothing itself: when ``gymnasium``
+    is about to be imported, wraps its loader so that ``register_envs`` runs right after the
+    module has executed, then removes itself."""
 
     def find_spec(self, name: str, path: Any = None, target: Any = None) -> Any:
         if name != 'gymnasium':

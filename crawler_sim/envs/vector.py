@@ -15,7 +15,6 @@ from __future__ import annotations
 
 from typing import Any, Mapping, Sequence
 
-import gymnasium
 from gymnasium import spaces
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
