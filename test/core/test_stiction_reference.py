@@ -17,8 +17,10 @@ import pytest
 
 import crawler_sim as cs
 from crawler_sim.core import gaits
-from test.support.stiction_reference import (Load, StictionReference, piecewise_accel,
-                                             random_scene)
+from test.support.stiction_reference import (RULE_SEEDS, Load, StictionReference,
+                                             exact_positions, piecewise_accel,
+                                             random_scene, reference_positions,
+                                             sample_times)
 
 G = 9.81
 
@@ -220,16 +222,6 @@ def test_T5_the_rule_decides_the_stroke_reversal(static, rule, body, dx):
 # reference never evaluates a crawler_sim gait). Positions are compared at five times over three
 # periods, to 1e-9 m (issue 40).
 # ----------------------------------------------------------------------------------------------
-def _times(scene) -> np.ndarray:
-    return np.array([0.3, 0.77, 1.5, 2.2, 3.0]) * scene['period']
-
-
-def _reference_positions(scene, rule='incumbent') -> np.ndarray:
-    times = _times(scene)
-    sol = scene['ref'].solve(times[-1], h=scene['period'] / 4000, rule=rule)
-    return sol.positions(times)
-
-
 SEEDS = range(32)      # 8 of each family, half of them 3-body
 
 
@@ -240,31 +232,21 @@ def test_with_static_equal_to_kinetic_the_reference_agrees_with_todays_exact_met
     sc = random_scene(seed, stiction=False)
     crawler = cs.Crawler(sc['masses'], sc['friction'], sc['friction_backward'],
                          slope=sc['slope'], gravity=G)
-    times = _times(sc)
+    times = sample_times(sc)
     run = cs.simulate(crawler, sc['gait'], times[-1], method='exact', t_eval=times)
-    assert np.max(np.abs(run.x - _reference_positions(sc))) <= 1e-9
+    assert np.max(np.abs(run.x - reference_positions(sc))) <= 1e-9
 
 
 def _exact_with_stiction(sc, rule):
     """The exact method's positions with stiction, or a skip when the contract (issue 40:
     ``static_friction`` on Crawler, ``stiction_rule`` on simulate) is not there yet. Only the
-    keyword's absence (TypeError) skips; a wrong answer fails."""
+    keywords' absence (TypeError naming them) skips; a wrong answer fails."""
     try:
-        crawler = cs.Crawler(sc['masses'], sc['friction'], sc['friction_backward'],
-                             slope=sc['slope'], gravity=G,
-                             static_friction=sc['static_friction'],
-                             static_friction_backward=sc['static_friction_backward'])
+        return exact_positions(sc, rule)
     except TypeError as exc:
-        pytest.skip(f'Crawler has no static_friction yet ({exc})')
-    times = _times(sc)
-    try:
-        run = cs.simulate(crawler, sc['gait'], times[-1], method='exact', t_eval=times,
-                          stiction_rule=rule)
-    except TypeError as exc:
-        if 'stiction_rule' not in str(exc):
+        if 'static_friction' not in str(exc) and 'stiction_rule' not in str(exc):
             raise
-        pytest.skip(f'simulate has no stiction_rule yet ({exc})')
-    return run.x
+        pytest.skip(f'the stiction contract is not there yet ({exc})')
 
 
 @pytest.mark.parametrize('rule', ['incumbent', 'margin'])
@@ -272,9 +254,9 @@ def _exact_with_stiction(sc, rule):
 def test_the_exact_method_with_stiction_agrees_with_the_reference_on_random_scenes(seed, rule):
     sc = random_scene(seed)
     got = _exact_with_stiction(sc, rule)
-    want = _reference_positions(sc, rule)
+    want = reference_positions(sc, rule)
     err = np.abs(got - want)
-    assert err.max() <= 1e-9, (f'seed {seed}, rule {rule}: times {_times(sc).tolist()}, '
+    assert err.max() <= 1e-9, (f'seed {seed}, rule {rule}: times {sample_times(sc).tolist()}, '
                                f'exact {got.tolist()}, reference {want.tolist()}')
 
 
@@ -306,21 +288,16 @@ def test_initial_stuck_names_the_incumbent_at_a_start_from_coincident_rest(stuck
     assert run.state_at(1.0).x[0] - run.state_at(0.0).x[0] == pytest.approx(dx0, abs=1e-12)
 
 
-#: 'reversal' scenes (STICTION.md T5's stroke, flat ground) where the two rules give different
-#: motions (the reference's answers differ by 2e-3 to 7e-2 m), chosen by the reference among
-#: seeds 0-59 so the rule's implementation is tested. 25 and 59 are 3-body scenes whose two
-#: links reverse at the same instant (three bodies at rest at once, the incumbent among them).
-RULE_SEEDS = (4, 10, 16, 24, 25, 38, 59)
 
 
 @pytest.mark.parametrize('rule', ['incumbent', 'margin'])
 @pytest.mark.parametrize('seed', RULE_SEEDS)
 def test_the_exact_method_applies_the_chosen_rule_where_rule_s_and_margin_differ(seed, rule):
     sc = random_scene(seed, family='reversal')
-    want = _reference_positions(sc, rule)
-    other = _reference_positions(sc, 'margin' if rule == 'incumbent' else 'incumbent')
+    want = reference_positions(sc, rule)
+    other = reference_positions(sc, 'margin' if rule == 'incumbent' else 'incumbent')
     assert np.abs(want - other).max() > 1e-3          # the scene does tell the rules apart
     got = _exact_with_stiction(sc, rule)
     assert np.abs(got - want).max() <= 1e-9, (
-        f'reversal seed {seed}, rule {rule}: times {_times(sc).tolist()}, exact {got.tolist()}, '
-        f'reference {want.tolist()}')
+        f'reversal seed {seed}, rule {rule}: times {sample_times(sc).tolist()}, '
+        f'exact {got.tolist()}, reference {want.tolist()}')
