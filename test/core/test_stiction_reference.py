@@ -188,8 +188,10 @@ def test_T4_a_push_between_kinetic_and_static_holds_only_with_stiction(static, x
 # (margin 0.5), body 1 stuck needs F_1 = f_0^k + m_0 l'' = +1.5 (margin 1.0), the slide
 # a = 0 in (-0.25, 0.25): three continuations (flagged at 1, 3, 5, 7).
 # Rule S: body 0 incumbent holds forever: x_0(8) - x_0(0) = 0.
-# Margin: body 1 sticks at t = 1 (margin 1.0 > 0.5) and again wins at t = 3 (body 1 needs
-# -f_0^k + m l''/... = -1.5, margin 1.0; body 0 needs +1.5, margin 0.5): anchored from t = 1,
+# Margin: body 1 sticks at t = 1 (margin 1.0 > 0.5) and again wins at t = 3, where l'' = -0.5
+# (body 1 stuck, body 0 slides forward: F_1 = -f_0^{k,+} + M e_1'' = -1 - 0.5 = -1.5, margin
+# min(-1.5 + 2.5, 2.5 + 1.5) = 1.0; body 0 stuck, body 1 slides backward: F_0 = f_1^{k,-} +
+# M e_0'' = 1 + 0.5 = 1.5, margin min(1.5 + 2, 2 - 1.5) = 0.5): anchored from t = 1,
 # x_1(8) - x_1(0) = int_0^1 l' = int_0^1 (-0.5 + 0.5 t) dt = -1/4, and X - X(0) the same
 # (l(8) = l(0), x_1 = X + l/2).
 # Kinetic: slide apart with V = 0 from t = 1: X(8) - X(0) = (l(1) - l(0))/2 = -1/8.
