@@ -303,3 +303,14 @@ def test_the_exact_method_applies_the_chosen_rule_where_rule_s_and_margin_differ
     assert np.abs(got - want).max() <= 1e-9, (
         f'reversal seed {seed}, rule {rule}: times {sample_times(sc).tolist()}, '
         f'exact {got.tolist()}, reference {want.tolist()}')
+
+
+@pytest.mark.parametrize('seed', range(0, 32, 3))
+def test_the_reference_does_not_depend_on_its_scan_step(seed):
+    # events are roots refined to ~1e-15 s whatever the grid, so a 4x coarser scan gives the
+    # same positions unless an event was missed or misplaced
+    sc = random_scene(seed)
+    T, times = sc['period'], sample_times(sc)
+    fine = sc['ref'].solve(times[-1], h=T / 4000).positions(times)
+    coarse = sc['ref'].solve(times[-1], h=T / 1000).positions(times)
+    assert np.max(np.abs(fine - coarse)) <= 1e-12
