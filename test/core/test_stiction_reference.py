@@ -314,3 +314,26 @@ def test_the_reference_does_not_depend_on_its_scan_step(seed):
     fine = sc['ref'].solve(times[-1], h=T / 4000).positions(times)
     coarse = sc['ref'].solve(times[-1], h=T / 1000).positions(times)
     assert np.max(np.abs(fine - coarse)) <= 1e-12
+
+
+@pytest.mark.parametrize('seed', range(0, 32, 2))
+def test_the_exact_method_reports_the_instants_where_the_rule_chose(seed):
+    # the instants with more than one consistent continuation (STICTION.md s.3, U1-U3): the
+    # reference's flagged decisions against the run's info['choice_times'] (every period
+    # integrated), to 1e-9 s
+    sc = random_scene(seed)
+    T = sc['period']
+    try:
+        crawler = cs.Crawler(sc['masses'], sc['friction'], sc['friction_backward'],
+                             slope=sc['slope'], gravity=G,
+                             static_friction=sc['static_friction'],
+                             static_friction_backward=sc['static_friction_backward'])
+    except TypeError as exc:
+        pytest.skip(f'the stiction contract is not there yet ({exc})')
+    info = cs.simulate(crawler, sc['gait'], 3 * T, periodic_skip=False).info
+    if 'choice_times' not in info:
+        pytest.skip('the exact method does not report choice_times yet')
+    want = [d.t for d in sc['ref'].solve(3 * T, h=T / 4000).flags]
+    got = np.asarray(info['choice_times'], float)
+    assert got.shape == (len(want),), (got.tolist(), want)
+    assert np.max(np.abs(got - want), initial=0.0) <= 1e-9
