@@ -19,10 +19,11 @@ cluster stuck just before now (the incumbent, ``State.incumbent``), which Rule S
 coincident rest. It lives in the core ``Stepper`` across sync cuts; where the engine starts a
 new stepper it is handed on: a reconfigure (new crawler, method, step or ``stiction_rule``)
 starts the new stepper with the old one's incumbent (``initial_stuck``), and a start, a reset
-or a contained failure begins at rest with every body counted as stuck before it (a crawler
-at rest in its initial configuration has been at rest: ``initial_stuck=0``, the whole
-crawler's cluster). Without stiction nothing of this is passed, so such runs are bit for bit
-what they were before stiction.
+or a contained failure begins at rest with no incumbent: Rule S chooses at that instant by the
+static margins, which for a crawler at rest (every body stuck before, so every rigid part
+incumbent) is the same choice. (Naming one body, ``initial_stuck=0``, would favour it when a
+command lands on the reset tick, unlike the same command a tick later.) Without stiction
+nothing of this is passed, so such runs are bit for bit what they were before stiction.
 
 Runs of ticks with no input in between (``tick_to_grid``, ``run_to``) are one compiled run of
 the actuator (``Actuator.run``, the pieces as arrays) and reach the exact solver as one
@@ -82,16 +83,6 @@ class EngineConfig:
         if not self.crawler.has_stiction:
             return {}
         return {'stiction_rule': self.stiction_rule}
-
-    def rest_options(self) -> dict[str, Any]:
-        """``stepper_options`` of a start at rest in the initial configuration (a start, a
-        reset): with stiction, the crawler has been at rest, so every body counts as stuck
-        before the start (``initial_stuck=0``: body 0's cluster, the whole crawler while the
-        lengths are constant)."""
-        opts = self.stepper_options()
-        if opts:
-            opts['initial_stuck'] = 0
-        return opts
 
 
 class Engine:
@@ -195,7 +186,7 @@ class Engine:
         t = to_seconds(t_ns)
         rest = Cubic(t, list(cfg.initial_lengths), 0.0, 0.0, 0.0)
         self.stepper = Stepper(cfg.crawler, rest, cfg.method, t0=t, x0=cfg.initial_position,
-                               v0=0.0, dt=dt, penalty=cfg.penalty, **cfg.rest_options())
+                               v0=0.0, dt=dt, penalty=cfg.penalty, **cfg.stepper_options())
         self.stepper.pop_events()
         # the queue of ticks not integrated yet: single ticks (tick()) as start times and Cubic
         # pieces, and runs of ticks as (number of single ticks queued before it, Pieces)
@@ -443,9 +434,13 @@ def _handover(st: State, gait: Gait, cfg: EngineConfig) -> tuple[float, dict[str
     """(v0 [m/s] of body 0, stiction options) of a new ``Stepper`` that continues from the
     state ``st`` under ``gait`` with ``cfg``: body 0's velocity, and with stiction the cluster
     stuck just before now (``st.incumbent``; a stepper that does not know it: the bodies at
-    rest, ``contact == 0``, which describes the interval before ``st.t``) as ``initial_stuck``,
-    its first body. That body's velocity is set to exactly 0 (v0 = -(l_0' + ... + l_{i-1}'),
-    as ``Stepper`` computes it), which it is up to rounding."""
+    rest, ``contact == 0``, which describes the interval before ``st.t``). A part of the
+    crawler goes on as ``initial_stuck``, its first body, whose velocity is set to exactly 0
+    (v0 = -(l_0' + ... + l_{i-1}'), as ``Stepper`` computes it), which it is up to rounding.
+    The whole crawler stuck goes on with no incumbent: where a dwell ends at this instant Rule
+    S then chooses by the margins, as it does with every part incumbent (naming body 0 would
+    favour it). (``initial_stuck`` names one body: a stuck cluster of several bodies that
+    splits at this very instant keeps only the part holding that body as incumbent.)"""
     opts = cfg.stepper_options()
     v0 = float(st.v[0])
     if not opts:
@@ -454,6 +449,7 @@ def _handover(st: State, gait: Gait, cfg: EngineConfig) -> tuple[float, dict[str
     if np.any(stuck):
         i = int(np.argmax(stuck))
         rates = np.asarray(gait.at(float(st.t))[1], dtype=float)
-        v0 = -float(np.sum(rates[:i]))
-        opts['initial_stuck'] = i
+        v0 = 0.0 - float(np.sum(rates[:i]))
+        if not np.all(stuck):
+            opts['initial_stuck'] = i
     return v0, opts

@@ -171,11 +171,11 @@ def _run_to(engine: Engine, t_ns: int) -> None:
 def simulate_as_node(plant: PlantConfig, gait: Gait, stream: Stream, t_end: float,
                      **kwargs: Any) -> Trajectory:
     """``simulate`` of the plant's crawler driven by :func:`actuator_output` (the plant's
-    method and initial position, and with stiction its rule and a start stuck at rest, as the
-    engine starts; ``kwargs`` go to ``simulate``: ``dt``, ``t_eval``, ...)."""
+    method and initial position, and with stiction its rule, as the engine starts; ``kwargs``
+    go to ``simulate``: ``dt``, ``t_eval``, ...)."""
     out = actuator_output(plant, gait, stream, t_end)
     kwargs.setdefault('x0', float(plant.values['initial_position']))
-    for name, value in plant.engine_config().rest_options().items():
+    for name, value in plant.engine_config().stepper_options().items():
         kwargs.setdefault(name, value)
     if plant.values['method'] == 'penalty':
         kwargs.setdefault('penalty', plant.penalty_n)
