@@ -268,3 +268,17 @@ def test_a_failed_call_restores_the_incumbent_with_the_rest_of_the_state():
     assert st.state.incumbent.tolist() == [False, True]
     core.restore()
     assert st.t == 0.5 and st.state.incumbent.tolist() == [True, False]
+
+
+@pytest.mark.parametrize('rule, x_end', [('incumbent', [0.0, 1.0]), ('margin', [-0.25, 0.75])])
+def test_the_periodic_skip_repeats_rule_s_and_counts_the_choices_of_the_periods_it_skips(
+        rule, x_end):
+    # T5 over 100 periods (400 s): the anchored body where T5 leaves it (x_0 = 0, or x_1 = 1 -
+    # 1/4), the other 1 m from it (l = 1 at t = 400, a multiple of the period), one flagged
+    # reversal every 2 s (200), skip on or off alike
+    runs = [simulate(T5_CRAWLER, T5_GAIT, 400.0, t_eval=[0.0, 400.0], periodic_skip=skip,
+                     initial_stuck=0, stiction_rule=rule) for skip in (True, False)]
+    assert runs[0].info['skipped_periods'] > 0 and runs[1].info['skipped_periods'] == 0
+    for tr in runs:
+        np.testing.assert_allclose(tr.x[-1], x_end, rtol=0, atol=1e-12)
+        assert tr.info['choices'] == 200
