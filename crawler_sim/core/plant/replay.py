@@ -80,22 +80,27 @@ class Snapshots:
         self.v.append(np.array(st.v, dtype=float))
 
     def at(self, t_ns: Sequence[int], p: int) -> tuple[np.ndarray, np.ndarray]:
-        """(x, v) of shape (len(t_ns), p) at the recorded sample times: the k-th sample at a
-        time is the k-th snapshot at that time (the last one when there are fewer); NaN where a
-        body did not exist or no snapshot has that time."""
+        """(x, v) of shape (len(t_ns), p) at the recorded sample times: the samples at a time
+        are the last snapshots at that time, in order (the last one when there are fewer); NaN
+        where a body did not exist or no snapshot has that time."""
         by_time: dict[int, list[int]] = {}
         for i, t in enumerate(self.t_ns):
             by_time.setdefault(t, []).append(i)
         x = np.full((len(t_ns), p), np.nan)
         v = np.full((len(t_ns), p), np.nan)
         seen: dict[int, int] = {}
+        counts: dict[int, int] = {}
+        for t in t_ns:
+            counts[int(t)] = counts.get(int(t), 0) + 1
         for row, t in enumerate(int(t) for t in t_ns):
             hits = by_time.get(t)
             if not hits:
                 continue
             k = seen.get(t, 0)
             seen[t] = k + 1
-            i = hits[min(k, len(hits) - 1)]
+            # more snapshots than samples at t (a cut off the grid that nothing published, e.g.
+            # a state read, then a reset): the samples are the last ones
+            i = hits[min(k + max(len(hits) - counts[t], 0), len(hits) - 1)]
             n = min(p, len(self.x[i]))
             x[row, :n] = self.x[i][:n]
             v[row, :n] = self.v[i][:n]
@@ -188,6 +193,7 @@ def _apply(engine: Engine, item: Input, k: int, method: str | None, snaps: Snaps
         engine.resume()
     elif kind == 'sync':
         engine.sync()
+        snaps.take(engine)      # what the node may have published there (steps off the grid)
     else:
         raise JournalError(f'{_name(item, k)}: kind must be one of {", ".join(KINDS)}, got '
                            f'{_short(kind)}')
