@@ -98,7 +98,7 @@ class Simulated(Loopable, Protocol):
 
 def attach(node: Any) -> Standard | None:
     """Serve the standard on ``node`` if simulation_interfaces is installed; otherwise log one
-    line saying why not and return None."""
+    line saying why not and return None (the line names a missing tf2_msgs too: /tf)."""
     try:
         import simulation_interfaces.msg as msg
         import simulation_interfaces.srv as srv
@@ -110,6 +110,9 @@ def attach(node: Any) -> Standard | None:
             f'simulation_interfaces services not available: the package is not installed '
             f'({exc}; `make build` builds it, tools/build_interfaces.py){extra}')
         return None
+    if node.outputs.tf_missing:
+        node.get_logger().info(f'/tf not published: {node.outputs.tf_missing} (`make build` '
+                               'builds it, tools/build_interfaces.py)')
     return Standard(node, msg, srv, SimulateSteps)
 
 
