@@ -38,7 +38,8 @@ REQUIREMENTS = ROOT / 'requirements-interfaces.txt'
 PACKAGES = {'simulation_interfaces': 'simulation_interfaces.srv', 'tf2_msgs': 'tf2_msgs.msg'}
 #: what the wheels' exported CMake files name (the wheel builder's interpreter)
 _BUILDER_PYTHON_INCLUDE = re.compile(r'/opt/python/[^/;"\s]+/include/python3\.\d+')
-_BUILDER_NUMPY_INCLUDE = re.compile(r'/opt/python/[^;"\s]*?/site-packages/numpy/(?:_core|core)/include')
+_BUILDER_NUMPY_INCLUDE = re.compile(
+    r'/opt/python/[^;"\s]*?/site-packages/numpy/(?:_core|core)/include')
 
 
 def _log(line: str) -> None:
