@@ -15,6 +15,16 @@ a degenerate choice (a tie at a kink or at a bound) is decided by the same inclu
 look-ahead later. The contact sign of a body always comes from its actual velocity or
 acceleration; V is never moved to make an event.
 
+Stiction (static bounds above kinetic, ``Crawler.has_stiction``; STICTION.md): a stuck group
+holds while its force is within its summed *static* interval (only the constants of its two
+force rows change), and at each mode decision Rule S picks among the continuations the
+inclusion with static bounds allows (``stiction_rule``: the incumbent group first, or the
+largest static margin; ``core.friction``). The incumbent (the group stuck just before t) is
+state: saved and restored with the rest, set by ``initial_stuck``, compared by the periodic
+skip, reported as ``State.incumbent``; the instants where the rule chose among several
+consistent continuations are ``choices``. Without stiction none of this runs: bit for bit the
+convex method.
+
 The whole segment loop is compiled (``_exact.ExactCore``), with every gait evaluated through its
 compiled form (``Gait.compiled()``, ``_gait``): there is one implementation of each rule. This
 module keeps what happens once per call: the periodic skip (whole periods that repeat are stored
