@@ -157,8 +157,11 @@ class ExactSolver:
         self._last_gait = self.gait
 
     def forget_history(self) -> None:
-        """Streaming use drops the events read: the periodic check starts anew."""
+        """Streaming use drops the events read: the periodic check starts anew, and the
+        choice instants listed so far are dropped too (``n_choices`` keeps counting), so a
+        long session does not accumulate them."""
         self._core.ck_valid = False
+        self.choices.clear()
 
     @property
     def last(self) -> Segment | None:
