@@ -43,8 +43,12 @@ _CUBIC_INTEGRAL = np.array([1.0, 1 / 2, 1 / 3, 1 / 4])   # of b0 + b1 u + b2 u^2
 # coefficients b0..b3: values @ _CHEB4_TO_B
 _CHEB4 = 0.5 - 0.5 * np.cos((np.arange(4) + 0.5) * np.pi / 4)
 _CHEB4_TO_B = np.linalg.inv(np.vander(_CHEB4, 4, increasing=True)).T
+_CHEB5 = np.append(_CHEB4, 0.5)          # and the middle: a check of the cubic through them
 _SCALAR = 16       # up to this many cubics with a sign change: one at a time, in floats
 _ONE_SIGN = np.array([-1.0, 1.0, 1.0, 1.0])            # |b1| + |b2| + |b3| - |b0| < 0: one sign
+# Horner's rounding bound for a cubic at u in [0, 1]: |computed - exact| <= gamma_6 sum |b_i| u^i
+# (6 roundings: three products, three sums), gamma_6 = 6 eps / (1 - 6 eps); a margin of 8/6
+_HORNER = 8.0 * float(np.finfo(float).eps)
 
 
 class DenseOutput:
@@ -131,16 +135,19 @@ class DenseOutput:
         one contact mode, checked on the run's own states), so the power anywhere is one
         compiled gait evaluation. Where the gait is polynomial on a piece (``PiecewiseCubic``:
         the node's actuator; ``PiecewiseParabolic``) the power is a cubic there, integrated in
-        closed form between its roots (``_cubic_work``). Elsewhere the power is smooth between
-        the pieces' boundaries (``breaks``); its sign changes there are found by probing each
-        piece at 25 interior points and narrowing every change of sign (Illinois' regula
-        falsi, to 1e-10 of [a, b]: the integral's error is |power'| times the square of that);
-        between boundaries and roots, adaptive 12-point Gauss-Legendre quadrature (a piece is
-        accepted when it agrees with the sum over its halves to 1e-13 of the integral of
-        |power| over it, or over [a, b] in proportion to its length, else split). A double
-        root the probes miss is a kink the splitting resolves. A segment the fit does not
-        hold for (a hold, linkages moving in lockstep, a run of several gaits) is evaluated
-        by ``sample``, as before.
+        closed form between its roots, each one found with a proof (``_cubic_work``,
+        ``_cubic_roots01``), also where the fit does not hold (a hold, linkages in lockstep:
+        the cubic from the run's own power). Elsewhere (smooth and sampled gaits) the power
+        is smooth between the pieces' boundaries (``breaks``); its sign changes there are
+        found by probing each piece at 25 interior points and narrowing every change of sign
+        (Illinois' regula falsi, to 1e-10 of [a, b]: the integral's error is |power'| times
+        the square of that); between boundaries and roots, adaptive 12-point Gauss-Legendre
+        quadrature (a piece is accepted when it agrees with the sum over its halves to 1e-13
+        of the integral of |power| over it, or over [a, b] in proportion to its length, else
+        split). A double root the probes miss is a kink the splitting resolves, a root pair
+        closer than the probes is not seen (that path is not proven). A segment the fit does
+        not hold for (a hold, linkages moving in lockstep, a run of several gaits) is
+        evaluated by ``sample``, as before.
         """
         windows, cuts = [], []         # (start, end, multiplier); the stretches counted
         for blk in self._blocks():
@@ -207,15 +214,65 @@ class DenseOutput:
 
     def _cubic_work(self, lo: NDArray, hi: NDArray, fit: _Forces
                     ) -> tuple[NDArray, NDArray]:
-        """Integral of max(power, 0) [J] over the pieces [lo, hi] [s] of a polynomial gait,
-        in closed form: (which pieces it holds, their integrals).
+        """Integral of max(power, 0) [J] over the pieces [lo, hi] [s] of a polynomial gait
+        (``PiecewiseCubic``, ``PiecewiseParabolic``), in closed form: (which pieces it holds,
+        their integrals, in order). The pieces the forces' fit holds for read the gait's
+        coefficients (``_fitted_cubic_work``); the others (a hold, linkages in lockstep) are
+        cubics all the same, found from the run's own power (``_sampled_cubic_work``): no
+        piece of a polynomial gait is left to the probes and the quadrature.
+        """
+        from .gaits.cubic import PiecewiseCubic
+        from .gaits.piecewise import PiecewiseParabolic
+
+        done, work = self._fitted_cubic_work(lo, hi, fit)
+        rest = np.flatnonzero(~done)
+        if not rest.size or not isinstance(self.gait, (PiecewiseCubic, PiecewiseParabolic)):
+            return done, work
+        table, _ = self.segments.records()
+        if len(table.gaits) != 1 or table.gaits[0] is not self.gait:
+            return done, work           # a run of several gaits: the pieces may be others'
+        ok, more = self._sampled_cubic_work(lo[rest], hi[rest])
+        if not ok.any():
+            return done, work
+        full = np.zeros(lo.size)
+        full[done] = work
+        full[rest[ok]] = more[ok]
+        done = done.copy()              # (``fit.ok`` itself)
+        done[rest[ok]] = True
+        return done, full[done]
+
+    def _sampled_cubic_work(self, lo: NDArray, hi: NDArray) -> tuple[NDArray, NDArray]:
+        """``_cubic_work`` of pieces [lo, hi] [s] of a polynomial gait that the forces' fit
+        does not hold for: (the pieces it holds, their integrals [J]).
+
+        Within one segment (one contact mode) the linkage forces are affine in l'' whatever
+        the fit could tell (``_Forces``), and l'' is affine, l' quadratic in t on a piece of
+        a constant-jerk gait (between its joins, which are among the pieces' ends): the power
+        is a cubic there. Its coefficients come from the run's power at the 4 Chebyshev
+        points of [0, 1] (``sample``, the closed form); a fifth value, at the middle, must
+        agree with the cubic to 1e-12 of the piece's largest |power| (else the piece is left
+        to the quadrature: the assumption did not hold).
+        """
+        h = hi - lo
+        P = self._eval(lo[:, None] + h[:, None] * _CHEB5)
+        b = P[:, :4] @ _CHEB4_TO_B
+        mid = b[:, 0] + 0.5 * (b[:, 1] + 0.5 * (b[:, 2] + 0.5 * b[:, 3]))
+        ok = np.abs(mid - P[:, 4]) <= 1e-12 * np.abs(P).max(axis=1) + 1e-300
+        work = np.zeros(lo.size)
+        if ok.any():
+            work[ok] = h[ok] * _positive_cubic(b[ok])
+        return ok, work
+
+    def _fitted_cubic_work(self, lo: NDArray, hi: NDArray, fit: _Forces
+                           ) -> tuple[NDArray, NDArray]:
+        """``_cubic_work`` of the pieces the forces' fit holds for: (those pieces, their
+        integrals [J]).
 
         With the linkage forces affine in l'' on a piece (``_Forces``), a piece where l' is
         quadratic and l'' affine (``PiecewiseCubic``: its coefficients read directly) or l'
         affine and l'' constant (``PiecewiseParabolic``: four fitted powers) has a cubic power
-        G . l'. The cubic's roots in a piece: between the roots of its derivative (closed
-        form) it is monotone, and a sign change there is narrowed by safeguarded Newton to a
-        few ulps of the piece.
+        G . l'. Its roots in the piece: ``_cubic_roots01`` (each one found, bracketed and
+        narrowed to a few ulps of the piece, with the argument why).
         """
         from .gaits.cubic import PiecewiseCubic
         from .gaits.piecewise import PiecewiseParabolic
@@ -489,7 +546,10 @@ def _positive_cubic(b: NDArray) -> NDArray:
             work[i] = _positive_cubic1(*b[i].tolist())
     elif mixed.size:
         bm = b[mixed]
-        pts = np.concatenate([np.zeros((mixed.size, 1)), np.sort(_cubic_roots01(bm), axis=1),
+        # cut at the roots and at the knots between which they were sought (a knot within
+        # the rounding of a root is where the sign changes)
+        pts = np.concatenate([np.zeros((mixed.size, 1)),
+                              np.sort(np.concatenate(_cubic_roots01(bm), axis=1), axis=1),
                               np.ones((mixed.size, 1))], axis=1)
         positive = _poly(bm, 0.5 * (pts[:, :-1] + pts[:, 1:])) > 0
         F = _poly_integral(bm, pts)
@@ -502,6 +562,12 @@ def _positive_cubic1(b0: float, b1: float, b2: float, b3: float) -> float:
     def f(u: float) -> float:
         return b0 + u * (b1 + u * (b2 + u * b3))
 
+    def sign(u: float) -> int:
+        # the value's sign beyond the rounding of its evaluation, else 0
+        v = f(u)
+        err = _HORNER * (abs(b0) + u * (abs(b1) + u * (abs(b2) + u * abs(b3))))
+        return 1 if v > err else (-1 if v < -err else 0)
+
     def integral(u: float) -> float:
         return u * (b0 + u * (b1 / 2 + u * (b2 / 3 + u * b3 / 4)))
 
@@ -513,13 +579,18 @@ def _positive_cubic1(b0: float, b1: float, b2: float, b3: float) -> float:
         for r in ((q / qa) if qa else None, (qc / q) if q else None):
             if r is not None and 0 < r < 1:
                 knots.append(r)
+    if qa and 0 < -qb / (2 * qa) < 1:
+        knots.append(-qb / (2 * qa))        # the derivative's vertex
     knots.sort()
     pts = [0.0]
     for x0, x1 in zip(knots, knots[1:]):
-        f0, f1 = f(x0), f(x1)
-        if x1 > x0 and f0 * f1 < 0:
-            lo, hi, up = x0, x1, f1 > 0
+        s0, s1 = sign(x0), sign(x1)
+        if x1 > x0 and s0 * s1 < 0:
+            f0, f1 = f(x0), f(x1)
+            lo, hi, up = x0, x1, s1 > 0
             x = (x0 * f1 - x1 * f0) / (f1 - f0)
+            if not lo < x < hi:
+                x = 0.5 * (lo + hi)
             for _ in range(_ITERATIONS):
                 fx = f(x)
                 if fx == 0:
@@ -536,19 +607,31 @@ def _positive_cubic1(b0: float, b1: float, b2: float, b3: float) -> float:
                 if done:
                     break
             pts.append(x)
-    pts.append(1.0)
+    # cut at the knots too (a knot within the rounding of a root is where the sign changes)
+    pts = sorted(pts + knots)
     return sum(integral(e) - integral(s) for s, e in zip(pts, pts[1:])
                if f(0.5 * (s + e)) > 0)
 
 
-def _cubic_roots01(b: NDArray) -> NDArray:
+def _cubic_roots01(b: NDArray) -> tuple[NDArray, NDArray]:
     """The sign changes of each cubic b0 + b1 u + b2 u^2 + b3 u^3 (rows of ``b``) in (0, 1),
-    shape (n, 3), 1.0 where there is none (an empty interval at the end).
+    shape (n, 4), 1.0 where there is none (an empty interval at the end), and the knots they
+    were sought between, (n, 3) (1.0 where none): cut at both, the cubic keeps one sign
+    between consecutive cuts.
 
-    The derivative's roots (closed form) cut [0, 1] into at most three stretches where the
-    cubic is monotone; a stretch whose ends differ in sign holds one root, found by Newton's
-    method from the secant point, kept inside its bracket (bisection where a step leaves it)
-    until the step or the bracket is a few ulps of 1.
+    Why every sign change is found, once: the derivative 3 b3 u^2 + 2 b2 u + b1 vanishes only
+    at its roots (the quadratic formula without cancellation), which with its vertex
+    -b2 / (3 b3) (where the two merge, when the discriminant rounds to <= 0; a knot more never
+    hurts) cut [0, 1] into at most four stretches. On each the cubic is monotone (to within
+    the rounding of those roots: where the discriminant is near 0 the cubic is flat to third
+    order there), so it has a root in a stretch if and only if its values at the ends have
+    opposite signs, and then exactly one. A value within the rounding of its evaluation
+    (Horner's bound, ``_HORNER`` times sum |b_i| u^i) counts as no sign: a root at that
+    knot (a root at a piece's end) or a near-double root whose dip below zero is under that
+    rounding, worth less than it times the stretch. Each root is bracketed by its stretch and
+    narrowed by Newton's method from the secant point, kept inside the bracket (bisection
+    where a step leaves it: at most ~52 halvings), until the step or the bracket is a few
+    ulps of 1: the integral's error is that squared times |P'|.
     """
     n = b.shape[0]
     # derivative 3 b3 u^2 + 2 b2 u + b1: roots by the cancellation-free quadratic formula
@@ -556,18 +639,23 @@ def _cubic_roots01(b: NDArray) -> NDArray:
     disc = qb * qb - 4 * qa * qc
     with np.errstate(divide='ignore', invalid='ignore'):
         q = -0.5 * (qb + np.copysign(np.sqrt(np.maximum(disc, 0.0)), qb))
-        crit = np.stack([q / qa, qc / q], axis=1)
-    crit = np.where((disc > 0)[:, None] & (crit > 0) & (crit < 1), crit, 1.0)
+        crit = np.stack([q / qa, qc / q, -qb / (2 * qa)], axis=1)
+    live = np.concatenate([np.repeat((disc > 0)[:, None], 2, axis=1),
+                           np.ones((n, 1), dtype=bool)], axis=1)
+    crit = np.where(live & (crit > 0) & (crit < 1), crit, 1.0)
     knots = np.concatenate([np.zeros((n, 1)), np.sort(crit, axis=1), np.ones((n, 1))], axis=1)
     f = _poly(b, knots)
+    err = _HORNER * _poly(np.abs(b), knots)
+    sgn = np.where(f > err, 1, np.where(f < -err, -1, 0))
     x0, x1, f0, f1 = knots[:, :-1], knots[:, 1:], f[:, :-1], f[:, 1:]
-    out = np.ones((n, 3))
-    r, c = np.nonzero((x1 > x0) & (((f0 < 0) & (f1 > 0)) | ((f0 > 0) & (f1 < 0))))
+    out = np.ones((n, 4))
+    r, c = np.nonzero((x1 > x0) & (sgn[:, :-1] * sgn[:, 1:] < 0))
     if not r.size:
-        return out
+        return out, crit
     lo, hi, flo, fhi, br = x0[r, c], x1[r, c], f0[r, c], f1[r, c], b[r]
-    x = (lo * fhi - hi * flo) / (fhi - flo)          # the secant point: inside the bracket
-    up = fhi > 0                                     # P rises through the root
+    x = (lo * fhi - hi * flo) / (fhi - flo)          # the secant point
+    x = np.where((x > lo) & (x < hi), x, 0.5 * (lo + hi))
+    up = sgn[r, c + 1] > 0                           # P rises through the root
     for _ in range(_ITERATIONS):
         fx = br[:, 0] + x * (br[:, 1] + x * (br[:, 2] + x * br[:, 3]))
         dfx = br[:, 1] + x * (2 * br[:, 2] + 3 * x * br[:, 3])
@@ -582,7 +670,7 @@ def _cubic_roots01(b: NDArray) -> NDArray:
         if not moved.any():
             break
     out[r, c] = x
-    return out
+    return out, crit
 
 
 class _Unavailable:

@@ -12,13 +12,14 @@ import gc
 import math
 import pickle
 import weakref
+from fractions import Fraction
 
 import numpy as np
 import pytest
 
 import crawler_sim as cs
 from crawler_sim.core import gaits
-from test.support.quadrature import positive_work_reference
+from test.support.quadrature import positive_work_of_cubic_pieces, positive_work_reference
 
 # The README's first example at the frequency of issue 39: t_end - period is not a sample of the
 # default grid, and 25 of its 27 periods are skipped (one stored block)
@@ -479,3 +480,115 @@ def test_positive_work_of_eight_bodies_finds_close_roots():
     for a, b in ((0.0, 2.0), (0.123, 1.7)):
         expected = positive_work_reference(crawler, fourier, 2.0, a, b)
         assert tr.positive_work(a, b) == pytest.approx(expected, rel=1e-12)
+
+
+def _dips(n_links, n, h, jerk, s, shift):
+    """n constant-jerk pieces of h [s] where l' = jerk / 2 ((d - r)^2 - s^2) on each (d the
+    time into the piece): l' dips below zero between r - s and r + s, r = h / 2 + shift on
+    even pieces and h / 2 - shift on odd ones (the mirror image: l and l' continuous)."""
+    coef = np.zeros((n, n_links, 4))
+    length = 0.1
+    for k in range(n):
+        r = h / 2 + (shift if k % 2 == 0 else -shift)
+        v0, a0 = 0.5 * jerk * (r * r - s * s), -jerk * r
+        coef[k] = [length, v0, a0, jerk]
+        length += h * (v0 + h * (a0 / 2 + h * jerk / 6))
+    starts = np.arange(n) * h
+    return gaits.PiecewiseCubic.from_arrays(starts, starts.copy(), coef)
+
+
+def _zero_rate_joins(n_links, n, h, jerk):
+    """n constant-jerk pieces of h [s] with l' = jerk_k / 2 d (d - h), jerk_k = +-jerk in
+    turn: l' = 0 at every join (the power's roots at the pieces' ends), l'' continuous."""
+    coef = np.zeros((n, n_links, 4))
+    length = 0.1
+    for k in range(n):
+        j = jerk if k % 2 == 0 else -jerk
+        coef[k] = [length, 0.0, -j * h / 2, j]
+        length += h * h * h * (-j / 4 + j / 6)
+    starts = np.arange(n) * h
+    return gaits.PiecewiseCubic.from_arrays(starts, starts.copy(), coef)
+
+
+# every body sliding down (mu 0.1 on a slope of 0.3 rad): the rate l' changes sign with no
+# event, so its roots are the power's inside the segments; and the force's root at l'' = 0,
+# between them: three roots within 2 s of each other (s of _dips) in a piece of 0.25 s
+SLIDING = {2: cs.Crawler(masses=[0.5, 1.0], mu=0.1, slope=0.3),
+           3: cs.Crawler(masses=[0.5, 1.0, 0.7], mu=0.1, slope=0.3)}
+
+
+@pytest.mark.parametrize('p', [2, 3])
+@pytest.mark.parametrize('s, shift', [(1e-3, 0.02), (1e-3, 0.06), (3e-4, 0.0), (3e-4, 0.07)])
+def test_positive_work_of_cubic_pieces_with_close_roots(p, s, shift):
+    """Three roots of the power within 2 s (s = 1e-3, 3e-4 s: the rate's pair, the force's
+    between them) in pieces without events. p = 3 runs both linkages in lockstep (the same
+    gait for both), so the forces' fit is refused and the cubic comes from the run's own
+    power: it went to the 25 probes, which missed pairs (2.9e-9 low at s = 1e-3, shift 0.02;
+    5.9e-11 at 3e-4). Reference: each piece's cubic from 9 samples, its roots from the
+    companion matrix, refined in long double (the brentq reference's 40,001-point grid
+    cannot separate them: 4e-10 off at its own refinements)."""
+    crawler = SLIDING[p]
+    g = _dips(p - 1, 8, 0.25, 4.0, s, shift)
+    tr = cs.simulate(crawler, g, 2.0)
+    for a, b in ((0.0, 2.0), (0.1234, 1.77)):
+        expected, resid = positive_work_of_cubic_pieces(crawler, g, 2.0, a, b, g.starts)
+        assert resid < 1e-12                      # the power is a cubic on each piece
+        assert tr.positive_work(a, b) == pytest.approx(expected, rel=1e-13, abs=0)
+
+
+@pytest.mark.parametrize('p', [2, 3])
+def test_positive_work_of_cubic_pieces_with_roots_at_their_ends(p):
+    """The rate is zero at every join (the power's roots there, one float from the pieces'
+    ends), and changes sign across it: against both references."""
+    crawler = SLIDING[p]
+    g = _zero_rate_joins(p - 1, 8, 0.25, 4.0)
+    tr = cs.simulate(crawler, g, 2.0)
+    for a, b in ((0.0, 2.0), (0.1234, 1.77)):
+        expected, resid = positive_work_of_cubic_pieces(crawler, g, 2.0, a, b, g.starts)
+        assert resid < 1e-12
+        assert tr.positive_work(a, b) == pytest.approx(expected, rel=1e-13, abs=0)
+        assert tr.positive_work(a, b) == pytest.approx(
+            positive_work_reference(crawler, g, 2.0, a, b, g.starts), rel=1e-12, abs=0)
+
+
+def _exact_positive(k, roots):
+    """Integral over [0, 1] of max(0, k (u - r1)(u - r2)(u - r3)), exactly (fractions), and
+    the cubic's coefficients b0..b3 (fractions)."""
+    r1, r2, r3 = roots
+    b = [-k * r1 * r2 * r3, k * (r1 * r2 + r1 * r3 + r2 * r3), -k * (r1 + r2 + r3), k]
+
+    def integral(u):
+        return sum(c * u ** (i + 1) / (i + 1) for i, c in enumerate(b))
+    cuts = sorted({Fraction(0), Fraction(1), *(r for r in roots if 0 < r < 1)})
+    total = Fraction(0)
+    for u0, u1 in zip(cuts, cuts[1:]):
+        m = (u0 + u1) / 2
+        if k * (m - r1) * (m - r2) * (m - r3) > 0:
+            total += integral(u1) - integral(u0)
+    whole = sum(abs(integral(u1) - integral(u0)) for u0, u1 in zip(cuts, cuts[1:]))
+    return total, whole, b
+
+
+CUBICS = [   # (k, roots): near-triple (the middle root on the derivative's vertex),
+    # near-double inside and across the middle, double, roots at the ends, one root
+    (Fraction(-60), (Fraction(416, 1000), Fraction(42, 100), Fraction(424, 1000))),
+    (Fraction(3), (Fraction(1, 2), Fraction(1, 2) + Fraction(1, 10 ** 6), Fraction(9, 10))),
+    (Fraction(-7), (Fraction(1, 10), Fraction(3, 10), Fraction(3, 10) + Fraction(1, 10 ** 7))),
+    (Fraction(2), (Fraction(1, 4), Fraction(1, 4), Fraction(3, 4))),
+    (Fraction(5), (Fraction(0), Fraction(3, 10), Fraction(1))),
+    (Fraction(-1), (Fraction(0), Fraction(1), Fraction(1))),
+    (Fraction(4), (Fraction(-1), Fraction(1, 3), Fraction(2))),
+]
+
+
+@pytest.mark.parametrize('batch', [1, 40])
+def test_positive_part_of_a_cubic_against_fractions(batch):
+    """``dense._positive_cubic`` (one cubic in floats, or more than 16 at once in arrays) on
+    cubics of rational roots: close, double, at the interval's ends. The exact integral in
+    fractions; the floats' own rounding moves it by a few eps of the integral of |P|."""
+    from crawler_sim.core.dense import _positive_cubic
+
+    for k, roots in CUBICS:
+        exact, whole, b = _exact_positive(k, roots)
+        got = _positive_cubic(np.tile(np.array([float(c) for c in b]), (batch, 1)))
+        assert np.all(np.abs(got - float(exact)) <= 1e-14 * float(whole)), (roots, got[0])
