@@ -1,8 +1,11 @@
 """An independent event-driven reference for the crawler with stiction (STICTION.md, MODEL.md).
 
 Written from ``../shared/docs/STICTION.md`` alone, apart from ``crawler_sim.core.solvers``,
-``crawler_sim.core.friction`` and ``test.support.oracle``: it imports nothing from crawler_sim
-and trades speed for plainness (numpy and scipy's ``brentq`` / ``minimize_scalar`` only).
+``crawler_sim.core.friction`` and ``test.support.oracle``: the solver imports nothing from
+crawler_sim and trades speed for plainness (numpy and scipy's ``brentq`` / ``minimize_scalar``
+only). The scene helpers at the end (``random_scene``, ``exact_positions``) build the core's
+gait objects and call crawler_sim only to hand it the same scene for the comparison; the
+reference gets each gait's l, l', l'' written here from its formula.
 
 Model (STICTION.md s.1-3, 5, 7). Bodies i = 0..p-1 of masses m_i (M = sum m_i); the linkages
 impose l_j(t) = x_{j+1} - x_j; x_i = X + e_i(t) with X the centre of mass and e_i the offsets of
