@@ -108,6 +108,29 @@ def test_pip_install_in_a_fresh_venv_then_the_readme_example(tmp_path):
     offline = tmp_path / 'offline'
     offline.mkdir()
     run_offline_commands(env_dir, env, offline)
+    add_the_sweep_extra_without_rebuilding(env_dir, env, run_dir)
+
+
+def add_the_sweep_extra_without_rebuilding(env_dir: Path, env: dict, run_dir: Path) -> None:
+    """The README's way to add sweeps after ``pip install .``, ``pip install -r
+    requirements-sweep.txt``, brings pandas, pyarrow and Dask and builds nothing: the compiled
+    core installed before is the same file (issue 43: ``pip install ".[sweep]"`` compiled it
+    again, +250 s on a loaded machine)."""
+    python = str(env_dir / 'bin' / 'python')
+    where = 'import crawler_sim.core.solvers._exact as m; print(m.__file__)'
+    core = Path(subprocess.run([python, '-c', where], env=env, cwd=run_dir, capture_output=True,
+                               text=True, timeout=120).stdout.strip())
+    before = core.stat().st_mtime_ns
+    pip = subprocess.run([python, '-m', 'pip', 'install', '-r',
+                          str(REPO / 'requirements-sweep.txt')], env=env, cwd=run_dir,
+                         capture_output=True, text=True, timeout=1200)
+    assert pip.returncode == 0, pip.stderr[-2000:]
+    assert 'crawler_sim' not in pip.stdout and 'Building wheel' not in pip.stdout, pip.stdout
+    assert core.stat().st_mtime_ns == before
+    imports = subprocess.run([python, '-c', 'import pandas, pyarrow, distributed; '
+                              'import crawler_sim.sweep'], env=env, cwd=run_dir,
+                             capture_output=True, text=True, timeout=300)
+    assert imports.returncode == 0, imports.stderr
 
 
 def test_importing_from_a_checkout_nobody_built_names_the_fix(tmp_path):
