@@ -120,6 +120,15 @@ def _workdir(tmp: Path) -> Path:
     return tmp
 
 
+def _output_folders(cwd: Path, tokens: list[str]) -> None:
+    """Create the folders of the relative output paths a command names (``docs/x.png``,
+    ``runs/climb``), as they exist in the checkout the page is read from."""
+    for t in tokens:
+        t = t.split('=')[-1]
+        if '/' in t and not t.startswith(('config/', '.venv', 'install', '-', '$', '/', '~')):
+            (cwd / t).parent.mkdir(parents=True, exist_ok=True)
+
+
 def _needs_nodes(code: str) -> bool:
     return '$BIN/' in code or 'install/setup.bash' in code
 
@@ -152,6 +161,8 @@ def test_a_docs_block_runs_as_written(block, tmp_path):
     if _needs_nodes(block.code) and not (REPO / 'install' / 'crawler_sim').is_dir():
         pytest.skip('needs `make build` (the colcon install the page names)')
     cwd = _workdir(tmp_path)
+    if block.lang == 'bash':
+        _output_folders(cwd, block.code.split())
     cmd = (['bash', '-e', '-c', block.code] if block.lang == 'bash'
            else [sys.executable, '-c', block.code])
     proc = subprocess.run(cmd, cwd=cwd, env=_env(cwd), capture_output=True, text=True,
@@ -197,9 +208,7 @@ def check_cli(command: str, tmp: Path) -> str:
         for t in inputs:
             assert (REPO / t).exists(), f'{command}: {t} does not exist'
         cwd = _workdir(tmp)
-        for t in tokens[2:]:            # an output's folder (docs/x.png, runs/climb)
-            if '/' in t and not t.startswith(('config/', '-')):
-                (cwd / t).parent.mkdir(parents=True, exist_ok=True)
+        _output_folders(cwd, tokens[2:])
         proc = subprocess.run([sys.executable, '-m', 'crawler_sim.cli', *tokens[1:]], cwd=cwd,
                               env=_env(cwd), capture_output=True, text=True, timeout=900)
         assert proc.returncode == 0, f'{command}:\n{proc.stdout}\n{proc.stderr}'
