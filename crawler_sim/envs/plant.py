@@ -33,14 +33,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core.actuator import ActuatorLimits
-from ..core.plant.config import PlantConfig, as_float
+from ..core.plant.config import PARAMETERS, PlantConfig, as_float
 from ..core.plant.engine import Engine, Journal
 from ..core.scene import crawler_from_mapping
 
 __all__ = ['CrawlPlant', 'SEED_CRAWLER', 'check_action']
 
-#: the seed's crawler (sim_node's defaults, config/scenes/scallop_2body.yaml's crawler)
-SEED_CRAWLER: dict[str, Any] = {'masses': [0.5, 1.0], 'mu': 0.3}
+#: the seed's crawler: sim_node's default parameters (config/scenes/scallop_2body.yaml's too)
+SEED_CRAWLER: dict[str, Any] = {name: PARAMETERS[name][0]
+                                for name in ('masses', 'mu', 'mu_backward')}
 
 #: keys of a crawler mapping drawn again under domain randomisation: the masses and every
 #: friction entry (coefficients or forces, sliding or static: each a per-body quantity > 0)
