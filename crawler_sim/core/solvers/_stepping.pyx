@@ -47,6 +47,8 @@ IMPLICIT, PENALTY = 0, 1
 RULE_INCUMBENT, RULE_MARGIN = 0, 1
 #: most transitions placed inside one step (more fall back to the plain Moreau-Jean step)
 MAX_DEPTH = 8
+#: the most choice instants (Rule S with several consistent continuations) whose times are kept
+MAX_CHOICE_TIMES = 10 ** 6
 #: bisection stops when the bracket is below this fraction of the step (about 1e-12 h)
 BISECT_REL = 2.0 ** -40
 cdef int C_MAX_DEPTH = 8
@@ -103,6 +105,7 @@ cdef class StepCore:
     cdef readonly bint stiction       # static bounds above kinetic ones: ``st_step``
     cdef readonly int rule            # RULE_INCUMBENT or RULE_MARGIN (Rule S at a coincident rest)
     cdef public long n_choices        # instants where more than one continuation was consistent
+    cdef public list choice_t         # their times [s] (the first MAX_CHOICE_TIMES since reset)
     cdef double M, fext
     cdef double[::1] w, fp, fm, m_, grav, n_pen
     cdef double[::1] sfp, sfm         # static bounds [N] (the kinetic ones without stiction)
@@ -146,6 +149,7 @@ cdef class StepCore:
                              or np.any(np.asarray(self.sfm) > np.asarray(self.fm)))
         self.rule = rule
         self.n_choices = 0
+        self.choice_t = []
         self.inc0 = np.zeros(p, np.int8)
         self.clus = np.zeros(p, np.intc)
         self.grav = np.array(grav, dtype=np.float64)
@@ -544,7 +548,7 @@ cdef class StepCore:
         need = self.st_need(j, &self.zmask[0], contact, epp, &lo, &hi)
         return not (lo <= need <= hi)
 
-    cdef void st_decide(self, double V, const double* ep, const double* epp,
+    cdef void st_decide(self, double t, double V, const double* ep, const double* epp,
                         const signed char* contact, signed char* out) noexcept:
         """Rule S at an instant (STICTION.md s. 3 and 5): the mode after it, given the mode
         ``contact`` on the piece before it and the continuation's centre-of-mass velocity V.
@@ -557,7 +561,7 @@ cdef class StepCore:
         largest margin among them), else the arriving one with the largest margin; 'margin':
         the largest margin of all. Exact ties go to the lowest body index. Without a
         candidate, the kinetic inclusion (the unique slide pattern). ``n_choices`` counts the
-        instants with more than one consistent continuation."""
+        instants with more than one consistent continuation, ``choice_t`` keeps their times t."""
         cdef int p = self.p, i, k, r, nc = 0, best = -1, n_ok = 0
         cdef int* clus = &self.clus[0]
         cdef signed char* sig = &self.tmp[0]
@@ -615,6 +619,8 @@ cdef class StepCore:
                 slide_ok = False
         if n_ok + (1 if slide_ok else 0) > 1:
             self.n_choices += 1
+            if len(self.choice_t) < MAX_CHOICE_TIMES:
+                self.choice_t.append(t)
         if best < 0:
             for i in range(p):
                 if self.zmask[i]:
@@ -668,14 +674,14 @@ cdef class StepCore:
             if self.rates(g, tau, &self.ep[0], &self.epp[0]):
                 return 1
             vt = -self.ep[j] if j >= 0 else V + a_lo * (tau - lo)
-            self.st_decide(vt, &self.ep[0], &self.epp[0], contact, newc)
+            self.st_decide(tau, vt, &self.ep[0], &self.epp[0], contact, newc)
             X = self.add_piece(contact, V, vt, tau - lo, X, &self.sfp[0], &self.sfm[0], False)
             self.log_changes(tau, contact, newc)
             V = vt
             lo = tau
         X = self.add_piece(contact, V, u, tb - lo, X, &self.sfp[0], &self.sfm[0], True)
         if chg:                             # out of splits: the selection at the step end
-            self.st_decide(u, epb, eppb, contact, newc)
+            self.st_decide(tb, u, epb, eppb, contact, newc)
             self.log_changes(tb, contact, newc)
         self.A = (u - V0) / (tb - self.t)
         self.V = u
@@ -872,6 +878,7 @@ cdef class StepCore:
         self.X = x0 - self.e[0]
         self.V = v0 - self.ep[0]
         self.n_choices = 0
+        self.choice_t = []
         if self.stiction:
             self.st_mode0(initial_stuck)
         else:
@@ -915,7 +922,8 @@ cdef class StepCore:
             vi = self.V + self.ep[i]
             self.inc0[i] = i == initial_stuck
             self.snew[i] = 0 if self.inc0[i] else (1 if vi >= 0.0 else -1)
-        self.st_decide(self.V, &self.ep[0], &self.epp[0], &self.snew[0], &self.contact[0])
+        self.st_decide(self.t, self.V, &self.ep[0], &self.epp[0], &self.snew[0],
+                       &self.contact[0])
         j = first_stuck(&self.contact[0], p)
         for i in range(p):
             self.R[i] = (-self.fp[i] if self.contact[i] > 0 else

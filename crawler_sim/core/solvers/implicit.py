@@ -258,6 +258,7 @@ class TimeStepper:
             # instants where Rule S had more than one consistent continuation to choose from
             out['stiction_rule'] = self.stiction_rule
             out['choices'] = self._core.n_choices
+            out['choice_times'] = np.array(self._core.choice_t)
         return out
 
 

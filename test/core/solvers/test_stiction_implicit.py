@@ -125,6 +125,7 @@ def test_t5_rule_s_keeps_the_incumbent_anchored_also_when_a_step_lands_on_the_re
     tr = cs.simulate(c, g, 8.0, 'implicit', dt=dt, t_eval=[0.0, 8.0])
     assert abs(tr.x[-1, 0] - tr.x[0, 0]) < 1e-12
     assert tr.info['choices'] == 4              # t = 1, 3, 5, 7
+    np.testing.assert_allclose(tr.info['choice_times'], [1.0, 3.0, 5.0, 7.0], atol=1e-9)
 
 
 def test_t5_margin_anchors_body_1_and_the_kinetic_model_slides_both():
