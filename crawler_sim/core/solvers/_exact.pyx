@@ -1216,6 +1216,27 @@ cdef class ExactCore:
         ref[0] = low
         return amb
 
+    cdef int near_zero(self, GaitData* g, double t, int r0, double a) except -1:
+        """With stiction: a sliding body whose velocity falls onto zero within 4 tol of t (the
+        event times' accuracy) arrives at t, with the bodies the event stopped: the mode is
+        decided once for all of them. Without it, arrivals a few floats apart (two linkages'
+        reversals at one instant, rounded apart) are decided one by one, and a segment of a
+        few floats between them makes a new incumbent (Rule S then anchors the wrong body;
+        the kinetic inclusion needs no such care: its answer is continuous)."""
+        cdef int p = self.p, nl = self.nl, i
+        cdef double vel, acc, w
+        gait_rates(g, t, self.ld, self.ldd, self.ld3)
+        for i in range(p):
+            if self.free[i] or self.zero[i]:
+                continue
+            vel = self.V + dot(self.W, i, self.ld, nl)
+            acc = dot(self.W, i, self.ldd, nl)
+            acc = acc + a if r0 < 0 else acc - dot(self.W, r0, self.ldd, nl)
+            w = fabs(self.V) + fabs(dot(self.W, i, self.ld, nl))
+            if vel * acc <= 0.0 and fabs(vel) <= 1e-13 * w + 4.0 * self.tol * fabs(acc):
+                self.zero[i] = 1
+        return 0
+
     cdef bint _any_zero(self) noexcept:
         cdef int i
         for i in range(self.p):
@@ -2159,6 +2180,8 @@ cdef class ExactCore:
                             # the body's velocity is exactly zero at the event
                             self.V = -dot(self.W, i, self.ld, nl)
                             break
+            if self.stiction:
+                self.near_zero(g, t_ev, r0, a)
             # absolute: the call's end as asked, a period's end as the next frame's origin
             if t_ev == t_end:
                 self.sf[self.n_seg * 6 + 1] = t_abs
