@@ -581,7 +581,7 @@ def random_scene(seed: int, *, stiction: bool = True, family: str | None = None)
 #: scenes whose two links reverse at the same instant (three bodies at rest at once). In 25, at
 #: t = 3T/4 = 1.2808779082947 s (l_0' = l_1' = 0 exactly), body 0 (stuck since t = 0) can hold:
 #: bodies 1 and 2 then slide + and - (l_0'' = 0.0949 > 0, l_0'' + l_1'' = -0.0053 < 0), so
-#: F_0 = f_1^{k,+} - f_2^{k,-} + M e_0'' = -0.8179 + 1.5919 - 0.1270 = 0.6471 N within
+#: F_0 = -f_1^{k,+} + f_2^{k,-} + M e_0'' = -0.8179 + 1.5919 - 0.1270 = 0.6471 N within
 #: [-2.5372, 1.4869]; Rule S keeps it, 'margin' takes body 2 (margin 0.985 > 0.840 N).
 RULE_SEEDS = (4, 10, 16, 24, 25, 38, 59)
 
