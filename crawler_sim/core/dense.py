@@ -38,6 +38,7 @@ _PROBE = 25         # interior points of each piece where a sign change is sough
 _ITERATIONS = 80    # Illinois steps (each at most halves the bracket, about every third)
 _LEVELS = 60        # halvings of a quadrature piece
 _RTOL = 1e-13       # a piece's quadrature error, relative to the integral of |power| over it
+_NOISE = 1e-9       # a disagreement this small (same measure) that halving no longer lowers
 _CUBIC_INTEGRAL = np.array([1.0, 1 / 2, 1 / 3, 1 / 4])   # of b0 + b1 u + b2 u^2 + b3 u^3 on [0, 1]
 # 4 interior points of [0, 1] (Chebyshev's) and the map from a cubic's values there to its
 # coefficients b0..b3: values @ _CHEB4_TO_B
@@ -174,6 +175,7 @@ class DenseOutput:
         lo, hi, mult = lo[keep], hi[keep], mult[keep]
         if not lo.size:
             return 0.0
+        lo, hi, mult = self._shorter(lo, hi, mult, b - a)
         self._onto_templates(lo, hi)
         # constant-jerk pieces (the node's actuator): the power is a cubic on each piece,
         # integrated in closed form; what that path cannot prove goes to the quadrature
@@ -194,6 +196,32 @@ class DenseOutput:
         last = np.append(own[1:] != own[:-1], True)       # a piece's last point
         ends = np.where(last, hi[own], np.append(pts[1:], 0.0))
         return total + self._quadrature(pts, ends, mult[own], float(b - a), power, own)
+
+    def _shorter(self, lo: NDArray, hi: NDArray, mult: NDArray, span: float
+                 ) -> tuple[NDArray, NDArray, NDArray]:
+        """The pieces [lo, hi] [s] (and their ``mult``) of a gait that is not polynomial cut
+        into equal parts of at most 1/16 of its period (1/64 of ``span`` [s] without one):
+        the 25 probes of a piece then see the gait's own time scale. A segment of several
+        seconds (a crawler sliding down a slope: no event for 20 s) was one piece: its roots
+        were missed, a half of it whose 12 nodes all fell where the power is negative was
+        taken as 0 (the positive work of a 20 s run half its true value) and others split
+        without end on the power's rounding."""
+        from .gaits.cubic import PiecewiseCubic
+        from .gaits.piecewise import PiecewiseParabolic
+
+        if isinstance(self.gait, (PiecewiseCubic, PiecewiseParabolic)):
+            return lo, hi, mult              # closed form on pieces of any length
+        period = getattr(self.gait, 'period', None)
+        longest = period / 16 if period else span / 64
+        k = np.maximum(np.ceil((hi - lo) / longest), 1.0).astype(np.int64)
+        if (k == 1).all():
+            return lo, hi, mult
+        idx = np.repeat(np.arange(lo.size), k)
+        j = np.arange(idx.size) - np.repeat(np.cumsum(k) - k, k)
+        kk, w = k[idx].astype(float), (hi - lo)[idx]
+        new_lo = lo[idx] + w * (j / kk)
+        new_hi = np.where(j == k[idx] - 1, hi[idx], lo[idx] + w * ((j + 1) / kk))
+        return new_lo, new_hi, mult[idx]
 
     def _onto_templates(self, lo: NDArray, hi: NDArray) -> None:
         """Pieces inside a block of skipped periods (a period the windows did not count as a
@@ -357,6 +385,7 @@ class DenseOutput:
         """Sum of mult * integral of max(power, 0) over the pieces [lo, hi] (adaptive);
         ``power(t, own)`` as in ``_roots``, ``own`` each piece's index there."""
         total, size = 0.0, None
+        parent = np.full(lo.size, np.inf)   # each piece's parent's disagreement
         n = _GL_U.size
         w2 = np.concatenate([_GL_W, _GL_W])
         whole = None
@@ -385,13 +414,21 @@ class DenseOutput:
             # of a block's template stands for mult periods: its share too
             tol = np.maximum(_RTOL * np.maximum(scale, size * (hi - lo) / span),
                              64 * _EPS * np.abs(P).max(axis=1) * (hi - lo))
-            done = (np.abs(whole - left - right) <= tol) | (hi - lo <= 64 * _EPS * np.abs(hi))
+            err = np.abs(whole - left - right)
+            # the noise of the power's own evaluation (a gait's values at |t| of seconds carry
+            # ~1e-12 of rounding, a Scallop's l'' at 8 s): a piece whose disagreement is that
+            # small and no longer falls as halving lowers a smooth piece's (by 2^-24) or a
+            # kinked one's (by 4) is done; else such pieces split forever (a 12 s slide down
+            # a slope: 2^k pieces, no end)
+            noise = (err <= _NOISE * scale) & (err >= 0.5 * parent)
+            done = (err <= tol) | noise | (hi - lo <= 64 * _EPS * np.abs(hi))
             total += float((mult[done] * (left + right)[done]).sum())
             s = ~done
             lo, hi, c, mult, own = lo[s], hi[s], c[s], mult[s], own[s]
             lo, hi = np.concatenate([lo, c]), np.concatenate([c, hi])
             mult, own = np.concatenate([mult, mult]), np.concatenate([own, own])
             whole = np.concatenate([left[s], right[s]])
+            parent = np.concatenate([err[s], err[s]])
         if lo.size:
             raise RuntimeError('positive_work: the quadrature did not converge (report this run)')
         return total
