@@ -570,7 +570,7 @@ def random_scene(seed: int, *, stiction: bool = True, family: str | None = None)
         kin, breaks = piecewise_accel(l0, np.zeros(n), knots, accels, T)
     ref = StictionReference(m, fk, fkb, fs, fsb, kin,
                             f_ext=-m.sum() * GRAVITY * math.sin(slope),
-                            breakpoints=breaks(4.0 / freq))
+                            breakpoints=breaks(100.0 / freq))      # 100 periods
     return dict(masses=m, friction=fk, friction_backward=fkb, static_friction=fs,
                 static_friction_backward=fsb, slope=slope, gait=gait, ref=ref,
                 period=1.0 / freq, family=family)
