@@ -214,8 +214,8 @@ def main() -> None:
                 label='optimiser best stroke (l as sim_node plays it)')
         a2.set_xlabel('t [s] (two periods, steady)')
         a2.set_ylabel('linkage length l [mm]')
-        a2.set_ylim(top=1.3 * a2.get_ylim()[1])           # room for the legend above
-        a2.legend(fontsize=8, loc='upper center', ncol=2)
+        a2.set_ylim(top=1.45 * a2.get_ylim()[1])          # room for the legend above
+        a2.legend(fontsize=8, loc='upper center')
         a2.set_title('the gaits as the servo makes them')
         fig.tight_layout()
         fig.savefig(args.figure, dpi=110)
