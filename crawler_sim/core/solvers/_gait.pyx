@@ -1120,31 +1120,6 @@ cdef void _split_all(const double[::1] a, const double[::1] b, const double[:, :
     count[0] = m
 
 
-def cheb_node_max(const double[:, :, :, ::1] coef, int series, const double[:, ::1] tnodes):
-    """The largest magnitude of series ``series`` of each piece and linkage (``coef`` (K, nl,
-    4, width), as ``cheb_series`` returns) at the nodes (``tnodes`` (N + 1, >= width): T_q
-    there), and the node where it is reached: ((K, nl), (K, nl) int)."""
-    cdef Py_ssize_t K = coef.shape[0], nl = coef.shape[1], w = coef.shape[3]
-    cdef Py_ssize_t n1 = tnodes.shape[0], k, j, i
-    cdef double v
-    top_arr = np.zeros((K, nl))
-    at_arr = np.zeros((K, nl), dtype=np.intp)
-    cdef double[:, ::1] top = top_arr
-    cdef Py_ssize_t[:, ::1] at = at_arr
-    if tnodes.shape[1] < w:
-        raise ValueError(f'cheb_node_max: {tnodes.shape[1]} columns of T_q for {w} coefficients')
-    cdef Py_ssize_t nc
-    for k in range(K):
-        for j in range(nl):
-            nc = _nonzero_length(&coef[k, j, series, 0], w)
-            for i in range(n1):
-                v = fabs(cheb_dot(&coef[k, j, series, 0], &tnodes[i, 0], <int>nc))
-                if v > top[k, j]:
-                    top[k, j] = v
-                    at[k, j] = i
-    return top_arr, at_arr
-
-
 def cheb_times(const double[::1] a, const double[::1] b, bl, br, const double[::1] nodes,
                double ulps):
     """The times ``cheb_sample`` reads each piece [a, b] at (its arithmetic, to the float):
@@ -1166,3 +1141,45 @@ def cheb_times(const double[::1] a, const double[::1] b, bl, br, const double[::
         if n1 > 1:
             o[k, n1 - 1] = one_sided(a[k], b[k], ulps) if left[k] else a[k]
     return out
+
+
+def cheb_jerk_check(const double[:, :, :, ::1] coef, const double[::1] a, const double[::1] b,
+                    const double[:, ::1] bj, const double[:, ::1] bound,
+                    const double[::1] scale, double noise, const double[:, ::1] tnodes):
+    """The pieces' l''' (series 3 of ``coef`` (K, nl, 4, width)) at their nodes within
+    ``bound`` (K, nl) [m/s^3] times 1 + 1e-9, beyond the rounding of the fit (Markov: an
+    error e of degree N on a piece of width w has a slope up to 2 N^2 e / w; e = ``noise``
+    times the sum of the l'' series' |coefficients| + 64 eps ``scale`` (nl,) + eps |t| |l'''|
+    at the node). A piece and linkage whose bound of |l'''| on the whole piece (``bj``) is
+    within the limit with the smallest slack is within it at its nodes (the slack only grows
+    with the values there): their series are not read at the nodes. Returns None, or (k, j,
+    node, |l'''| there) of the first piece and linkage (in that order) over the limit
+    (``proxy.ChebTable._check_jerk``)."""
+    cdef Py_ssize_t K = coef.shape[0], nl = coef.shape[1], w = coef.shape[3]
+    cdef Py_ssize_t n1 = tnodes.shape[0], k, j, i, q, nc, at
+    cdef double markov, err0, limit, top, v, tm, eps = 2.220446049250313e-16
+    if tnodes.shape[1] < w:
+        raise ValueError(f'cheb_jerk_check: {tnodes.shape[1]} columns of T_q for {w} '
+                         f'coefficients')
+    for k in range(K):
+        markov = 2.0 * (n1 - 1) * (n1 - 1) / (b[k] - a[k]) if b[k] > a[k] else INFINITY
+        tm = max(fabs(a[k]), fabs(b[k]))
+        for j in range(nl):
+            err0 = 0.0
+            for q in range(w):
+                err0 += fabs(coef[k, j, 2, q])
+            err0 = noise * err0 + 64.0 * eps * scale[j]
+            limit = bound[k, j] * (1.0 + 1e-9)
+            if not bj[k, j] > limit + markov * err0:
+                continue                 # (NaN: a piece of a few floats, inf * 0: no check)
+            nc = _nonzero_length(&coef[k, j, 3, 0], w)
+            top = 0.0
+            at = 0
+            for i in range(n1):
+                v = fabs(cheb_dot(&coef[k, j, 3, 0], &tnodes[i, 0], <int>nc))
+                if v > top:
+                    top = v
+                    at = i
+            if top > limit + markov * (err0 + eps * tm * top):
+                return k, j, at, top
+    return None

@@ -299,12 +299,13 @@ class ChebTable:
         # and a window's end is a join of pieces, which the solver takes as a breakpoint anyway
         first_left = True
         self._ahead = None
+        lefts, rights, brk = map(np.concatenate, (lefts, rights, brk))
         if self._end_state is None and self._batch is not None and not (
                 self.period or self.max_step):
             # array functions: (l, l') at the window's start and at the pieces' ends in one
             # call; ``_append`` takes the ends when no piece was split (the common window;
             # not where pieces are joined: their ends then move)
-            ends = np.concatenate(rights)
+            ends = rights
             st = self._states([a] + ends.tolist())
             self._end_state, self._ahead = st[0], (ends, st[1:])
         elif self._end_state is None:
@@ -314,7 +315,7 @@ class ChebTable:
         l0, v0 = np.abs(self._end_state)
         self._span = b - a
         self._quiet = _quiet(l0, v0, self._span)
-        pieces = self._happy(*map(np.concatenate, (lefts, rights, brk)), first_left)
+        pieces = self._happy(lefts, rights, brk, first_left)
         if self.period or self.max_step:
             # a density the user asked for (a period's 1024 cells, or max_step's), not one
             # the function needs: join what one series holds (every join ends a segment)
@@ -457,7 +458,8 @@ class ChebTable:
     def _append(self, a: NDArray, b: NDArray, br: NDArray, acc_c: NDArray) -> None:
         """The pieces' series of l and l' from the user's values at their starts, checked at
         their ends; the derivative series and the bounds."""
-        if self._ahead is not None and np.array_equal(self._ahead[0], b):
+        if self._ahead is not None and (self._ahead[0] is b or
+                                        np.array_equal(self._ahead[0], b)):
             st = np.concatenate((self._end_state[None], self._ahead[1]))
         else:
             st = self._states(b.tolist(), self._end_state)
@@ -488,44 +490,27 @@ class ChebTable:
 
     def _check_jerk(self, a: NDArray, b: NDArray, coef: NDArray, bj: NDArray) -> None:
         """The pieces' l''' at their nodes within the user's ``jerk_bound``, beyond what the
-        fit's rounding does to a derivative (Markov: an error of degree N and size e on a
-        piece of width w has a slope up to 2 N^2 e / w; e: the rounding ``cheb_fit`` allows,
-        or the noise floor a piece may keep) and 1e-9 of the bound. A ValueError names the
-        first piece where l''' exceeds it. ``bj`` (K, nl): the pieces' bounds of |l'''|
-        (``cheb_series``), at least its values at the nodes."""
-        acc = np.abs(coef[:, :, 2, :]).sum(axis=2)                               # (K, nl)
-        # e without its share of the values checked (eps |t| |l'''|, added below)
-        err = NOISE * acc + 64.0 * _EPS * np.maximum(self.scale, self._quiet)
-        with np.errstate(over='ignore', divide='ignore'):  # a piece of a few floats: inf
-            markov = 2.0 * N * N / (b - a)[:, None]
-        # the bounds of every piece, then one comparison (a loop of comparisons, piece by
-        # piece, was a quarter of a short run's cost); None: no bound there
+        fit's rounding does to a derivative and 1e-9 of the bound (``_gait.cheb_jerk_check``:
+        e, the rounding ``cheb_fit`` allows or the noise floor a piece may keep). A ValueError
+        names the first piece where l''' exceeds it. ``bj`` (K, nl): the pieces' bounds of
+        |l'''| (``cheb_series``), at least its values at the nodes."""
+        # the bounds of every piece, then one check (a loop of comparisons, piece by piece,
+        # was a quarter of a short run's cost); None: no bound there
         bound = np.empty((a.size, self.nl))
         if not callable(self._jerk):
             bound[:] = self._jerk           # one bound for all times (checked by the gait)
         for k in range(a.size if callable(self._jerk) else 0):
             got = self._jerk(float(a[k]), float(b[k]))
             bound[k] = math.inf if got is None else np.asarray(got, dtype=float)
-        limit = bound * (1.0 + 1e-9)
-        # a piece whose bound of |l'''| on the whole piece is within the limit with the
-        # smallest slack is within it at its nodes (the slack only grows with the values
-        # there): most pieces, without reading their series at the nodes
-        maybe = np.flatnonzero((bj > limit + markov * err).any(axis=1))
-        if not maybe.size:
-            return
-        # the largest |l'''| at the nodes of the others (compiled) and where it is reached
-        top, node = _gait.cheb_node_max(coef[maybe], 3, _T_NODES)
-        err = err[maybe] + _EPS * np.maximum(np.abs(a), np.abs(b))[maybe, None] * top
-        with np.errstate(invalid='ignore'):    # inf * 0: no check there
-            over = top > limit[maybe] + markov[maybe] * err
-        if over.any():
-            r, j = map(int, np.argwhere(over)[0])           # the first piece, linkage
-            k, i = int(maybe[r]), int(node[r, j])
+        over = _gait.cheb_jerk_check(coef, a, b, bj, bound,
+                                     np.maximum(self.scale, self._quiet), NOISE, _T_NODES)
+        if over is not None:
+            k, j, i, top = over
             t = _nodes(a[k:k + 1], b[k:k + 1])[0, i]
             raise ValueError(
                 f"gait jerk_bound of linkage {j} on [{float(a[k])!r}, {float(b[k])!r}] s "
                 f"is {float(bound[k, j]):.6g} m/s^3, but the gait's l''' reaches "
-                f"{float(top[r, j]):.6g} m/s^3 at t = {float(t)!r} s: "
+                f"{float(top):.6g} m/s^3 at t = {float(t)!r} s: "
                 "jerk_bound must bound |l'''| (or be left out)")
 
 
@@ -536,10 +521,17 @@ def _quiet(l0: NDArray, v0: NDArray, h: float) -> NDArray:
     checks' tolerances inf * 0 = NaN, which refused every value."""
     if not h > 0.0:
         return 0.0 * l0
-    with np.errstate(over='ignore', divide='ignore', invalid='ignore'):
-        q = (l0 + v0 * h) / h ** 2
-    # NaN and +inf to the largest float (q >= 0: no -inf), as ``nan_to_num`` did, cheaper
-    return np.where(np.isnan(q), _BIG, np.minimum(q, _BIG))
+    # in floats (a few linkages: numpy's error state and five array operations cost more);
+    # an overflow to inf, or h^2 rounding to 0, gives the largest float, as ``nan_to_num`` did
+    h2 = h * h
+    out = []
+    for l, v in zip(l0.tolist(), v0.tolist()):
+        try:
+            q = (l + v * h) / h2
+        except ZeroDivisionError:
+            q = _BIG
+        out.append(_BIG if q != q else min(q, _BIG))
+    return np.array(out)
 
 
 def _nodes(a: NDArray, b: NDArray) -> NDArray:
