@@ -237,11 +237,11 @@ class PiecewiseCubic(BuiltinGait):
         return max(bisect_right(self._starts, t) - 1, 0)
 
     def _kind(self):
-        from ..solvers._gait import table
+        from ..solvers._gait import table_of_run
         # (float64 and contiguous already when built from arrays, as ``from_arrays`` asks:
-        # then no copy; table itself reads them so)
+        # then no copy; table_of_run reads them so)
         starts, anchors, coef = (np.ascontiguousarray(x, dtype=np.float64)
                                  for x in self.as_arrays())
-        # the breakpoints found here, cheaper than ``table``'s own search (the same answer)
-        return table(coef, starts=starts, anchors=anchors,
-                     jumps=table_jumps(starts, anchors, coef))
+        # ``table`` with ``table_jumps``' breakpoints, bit for bit, in one compiled pass (the
+        # engine builds one per sync: issue 41)
+        return table_of_run(starts, anchors, coef)

@@ -1183,3 +1183,163 @@ def cheb_jerk_check(const double[:, :, :, ::1] coef, const double[::1] a, const 
             if top > limit + markov * (err0 + eps * tm * top):
                 return k, j, at, top
     return None
+
+
+# ---------------------------------------------------------------------- a run of pieces
+# The engine builds one TABLE per sync from the actuator's run of pieces (issue 41: half of an
+# env-step went to ``table`` with ``table_jumps``, numpy calls on 10 pieces). ``table_of_run``
+# computes the same struct in compiled loops: the same expressions on the same doubles in the
+# same order (``table_jumps``'s loop, ``table``'s jj / rest, ``_table_stats``,
+# ``_aligned_levels``, ``_counts_before``), so the gait is bit for bit ``table``'s.
+
+def table_of_run(starts, anchors, coef) -> CompiledGait:
+    """``table(coef, starts=starts, anchors=anchors, jumps=table_jumps(starts, anchors,
+    coef))`` (``gaits.cubic``) of a table that is not periodic: ``starts``, ``anchors`` (n,)
+    [s] and ``coef`` (n, nl, 4) C-contiguous float64 (used as they are, kept alive), n >= 1."""
+    cdef CompiledGait g = CompiledGait()
+    cdef const double[::1] s = starts, o = anchors
+    cdef const double[:, :, ::1] c = coef
+    cdef Py_ssize_t n = c.shape[0], nl = c.shape[1], k, j, q, i, cc, lo, hi, cnt, prev
+    cdef Py_ssize_t w = 5 * nl, L = _n_levels(n), nrec, nj
+    cdef double scale = 4.0 * np.finfo(float).eps, before, d, size, a, jk, dj, x, y, d0, d1
+    cdef bint bounded, mx
+    cdef int off[RANGE_LEVELS + 2]
+    # level offsets as ``_aligned_levels``
+    off[0] = 0
+    cnt = n
+    for q in range(1, L):
+        off[q] = off[q - 1] + cnt
+        cnt = (cnt + 1) // 2
+    nrec = off[L - 1] + cnt
+    flags_arr = np.zeros(3 * n, dtype=np.uint8)     # jumps, jj, rest
+    cdef unsigned char[::1] fl = flags_arr
+    cdef unsigned char* jmp = &fl[0]
+    cdef unsigned char* jj = jmp + n
+    cdef unsigned char* rest = jmp + 2 * n
+    # jumps (``table_jumps``' loop; piece 0 never jumps), jj (l''' changes; not at piece 0),
+    # rest (v0, a0, jerk all 0)
+    nj = 0
+    for k in range(n):
+        rest[k] = 1
+        for j in range(nl):
+            if not (c[k, j, 1] == 0.0 and c[k, j, 2] == 0.0 and c[k, j, 3] == 0.0):
+                rest[k] = 0
+                break
+        if k == 0:
+            continue
+        for j in range(nl):
+            if c[k, j, 3] != c[k - 1, j, 3]:
+                jj[k] = 1
+                break
+        before = o[k - 1]
+        d = s[k] - before
+        size = fabs(s[k]) + fabs(before)
+        if not isfinite(size):
+            size = 0.0
+        for j in range(nl):
+            a = c[k - 1, j, 2]
+            jk = c[k - 1, j, 3]
+            dj = d * jk
+            if fabs((a + dj) - c[k, j, 2]) > scale * ((fabs(a) + fabs(dj)) + size * fabs(jk)):
+                jmp[k] = 1
+                nj += 1
+                break
+    # one float block: stat records (nrec, 5, nl), then the jump times
+    buf = np.empty(nrec * w + nj)
+    cdef double[::1] bf = buf
+    cdef double* st = &bf[0]
+    cdef double* jt = st + nrec * w
+    cdef double* rg
+    i = 0
+    for k in range(n):
+        if jmp[k]:
+            jt[i] = s[k]
+            i += 1
+    # per piece (``_table_stats``): |jerk|, lo / hi l', lo / hi l'' over [d0, d1]
+    for k in range(n):
+        d0 = s[k] - o[k]
+        d1 = (s[k + 1] if k + 1 < n else INFINITY) - o[k]
+        bounded = isfinite(d0) and isfinite(d1)
+        rg = st + k * w + nl
+        for j in range(nl):
+            st[k * w + j] = fabs(c[k, j, 3])
+            rg[j] = INFINITY if bounded else -INFINITY
+            rg[nl + j] = -rg[j]
+            rg[2 * nl + j] = rg[j]
+            rg[3 * nl + j] = -rg[j]
+        if bounded:
+            piece_ranges(&c[k, 0, 0], <int>nl, d0, d1, rg)
+    # the aligned levels (``_aligned_levels``: max of rows 0, 2, 4, min of rows 1, 3)
+    prev = n
+    for q in range(1, L):
+        cnt = (prev + 1) // 2
+        for i in range(cnt):
+            lo = off[q - 1] + 2 * i
+            hi = lo + 1 if 2 * i + 1 < prev else lo
+            for cc in range(w):
+                x = st[lo * w + cc]
+                y = st[hi * w + cc]
+                mx = ((cc // nl) % 2) == 0
+                st[(off[q] + i) * w + cc] = ((x if x >= y else y) if mx
+                                             else (x if x <= y else y))
+        prev = cnt
+    jjb_arr = np.empty(2 * n + 1, dtype=np.intc)     # ``_counts_before(jj)``
+    cdef int[::1] jb = jjb_arr
+    jb[0] = 0
+    for i in range(2 * n):
+        jb[i + 1] = jb[i] + jj[i % n]
+    g._keep = (coef, starts, anchors, flags_arr, buf, jjb_arr)
+    g.d.kind = TABLE
+    g.d.nl = <int>nl
+    g.d.n = <int>n
+    g.d.coef = <double*>&c[0, 0, 0]
+    g.d.jump = jmp
+    g.d.jjump = jj
+    g.d.rest = rest
+    g.d.n_jumps = <int>nj
+    g.d.jump_times = jt if nj else NULL
+    g.d.stat = st
+    g.d.nlev = <int>L
+    for q in range(L):
+        g.d.lev_off[q] = off[q]
+    g.d.jj_before = &jb[0]
+    g.d.period = 0.0
+    g.d.starts = <double*>&s[0]
+    g.d.anchors = <double*>&o[0]
+    g.d.constant = True
+    for k in range(n):
+        if not rest[k]:
+            g.d.constant = False
+            break
+    g.n_links = <int>nl
+    g.period = None
+    return g
+
+
+def table_struct(CompiledGait g):
+    """The struct of a TABLE gait that is not periodic as copies (a dict of arrays and
+    numbers): what two builders of one table must agree on, bit for bit (tests)."""
+    cdef GaitData* d = &g.d
+    cdef Py_ssize_t n = d.n, nl = d.nl, i, nrec
+    if d.kind != TABLE or d.period > 0.0:
+        raise ValueError('table_struct reads a TABLE gait that is not periodic')
+    nrec = d.lev_off[d.nlev - 1]
+    i = n
+    for _ in range(1, d.nlev):
+        i = (i + 1) // 2
+    nrec += i if d.nlev > 1 else 0
+    if d.nlev == 1:
+        nrec = n
+    return {
+        'n': n, 'nl': nl, 'constant': bool(d.constant), 'nlev': d.nlev,
+        'lev_off': [d.lev_off[q] for q in range(d.nlev)],
+        'coef': np.array([d.coef[i] for i in range(n * nl * 4)]),
+        'starts': np.array([d.starts[i] for i in range(n)]),
+        'anchors': np.array([d.anchors[i] for i in range(n)]),
+        'jump': np.array([d.jump[i] for i in range(n)]),
+        'jjump': np.array([d.jjump[i] for i in range(n)]),
+        'rest': np.array([d.rest[i] for i in range(n)]),
+        'jump_times': np.array([d.jump_times[i] for i in range(d.n_jumps)]),
+        'stat': np.array([d.stat[i] for i in range(nrec * 5 * nl)]),
+        'jj_before': np.array([d.jj_before[i] for i in range(2 * n + 1)]),
+    }

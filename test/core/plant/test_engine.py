@@ -273,7 +273,13 @@ def test_a_sync_builds_its_table_without_tables_own_classification(monkeypatch, 
         calls['own'] += kw.get('jumps') is None
         return real(coef, **kw)
 
+    def counted_run(starts, anchors, coef):     # table + table_jumps in one compiled pass
+        calls['table'] += 1
+        return real_run(starts, anchors, coef)
+
+    real_run = _gait.table_of_run
     monkeypatch.setattr(_gait, 'table', counted)
+    monkeypatch.setattr(_gait, 'table_of_run', counted_run)
     engine = Engine(config(2, 10))
     syncs = 0
     for k in range(300):
