@@ -200,8 +200,9 @@ class DenseOutput:
     def _shorter(self, lo: NDArray, hi: NDArray, mult: NDArray, span: float
                  ) -> tuple[NDArray, NDArray, NDArray]:
         """The pieces [lo, hi] [s] (and their ``mult``) of a gait that is not polynomial cut
-        into equal parts of at most 1/16 of its period (1/64 of ``span`` [s] without one):
-        the 25 probes of a piece then see the gait's own time scale. A segment of several
+        into equal parts of at most its period (1/16 of ``span`` [s] without one): the 25
+        probes of a piece then see each period, as in a run with events every period (parts
+        of 1/16 of a period made a sweep scene's figures 27 % slower). A segment of several
         seconds (a crawler sliding down a slope: no event for 20 s) was one piece: its roots
         were missed, a half of it whose 12 nodes all fell where the power is negative was
         taken as 0 (the positive work of a 20 s run half its true value) and others split
@@ -212,7 +213,7 @@ class DenseOutput:
         if isinstance(self.gait, (PiecewiseCubic, PiecewiseParabolic)):
             return lo, hi, mult              # closed form on pieces of any length
         period = getattr(self.gait, 'period', None)
-        longest = period / 16 if period else span / 64
+        longest = period if period else span / 16
         k = np.maximum(np.ceil((hi - lo) / longest), 1.0).astype(np.int64)
         if (k == 1).all():
             return lo, hi, mult

@@ -599,10 +599,9 @@ def test_positive_work_of_a_crawler_sliding_for_seconds():
     0.1 s to 20 s. That segment was one piece of the quadrature: its 25 probes missed most
     roots, a half of it whose nodes all fell where the power is negative was taken as 0 (the
     run's positive work half its value), and windows from 5 s on split without end on the
-    rounding of the Scallop's values (~1e-12 at 8 s). Now pieces are at most 1/16 of the
-    period (and a disagreement at that rounding which halving no longer lowers ends a
-    piece): each 5 s window against the independent quadrature, the run within 1e-7 of
-    their sum (the probes' remaining blind spot: root pairs closer than their spacing)."""
+    rounding of the Scallop's values (~1e-12 at 8 s). Now pieces are at most one period
+    (and a disagreement at that rounding which halving no longer lowers ends a piece):
+    each 5 s window and the whole run against the independent quadrature."""
     crawler = cs.Crawler([0.5, 1.0], 0.3, slope=0.1)
     g = gaits.Scallop(mean=0.1, amplitude=0.02, frequency=1.37, asymmetry=0.2)
     tr = cs.simulate(crawler, g, 20.0)
@@ -611,4 +610,4 @@ def test_positive_work_of_a_crawler_sliding_for_seconds():
     for a in (0.0, 5.0, 10.0, 15.0):
         parts.append(positive_work_reference(crawler, g, 20.0, a, a + 5.0))
         assert tr.positive_work(a, a + 5.0) == pytest.approx(parts[-1], rel=1e-12, abs=0)
-    assert tr.positive_work(0.0, 20.0) == pytest.approx(sum(parts), rel=1e-7, abs=0)
+    assert tr.positive_work(0.0, 20.0) == pytest.approx(sum(parts), rel=1e-12, abs=0)
