@@ -1955,9 +1955,9 @@ cdef class ExactCore:
         cdef int guard = 0, status = S_REACHED, n_max = self.n_buf
         cdef int ev_max = ev_records(p)
         cdef double t, ts, end, b, kT, t0, a, V0, X_s, V_s, t_ev, tt, d, f_slide, imp, w, fmg
-        cdef double tol = self.tol, cap, Vi, t_end
+        cdef double tol = self.tol, cap, Vi, t_end, t_look
         cdef long k_next
-        cdef bint left, stale, moving, tiny, same, group_all
+        cdef bint left, stale, moving, tiny, same, group_all, call_end
         self.n_seg = 0
         self.n_ev = 0
         self.n_choice = 0
@@ -1993,6 +1993,9 @@ cdef class ExactCore:
                     ts = kT
                     left = False
             end = nextafter(ts, -INFINITY) if left else ts
+            # the segment ends only because the call does: no instant of the physics (with
+            # stiction an event near it keeps its own time, see the search's close)
+            call_end = ts == t_end and not left and not (k_next > 0 and ts == k_next * T)
             cap = self.cap if self.cap > 0.0 else max((ts - t) / 8.0, 1e-300)
             # ---- the state at t
             gait_lengths(g, t, self.l)
@@ -2040,7 +2043,18 @@ cdef class ExactCore:
                     self.new_contact[i] = self.contact[i]
                     self.group[i] = self.cache_group[i]
             else:
-                self.mode(g, t, ts, &a, &r0)
+                if self.stiction:
+                    # Rule S is not continuous in its data: its look-ahead (t+ data) must not
+                    # depend on where a call ends, or a run cut there would choose otherwise
+                    # (a streamed run differs from the whole one): it reaches to the gait's
+                    # next breakpoint or one time scale, past the call's end (a Python gait's
+                    # pieces, built only up to the call's end, excepted)
+                    t_look = min(b, t + self.tscale)
+                    if g.kind == PROXY and g.period <= 0.0:
+                        t_look = min(t_look, ts)
+                    self.mode(g, t, t_look, &a, &r0)
+                else:
+                    self.mode(g, t, ts, &a, &r0)
                 if self.stiction and self.n_cons > 1:
                     # an instant where Rule S chose among several consistent continuations
                     self.ch_t[self.n_choice] = self.origin + t
@@ -2110,9 +2124,11 @@ cdef class ExactCore:
                                     i = self.lab_body[r]
                                     if self.hit[r] == 1 or self.hits[i] == 0:
                                         self.hits[i] = self.hit[r]
-                        if ts - t_ev <= 4.0 * tol:
+                        if ts - t_ev <= 4.0 * tol and not (self.stiction and call_end):
                             # an event within the root tolerance of a breakpoint happens
-                            # there: no hit body is then at its zero for certain
+                            # there: no hit body is then at its zero for certain (with
+                            # stiction not at a mere call end: the whole run, with no
+                            # boundary there, decides at the event's own time)
                             if t_ev != ts:
                                 for i in range(p):
                                     if self.hits[i]:
@@ -2180,7 +2196,9 @@ cdef class ExactCore:
                             # the body's velocity is exactly zero at the event
                             self.V = -dot(self.W, i, self.ld, nl)
                             break
-            if self.stiction:
+            if self.stiction and not (call_end and t_ev == ts):
+                # (not at a call's end: an arrival there is found at its own time next call,
+                # as the whole run finds it)
                 self.near_zero(g, t_ev, r0, a)
             # absolute: the call's end as asked, a period's end as the next frame's origin
             if t_ev == t_end:
@@ -2392,6 +2410,41 @@ cdef class ExactCore:
             self.RL[r] = -INFINITY
         self.h_free = h_free
         return self.proven(nr, h, &a_[0], &b_[0], &c_[0], &d_[0], &e_[0], &f_[0])
+
+    # ------------------------------------------------------------------ a fast state read
+    def read_state(self, double[::1] x, double[::1] v, signed char[::1] contact) -> bint:
+        """x [m], v [m/s] and contact (p,) of ``current`` written into the arrays, without a
+        row's dict and arrays (the environments' step reads only these, issue 41): the last
+        segment's closed form when it ends now, through ``ClosedForm._rows`` as ``current``
+        evaluates it (the same arithmetic, bit for bit). False, nothing written, when
+        ``current`` would take its provisional path (no segment ending now): then read that."""
+        cdef int p = self.p, nl = self.nl
+        cdef CompiledGait g
+        cdef ClosedForm cf = self.closed
+        cdef long ref = self.last_ref, owner = 0
+        cdef double t = self.t
+        cdef double* w
+        cdef unsigned char ind
+        if not (self.last_valid and self.last_f[1] == self.t and self.last_gait is not None):
+            return False
+        if x.shape[0] != p or v.shape[0] != p or contact.shape[0] != p:
+            raise ValueError(f'read_state: arrays of {p} entries expected')
+        g = self.last_gait
+        if g.d.kind == PROXY:
+            return False          # (``values`` may read the user's functions there)
+        # gait values at t (``CompiledGait.values``' one call), then R, K, lam as scratch
+        w = <double*>PyMem_Malloc((4 * max(nl, 1) + 2 * p + max(p - 1, 1)) * sizeof(double))
+        if w == NULL:
+            raise MemoryError()
+        try:
+            gait_eval(&g.d, t, w, w + nl, w + 2 * nl, w + 3 * nl)
+            cf._rows(1, w, w + nl, w + 2 * nl, self.last_f, &ref, self.last_group,
+                     self.last_contact, self.last_R, self.last_K0, &owner, &t, &x[0], &v[0],
+                     w + 4 * max(nl, 1), w + 4 * max(nl, 1) + p,
+                     w + 4 * max(nl, 1) + 2 * p, &contact[0], &ind)
+        finally:
+            PyMem_Free(w)
+        return True
 
 
 
