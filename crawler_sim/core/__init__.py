@@ -12,5 +12,5 @@ from .stepper import METHODS, Stepper, simulate
 from .trajectory import Event, State, Trajectory
 from .verify import VerifyReport, verify
 
-__all__ = ['Crawler', 'Event', 'friction', 'ImplicitBatch', 'METHODS', 'State', 'Stepper', 'Trajectory',
-           'VerifyReport', 'gaits', 'penalty_bound', 'simulate', 'verify']
+__all__ = ['Crawler', 'Event', 'friction', 'ImplicitBatch', 'METHODS', 'State', 'Stepper',
+           'Trajectory', 'VerifyReport', 'gaits', 'penalty_bound', 'simulate', 'verify']
