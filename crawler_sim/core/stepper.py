@@ -240,6 +240,17 @@ class Stepper:
                      r['linkage_force'], r['lengths'], r['rates'], bool(r['indeterminate']),
                      None if inc is None else np.asarray(inc, dtype=bool).copy())
 
+    def read_state(self, x: NDArray[np.float64], v: NDArray[np.float64],
+                   contact: NDArray[np.int8]) -> None:
+        """``state``'s x [m], v [m/s] and contact written into (p,) float64, float64 and int8
+        arrays: the exact method's core writes them from the last segment without a State
+        (bit for bit the same values; the environments' step reads only these, issue 41);
+        otherwise they are copied from ``state``."""
+        core = self._solver._core if type(self._solver) is ExactSolver else None
+        if core is None or not core.read_state(x, v, contact):
+            st = self.state
+            x[:], v[:], contact[:] = st.x, st.v, st.contact
+
     def pop_events(self) -> list[Event]:
         """Contact events since the last call, in time order."""
         ev = self._solver.events

@@ -179,9 +179,10 @@ class CrawlPlant:
         self.targets = np.array(cfg.initial_lengths, dtype=float)
         self.failures = 0
         st = self.engine.state
-        self.x = st.x
-        self.v = st.v
-        self.contact = st.contact
+        # the plant's own arrays, refilled in place each step (``Engine.read_state``)
+        self.x = st.x.copy()
+        self.v = st.v.copy()
+        self.contact = np.array(st.contact, dtype=np.int8)
         self.com = float(self.masses @ st.x) / self.mass
 
     def lengths_of(self, action: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -196,9 +197,8 @@ class CrawlPlant:
         self.targets = self.lengths_of(action)
         eng.command(self.targets.tolist())
         eng.run_to(eng.t_ns + self.period_ns)
-        st = eng.state
-        self.x, self.v, self.contact = st.x, st.v, st.contact
-        com = float(self.masses @ st.x) / self.mass
+        eng.read_state(self.x, self.v, self.contact)
+        com = float(self.masses @ self.x) / self.mass
         speed = (com - self.com) / self.control_period
         self.com = com
         reward = self.forward_reward_weight * speed \

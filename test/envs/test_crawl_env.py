@@ -173,3 +173,31 @@ def test_a_crawler_with_stiction_replays_through_the_journal_bit_for_bit():
     assert values['static_friction'] == pytest.approx([0.45 * 0.5 * 9.81, 0.45 * 9.81])
     x, _ = replay(values, inputs, ts[-1]).at(ts, 2)
     assert np.max(np.abs(x - np.array(xs))) == 0.0
+
+
+@pytest.mark.parametrize('crawler', [None, {'masses': [1.0, 0.8, 1.2], 'mu': 0.25,
+                                            'mu_static': [0.4, 0.3, 0.5], 'mu_backward': 0.4}])
+def test_the_steps_state_read_is_the_engines_state_bit_for_bit(crawler):
+    """The env's step reads x, v and contact through ``Engine.read_state`` (the exact core's
+    closed form written into the plant's arrays, issue 41); ``Engine.state`` (the State of
+    sim_node and replay) gives the same bytes at every step, stiction included, and so does a
+    read off the publish grid, where the engine cut the integration itself (``sync``)."""
+    from crawler_sim.envs.plant import CrawlPlant
+    pl = CrawlPlant(crawler, control_period=0.01)
+    pl.reset(None)
+    acts = _actions(200, pl.n_links)
+    x, v, c = pl.x.copy(), pl.v.copy(), pl.contact.copy()
+    seen = set()
+    for k, a in enumerate(acts):
+        pl.step(np.clip(a, -1.0, 1.0))
+        st = pl.engine.state
+        seen.update(pl.contact.tolist())
+        assert (pl.x.tobytes(), pl.v.tobytes(), pl.contact.tobytes()) == \
+            (st.x.tobytes(), st.v.tobytes(), st.contact.astype(np.int8).tobytes())
+        if k % 7 == 0:
+            pl.engine.run_to(pl.engine.t_ns + 3 * pl.engine.cfg.dt_ns)
+            pl.engine.read_state(x, v, c)
+            st = pl.engine.state
+            assert (x.tobytes(), v.tobytes(), c.tobytes()) == \
+                (st.x.tobytes(), st.v.tobytes(), st.contact.astype(np.int8).tobytes())
+    assert seen == {-1, 0, 1}          # sliding both ways and stuck bodies were read

@@ -407,6 +407,15 @@ class Engine:
         self.sync()
         return self.stepper.state
 
+    def read_state(self, x: np.ndarray, v: np.ndarray, contact: np.ndarray) -> None:
+        """``state``'s x [m], v [m/s] and contact written into (p,) float64, float64 and int8
+        arrays (integrates what is queued first): the environments' per-step read, without a
+        State (``Stepper.read_state``; the same values, bit for bit)."""
+        if not self.integrate:
+            raise RuntimeError('an Engine(..., integrate=False) has no crawler state')
+        self.sync()
+        self.stepper.read_state(x, v, contact)
+
     def actuator_output(self) -> PiecewiseCubic:
         """l(t) the actuator emitted so far (``integrate=False``): one constant-jerk piece per
         tick."""
