@@ -2446,6 +2446,46 @@ cdef class ExactCore:
             PyMem_Free(w)
         return True
 
+    def switch_gait(self, CompiledGait old, CompiledGait new) -> bint:
+        """``ExactSolver._switch_gait``'s work on the core, compiled (the engine switches gait
+        at every sync, issue 41): absolute time frame, both gaits read at t, the mode chosen
+        anew unless (l, l', l'') continue exactly, and with no reference body X and V moved
+        by W_0 . (old - new), summed in order from 0.0 as numpy's dot does it there (BLAS's
+        ddot below 16 terms), so bit for bit the Python path. False, nothing changed, for a
+        gait of Python functions (PROXY: read through its callables) or 16 linkages or more:
+        then the Python path runs."""
+        cdef int nl = self.nl, j
+        cdef double t = self.t, dx = 0.0, dv = 0.0
+        cdef double* w
+        cdef bint same = True
+        if old.d.kind == PROXY or new.d.kind == PROXY or nl >= 16:
+            return False
+        w = <double*>PyMem_Malloc(8 * nl * sizeof(double))
+        if w == NULL:
+            raise MemoryError()
+        try:
+            self.tl = t
+            self.origin = 0.0
+            self.origin_k = 0
+            gait_eval(&old.d, t, w, w + nl, w + 2 * nl, w + 3 * nl)
+            gait_eval(&new.d, t, w + 4 * nl, w + 5 * nl, w + 6 * nl, w + 7 * nl)
+            self.ck_valid = False
+            for j in range(3 * nl):
+                if not (w[j] == w[4 * nl + j]):
+                    same = False
+            if not same:
+                self.cache_ok = False          # ``forget_mode``
+            if self.ref < 0:
+                for j in range(nl):
+                    dx += self.W[j] * (w[j] - w[4 * nl + j])
+                for j in range(nl):
+                    dv += self.W[j] * (w[nl + j] - w[5 * nl + j])
+                self.X += dx
+                self.V += dv
+        finally:
+            PyMem_Free(w)
+        return True
+
 
 
 def solve_inclusion(double c, double u_ref, double force, kinks, f_plus, f_minus):

@@ -146,6 +146,8 @@ class ExactSolver:
             self._core.incumbent_array = inc
         self.initial_stuck = initial_stuck
         self.segments = SegmentList()
+        # the incumbent at t0 travels with the run's pieces (``incumbent_at``, dense output)
+        self.segments.incumbent0 = self._core.incumbent_array
         self.events = EventLog()
         #: instants where Rule S chose among several consistent continuations (a crawler with
         #: stiction): (time [s], number of continuations, exact tie of margins), those of the
@@ -283,6 +285,10 @@ class ExactSolver:
         """Continue with a new gait: keep the bodies' positions, velocities and contact state."""
         core, k = self._core, self._k
         cg = gait.compiled()
+        if core.switch_gait(self._cg, cg):      # the same arithmetic, compiled (issue 41)
+            self.gait = gait
+            self._cg = cg
+            return
         t = core.t
         # the new gait is read at absolute times (it may repeat on another period or not at all)
         core.tl, core.origin, core.origin_k = t, 0.0, 0
@@ -371,7 +377,9 @@ class ExactSolver:
         a, b = parts
         merged = SegmentChunk(a.gait, *(np.concatenate((getattr(a, f), getattr(b, f)))
                                         for f in ('f', 'ref', 'contact', 'group', 'R', 'K0')))
+        inc0 = getattr(self.segments, 'incumbent0', None)
         self.segments = SegmentList()
+        self.segments.incumbent0 = inc0
         self.segments.extend_chunk(merged)
 
     def info(self, times: NDArray[np.float64]) -> dict:
@@ -441,3 +449,37 @@ class ExactSolver:
         out['impulse'] += shift_k
         return out
 
+
+def incumbent_at(segments: SegmentList, times: NDArray[np.float64], p: int) -> NDArray[np.bool_]:
+    """The incumbent (N, p) bool at ``times`` [s] (shape (N,), inside the run) of a run's kept
+    pieces: the cluster stuck on the segment holding t in (t0, t1], i.e. stuck just before t
+    (STICTION.md s. 5; at an event, the segment that ends there), no body where that segment
+    slides; at or before the first segment's start the reset's (``initial_stuck``). What
+    ``Stepper``'s ``State.incumbent`` is after advancing to t (``Trajectory.state_at``)."""
+    times = np.asarray(times, dtype=float)
+    out = np.zeros((times.size, p), dtype=bool)
+    inc0 = getattr(segments, 'incumbent0', None)
+    if inc0 is not None:
+        out[:] = np.asarray(inc0, dtype=bool)
+    if not len(segments) or not times.size:
+        return out
+    table, row_of = segments.records()
+    # the piece whose start lies before t (searchsorted 'left': at a start, the one before)
+    idx = np.searchsorted(segments.starts(), times, side='left') - 1
+    for k in np.unique(idx[idx >= 0]).tolist():
+        sel = (idx == k).nonzero()[0]
+        if row_of[k] >= 0:
+            r = int(row_of[k])
+            out[sel] = table.group[r] & (table.ref[r] >= 0)
+            continue
+        piece = segments[k]           # skipped periods: t - j T in the template period
+        j = np.clip(np.ceil((times[sel] - piece.t0) / piece.T).astype(int), 1, piece.n)
+        loc = times[sel] - j * piece.T
+        tpl = piece.template
+        # a time on a template start is the end of the segment before it (at the period's
+        # start, the previous period's last one)
+        sub = np.searchsorted([sg.t0 for sg in tpl], loc, side='left') - 1
+        sub[sub < 0] = len(tpl) - 1
+        for i, q in zip(sel.tolist(), sub.tolist()):
+            out[i] = np.asarray(tpl[q].group, dtype=bool) & (tpl[q].ref >= 0)
+    return out

@@ -1,0 +1,119 @@
+"""The plant's compiled shortcuts (issue 41) against the paths they replace, bit for bit:
+``_gait.table_of_run`` (the engine's table of a run of pieces in one pass) against ``table``
+with ``cubic.table_jumps``' breakpoints; ``ExactCore.switch_gait`` (a gait switch at each
+sync) against the Python arithmetic of ``ExactSolver._switch_gait`` written out here."""
+import math
+
+import numpy as np
+import pytest
+
+from crawler_sim.core.gaits.cubic import PiecewiseCubic, cubic_values, table_jumps
+from crawler_sim.core.model import Crawler
+from crawler_sim.core.stepper import Stepper
+from crawler_sim.core.solvers._gait import table, table_of_run, table_struct
+
+
+def _tables(seed: int, count: int):
+    """Random tables that are not periodic: free pieces (l'' jumps at most joins), C2 joins
+    as the actuator makes them (a few ulps at the join: no jump), some with jerk 0, rest
+    pieces, integer jerks (l''' continues across joins), a first piece from -inf; 1 to 199
+    pieces (beyond 2^6: every level of the aligned extremes), 1 to 3 linkages."""
+    rng = np.random.default_rng(seed)
+    for trial in range(count):
+        n = int(rng.integers(1, 200)) if trial % 3 else int(rng.integers(1, 12))
+        nl = int(rng.integers(1, 4))
+        starts = np.cumsum(rng.uniform(1e-4, 1e-2, n)) + rng.uniform(0, 100)
+        coef = rng.normal(size=(n, nl, 4))
+        mode = trial % 5
+        if mode in (1, 2):
+            for k in range(1, n):
+                coef[k, :, :3] = np.array(cubic_values(*coef[k - 1].T,
+                                                       starts[k] - starts[k - 1])).T
+            if mode == 2:
+                coef[rng.integers(0, n, 3), :, 3] = 0.0
+        elif mode == 3:
+            coef[rng.random(n) < 0.5, :, 1:] = 0.0
+        elif mode == 4:
+            coef[:, :, 3] = np.round(coef[:, :, 3])
+        anchors = starts.copy()
+        if trial % 7 == 0:
+            starts[0] = -math.inf
+        yield starts, anchors, np.ascontiguousarray(coef)
+
+
+@pytest.mark.parametrize('seed', [1, 2])
+def test_table_of_run_is_tables_struct_bit_for_bit(seed):
+    kinds = {'jumps': 0, 'no jumps': 0, 'rest': 0}
+    for starts, anchors, coef in _tables(seed, 600):
+        want = table_struct(table(coef, starts=starts, anchors=anchors,
+                                  jumps=table_jumps(starts, anchors, coef)))
+        got = table_struct(table_of_run(starts, anchors, coef))
+        assert want.keys() == got.keys()
+        for key, a in want.items():
+            b = got[key]
+            if isinstance(a, np.ndarray):
+                assert a.shape == b.shape and a.astype(float).tobytes() == \
+                    b.astype(float).tobytes(), key
+            else:
+                assert a == b, key
+        kinds['jumps' if want['jump'].any() else 'no jumps'] += 1
+        kinds['rest'] += bool(want['rest'].any())
+    assert min(kinds.values()) > 50        # every case reached
+
+
+def _python_switch(solver, gait):
+    """``ExactSolver._switch_gait`` as Python arithmetic (numpy's dot of W_0 and the jump)."""
+    core, k = solver._core, solver._k
+    cg = gait.compiled()
+    t = core.t
+    core.tl, core.origin, core.origin_k = t, 0.0, 0
+    l0, ld0, ldd0 = solver._cg.at(t)
+    l1, ld1, ldd1 = cg.at(t)
+    core.ck_valid = False
+    if not (l0.tolist() == l1.tolist() and ld0.tolist() == ld1.tolist()
+            and ldd0.tolist() == ldd1.tolist()):
+        core.forget_mode()
+    if core.ref < 0:
+        core.X += float(k.W[0] @ (l0 - l1))
+        core.V += float(k.W[0] @ (ld0 - ld1))
+    solver.gait = gait
+    solver._cg = cg
+
+
+@pytest.mark.parametrize('p', [2, 3, 5])
+@pytest.mark.parametrize('static', [None, 0.45])
+def test_a_compiled_gait_switch_is_the_python_arithmetic_bit_for_bit(p, static):
+    """Gaits of random pieces switched every 20 ms, continuing C2 or jumping in l, l' and
+    l'' (so W_0 . jump is not 0 and the mode is chosen anew), sliding (no reference body)
+    and stuck: the compiled switch and the Python one give the same X, V and states."""
+    rng = np.random.default_rng(p)
+    crawler = Crawler(rng.uniform(0.5, 1.5, p), mu=0.3, mu_backward=0.5,
+                      **({} if static is None else {'mu_static': static}))
+    nl = p - 1
+
+    def gait(t0, prev):
+        starts = t0 + np.arange(4) * 0.005
+        coef = rng.normal(0.0, [0.01, 0.05, 2.0, 200.0], (4, nl, 4))
+        if prev is not None and rng.random() < 0.5:         # continues C2
+            coef[0, :, :3] = np.array(prev.at(t0)).T
+        for k in range(1, 4):
+            coef[k, :, :3] = np.array(cubic_values(*coef[k - 1].T, 0.005)).T
+        coef[:, :, 0] += 0.1
+        return PiecewiseCubic.from_arrays(starts, starts.copy(), np.ascontiguousarray(coef))
+
+    g = gait(0.0, None)
+    a, b = (Stepper(crawler, g, 'exact') for _ in range(2))
+    refs = set()
+    for k in range(60):
+        t0 = 0.02 * k
+        g = gait(t0, g)
+        a._solver._switch_gait(g)
+        _python_switch(b._solver, g)
+        ca, cb = a._solver._core, b._solver._core
+        assert (ca.X, ca.V, ca.cache_ok, ca.tl) == (cb.X, cb.V, cb.cache_ok, cb.tl)
+        refs.add(ca.ref >= 0)
+        a.advance(t0 + 0.02, g)
+        b.advance(t0 + 0.02, g)
+        sa, sb = a.state, b.state
+        assert sa.x.tobytes() == sb.x.tobytes() and sa.v.tobytes() == sb.v.tobytes()
+    assert refs == {True, False}          # switched while sliding and while stuck
