@@ -241,7 +241,8 @@ class Trajectory:
             For a float, the state at t (arrays of shape (p,) and (p-1,)). For an array, the
             same fields with a leading axis of N: ``t`` (N,), ``x``, ``v``, ``friction``,
             ``contact`` (N, p), ``linkage_force``, ``lengths``, ``rates`` (N, p-1),
-            ``indeterminate`` (N,).
+            ``indeterminate`` (N,), ``incumbent`` (N, p): the cluster stuck just before t
+            (at an event, on the segment that ends there), as ``Stepper.state`` gives it.
 
         The closed form between events, inside periodically skipped periods too: the values a
         run sampled at t gives (``simulate(..., t_eval=[t])``), bit for bit, with no
@@ -284,9 +285,9 @@ class Trajectory:
         f = {k: np.asarray(v)[back] for k, v in out.items()}
         contact = f['contact'].astype(np.int8)
         ind = f['indeterminate'].astype(bool)
-        # the incumbent (N, p) bool when the dense output gives it (None otherwise)
-        inc = f.get('incumbent')
-        inc = None if inc is None else np.asarray(inc, dtype=bool)
+        # the incumbent (N, p) bool: the cluster stuck on the piece before each time
+        from .solvers.exact import incumbent_at      # (the solvers import this module)
+        inc = incumbent_at(self.dense.segments, flat, self.crawler.p)
         if times.ndim == 0:
             return State(float(times), f['x'][0], f['v'][0], f['friction'][0], contact[0],
                          f['linkage_force'][0], f['lengths'][0], f['rates'][0], bool(ind[0]),

@@ -477,8 +477,10 @@ def incumbent_at(segments: SegmentList, times: NDArray[np.float64], p: int) -> N
         loc = times[sel] - j * piece.T
         tpl = piece.template
         # a time on a template start is the end of the segment before it (at the period's
-        # start, the previous period's last one)
-        sub = np.searchsorted([sg.t0 for sg in tpl], loc, side='left') - 1
+        # start, the previous period's last one); t - j T rounds: a start within 8 floats of
+        # t is taken as t (the events of skipped periods are the template's shifted, rounded)
+        near = 8.0 * np.spacing(np.abs(times[sel]))
+        sub = np.searchsorted([sg.t0 for sg in tpl], loc - near, side='left') - 1
         sub[sub < 0] = len(tpl) - 1
         for i, q in zip(sel.tolist(), sub.tolist()):
             out[i] = np.asarray(tpl[q].group, dtype=bool) & (tpl[q].ref >= 0)
