@@ -52,6 +52,10 @@ def _randomised(key: str) -> bool:
     return key == 'masses' or any(word in key for word in _RANDOMISED[1:])
 
 
+#: actions of up to this many numbers are checked and clipped in Python floats
+_SMALL = 16
+
+
 def check_action(action: Any, shape: tuple[int, ...]) -> NDArray[np.float64]:
     """``action`` as float64 of ``shape``, clipped to [-1, 1]; ValueError naming the field for a
     wrong shape or a value that is not finite (NaN would reach the plant as a NaN length)."""
@@ -66,6 +70,13 @@ def check_action(action: Any, shape: tuple[int, ...]) -> NDArray[np.float64]:
         else:
             raise ValueError(f'action must have shape {shape} (values in [-1, 1]), got shape '
                              f'{a.shape}')
+    if a.size <= _SMALL:
+        # a single env's action: clipped in Python floats (np.isfinite and np.clip cost more
+        # than the step's plant work on a few numbers; the same values, bit for bit)
+        vals = a.ravel().tolist()
+        if all(map(math.isfinite, vals)):
+            return np.array([-1.0 if x < -1.0 else 1.0 if x > 1.0 else x
+                             for x in vals]).reshape(shape)
     if not np.isfinite(a).all():
         bad = np.argwhere(~np.isfinite(a))[0]
         raise ValueError(f'action{list(bad.tolist())} must be finite, in [-1, 1], got '
@@ -186,16 +197,22 @@ class CrawlPlant:
         self.com = float(self.masses @ st.x) / self.mass
 
     def lengths_of(self, action: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Target lengths [m] of a checked action in [-1, 1]."""
-        return self.min_length + (action + 1.0) * (0.5 * (self.max_length - self.min_length))
+        """Target lengths [m] of a checked action in [-1, 1] (shape (n_links,))."""
+        return np.array(self._targets(action))
+
+    def _targets(self, action: NDArray[np.float64]) -> list[float]:
+        """``lengths_of`` as Python floats: min_length + (a + 1) (max_length - min_length) / 2
+        per linkage (doubles, as numpy would compute it elementwise)."""
+        lo, half = self.min_length, 0.5 * (self.max_length - self.min_length)
+        return [lo + (x + 1.0) * half for x in action.tolist()]
 
     def step(self, action: NDArray[np.float64]) -> tuple[float, float, bool]:
         """One control period with the checked ``action``: (reward, forward speed of the centre
         of mass [m/s], terminated). Terminated when the plant had to contain a solver failure
         (it restarts at rest, ``Engine._contain``): that episode's physics ended."""
         eng = self.engine
-        self.targets = self.lengths_of(action)
-        eng.command(self.targets.tolist())
+        self.targets = self._targets(action)      # (a list: observe copies it)
+        eng.command(self.targets)
         eng.run_to(eng.t_ns + self.period_ns)
         eng.read_state(self.x, self.v, self.contact)
         com = float(self.masses @ self.x) / self.mass

@@ -201,3 +201,21 @@ def test_the_steps_state_read_is_the_engines_state_bit_for_bit(crawler):
             assert (x.tobytes(), v.tobytes(), c.tobytes()) == \
                 (st.x.tobytes(), st.v.tobytes(), st.contact.astype(np.int8).tobytes())
     assert seen == {-1, 0, 1}          # sliding both ways and stuck bodies were read
+
+
+def test_a_small_action_is_clipped_as_numpy_clips_it():
+    """A single env's action is checked and clipped in Python floats (cheaper than numpy on a
+    few numbers): the same bytes as np.clip, -0.0, the bounds and values beyond them
+    included; the plant's targets as numpy's expression of them."""
+    from crawler_sim.envs.plant import CrawlPlant, check_action
+    rng = np.random.default_rng(3)
+    pl = CrawlPlant()
+    for k in range(3000):
+        a = rng.uniform(-1.5, 1.5, int(rng.integers(1, 5)))
+        a[rng.integers(0, a.size)] = (-0.0, 1.0, -1.0, 0.0, 2.0)[k % 5]
+        got = check_action(a.tolist(), a.shape)
+        want = np.clip(a, -1.0, 1.0)
+        assert got.dtype == want.dtype and got.shape == want.shape
+        assert got.tobytes() == want.tobytes()
+        lengths = pl.min_length + (want + 1.0) * (0.5 * (pl.max_length - pl.min_length))
+        assert pl.lengths_of(got).tobytes() == lengths.tobytes()

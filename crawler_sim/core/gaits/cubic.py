@@ -238,8 +238,11 @@ class PiecewiseCubic(BuiltinGait):
 
     def _kind(self):
         from ..solvers._gait import table_of_run
-        # (float64 and contiguous already when built from arrays, as ``from_arrays`` asks:
-        # then no copy; table_of_run reads them so)
+        if self._arrays is not None:
+            try:     # float64 and contiguous, as ``from_arrays`` asks: read as they are
+                return table_of_run(*self._arrays)
+            except (TypeError, ValueError):     # not so after all: converted below
+                pass
         starts, anchors, coef = (np.ascontiguousarray(x, dtype=np.float64)
                                  for x in self.as_arrays())
         # ``table`` with ``table_jumps``' breakpoints, bit for bit, in one compiled pass (the

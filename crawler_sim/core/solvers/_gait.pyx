@@ -803,10 +803,10 @@ def cheb_series(const double[:, :, ::1] acc, const double[::1] a, const double[:
                 _cheb_derive(c + 3 * width, snap, width, inv)
                 _cheb_derive(snap, d5, width, inv)
                 _cheb_derive(d5, d6, width, inv)
-                # (over the l''' series' nonzero terms only: the derivatives have fewer)
-                nc = _nonzero_length(c + 3 * width, width)
-                bj[k, j] = _sampled_bound(c + 3 * width, d5, nc, grid, h2)
-                bs[k, j] = _sampled_bound(snap, d6, nc, grid, h2)
+                # (over the whole width: the bounds steer the exact method's event search,
+                # so a tighter bound here moves its rounding and a Custom run's results)
+                bj[k, j] = _sampled_bound(c + 3 * width, d5, width, grid, h2)
+                bs[k, j] = _sampled_bound(snap, d6, width, grid, h2)
                 amax = 0.0
                 for q in range(n1):
                     amax += fabs(acc[k, q, j])
@@ -1192,6 +1192,10 @@ def cheb_jerk_check(const double[:, :, :, ::1] coef, const double[::1] a, const 
 # same order (``table_jumps``'s loop, ``table``'s jj / rest, ``_table_stats``,
 # ``_aligned_levels``, ``_counts_before``), so the gait is bit for bit ``table``'s.
 
+#: 4 ulp(1) (``table_jumps``' scale 4 eps), once: np.finfo per call was a tenth of the build
+_FOUR_EPS = 4.0 * float(np.finfo(float).eps)
+
+
 def table_of_run(starts, anchors, coef) -> CompiledGait:
     """``table(coef, starts=starts, anchors=anchors, jumps=table_jumps(starts, anchors,
     coef))`` (``gaits.cubic``) of a table that is not periodic: ``starts``, ``anchors`` (n,)
@@ -1201,9 +1205,12 @@ def table_of_run(starts, anchors, coef) -> CompiledGait:
     cdef const double[:, :, ::1] c = coef
     cdef Py_ssize_t n = c.shape[0], nl = c.shape[1], k, j, q, i, cc, lo, hi, cnt, prev
     cdef Py_ssize_t w = 5 * nl, L = _n_levels(n), nrec, nj
-    cdef double scale = 4.0 * np.finfo(float).eps, before, d, size, a, jk, dj, x, y, d0, d1
+    cdef double scale = _FOUR_EPS, before, d, size, a, jk, dj, x, y, d0, d1
     cdef bint bounded, mx
     cdef int off[RANGE_LEVELS + 2]
+    if n == 0 or s.shape[0] != n or o.shape[0] != n:
+        raise ValueError(f'table_of_run: n >= 1 pieces with one start and anchor each, got '
+                         f'{s.shape[0]} starts, {o.shape[0]} anchors, {n} pieces')
     # level offsets as ``_aligned_levels``
     off[0] = 0
     cnt = n
