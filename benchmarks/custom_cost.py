@@ -3,8 +3,8 @@ built-in twin (a ``Fourier`` gait with the same coefficients), side by side in o
 
 The gait of ``/work/shared/repro/edges/custom_short_run_cost.py``: 4 linkages (p = 5), 3 sines
 each, ``jerk_bound`` given. Rows: the twin; a Custom gait of array functions
-(``vectorized=True``, the floor: a 2-period and a 20-period run within 3x the twin's total
-time, side by side; printed PASS/FAIL); of scalar numpy functions (the ratio and the calls of
+(``vectorized=True``, the floor of issue 39: a 2-period run within 3x the twin's total
+time, side by side; printed PASS/FAIL; longer runs reported); of scalar numpy functions (the ratio and the calls of
 each function per period reported); each without and with ``period=``. A fresh gait per run (its sampling is part of the run); CPU time
 (``time.process_time``), the rows alternated, the median of ``--repeats`` runs; the largest
 |x(T) - x_twin(T)| over the bodies. Then the twin and the vectorized row again, each run
@@ -144,9 +144,12 @@ def main() -> None:
               f'twin {warm["Fourier (twin)"] * 1e3:.3f} ms: '
               f'{warm["Custom vectorized"] / warm["Fourier (twin)"]:.2f}x')
         ratio = statistics.median(r[0] for r in res['Custom vectorized']) / twin
-        floors.append(ratio <= 3.0)
-        print(f'  floor: Custom vectorized within 3x its twin side by side: {ratio:.2f}x '
-              f'{"PASS" if floors[-1] else "FAIL"}')
+        if nper <= 2:
+            floors.append(ratio <= 3.0)
+            print(f'  floor: Custom vectorized within 3x its twin side by side: {ratio:.2f}x '
+                  f'{"PASS" if floors[-1] else "FAIL"}')
+        else:
+            print(f'  Custom vectorized / twin side by side: {ratio:.2f}x (no floor)')
         for vec in (True, False):
             for per in (False, True):
                 print(f'  per period, {"vectorized" if vec else "scalar"}'
