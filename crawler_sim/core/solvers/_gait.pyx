@@ -16,6 +16,7 @@ import numpy as np
 from libc.math cimport (acosh, ceil, cos, cosh, fabs, isfinite, nextafter, pow, sin, sinh,
                         INFINITY, M_PI, NAN)
 from cpython.mem cimport PyMem_Malloc, PyMem_Free
+from libc.string cimport memset
 
 __all__ = ['CompiledGait', 'fourier', 'scallop', 'table', 'proxy']
 
@@ -1218,9 +1219,17 @@ def table_of_run(starts, anchors, coef) -> CompiledGait:
         off[q] = off[q - 1] + cnt
         cnt = (cnt + 1) // 2
     nrec = off[L - 1] + cnt
-    flags_arr = np.zeros(3 * n, dtype=np.uint8)     # jumps, jj, rest
-    cdef unsigned char[::1] fl = flags_arr
-    cdef unsigned char* jmp = &fl[0]
+    # one block (a numpy allocation costs as much as the loops): the stat records (nrec, 5,
+    # nl) and the jump times (at most n) as doubles, then jj_before (2 n + 1) as ints, then
+    # the flags jumps, jj, rest (n each)
+    cdef Py_ssize_t n_dbl = nrec * w + n
+    mem = np.empty(n_dbl * sizeof(double) + (2 * n + 1) * sizeof(int) + 3 * n, dtype=np.uint8)
+    cdef unsigned char[::1] mv = mem
+    cdef double* st = <double*>&mv[0]
+    cdef double* jt = st + nrec * w
+    cdef int* jb = <int*>(st + n_dbl)
+    cdef unsigned char* jmp = <unsigned char*>(jb + 2 * n + 1)
+    memset(jmp, 0, 3 * n)
     cdef unsigned char* jj = jmp + n
     cdef unsigned char* rest = jmp + 2 * n
     # jumps (``table_jumps``' loop; piece 0 never jumps), jj (l''' changes; not at piece 0),
@@ -1251,11 +1260,6 @@ def table_of_run(starts, anchors, coef) -> CompiledGait:
                 jmp[k] = 1
                 nj += 1
                 break
-    # one float block: stat records (nrec, 5, nl), then the jump times
-    buf = np.empty(nrec * w + nj)
-    cdef double[::1] bf = buf
-    cdef double* st = &bf[0]
-    cdef double* jt = st + nrec * w
     cdef double* rg
     i = 0
     for k in range(n):
@@ -1290,12 +1294,10 @@ def table_of_run(starts, anchors, coef) -> CompiledGait:
                 st[(off[q] + i) * w + cc] = ((x if x >= y else y) if mx
                                              else (x if x <= y else y))
         prev = cnt
-    jjb_arr = np.empty(2 * n + 1, dtype=np.intc)     # ``_counts_before(jj)``
-    cdef int[::1] jb = jjb_arr
-    jb[0] = 0
+    jb[0] = 0                                        # ``_counts_before(jj)``
     for i in range(2 * n):
         jb[i + 1] = jb[i] + jj[i % n]
-    g._keep = (coef, starts, anchors, flags_arr, buf, jjb_arr)
+    g._keep = (coef, starts, anchors, mem)
     g.d.kind = TABLE
     g.d.nl = <int>nl
     g.d.n = <int>n
@@ -1309,7 +1311,7 @@ def table_of_run(starts, anchors, coef) -> CompiledGait:
     g.d.nlev = <int>L
     for q in range(L):
         g.d.lev_off[q] = off[q]
-    g.d.jj_before = &jb[0]
+    g.d.jj_before = jb
     g.d.period = 0.0
     g.d.starts = <double*>&s[0]
     g.d.anchors = <double*>&o[0]
