@@ -25,3 +25,22 @@ cdef inline double split_theta(double total, double sum_sfm, double width) noexc
 cdef inline double split_force(double theta, double sfp, double sfm) noexcept nogil:
     """A member's share [N] of its stuck cluster's ground force (``split_theta``)."""
     return sfm - theta * (sfp + sfm)
+
+
+cdef inline double split_theta_fwd(double total, double sum_sfp, double width) noexcept nogil:
+    """The same split measured from the forward end (the implicit method's arithmetic, kept
+    for its bits): theta_f = 1 - theta in [0, 1] such that each member's force
+    -sfp_i + theta_f (sfp_i + sfm_i) sums to ``total`` [N]; ``sum_sfp`` over the members."""
+    return min(max((total + sum_sfp) / width, 0.0), 1.0)
+
+
+cdef inline double split_force_fwd(double theta_f, double sfp, double sfm) noexcept nogil:
+    """A member's share [N] of its stuck cluster's ground force (``split_theta_fwd``)."""
+    return -sfp + theta_f * (sfp + sfm)
+
+
+cdef inline double penalty_force(double nv, double fp, double fm) noexcept nogil:
+    """The penalty method's regularised law (the seed paper's): the resisting force [N]
+    F = clip(n v, -fm, fp) of a body at velocity v with penalty n (``nv`` = n v); the ground
+    force is -F. Kinetic bounds only: the method refuses stiction."""
+    return min(max(nv, -fm), fp)

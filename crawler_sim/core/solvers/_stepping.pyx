@@ -38,6 +38,9 @@ from libc.math cimport ceil, fabs, isfinite, INFINITY, NAN
 from crawler_sim.core.solvers._gait cimport (CompiledGait, GaitData, gait_eval, gait_rates,
                                              gait_lengths)
 from crawler_sim.core.solvers._inclusion cimport inclusion
+# the friction law's compiled side (its one home: ``core/friction.py``)
+from crawler_sim.core.solvers._friction cimport (ground_force, penalty_force, split_force_fwd,
+                                                 split_theta_fwd)
 
 __all__ = ['StepCore', 'batch_step', 'IMPLICIT', 'PENALTY', 'MAX_DEPTH', 'BISECT_REL',
            'RULE_INCUMBENT', 'RULE_MARGIN']
@@ -90,10 +93,8 @@ cdef inline double slide_sum(const signed char* contact, const double* fp, const
     cdef double s = 0.0
     cdef int i
     for i in range(p):
-        if contact[i] > 0:
-            s -= fp[i]
-        elif contact[i] < 0:
-            s += fm[i]
+        if contact[i] != 0:
+            s += ground_force(contact[i], fp[i], fm[i])
     return s
 
 
@@ -298,7 +299,7 @@ cdef class StepCore:
             self.zmask[i] = z
             if not z:
                 out[i] = sgn
-                force += -self.fp[i] if sgn > 0 else self.fm[i]
+                force += ground_force(sgn, self.fp[i], self.fm[i])
         self.accel_mode(force, epp, out, &s)
 
     cdef void interval_friction(self, const signed char* contact, double V0, double V1,
@@ -313,19 +314,16 @@ cdef class StepCore:
         cdef double total = self.M * (V1 - V0) / h - self.fext, lo = 0.0, width = 0.0, theta
         for i in range(p):
             self.rmode[i] = contact[i]
-            if contact[i] > 0:
-                R[i] = -self.fp[i]
-                total += self.fp[i]
-            elif contact[i] < 0:
-                R[i] = self.fm[i]
-                total -= self.fm[i]
+            if contact[i] != 0:
+                R[i] = ground_force(contact[i], self.fp[i], self.fm[i])
+                total -= R[i]
             else:
                 lo -= sp[i]
                 width += sp[i] + sm[i]
-        theta = 0.0 if width <= 0.0 else min(max((total - lo) / width, 0.0), 1.0)
+        theta = 0.0 if width <= 0.0 else split_theta_fwd(total, -lo, width)
         for i in range(p):
             if contact[i] == 0:
-                R[i] = -sp[i] + theta * (sp[i] + sm[i])
+                R[i] = split_force_fwd(theta, sp[i], sm[i])
 
     cdef double add_piece(self, const signed char* contact, double V0, double V1, double hh,
                           double X, const double* sp, const double* sm, bint last) noexcept:
@@ -498,7 +496,7 @@ cdef class StepCore:
             j = 0 if c0 == 0 else 1
             i = 1 - j
             # the stuck body's required force at tb (the acceleration test of ``changed``)
-            ri = -self.fp[i] if self.contact[i] > 0 else self.fm[i]
+            ri = ground_force(self.contact[i], self.fp[i], self.fm[i])
             rj = -self.M * self.eppb[j] - self.fext - ri
             if not (-self.fp[j] <= rj <= self.fm[j]):
                 return False
@@ -529,10 +527,8 @@ cdef class StepCore:
             if member[i]:
                 lo[0] -= self.sfp[i]
                 hi[0] += self.sfm[i]
-            elif sig[i] > 0:
-                need += self.fp[i]
             else:
-                need -= self.fm[i]
+                need -= ground_force(1 if sig[i] > 0 else -1, self.fp[i], self.fm[i])
         return need
 
     cdef bint st_changed(self, const signed char* contact, double V, const double* ep,
@@ -741,7 +737,7 @@ cdef class StepCore:
         for i in range(p):
             v = V_new + ep[i]
             nv = self.n_pen[i] * v
-            F = min(max(nv, -self.fm[i]), self.fp[i])
+            F = penalty_force(nv, self.fp[i], self.fm[i])
             self.R[i] = -F
             # saturated = sliding; inside the linear zone the regularised body counts as stuck
             self.newc[i] = 1 if (nv >= self.fp[i] and v > 0) else (
@@ -760,7 +756,7 @@ cdef class StepCore:
         cdef int i
         for i in range(self.p):
             x = self.n_pen[i] * (V + self.epb[i])
-            gsum += min(max(x, -self.fm[i]), self.fp[i])
+            gsum += penalty_force(x, self.fp[i], self.fm[i])
         return gsum
 
     cdef int one_step(self, GaitData* g, double tb) except -1:
@@ -887,20 +883,19 @@ cdef class StepCore:
                 self.zmask[i] = vi == 0.0
                 if not self.zmask[i]:
                     self.contact[i] = 1 if vi > 0 else -1
-                    force += -self.fp[i] if vi > 0 else self.fm[i]
+                    force += ground_force(self.contact[i], self.fp[i], self.fm[i])
             a = self.accel_mode(force, &self.epp[0], &self.contact[0], &s)
             for i in range(p):
-                self.R[i] = (-self.fp[i] if self.contact[i] > 0 else
-                             (self.fm[i] if self.contact[i] < 0 else 0.0))
+                self.R[i] = ground_force(self.contact[i], self.fp[i], self.fm[i])
                 if self.contact[i] == 0:
                     wsum += self.fp[i] + self.fm[i]
                     fps += self.fp[i]
             if wsum > 0.0:
                 tot = self.M * a - force
-                th = min(max((tot + fps) / wsum, 0.0), 1.0)
+                th = split_theta_fwd(tot, fps, wsum)
                 for i in range(p):
                     if self.contact[i] == 0:
-                        self.R[i] = -self.fp[i] + th * (self.fp[i] + self.fm[i])
+                        self.R[i] = split_force_fwd(th, self.fp[i], self.fm[i])
             self.A = a
         for i in range(p):
             self.K[i] = 0.0
@@ -926,8 +921,7 @@ cdef class StepCore:
                        &self.contact[0])
         j = first_stuck(&self.contact[0], p)
         for i in range(p):
-            self.R[i] = (-self.fp[i] if self.contact[i] > 0 else
-                         (self.fm[i] if self.contact[i] < 0 else 0.0))
+            self.R[i] = ground_force(self.contact[i], self.fp[i], self.fm[i])
         if j >= 0:
             self.A = -self.epp[j]
             # the split of ``interval_friction`` at the force needed (M A - F_ext - slides)
