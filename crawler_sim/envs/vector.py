@@ -95,17 +95,23 @@ class CrawlVectorEnv(VectorEnv):
                                           NDArray[np.bool_], NDArray[np.bool_], dict]:
         """One control period of every env (NEXT_STEP autoreset, module doc)."""
         acts = check_action(actions, (self.num_envs, self.plants[0].n_links))
-        rewards = np.zeros(self.num_envs)
-        speeds = np.zeros(self.num_envs)
-        terminated = np.zeros(self.num_envs, dtype=bool)
-        for i, pl in enumerate(self.plants):
-            if self._autoreset[i]:
+        n = self.num_envs
+        rewards, speeds, terminated = [0.0] * n, [0.0] * n, [False] * n
+        # the loop on Python objects (numpy item access per env cost as much as a step's
+        # bookkeeping); the arrays are written once after it
+        resets = self._autoreset.nonzero()[0].tolist()
+        self._steps[resets] = -1
+        reset = set(resets)
+        obs = self._obs
+        for i, (pl, a) in enumerate(zip(self.plants, acts)):
+            if i in reset:
                 pl.reset(self._rngs[i])
-                self._steps[i] = 0
             else:
-                rewards[i], speeds[i], terminated[i] = pl.step(acts[i])
-                self._steps[i] += 1
-            pl.observe(self._obs[i])
+                rewards[i], speeds[i], terminated[i] = pl.step(a)
+            pl.observe(obs[i])
+        self._steps += 1
+        rewards, speeds = np.array(rewards), np.array(speeds)
+        terminated = np.array(terminated, dtype=bool)
         truncated = (self._steps >= self.max_episode_steps) if self.max_episode_steps \
             else np.zeros(self.num_envs, dtype=bool)
         truncated &= ~self._autoreset
