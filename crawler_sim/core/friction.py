@@ -26,8 +26,9 @@ from numpy.typing import ArrayLike, NDArray
 if TYPE_CHECKING:
     from .model import Crawler
 
-__all__ = ['Bounds', 'RULES', 'DEFAULT_RULE', 'bounds', 'check_rule', 'has_stiction',
-           'required_constants', 'split_stuck', 'stuck_interval']
+__all__ = ['Bounds', 'RULES', 'DEFAULT_RULE', 'bounds', 'check_rule', 'dissipation',
+           'has_stiction', 'kinetic_force', 'required_constants', 'split_stuck',
+           'stuck_interval']
 
 #: Rule S at a coincident rest (STICTION.md s. 5, item 3), the ``stiction_rule`` option:
 #: 'incumbent' (default): a cluster stuck just before t holds first if it can, then the largest
@@ -76,6 +77,22 @@ def has_stiction(kinetic_forward: ArrayLike, kinetic_backward: ArrayLike,
     unique as a differential inclusion and Rule S selects it, STICTION.md s. 3-5)."""
     return bool(np.any(np.asarray(static_forward) > np.asarray(kinetic_forward))
                 or np.any(np.asarray(static_backward) > np.asarray(kinetic_backward)))
+
+
+def kinetic_force(b: Bounds, contact: ArrayLike) -> NDArray[np.float64]:
+    """The ground force [N] on bodies sliding with ``contact`` +1 (forward: -kinetic_forward)
+    or -1 (backward: +kinetic_backward); 0 where ``contact`` is 0 (stuck: not the kinetic
+    law's to say). ``contact`` of shape (..., p). The compiled side: ``_friction.ground_force``."""
+    c = np.asarray(contact)
+    return np.where(c > 0, -b.kinetic_forward, np.where(c < 0, b.kinetic_backward, 0.0))
+
+
+def dissipation(b: Bounds, v: ArrayLike) -> NDArray[np.float64]:
+    """The kinetic law's dissipation potential [W] at body velocities ``v`` (..., p):
+    kinetic_forward v+ + kinetic_backward v-, the support function of each body's kinetic
+    interval (MODEL.md s. 2): a ground force R is the kinetic law's iff R v + this = 0."""
+    v = np.asarray(v)
+    return b.kinetic_forward * np.maximum(v, 0.0) + b.kinetic_backward * np.maximum(-v, 0.0)
 
 
 def stuck_interval(b: Bounds, members: ArrayLike) -> tuple[float, float]:

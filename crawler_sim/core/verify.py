@@ -47,7 +47,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from .friction import DEFAULT_RULE, Bounds, bounds, check_rule, required_constants, stuck_interval
+from .friction import (DEFAULT_RULE, Bounds, bounds, check_rule, dissipation, kinetic_force,
+                       required_constants, stuck_interval)
 from .gaits.base import BREAK_ULPS
 from .model import kinematics
 from .trajectory import Trajectory
@@ -157,8 +158,8 @@ def verify(trajectory: Trajectory, gait: Gait | None = None, *,
     tr = trajectory
     c = tr.crawler
     M = c.total_mass
-    fp, fm, fext = c.friction, c.friction_backward, c.external_force
     b = bounds(c)
+    fp, fm, fext = b.kinetic_forward, b.kinetic_backward, c.external_force
     sp, sm = b.static_forward, b.static_backward       # the kinetic ones without stiction
     info = tr.info if isinstance(tr.info, dict) else {}
     rule = check_rule(stiction_rule if stiction_rule is not None
@@ -190,14 +191,14 @@ def verify(trajectory: Trajectory, gait: Gait | None = None, *,
     # a stuck body's force may reach its static bound; a sliding one's is checked at its
     # kinetic value below (``wrong_force``), inside the static interval too
     excess = np.maximum(np.maximum(R - sm, -sp - R), 0.0)
-    phi = fp * np.maximum(v, 0.0) + fm * np.maximum(-v, 0.0)
+    phi = dissipation(b, v)
     gap = np.maximum(phi + R * v, 0.0)
     tiny = 1e-9 * v_max + dv
     # a contact state that contradicts the velocity, or the force: a body claimed sliding feels
     # its Coulomb force (-f_plus forward, +f_minus backward), even where its velocity is zero
     # (the instant it starts or stops)
     free = (fp == 0) & (fm == 0)
-    coulomb = np.where(tr.contact > 0, -fp, fm)
+    coulomb = kinetic_force(b, tr.contact)
     wrong_force = (tr.contact != 0) & ~free & (np.abs(R - coulomb) > 1e-9 * f_max + u * f_max)
     contact_bad = int(np.sum(((tr.contact > 0) & (v < -tiny)) | ((tr.contact < 0) & (v > tiny))
                              | wrong_force))
@@ -247,7 +248,8 @@ def _sampled_acceleration(tr: Trajectory) -> float:
     and F_ext, plus the bodies' mean acceleration between samples far enough apart for their
     velocities' difference not to be rounding (the gait's own e'' adds to it when known)."""
     c = tr.crawler
-    a = (abs(c.external_force) + float(c.friction.sum() + c.friction_backward.sum())) / \
+    b = bounds(c)
+    a = (abs(c.external_force) + float(b.kinetic_forward.sum() + b.kinetic_backward.sum())) / \
         c.total_mass
     h = np.diff(tr.t)
     wide = h > 1e6 * _EPS * np.maximum(np.abs(tr.t[1:]), 1e-300)
@@ -271,8 +273,8 @@ def _kinematic(tr: Trajectory, gait, n_sub: int, rule: str = DEFAULT_RULE) -> di
     rounding, which the replay carries along its steps (``verify``)."""
     c = tr.crawler
     m, M = c.masses, c.total_mass
-    fp, fm, fext = c.friction, c.friction_backward, c.external_force
     b = bounds(c)
+    fp, fm, fext = b.kinetic_forward, b.kinetic_backward, c.external_force
     sp, sm = b.static_forward, b.static_backward       # the kinetic ones without stiction
     t = tr.t
     X_s, V_s = tr.com, tr.com_velocity
@@ -364,7 +366,7 @@ def _kinematic(tr: Trajectory, gait, n_sub: int, rule: str = DEFAULT_RULE) -> di
         # need not report its events): it is free, never part of a stick, no sign to check
         stuck = np.nonzero((s == 0) & ~free)[0]
         slide = np.nonzero((s != 0) & ~free)[0]
-        force = np.where(free, 0.0, np.where(s > 0, fp, -fm))   # friction F_i of a sliding body
+        force = np.where(free, 0.0, -kinetic_force(b, s))   # F_i = -ground force, sliding
         taus = pts[k]
         dtb = tb - ta
         if float(ta) in decisions and not sliver:

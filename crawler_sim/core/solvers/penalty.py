@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..friction import bounds
 from ..gaits import Gait
 from ..model import Crawler
 from . import _stepping
@@ -54,7 +55,8 @@ def check_penalty(penalty: ArrayLike | None, p: int) -> NDArray[np.float64]:
 def penalty_bound(crawler: Crawler, penalty: ArrayLike, t: float | NDArray) -> float | NDArray:
     """The seed's a priori bound on |V^n(t) - V(t)| [m/s] (centre-of-mass and every body)."""
     n = check_penalty(penalty, crawler.p)
-    f = np.maximum(crawler.friction, crawler.friction_backward)
+    b = bounds(crawler)
+    f = np.maximum(b.kinetic_forward, b.kinetic_backward)
     return np.sqrt(2.0 * np.asarray(t) / crawler.total_mass * np.sum(f ** 2 / n))
 
 
