@@ -327,6 +327,11 @@ class Engine:
         already hold, so it continues without a gait switch), else one PiecewiseCubic (from
         arrays when the actuator ran in blocks, without a Cubic per tick)."""
         first = runs[0]
+        if len(runs) == 1 and type(first) is Pieces and first.rest_from != 0 \
+                and len(first.starts) > 1:
+            # one run of the actuator that is not a rest window (a control period): what the
+            # general path below returns, without its checks
+            return PiecewiseCubic.from_arrays(first.starts, first.anchors, first.coef)
         if len(runs) == 1 and not isinstance(first, Pieces):
             starts, pieces = first
             return pieces[0] if len(pieces) == 1 or all(pc is pieces[0] for pc in pieces) \
@@ -413,7 +418,8 @@ class Engine:
         State (``Stepper.read_state``; the same values, bit for bit)."""
         if not self.integrate:
             raise RuntimeError('an Engine(..., integrate=False) has no crawler state')
-        self.sync()
+        if self._blocks or self._pieces:
+            self.sync()
         self.stepper.read_state(x, v, contact)
 
     def actuator_output(self) -> PiecewiseCubic:
