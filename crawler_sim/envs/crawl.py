@@ -43,7 +43,6 @@ class CrawlEnv(gymnasium.Env):
         self.action_space = spaces.Box(-1.0, 1.0, (n,), np.float64)
         self.observation_space = spaces.Box(-np.inf, np.inf, (self.plant.obs_size,),
                                             np.float64)
-        self._obs = np.zeros(self.plant.obs_size)
         self.plant.reset(None)
 
     @property
@@ -57,7 +56,7 @@ class CrawlEnv(gymnasium.Env):
         seeded generator when ``randomize`` > 0."""
         super().reset(seed=seed)
         self.plant.reset(self.np_random)
-        return self.plant.observe(self._obs).copy(), self.plant.info()
+        return self.plant.observation(), self.plant.info()
 
     def step(self, action: Any) -> tuple[NDArray[np.float64], float, bool, bool, dict]:
         """One control period: the action's target lengths sent, the plant run to its end."""
@@ -65,7 +64,7 @@ class CrawlEnv(gymnasium.Env):
         reward, speed, failed = self.plant.step(a)
         info = self.plant.info()
         info['x_velocity'] = speed
-        return self.plant.observe(self._obs).copy(), reward, failed, False, info
+        return self.plant.observation(), reward, failed, False, info
 
     def render(self) -> NDArray[np.uint8] | None:
         """rgb_array: the crawler now (``render.draw``); None without a render mode."""

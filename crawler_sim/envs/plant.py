@@ -75,8 +75,8 @@ def check_action(action: Any, shape: tuple[int, ...]) -> NDArray[np.float64]:
         # than the step's plant work on a few numbers; the same values, bit for bit)
         vals = a.ravel().tolist()
         if all(map(math.isfinite, vals)):
-            return np.array([-1.0 if x < -1.0 else 1.0 if x > 1.0 else x
-                             for x in vals]).reshape(shape)
+            out = np.array([-1.0 if x < -1.0 else 1.0 if x > 1.0 else x for x in vals])
+            return out if len(shape) == 1 else out.reshape(shape)
     if not np.isfinite(a).all():
         bad = np.argwhere(~np.isfinite(a))[0]
         raise ValueError(f'action{list(bad.tolist())} must be finite, in [-1, 1], got '
@@ -238,10 +238,17 @@ class CrawlPlant:
 
     def observe(self, out: NDArray[np.float64]) -> NDArray[np.float64]:
         """The observation (module doc) written into ``out`` (shape (obs_size,))."""
-        act = self.engine.actuator
         # one assignment from one list (six slices of a few numbers cost twice as much)
-        out[:] = act.l + act.v + act.a + self.targets + self.v.tolist() + self.contact.tolist()
+        out[:] = self._observation()
         return out
+
+    def observation(self) -> NDArray[np.float64]:
+        """The observation (module doc) as a new array."""
+        return np.array(self._observation())
+
+    def _observation(self) -> list[float]:
+        act = self.engine.actuator
+        return act.l + act.v + act.a + self.targets + self.v.tolist() + self.contact.tolist()
 
     def info(self) -> dict[str, Any]:
         """What a policy must not see but a user wants: positions, time, failures."""
