@@ -5,7 +5,8 @@ rosbags' typestore dataclass of the same type otherwise (:mod:`crawler_sim.bag.r
 same fields, the same CDR. The node (``crawler_sim/ros/messages.py``) uses the same builders:
 JointState names ``body_i`` / ``linkage_j`` with an empty frame id, Int8MultiArray /
 Float64MultiArray without layout, Odometry of the centre of mass in frame ``odom`` with child
-``base_link`` and identity orientation. All times are integer nanoseconds of sim time (see
+``base_link`` (prefixed in a namespace, :func:`frame_prefix`) and identity orientation. All
+times are integer nanoseconds of sim time (see
 :mod:`crawler_sim.bag.clock`).
 """
 from __future__ import annotations
@@ -33,6 +34,15 @@ STRING = SCENE.type
 
 ODOM_FRAME = 'odom'
 BASE_FRAME = 'base_link'
+
+
+def frame_prefix(namespace: str) -> str:
+    """The prefix of a robot's frames: '' in the root namespace, ``r1/`` in ``/r1`` (``/a/b``
+    gives ``a/b/``): ``/tf`` is one global topic, so two robots must never claim the same frame
+    (robot_state_publisher's ``frame_prefix`` convention). ``odom`` and ``/tf`` name the same
+    frames."""
+    ns = namespace.strip('/')
+    return f'{ns}/' if ns else ''
 
 # The numeric fields that change from one message of a run to the next, in groups adjacent in
 # the CDR bytes (the ``groups`` of :class:`crawler_sim.bag.cdr.Encoder`): everything else of a
@@ -127,13 +137,15 @@ def centre_of_mass_rows(x: ArrayLike, v: ArrayLike, masses: ArrayLike
     return com_x, com_v
 
 
-def odometry(t_ns: int, x: ArrayLike, v: ArrayLike, masses: ArrayLike) -> Any:
+def odometry(t_ns: int, x: ArrayLike, v: ArrayLike, masses: ArrayLike,
+             prefix: str = '') -> Any:
     """``odom``: centre of mass X = sum m_i x_i / M and V along x, frame ``odom``, child
-    ``base_link``. The line is the odom x axis (along the incline); orientation is identity."""
+    ``base_link`` (each after ``prefix``: :func:`frame_prefix`). The line is the odom x axis
+    (along the incline); orientation is identity."""
     msg = new(ODOMETRY)
     msg.header.stamp = stamp_from_ns(t_ns)
-    msg.header.frame_id = ODOM_FRAME
-    msg.child_frame_id = BASE_FRAME
+    msg.header.frame_id = prefix + ODOM_FRAME
+    msg.child_frame_id = prefix + BASE_FRAME
     msg.pose.pose.position.x, msg.twist.twist.linear.x = centre_of_mass(x, v, masses)
     msg.pose.pose.orientation.w = 1.0
     return msg

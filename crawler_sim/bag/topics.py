@@ -34,6 +34,8 @@ events                  std_msgs/msg/Int32MultiArray         one contact change:
 crawler_sim/scene       std_msgs/msg/String                  the scene as YAML (latched, once)
 /clock                  rosgraph_msgs/msg/Clock              sim time at every publish tick
 /diagnostics            diagnostic_msgs/msg/DiagnosticArray  the node's status
+/tf                     tf2_msgs/msg/TFMessage               odom -> base_link (odom's pose;
+                                                             not recorded)
 ======================  ===================================  =================================
 """
 from __future__ import annotations
@@ -85,12 +87,15 @@ EVENTS = Topic('events', 'std_msgs/msg/Int32MultiArray')
 SCENE = Topic('crawler_sim/scene', _STRING)
 CLOCK = Topic('clock', 'rosgraph_msgs/msg/Clock', '/clock')
 DIAGNOSTICS = Topic('diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', '/diagnostics')
+#: sim_node's transform (``publish_tf``; not in :data:`OUTPUTS`, whose switched-on outputs a
+#: recording session records: ``odom`` holds the same numbers)
+TF = Topic('tf', 'tf2_msgs/msg/TFMessage', '/tf')
 
 #: Topics :func:`crawler_sim.bag.load` reads, besides the scene.
 STATE_TOPICS = (BODY_STATES, JOINT_STATES, CONTACT_STATES)
 ALL_TOPICS = (BODY_STATES, JOINT_STATES, CONTACT_STATES, CONTACTS, ODOM, MARKERS,
               ROBOT_DESCRIPTION, LINKAGE_CMD, LINKAGE_TRAJECTORY, APPLIED_COMMAND, PLANT_INPUTS,
-              EVENTS, SCENE, CLOCK, DIAGNOSTICS)
+              EVENTS, SCENE, CLOCK, DIAGNOSTICS, TF)
 #: sim_node's outputs on its publish grid, by the name of their ``publish_*`` parameter
 OUTPUTS = {'joint_states': JOINT_STATES, 'body_states': BODY_STATES,
            'contact_states': CONTACT_STATES, 'contacts_stamped': CONTACTS, 'odom': ODOM,

@@ -71,9 +71,9 @@ def contact_states_msg(state: State) -> Int8MultiArray:
     return contact_states(state.contact)
 
 
-def odom_msg(state: State, masses: np.ndarray, t_ns: int) -> Odometry:
-    """``odom`` from a core ``State``."""
-    return odometry(t_ns, state.x, state.v, masses)
+def odom_msg(state: State, masses: np.ndarray, t_ns: int, prefix: str = '') -> Odometry:
+    """``odom`` from a core ``State`` (frames after ``prefix``: ``bag.msgs.frame_prefix``)."""
+    return odometry(t_ns, state.x, state.v, masses, prefix)
 
 
 def _colour(rgba: tuple[float, float, float, float]) -> ColorRGBA:
@@ -222,13 +222,17 @@ class OutputEncoder:
     ``fast`` and ``slow`` count the messages made each way.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, prefix: str = '') -> None:
         from rclpy.serialization import serialize_message
+        #: the frames' prefix of ``odom`` (``bag.msgs.frame_prefix`` of the node's namespace)
+        self.prefix = prefix
         self._serialize, self._encoder_class, self._layout_error = (
             serialize_message, Encoder, LayoutError)
         self._encoders: dict[tuple, Any] = {}
         self._masses_of: Any = _MISSING       # the masses argument of the cached conversion
         self._masses: tuple = ()
+        self._com_of: tuple = (_MISSING, _MISSING)     # (state, masses) of the latest com
+        self._com = (0.0, 0.0)
         self.fast = 0
         self.slow = 0
 
@@ -279,18 +283,28 @@ class OutputEncoder:
 
     def odom(self, state: State | Row, t_ns: int,
              masses: Sequence[float] | None = None) -> bytes:
+        com_x, com_v = self.centre_of_mass(state, masses)
+        return self._encode(('odom',), _ODOM, (split_ns(t_ns), (com_x,), (com_v,)),
+                            lambda: odom_msg(_source(state), masses, t_ns, self.prefix))
+
+    def centre_of_mass(self, state: State | Row,
+                       masses: Sequence[float] | None) -> tuple[float, float]:
+        """``bag.msgs.centre_of_mass`` of ``state`` (its arithmetic, the masses converted once
+        while the same object is passed): ``odom``'s pose and ``/tf``'s transform."""
+        if state is self._com_of[0] and masses is self._com_of[1]:
+            return self._com              # the same state again (odom, then /tf)
         x, v = getattr(state, 'x_array', state.x), getattr(state, 'v_array', state.v)
-        if masses is self._masses_of:         # centre_of_mass's arithmetic, masses converted once
+        if masses is self._masses_of:
             m, total = self._masses
-            com_x, com_v = (float(m @ np.asarray(x, dtype=np.float64)) / total,
-                            float(m @ np.asarray(v, dtype=np.float64)) / total)
+            com = (float(m @ np.asarray(x, dtype=np.float64)) / total,
+                   float(m @ np.asarray(v, dtype=np.float64)) / total)
         else:
-            com_x, com_v = centre_of_mass(x, v, masses)
+            com = centre_of_mass(x, v, masses)
             if masses is not None:
                 m = np.asarray(masses, dtype=np.float64)
                 self._masses_of, self._masses = masses, (m, float(m.sum()))
-        return self._encode(('odom',), _ODOM, (split_ns(t_ns), (com_x,), (com_v,)),
-                            lambda: odom_msg(_source(state), masses, t_ns))
+        self._com_of, self._com = (state, masses), com
+        return com
 
     def markers(self, state: State | Row, t_ns: int,
                 masses: Sequence[float] | None = None) -> bytes:

@@ -114,3 +114,57 @@ def test_tfmessage_has_the_type_hash_of_jazzys_tf2_msgs():
               json.loads((share / 'msg' / 'TFMessage.json').read_text())['type_hashes']}
     expected = get_typestore(Stores.ROS2_JAZZY).hash_rihs01('tf2_msgs/msg/TFMessage')
     assert hashes['tf2_msgs/msg/TFMessage'] == expected
+
+
+def test_a_namespaced_robots_odom_names_the_frames_of_its_tf(ros):
+    """In /r1, /tf says r1/odom -> r1/base_link: ``odom`` must name the same frames (it said
+    odom/base_link, so RViz with fixed frame r1/odom could not place the odometry)."""
+    node = SimNode(context=ros.ctx, namespace='/r1', parameter_overrides=[
+        Parameter(k, value=v) for k, v in THREE_BODY.items()])
+    ros.ex.add_node(node)
+    ros.nodes.append(node)
+    tfs = ros.listen(TFMessage, '/tf')
+    odoms = ros.listen(Odometry, '/r1/odom')
+    ticks(node, 20)
+    ros.until(lambda: len(tfs) >= 2 and len(odoms) >= 2, 'two publish ticks')
+    tr, odom = tfs[-1].transforms[0], odoms[-1]
+    assert (odom.header.frame_id, odom.child_frame_id) == (tr.header.frame_id,
+                                                           tr.child_frame_id) \
+        == ('r1/odom', 'r1/base_link')
+    assert ns_from_stamp(odom.header.stamp) == ns_from_stamp(tr.header.stamp) == 20 * TICK
+    assert odom.pose.pose.position.x == tr.transform.translation.x
+
+
+def test_publish_tf_switches_tf_like_the_other_outputs(ros):
+    sim = ros.sim(publish_tf=False)
+    assert sim.outputs.tf is None
+    ticks(sim, 10)
+    assert ros.obs.count_publishers('/tf') == 0
+    # (a parameter change takes effect at the next tick)
+    assert sim.set_parameters([Parameter('publish_tf', value=True)])[0].successful
+    ticks(sim, 1)
+    tfs = ros.listen(TFMessage, '/tf')
+    ticks(sim, 9)
+    ros.until(lambda: tfs, 'a transform once switched on')
+    assert ns_from_stamp(tfs[-1].transforms[0].header.stamp) == 20 * TICK
+    assert sim.set_parameters([Parameter('publish_tf', value=False)])[0].successful
+    ticks(sim, 1)
+    assert sim.outputs.tf is None
+    ros.until(lambda: ros.obs.count_publishers('/tf') == 0, 'the /tf publisher gone')
+
+
+def test_tf_is_published_but_not_recorded(ros, tmp_path):
+    """The output table's rule: a session records its switched-on grid outputs
+    (``bag.topics.OUTPUTS``); /tf is outside it (``odom`` holds its numbers), so a bag of the
+    default node is what it was before /tf existed."""
+    from mcap.reader import make_reader
+    sim = ros.sim(record=True, record_dir=str(tmp_path), record_name='tf')
+    tfs = ros.listen(TFMessage, '/tf')
+    ticks(sim, 30)
+    ros.until(lambda: tfs, 'a transform')
+    sim.close()
+    bag = next(tmp_path.rglob('*.mcap'))
+    with bag.open('rb') as f:
+        topics = {ch.topic for ch in make_reader(f).get_summary().channels.values()}
+    assert '/odom' in topics and '/body_states' in topics
+    assert '/tf' not in topics

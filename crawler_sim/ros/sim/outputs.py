@@ -27,7 +27,7 @@ from visualization_msgs.msg import MarkerArray
 from crawler_sim.bag import topics as T
 from crawler_sim.ros import messages as M
 from .model import robot_description
-from .tf import TfBroadcaster, load_tf_message
+from .tf import TfBroadcaster, frame_prefix, load_tf_message
 from .params import OFF_GRID, OUTPUTS
 
 if TYPE_CHECKING:
@@ -64,7 +64,8 @@ class Outputs:
         self.clock_floor = 0
         self.clock_last_ns = -1           # the latest /clock published [ns] (-1: none yet)
         self.clock_wall = 0.0             # when (perf_counter s)
-        self.encoder = M.OutputEncoder()
+        # odom names the frames /tf does (prefixed in a namespace, bag.msgs.frame_prefix)
+        self.encoder = M.OutputEncoder(frame_prefix(node.get_namespace()))
         # (name, topic, publisher, encode, publish_raw) on the publish grid, and those with a
         # subscriber
         self._grid: list[tuple] = []
@@ -75,9 +76,10 @@ class Outputs:
         self._model_key: tuple | None = None     # what the published description was made of
         #: the URDF last published on ``robot_description`` ('' before the first sync)
         self.description = ''
-        # /tf odom -> base_link at every publish tick (None without tf2_msgs: why in tf_missing)
-        tf_message, self.tf_missing = load_tf_message()
-        self.tf = TfBroadcaster(node, tf_message) if tf_message is not None else None
+        # /tf odom -> base_link at every publish tick while publish_tf (None when switched off,
+        # or without tf2_msgs: why in tf_missing)
+        self._tf_message, self.tf_missing = load_tf_message()
+        self.tf: TfBroadcaster | None = None
 
     def sync(self, cfg: SimConfig) -> bool:
         """Create the publishers of switched-on outputs, destroy those switched off; publish
@@ -93,6 +95,11 @@ class Outputs:
                                                         T.OUTPUTS[name].node_name, 10)
             elif not on and name in self.pubs:
                 node.destroy_publisher(self.pubs.pop(name))
+        if cfg.publish_tf and self.tf is None and self._tf_message is not None:
+            self.tf = TfBroadcaster(node, self._tf_message, self.encoder.centre_of_mass)
+        elif not cfg.publish_tf and self.tf is not None:
+            self.tf.destroy()
+            self.tf = None
         enc = self.encoder
         # publish_raw of the pybind handle: rclpy's Publisher.publish adds a type check and a
         # `with handle` guard (about 5 us) per message; the handles live as long as the node

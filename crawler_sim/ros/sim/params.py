@@ -48,6 +48,8 @@ NODE_PARAMETERS: dict[str, tuple[Any, str, tuple[float, float] | None, bool]] = 
     'publish_odom': (True, 'Publish odom', None, False),
     'publish_markers': (True, 'Publish markers', None, False),
     'publish_diagnostics': (True, 'Publish /diagnostics', None, False),
+    'publish_tf': (True, 'Publish /tf odom -> base_link (odom\'s pose, frames prefixed in a '
+                   'namespace: r1/odom; not recorded)', None, False),
     'diagnostics_period': (1.0, 'Wall seconds between /diagnostics messages',
                            (0.05, 3600.0), False),
     'start_paused': (False, 'Start paused (~/pause false starts the clock), so that controllers '

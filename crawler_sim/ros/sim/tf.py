@@ -11,27 +11,33 @@ global topic, so a robot in namespace ``/r1`` gets ``r1/odom`` -> ``r1/base_link
 ``frame_prefix`` convention of robot_state_publisher: run it there with ``-p frame_prefix:=r1/``)
 and two robots never claim the same frame.
 
-Cost: one TFMessage built at start and refilled in place (two fields) per publish tick, sent only
-while someone subscribes (the count is read every ``COUNT_PERIOD`` publish ticks, as for the
-other outputs). A paused node republishes its state: the same stamp is not sent again (tf2
-would warn TF_REPEATED_DATA each time) except to a subscriber that joined since. Not recorded:
-the bag's ``odom`` holds the same numbers.
+Cost: the message goes out as CDR bytes (``bag.cdr.Encoder``: the first message serialised
+once, then the stamp and x packed into its bytes, published raw as the other outputs are: the
+rclpy message's conversion to C cost about as much as all six other outputs' encodings), the
+centre of mass from the output encoder (``OutputEncoder.centre_of_mass``, ``odom``'s own
+numbers), sent only while someone subscribes (the count is read every ``COUNT_PERIOD`` publish
+ticks, as for the other outputs). A paused node republishes its state: the same stamp is not
+sent again (tf2 would warn TF_REPEATED_DATA each time) except to a subscriber that joined since.
+Switched by ``publish_tf``; not recorded (outside the output table ``bag.topics.OUTPUTS``, whose
+switched-on outputs a session records): the bag's ``odom`` holds the same numbers.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 from geometry_msgs.msg import TransformStamped
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-from crawler_sim.bag.msgs import BASE_FRAME, ODOM_FRAME, centre_of_mass
+from crawler_sim.bag import topics as T
+from crawler_sim.bag.cdr import Encoder, LayoutError
+from crawler_sim.bag.msgs import BASE_FRAME, ODOM_FRAME, STAMP, frame_prefix
+from crawler_sim.core.simtime import split_ns
 
 if TYPE_CHECKING:
     from rclpy.node import Node
 
-__all__ = ['TfBroadcaster', 'TF_TOPIC', 'TF_QOS', 'frame_prefix', 'load_tf_message']
+__all__ = ['TfBroadcaster', 'TF_QOS', 'frame_prefix', 'load_tf_message']
 
-TF_TOPIC = '/tf'
 #: tf2_ros's TransformBroadcaster QoS (DynamicBroadcasterQoS): reliable, volatile, depth 100
 TF_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
                     durability=DurabilityPolicy.VOLATILE)
@@ -48,29 +54,47 @@ def load_tf_message() -> tuple[type | None, str]:
     return TFMessage, ''
 
 
-def frame_prefix(namespace: str) -> str:
-    """The prefix of this robot's frames: '' in the root namespace, ``r1/`` in ``/r1``
-    (``/a/b`` gives ``a/b/``)."""
-    ns = namespace.strip('/')
-    return f'{ns}/' if ns else ''
+#: the changing fields of the transform (stamp, x), adjacent groups in its CDR bytes
+_TF_GROUPS = (tuple('transforms.0.' + f for f in STAMP),
+              ('transforms.0.transform.translation.x',))
 
 
 class TfBroadcaster:
-    """Publishes odom -> base_link (prefixed in a namespace) on ``/tf``."""
+    """Publishes odom -> base_link (prefixed in a namespace) on ``/tf``; ``centre_of_mass``
+    (state, masses) -> (X, V) is ``odom``'s (``OutputEncoder.centre_of_mass``)."""
 
-    def __init__(self, node: Node, tf_message: type) -> None:
+    def __init__(self, node: Node, tf_message: type,
+                 centre_of_mass: Callable[[Any, Sequence[float]], tuple[float, float]]) -> None:
         prefix = frame_prefix(node.get_namespace())
         self.parent, self.child = prefix + ODOM_FRAME, prefix + BASE_FRAME
-        self._pub = node.create_publisher(tf_message, TF_TOPIC, TF_QOS)
+        self._node = node
+        self._pub = node.create_publisher(tf_message, T.TF.node_name, TF_QOS)
+        self._com = centre_of_mass
         tr = TransformStamped()
         tr.header.frame_id = self.parent
         tr.child_frame_id = self.child
         tr.transform.rotation.w = 1.0
-        self._msg = tf_message(transforms=[tr])
-        self._tr = self._msg.transforms[0]
+        msg = tf_message(transforms=[tr])
+        try:
+            encode = Encoder(msg, T.TF.type, _TF_GROUPS).encode
+            publish_raw = self._pub.handle.publish_raw
+            self._send = lambda t_ns, x: publish_raw(encode(split_ns(t_ns), (x,)))
+        except LayoutError:         # a TFMessage the walker cannot read: rclpy converts it
+            self._send = self._send_message
+            self._msg = msg
         self._countdown = 0
         self._count = 0             # subscribers at the latest read
         self._last_ns = -1          # sim time of the latest transform sent [ns]
+
+    def _send_message(self, t_ns: int, x: float) -> None:
+        tr = self._msg.transforms[0]
+        tr.header.stamp.sec, tr.header.stamp.nanosec = split_ns(t_ns)
+        tr.transform.translation.x = x
+        self._pub.publish(self._msg)
+
+    def destroy(self) -> None:
+        """Destroy the publisher (``publish_tf`` switched off)."""
+        self._node.destroy_publisher(self._pub)
 
     def publish(self, state: Any, t_ns: int, masses: Sequence[float]) -> None:
         """Send the transform at sim time ``t_ns`` [ns] of ``state`` (a core ``State`` or its
@@ -93,13 +117,7 @@ class TfBroadcaster:
                 return
         if callable(state):
             state = state()
-        x = getattr(state, 'x_array', state.x)
-        v = getattr(state, 'v_array', state.v)
-        com_x, _ = centre_of_mass(x, v, masses)
-        tr = self._tr
-        tr.header.stamp.sec, tr.header.stamp.nanosec = divmod(int(t_ns), 1_000_000_000)
-        tr.transform.translation.x = com_x
-        self._pub.publish(self._msg)
+        self._send(t_ns, self._com(state, masses)[0])
         self._last_ns = t_ns
 
     def refresh(self) -> None:
