@@ -19,16 +19,22 @@ import threading
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
+from .standard import ACTION, SERVICES
+
 __all__ = ['main']
 
 SPIN_TIMEOUT = 2.0       # s, the longest wait of the executor thread for a callback
 
-#: the first paragraph of ``sim_node --help``
+#: the first paragraph of ``sim_node --help`` (the standard's services and action named from
+#: their table, .standard)
 HELP_SUMMARY = ('Simulates a friction crawler of p bodies joined by p-1 imposed linkages: takes '
                 'lengths on linkage_cmd (or linkage_trajectory), publishes joint_states, '
-                'body_states, contacts, odom, markers, /clock and /diagnostics; services '
-                '~/reset, ~/pause, ~/step. Node name crawler_sim; parameters change at run '
-                'time unless read only (docs/node.md).')
+                'body_states, contact_states, contacts, odom, markers, robot_description, '
+                '/tf (odom -> base_link; r1/odom -> r1/base_link in namespace /r1), /clock and '
+                '/diagnostics; services ~/reset, ~/pause, ~/step, and the simulation_interfaces '
+                f'services {", ".join(SERVICES)} and action {ACTION} (when the package is '
+                'installed). Node name crawler_sim; parameters change at run time unless read '
+                'only (docs/node.md).')
 
 
 def main(args: list[str] | None = None) -> None:
