@@ -107,3 +107,27 @@ def test_a_stroke_reversal_rounded_just_before_a_cut_is_decided_as_in_one_call(r
         runs.append(st)
     for st in runs[1:]:
         assert_same_state(st, runs[0], rule)
+
+
+@pytest.mark.parametrize('rule', RULES)
+def test_the_engine_cut_at_its_sync_grid_gives_the_offline_runs_answer(rule):
+    # the same reversal through the plant's engine (cut at every tick of its grid, one of them
+    # at 2 s) against the node's offline run of the same command stream
+    from crawler_sim.core.plant import Engine, PreparedTrajectory
+    from crawler_sim.core.plant.streams import simulate_as_node, trajectory_points
+    gait = gaits.PiecewiseParabolic([0, 1, 3, 4], [0.5, -0.5, 0.5], 0.2)
+    plant = PlantConfig.defaults(
+        masses=[1.5, 0.7], friction=[1.25, 0.9], friction_backward=[1.8],
+        static_friction=[2.2, 1.25], static_friction_backward=[3.25, 3.55],
+        stiction_rule=rule, initial_lengths=[0.2], max_length=1.0)
+    tr = simulate_as_node(plant, gait, Stream(rate=50.0, duration=8.0), 8.0, dt=0.01)
+    eng = Engine(plant.engine_config())
+    eng.trajectory(PreparedTrajectory(0, *trajectory_points(gait, 0.0, 8.0, 50.0, 8.0)))
+    while eng.t < 2.5:
+        eng.tick_to_grid()
+    near = [(e.time, e.body, e.old, e.new) for e in tr.events if 1.9 < e.time < 2.2]
+    assert [(e.time, e.body, e.old, e.new) for e in eng.pop_events()
+            if 1.9 < e.time < 2.2] == near
+    k = int(np.argmin(np.abs(tr.t - eng.t)))
+    assert tr.t[k] == eng.t
+    assert np.max(np.abs(eng.state.x - tr.x[k])) <= TOL_X
