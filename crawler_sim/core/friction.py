@@ -14,6 +14,12 @@ F_i = -friction[i]; its f^{k,+}, f^{k,-}, f^{s,+}, f^{s,-} are ``kinetic_forward
 
 With every static bound equal to its kinetic one (``has_stiction`` False) the law is the
 convex one of MODEL.md and every method gives bit for bit what it gave before stiction.
+
+Compiled side: ``solvers/_friction.pxd`` (the sliding ground force, the stuck split in both
+arithmetic forms the methods keep, the penalty method's regularised law) and
+``solvers/_inclusion.pxd`` (the kinetic inclusion that decides the mode; Rule S over it lives
+in each method's mode decision: ``ExactCore.rule_s``, ``StepCore.st_decide``). The check that
+nothing else spells the law out: the grep in issue 40's note.
 """
 from __future__ import annotations
 
