@@ -86,6 +86,17 @@ def test_a_run_streamed_in_many_calls_with_the_periodic_skip_gives_the_one_call_
         assert_same_state(streamed, whole, f'seed {seed}')
 
 
+def reversal_plant(rule: str) -> tuple:
+    """The plumbing engineer's scene: a parabolic stroke whose reversal (l' = 0) falls on
+    t = 2 s, body 0 stuck there, the servo between the command and the crawler."""
+    gait = gaits.PiecewiseParabolic([0, 1, 3, 4], [0.5, -0.5, 0.5], 0.2)
+    plant = PlantConfig.defaults(
+        masses=[1.5, 0.7], friction=[1.25, 0.9], friction_backward=[1.8],
+        static_friction=[2.2, 1.25], static_friction_backward=[3.25, 3.55],
+        stiction_rule=rule, initial_lengths=[0.2], max_length=1.0)
+    return gait, plant
+
+
 @pytest.mark.parametrize('rule', RULES)
 def test_a_stroke_reversal_rounded_just_before_a_cut_is_decided_as_in_one_call(rule):
     # the plumbing engineer's scene: the servo's output of a parabolic stroke, body 1 reverses
@@ -93,11 +104,7 @@ def test_a_stroke_reversal_rounded_just_before_a_cut_is_decided_as_in_one_call(r
     # event was moved onto the cut, where body 1's velocity (-1.2e-15 m/s) had passed zero: it
     # was taken as sliding backward and never decided ('margin' kept body 0 instead of body 1:
     # x = [0, 0.6375] m instead of [0.0625, 0.7] m at 2.5 s)
-    gait = gaits.PiecewiseParabolic([0, 1, 3, 4], [0.5, -0.5, 0.5], 0.2)
-    plant = PlantConfig.defaults(
-        masses=[1.5, 0.7], friction=[1.25, 0.9], friction_backward=[1.8],
-        static_friction=[2.2, 1.25], static_friction_backward=[3.25, 3.55],
-        stiction_rule=rule, initial_lengths=[0.2], max_length=1.0)
+    gait, plant = reversal_plant(rule)
     out = actuator_output(plant, gait, Stream(rate=50.0, duration=8.0), 3.0)
     runs = []
     for cuts in ([2.5], [2.0, 2.5], [1.5, 2.0, 2.0 + 1e-13, 2.5]):
@@ -115,11 +122,7 @@ def test_the_engine_cut_at_its_sync_grid_gives_the_offline_runs_answer(rule):
     # at 2 s) against the node's offline run of the same command stream
     from crawler_sim.core.plant import Engine, PreparedTrajectory
     from crawler_sim.core.plant.streams import simulate_as_node, trajectory_points
-    gait = gaits.PiecewiseParabolic([0, 1, 3, 4], [0.5, -0.5, 0.5], 0.2)
-    plant = PlantConfig.defaults(
-        masses=[1.5, 0.7], friction=[1.25, 0.9], friction_backward=[1.8],
-        static_friction=[2.2, 1.25], static_friction_backward=[3.25, 3.55],
-        stiction_rule=rule, initial_lengths=[0.2], max_length=1.0)
+    gait, plant = reversal_plant(rule)
     tr = simulate_as_node(plant, gait, Stream(rate=50.0, duration=8.0), 8.0, dt=0.01)
     eng = Engine(plant.engine_config())
     eng.trajectory(PreparedTrajectory(0, *trajectory_points(gait, 0.0, 8.0, 50.0, 8.0)))
