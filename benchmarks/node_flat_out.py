@@ -7,7 +7,9 @@ other process (issue 42's floor: at least 2x the factor before, measured in the 
 install's sim_node runs the code of a source tree (PYTHONPATH first): ``--baseline REV`` is
 checked out as a git worktree under ``--workdir`` (its compiled core copied from this checkout
 when the Cython sources are the same, else built in place), and runs of the baseline and of this
-checkout (or ``--candidate REV``, another worktree) alternate, so both see the same machine.
+checkout (or ``--candidate REV``, another worktree: e.g. ``HEAD``, without the working tree's
+uncommitted edits) alternate, so both see the same machine. Run it in a ROS domain of its own
+(``ROS_DOMAIN_ID``): another sim_node or subscriber in the domain would take part.
 
 Each run: sim_node with the packaged parameters, ``real_time_factor:=0`` and every output at its
 default (on), the seed's crawler moving on gait_node's preloaded stroke (one trajectory, no CPU
