@@ -168,3 +168,30 @@ def test_tf_is_published_but_not_recorded(ros, tmp_path):
         topics = {ch.topic for ch in make_reader(f).get_summary().channels.values()}
     assert '/odom' in topics and '/body_states' in topics
     assert '/tf' not in topics
+
+
+def test_the_raw_transform_is_the_serialised_message(ros):
+    """/tf goes out as CDR bytes packed into a template: they are ``serialize_message`` of the
+    TFMessage with those numbers (padding zeroed), stamps and awkward x included."""
+    from geometry_msgs.msg import TransformStamped
+    import numpy as np
+    from rclpy.serialization import serialize_message
+    from crawler_sim.bag.cdr import zero_padding
+    from crawler_sim.bag.topics import TF
+    node = SimNode(context=ros.ctx, namespace='/r2', parameter_overrides=[
+        Parameter(k, value=v) for k, v in THREE_BODY.items()])
+    ros.ex.add_node(node)
+    ros.nodes.append(node)
+    tf = node.outputs.tf
+    assert tf.encode is not None
+    rng = np.random.default_rng(5)
+    for t_ns, x in [(0, 0.0), (10 * TICK, -0.0), (2**31 * 10**9 - 1, 1e-300),
+                    *((int(rng.integers(0, 2**40)), float(rng.normal())) for _ in range(20))]:
+        tr = TransformStamped()
+        tr.header.frame_id, tr.child_frame_id = tf.parent, tf.child
+        tr.transform.rotation.w = 1.0
+        msg = TFMessage(transforms=[tr])
+        tr.header.stamp.sec, tr.header.stamp.nanosec = divmod(t_ns, 10**9)
+        tr.transform.translation.x = x
+        assert tf.encode(t_ns, x) == zero_padding(serialize_message(msg), TF.type)
+    assert (tr.header.frame_id, tr.child_frame_id) == ('r2/odom', 'r2/base_link')

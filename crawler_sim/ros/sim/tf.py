@@ -74,14 +74,16 @@ class TfBroadcaster:
         tr.header.frame_id = self.parent
         tr.child_frame_id = self.child
         tr.transform.rotation.w = 1.0
-        msg = tf_message(transforms=[tr])
+        self._msg = tf_message(transforms=[tr])
         try:
-            encode = Encoder(msg, T.TF.type, _TF_GROUPS).encode
+            pack = Encoder(self._msg, T.TF.type, _TF_GROUPS).encode
             publish_raw = self._pub.handle.publish_raw
-            self._send = lambda t_ns, x: publish_raw(encode(split_ns(t_ns), (x,)))
+            #: the CDR bytes of the transform at ``t_ns`` [ns] with translation x [m]
+            self.encode = lambda t_ns, x: pack(split_ns(t_ns), (x,))
+            self._send = lambda t_ns, x: publish_raw(pack(split_ns(t_ns), (x,)))
         except LayoutError:         # a TFMessage the walker cannot read: rclpy converts it
+            self.encode = None
             self._send = self._send_message
-            self._msg = msg
         self._countdown = 0
         self._count = 0             # subscribers at the latest read
         self._last_ns = -1          # sim time of the latest transform sent [ns]
