@@ -221,7 +221,7 @@ class Stepper:
     def advance(self, t1: float, gait: Gait | None = None) -> None:
         """Integrate to t1 [s] (>= t) with ``gait`` (or the previous one) valid on [t, t1]."""
         t1 = _check_finite('t1', t1)
-        if t1 < self.t:
+        if t1 < self._solver.t:
             raise ValueError(f't1 must be >= the current time {self.t} s, got {t1}')
         if gait is not None:
             check_gait(gait, self.crawler, self.t)
@@ -254,9 +254,11 @@ class Stepper:
     def pop_events(self) -> list[Event]:
         """Contact events since the last call, in time order."""
         ev = self._solver.events
-        out = ev[self._n_events_read:]
+        n = len(ev)
+        # none new (most calls of a stream): no slice of the log
+        out = ev[self._n_events_read:] if n > self._n_events_read else ()
         if self._keep:
-            self._n_events_read = len(ev)
+            self._n_events_read = n
         else:
             # streaming: drop what was read so a long run does not accumulate events
             ev.clear()

@@ -102,13 +102,15 @@ class CrawlVectorEnv(VectorEnv):
         resets = self._autoreset.nonzero()[0].tolist()
         self._steps[resets] = -1
         reset = set(resets)
-        obs = self._obs
+        rows = [None] * n
         for i, (pl, a) in enumerate(zip(self.plants, acts)):
             if i in reset:
                 pl.reset(self._rngs[i])
             else:
                 rewards[i], speeds[i], terminated[i] = pl.step(a)
-            pl.observe(obs[i])
+            rows[i] = pl._observation()
+        # the observations written in one assignment (one per row cost a numpy call per env)
+        self._obs[:] = rows
         self._steps += 1
         rewards, speeds = np.array(rewards), np.array(speeds)
         terminated = np.array(terminated, dtype=bool)

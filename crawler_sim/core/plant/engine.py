@@ -268,7 +268,9 @@ class Engine:
             if n < k:
                 self._run(n)             # ends off the grid: queued, as single ticks are
             elif self.integrate:
-                n = self.tick_to_grid()
+                n = k                    # tick_to_grid(), k known
+                self._run(n)
+                self.sync()
             else:
                 # without integration a sync only moves the queue to the log: one run up to
                 # the last grid tick of the span (what is after it stays queued, as with tick())
@@ -368,7 +370,7 @@ class Engine:
         runs = self._drain()
         t1 = to_seconds(self.t_ns)
         try:
-            if capabilities(self.stepper.method).fixed_step:
+            if _fixed_step(self.stepper.method):
                 # time stepping: one call per tick keeps its steps on the tick grid
                 starts, pieces = self._ticks(runs)
                 ends = starts[1:] + [t1]
@@ -443,6 +445,18 @@ class Engine:
         """Contact events integrated so far and not yet popped, in time order."""
         out, self._events = self._events, []
         return out
+
+
+#: fixed_step of each method asked so far (a method's capabilities do not change)
+_FIXED_STEP: dict[str, bool] = {}
+
+
+def _fixed_step(method: str) -> bool:
+    """``capabilities(method).fixed_step``, looked up once per method."""
+    fixed = _FIXED_STEP.get(method)
+    if fixed is None:
+        fixed = _FIXED_STEP[method] = capabilities(method).fixed_step
+    return fixed
 
 
 def _handover(st: State, gait: Gait, cfg: EngineConfig) -> tuple[float, dict[str, Any]]:

@@ -240,10 +240,18 @@ class ExactSolver:
     def _cap(self) -> float:
         """Largest grid step [s] while a row is watched: the user's max_step, the gait's,
         period / 8 (0: an eighth of each segment's span). Only the cost depends on it."""
-        cands = [self.max_step, getattr(self.gait, 'max_step', None),
-                 self.gait.period / 8.0 if self.gait.period else None]
-        cands = [c for c in cands if c is not None]
-        return min(cands) if cands else 0.0
+        gait = self.gait
+        period = gait.period
+        cap = self.max_step
+        step = getattr(gait, 'max_step', None)
+        # the smallest of those given (min over them in this order, without building lists)
+        if step is not None and (cap is None or step < cap):
+            cap = step
+        if period:
+            eighth = period / 8.0
+            if cap is None or eighth < cap:
+                cap = eighth
+        return 0.0 if cap is None else cap
 
     def _store(self, n: int, n_ev: int) -> None:
         """Keep the call's n segment records (as one ``SegmentChunk``, turned into ``Segment``
