@@ -387,6 +387,19 @@ cdef class Servo:
     def target(self, values):
         self._put(self.tgt, values)
 
+    def _command(self, list new):
+        """A step command's new targets (``Actuator.set_target``: ``n_links`` Python floats,
+        checked there): a linkage whose target changes is no longer settled."""
+        cdef Py_ssize_t i
+        cdef double x
+        if len(new) != self.n_links:
+            raise ValueError(f'expected {self.n_links} values, got {len(new)}')
+        for i in range(self.n_links):
+            x = new[i]
+            if x != self.tgt[i]:
+                self.settled[i] = 0
+            self.tgt[i] = x
+
     @property
     def _settled(self) -> list[bool]:
         return [bool(self.settled[i]) for i in range(self.n_links)]

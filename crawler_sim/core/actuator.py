@@ -415,12 +415,7 @@ class Actuator(Servo):
         new = [float(x) for x in lengths]
         self.trajectory = None
         self._rest_piece = None
-        settled, old = self._settled, self.target
-        for i in range(self.n_links):
-            if new[i] != old[i]:
-                settled[i] = False
-        self._settled = settled
-        self.target = new
+        self._command(new)          # a changed target unsettles its linkage (compiled)
 
     def set_trajectory(self, trajectory: TrajectoryReference | None) -> None:
         """Follow ``trajectory`` (None: hold the current length)."""
