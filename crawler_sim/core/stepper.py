@@ -221,11 +221,12 @@ class Stepper:
     def advance(self, t1: float, gait: Gait | None = None) -> None:
         """Integrate to t1 [s] (>= t) with ``gait`` (or the previous one) valid on [t, t1]."""
         t1 = _check_finite('t1', t1)
-        if t1 < self._solver.t:
-            raise ValueError(f't1 must be >= the current time {self.t} s, got {t1}')
+        t = self._solver.t
+        if t1 < t:
+            raise ValueError(f't1 must be >= the current time {t} s, got {t1}')
         if gait is not None:
-            check_gait(gait, self.crawler, self.t)
-        check_lengths(self.gait if gait is None else gait, self.t, t1)
+            check_gait(gait, self.crawler, t)
+        check_lengths(self.gait if gait is None else gait, t, t1)
         self._solver.advance(t1, gait)
 
     def _row(self) -> dict:

@@ -84,14 +84,16 @@ def check_action(action: Any, shape: tuple[int, ...]) -> NDArray[np.float64]:
     return np.clip(a, -1.0, 1.0)
 
 
-def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
+def _dot(a: NDArray[np.float64], b: NDArray[np.float64], la: list[float] | None = None,
+         lb: list[float] | None = None) -> float:
     """float(a @ b) of two (k,) float64 arrays: below 16 terms in Python floats, summed from
     0.0 in order as numpy's dot does there (BLAS ddot's loop; cheaper than the call on a few
-    numbers), else numpy's."""
+    numbers), else numpy's. ``la``, ``lb``: ``a.tolist()``, ``b.tolist()`` if the caller has
+    them."""
     if a.size >= 16:
         return float(a @ b)
     s = 0.0
-    for x, y in zip(a.tolist(), b.tolist()):
+    for x, y in zip(a.tolist() if la is None else la, b.tolist() if lb is None else lb):
         s += x * y
     return s
 
@@ -210,20 +212,22 @@ class CrawlPlant:
 
     def lengths_of(self, action: NDArray[np.float64]) -> NDArray[np.float64]:
         """Target lengths [m] of a checked action in [-1, 1] (shape (n_links,))."""
-        return np.array(self._targets(action))
+        return np.array(self._targets(action.tolist()))
 
-    def _targets(self, action: NDArray[np.float64]) -> list[float]:
-        """``lengths_of`` as Python floats: min_length + (a + 1) (max_length - min_length) / 2
-        per linkage (doubles, as numpy would compute it elementwise)."""
+    def _targets(self, action: list[float]) -> list[float]:
+        """``lengths_of`` of the action as a list, as Python floats: min_length + (a + 1)
+        (max_length - min_length) / 2 per linkage (doubles, as numpy would compute it
+        elementwise)."""
         lo, half = self.min_length, 0.5 * (self.max_length - self.min_length)
-        return [lo + (x + 1.0) * half for x in action.tolist()]
+        return [lo + (x + 1.0) * half for x in action]
 
     def step(self, action: NDArray[np.float64]) -> tuple[float, float, bool]:
         """One control period with the checked ``action``: (reward, forward speed of the centre
         of mass [m/s], terminated). Terminated when the plant had to contain a solver failure
         (it restarts at rest, ``Engine._contain``): that episode's physics ended."""
         eng = self.engine
-        self.targets = self._targets(action)
+        vals = action.tolist()          # once, for the targets and the control cost
+        self.targets = self._targets(vals)
         eng.command(self.targets)
         eng.run_to(eng.t_ns + self.period_ns)
         eng.read_state(self.x, self.v, self.contact)
@@ -231,7 +235,7 @@ class CrawlPlant:
         speed = (com - self.com) / self.control_period
         self.com = com
         reward = self.forward_reward_weight * speed \
-            - self.ctrl_cost_weight * _dot(action, action)
+            - self.ctrl_cost_weight * _dot(action, action, vals, vals)
         failed = len(eng.failures) > self.failures
         self.failures = len(eng.failures)
         return reward, speed, failed
