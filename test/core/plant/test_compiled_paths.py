@@ -1,12 +1,14 @@
 """The plant's compiled shortcuts (issue 41) against the paths they replace, bit for bit:
 ``_gait.table_of_run`` (the engine's table of a run of pieces in one pass) against ``table``
 with ``cubic.table_jumps``' breakpoints; ``ExactCore.switch_gait`` (a gait switch at each
-sync) against the Python arithmetic of ``ExactSolver._switch_gait`` written out here."""
+sync) against the Python arithmetic of ``ExactSolver._switch_gait`` written out here;
+``Servo._command`` (a step command's settle rule) against the list rule it replaced."""
 import math
 
 import numpy as np
 import pytest
 
+from crawler_sim.core.actuator import Actuator, ActuatorLimits
 from crawler_sim.core.gaits.cubic import PiecewiseCubic, cubic_values, table_jumps
 from crawler_sim.core.model import Crawler
 from crawler_sim.core.stepper import Stepper
@@ -117,3 +119,33 @@ def test_a_compiled_gait_switch_is_the_python_arithmetic_bit_for_bit(p, static):
         sa, sb = a.state, b.state
         assert sa.x.tobytes() == sb.x.tobytes() and sa.v.tobytes() == sb.v.tobytes()
     assert refs == {True, False}          # switched while sliding and while stuck
+
+
+def test_a_command_unsettles_exactly_the_linkages_whose_target_changes():
+    """set_target (its rule compiled, Servo._command) against the rule it replaced, on Python
+    lists: a linkage is unsettled where the new target differs from the old (NaN differs from
+    everything, -0.0 equals 0.0), settled flags kept elsewhere, the targets the new ones bit for
+    bit; commands between runs of ticks, repeated, equal, partly equal."""
+    rng = np.random.default_rng(5)
+    limits = ActuatorLimits(5.0, 0.5, 5.0, -1.0, 1.0)
+    unsettled_some = False
+    for trial in range(300):
+        n = int(rng.integers(1, 5))
+        act = Actuator([0.0] * n, 1e-3, limits)
+        for k in range(6):
+            old_target, old_settled = act.target, act._settled
+            new = [float(x) for x in rng.choice([0.0, -0.0, 0.1, -0.2], n)]
+            if k % 2:
+                new = [o if rng.random() < 0.5 else x for o, x in zip(old_target, new)]
+            want = [ok and x == o for ok, x, o in zip(old_settled, new, old_target)]
+            act.set_target(new)
+            assert act._settled == want
+            assert np.array(act.target).tobytes() == np.array(new).tobytes()
+            unsettled_some |= not all(want) and any(want)
+            act.run(k * 10_000_000, 1_000_000, int(rng.integers(1, 400)))
+    assert unsettled_some
+    act = Actuator([0.1, 0.1], 1e-3, limits)
+    act.set_target([0.1, 0.1])
+    assert act._settled == [True, True]
+    act._command([math.nan, 0.1])           # NaN differs from everything
+    assert act._settled == [False, True]
