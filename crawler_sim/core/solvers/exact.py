@@ -50,6 +50,7 @@ from ..gaits import Gait, _positive
 from ..model import Crawler
 from ..trajectory import EventLog, new_event
 from . import _exact
+from ._gait import _NO_LOCK
 from .base import Capabilities, SolverError, register
 from .segments import (PeriodicBlock, Records, Segment, SegmentChunk, SegmentList,
                        crawler_constants, evaluate_records, offset_matrices)
@@ -202,8 +203,11 @@ class ExactSolver:
             core.ev_base = len(self.events)
             core.save()
             try:
-                with cg.lock:             # a Custom gait's state is shared by its solvers
+                if cg.lock is _NO_LOCK:   # a gait of its own state: no lock to enter
                     status = core.drive(cg, t1, T)
+                else:
+                    with cg.lock:         # a Custom gait's state is shared by its solvers
+                        status = core.drive(cg, t1, T)
             except BaseException as exc:        # the user's gait raised: nothing of the call
                 core.restore()
                 cg.span_lo, cg.span_hi = span
