@@ -244,6 +244,22 @@ class Gait:
         return None
 
 
+#: per BuiltinGait subclass: whether its gaits run through their compiled kind (``_runs_native``),
+#: found once per class, not per gait compiled (the engine compiles a new gait per sync)
+_NATIVE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _runs_native(cls: type, evaluation: tuple[str, ...]) -> bool:
+    """True if no class of ``cls``'s hierarchy below the one defining ``_kind`` overrides an
+    evaluation method (else its gaits are sampled through their Python methods)."""
+    for c in cls.__mro__:
+        if '_kind' in c.__dict__:
+            return True             # nothing overridden below the built-in class
+        if any(name in c.__dict__ for name in evaluation):
+            return False
+    return True
+
+
 class BuiltinGait(Gait):
     """A gait with a compiled kind of its own (``_kind``): every evaluation, from Python and
     from the solvers, goes through it. A subclass that overrides an evaluation method (``at``,
@@ -264,12 +280,11 @@ class BuiltinGait(Gait):
         return cg
 
     def _compile(self):
-        for cls in type(self).__mro__:
-            if '_kind' in cls.__dict__:
-                return self._native()       # nothing overridden below the built-in class
-            if any(name in cls.__dict__ for name in self._EVALUATION):
-                return Gait._compile(self)
-        return self._native()
+        cls = type(self)
+        native = _NATIVE.get(cls)
+        if native is None:
+            native = _NATIVE[cls] = _runs_native(cls, self._EVALUATION)
+        return self._native() if native else Gait._compile(self)
 
     def __getstate__(self) -> dict:
         state = super().__getstate__()
