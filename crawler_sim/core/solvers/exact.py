@@ -59,6 +59,8 @@ __all__ = ['ExactSolver', 'PeriodicBlock', 'Segment', 'offset_matrices',
            'check_finite_gait']
 
 _EPS = np.finfo(float).eps
+#: ``drive``'s statuses of a call that ended well, read as globals (one per drive, issue 41)
+_REACHED, _FULL, _PERIODIC = _exact.REACHED, _exact.FULL, _exact.PERIODIC
 
 #: ``periodic_skip=None``: a whole run skips repeated periods only if it would take more
 #: segments than this without the skip (the skip's fixed cost, about 0.1 ms, is that many
@@ -213,11 +215,12 @@ class ExactSolver:
                 cg.span_lo, cg.span_hi = span
                 self.status, self.message = 'error', str(exc)
                 raise
-            if status in (_exact.REACHED, _exact.FULL, _exact.PERIODIC):
+            if status == _REACHED or status == _FULL:
                 self._store(core.n_seg, core.n_ev)
-            if status == _exact.PERIODIC:
+            elif status == _PERIODIC:
+                self._store(core.n_seg, core.n_ev)
                 self._period_boundary(core.k_at, T, t1)
-            elif status not in (_exact.REACHED, _exact.FULL):
+            else:
                 core.restore()
                 cg.span_lo, cg.span_hi = span
                 self._fail(status, t1)
