@@ -129,6 +129,8 @@ def write_table(df: pd.DataFrame, path: str | os.PathLike, fmt: str | None = Non
         return write_atomically(path, lambda fh: pq.write_table(table, fh))
 
     def write_csv(fh: io.BufferedIOBase) -> None:
+        if _write_csv_fast(df, fh):
+            return
         text = io.TextIOWrapper(fh, encoding='utf-8', newline='')
         # no float_format: each float's shortest repr, which reads back exactly as '%.17g'
         # does, in 0.8x the time (200,001 x 12 numbers: 1.59 s against 2.01 s of CPU)
@@ -137,6 +139,71 @@ def write_table(df: pd.DataFrame, path: str | os.PathLike, fmt: str | None = Non
         text.detach()                               # the writer closes the file itself
     write_atomically(_sidecar(path), lambda fh: fh.write((meta + '\n').encode('utf-8')))
     return write_atomically(path, write_csv)
+
+
+_CSV_ROWS = 65536                                   # rows formatted and written at a time
+_CSV_SPECIAL = frozenset(',"\r\n')                   # a name with one of these is quoted
+
+
+def _csv_plain(df: pd.DataFrame) -> bool:
+    """Whether :func:`_write_csv_fast` writes ``df`` exactly as ``df.to_csv()`` would: a flat
+    index and columns, plain names (nothing the csv module quotes), at least one row and column,
+    every column and the index NumPy float64 without NaN, or NumPy integers."""
+    if (isinstance(df.index, pd.MultiIndex) or isinstance(df.columns, pd.MultiIndex)
+            or not len(df.index) or not len(df.columns)):
+        return False
+    for name in (df.index.name if df.index.name is not None else '', *df.columns):
+        if not isinstance(name, str) or not _CSV_SPECIAL.isdisjoint(name):
+            return False
+    for dtype in (df.index.dtype, *df.dtypes):
+        if not isinstance(dtype, np.dtype):
+            return False                            # pandas extension types: categorical ...
+        if dtype.kind == 'f':
+            if dtype.itemsize != 8:                 # float32's own repr is not float64's
+                return False
+        elif dtype.kind not in 'iu':
+            return False
+    return not any(np.isnan(a).any() for a in _csv_arrays(df) if a.dtype.kind == 'f')
+
+
+def _csv_arrays(df: pd.DataFrame) -> list[np.ndarray]:
+    """The index and each column of ``df`` as NumPy arrays, in the CSV's order."""
+    return [np.asarray(df.index), *(df.iloc[:, i].to_numpy() for i in range(df.shape[1]))]
+
+
+def _csv_text(a: np.ndarray) -> list[str]:
+    """The CSV text of each value of a float64 or integer array, as pandas writes it.
+
+    pandas writes ``a.astype(str)``: for float64 NumPy's shortest repr, which is Python's
+    ``repr(float)`` (-0.0, 5e-324, 1e+16, inf alike; NaN is refused by :func:`_csv_plain`),
+    for integers ``str``. Python's repr is about twice as fast; a column with few distinct
+    values (a velocity while stuck, a contact state) is formatted once per distinct bit
+    pattern (not value: -0.0 is not 0.0)."""
+    if a.dtype.kind != 'f':
+        return list(map(str, a.tolist()))
+    bits = a.view(np.int64)
+    distinct, where = np.unique(bits, return_inverse=True)
+    if 5 * len(distinct) > 4 * len(a):
+        return list(map(float.__repr__, a.tolist()))
+    text = np.array(list(map(float.__repr__, distinct.view(np.float64).tolist())),
+                    dtype=object)
+    return text[where].tolist()
+
+
+def _write_csv_fast(df: pd.DataFrame, fh: io.BufferedIOBase) -> bool:
+    """Write ``df`` as ``df.to_csv()`` writes it (byte for byte: header, index column, each
+    float's shortest repr, ints as ints, the platform's line ending), 1.7x as fast; False,
+    writing nothing, for a frame it does not handle exactly (see :func:`_csv_plain`)."""
+    if not _csv_plain(df):
+        return False
+    nl = os.linesep
+    header = [df.index.name if df.index.name is not None else '', *df.columns]
+    fh.write((','.join(header) + nl).encode('utf-8'))
+    arrays = _csv_arrays(df)
+    for start in range(0, len(df.index), _CSV_ROWS):
+        columns = [_csv_text(a[start:start + _CSV_ROWS]) for a in arrays]
+        fh.write((nl.join(map(','.join, zip(*columns))) + nl).encode('utf-8'))
+    return True
 
 
 def table_files(path: str | os.PathLike, fmt: str | None = None) -> list[Path]:
