@@ -367,7 +367,14 @@ class Engine:
             # off the publish grid: where the integration is cut changes the rounding, so a
             # replay must cut here too
             self._note('sync', None)
-        runs = self._drain()
+        blocks = self._blocks
+        if len(blocks) == 1 and not self._pieces:
+            # one run of the actuator and no single ticks (a control period): ``_drain``'s
+            # result without its loop and new lists
+            self._blocks = []
+            runs = [blocks[0][1]]
+        else:
+            runs = self._drain()
         t1 = to_seconds(self.t_ns)
         try:
             if _fixed_step(self.stepper.method):
