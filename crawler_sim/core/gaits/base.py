@@ -244,14 +244,11 @@ class Gait:
         return None
 
 
-#: per BuiltinGait subclass: whether its gaits run through their compiled kind (``_runs_native``),
-#: found once per class, not per gait compiled (the engine compiles a new gait per sync)
-_NATIVE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
 def _runs_native(cls: type, evaluation: tuple[str, ...]) -> bool:
     """True if no class of ``cls``'s hierarchy below the one defining ``_kind`` overrides an
-    evaluation method (else its gaits are sampled through their Python methods)."""
+    evaluation method (else its gaits are sampled through their Python methods). Found once
+    per class, not per gait compiled (the engine compiles a new gait per sync): kept in the
+    class's own ``_runs_native_`` (a plain class attribute lookup; a parent's is not read)."""
     for c in cls.__mro__:
         if '_kind' in c.__dict__:
             return True             # nothing overridden below the built-in class
@@ -281,9 +278,10 @@ class BuiltinGait(Gait):
 
     def _compile(self):
         cls = type(self)
-        native = _NATIVE.get(cls)
+        native = cls.__dict__.get('_runs_native_')     # this class's own, not a parent's
         if native is None:
-            native = _NATIVE[cls] = _runs_native(cls, self._EVALUATION)
+            native = _runs_native(cls, self._EVALUATION)
+            type.__setattr__(cls, '_runs_native_', native)
         return self._native() if native else Gait._compile(self)
 
     def __getstate__(self) -> dict:

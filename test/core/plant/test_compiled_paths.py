@@ -149,3 +149,28 @@ def test_a_command_unsettles_exactly_the_linkages_whose_target_changes():
     assert act._settled == [True, True]
     act._command([math.nan, 0.1])           # NaN differs from everything
     assert act._settled == [False, True]
+
+
+def test_native_kind_found_per_class():
+    """``BuiltinGait._compile`` keeps per class whether its gaits run as their compiled kind:
+    a subclass that overrides an evaluation runs sampled even after its parent compiled (the
+    parent's answer is not inherited), one that does not runs native, and so does a subclass
+    of it compiled after the overriding one."""
+    from crawler_sim.core.gaits import Cubic
+
+    class Plain(Cubic):
+        pass
+
+    class Overrides(Cubic):
+        def at(self, t):
+            return super().at(t)
+
+    class Below(Plain):
+        pass
+
+    def native(cls):
+        g = cls(0.0, [0.1], [0.2], [0.0], [1.0])
+        return g.compiled() is g.__dict__.get('_native_kind')
+
+    assert [native(c) for c in (Cubic, Plain, Overrides, Below, Overrides, Plain)] == \
+        [True, True, False, True, False, True]
