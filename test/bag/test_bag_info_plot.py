@@ -87,3 +87,51 @@ def test_one_figure_for_an_offline_run_and_its_recording(tmp_path):
     assert [label for label, _, _ in offline] == list(PANELS)
     # three bodies on x, v, friction; two linkages; one band collection per body
     assert [n for _, n, _ in offline] == [3, 3, 3, 2, 0] and offline[4][2] == 3
+
+
+def _png(fig) -> bytes:
+    import io
+    buf = io.BytesIO()
+    fig.savefig(buf, format='png', dpi=60)
+    return buf.getvalue()
+
+
+def test_best_legend_place_is_searched_once_per_geometry_and_unchanged(bag, monkeypatch):
+    """issue 43: matplotlib searched each loc='best' legend's place (every vertex counted in
+    9 boxes) 6 times per save of the constrained-layout figure, 3 of them for the same
+    geometry; figure() now searches once per geometry, and draws the same figure."""
+    import importlib
+
+    from matplotlib.legend import Legend
+
+    from crawler_sim.bag import load
+    plot_module = importlib.import_module('crawler_sim.bag.plot')   # bag.plot: the function
+
+    searches = []
+    search = Legend._find_best_position
+
+    def counted(self, *args):
+        searches.append(self)
+        return search(self, *args)
+    monkeypatch.setattr(Legend, '_find_best_position', counted)
+    run = load(bag)
+    fig = plot_module.figure(run)
+    drawn = _png(fig)
+    once = len(searches)
+    searches.clear()
+    with monkeypatch.context() as m:
+        m.setattr(plot_module, '_best_once', lambda legend: None)
+        plain = plot_module.figure(run)
+        assert _png(plain) == drawn                         # the very same pixels
+    assert 0 < once < len(searches) and len(searches) >= 12
+    # another geometry (a different size, different data) is searched again, and the place
+    # is the one matplotlib finds without the cache
+    for f in (fig, plain):
+        f.set_size_inches(6, 14)
+        f.axes[0].lines[0].set_ydata(np.linspace(-5.0, 5.0, len(run.t)))
+        f.axes[0].relim()
+        f.axes[0].autoscale_view()
+    searches.clear()
+    moved = _png(fig)
+    assert searches and all(s.parent in fig.axes for s in searches)
+    assert moved == _png(plain) and moved != drawn
