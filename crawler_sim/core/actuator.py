@@ -412,7 +412,11 @@ class Actuator(Servo):
         """A step command: target lengths [m] held until the next command; cancels a trajectory."""
         if len(lengths) != self.n_links:
             raise ValueError(f'expected {self.n_links} lengths, got {len(lengths)}')
-        new = [float(x) for x in lengths]
+        self._set_target([float(x) for x in lengths])
+
+    def _set_target(self, new: list[float]) -> None:
+        """``set_target`` of a list of n_links Python floats, unchecked (the engine's command,
+        which has converted them already)."""
         self.trajectory = None
         self._rest_piece = None
         self._command(new)          # a changed target unsettles its linkage (compiled)

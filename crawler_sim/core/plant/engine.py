@@ -106,7 +106,9 @@ class Engine:
         """Step targets [m], one per linkage, from the current tick boundary (cancels a
         trajectory)."""
         lengths = [float(x) for x in lengths]
-        self.actuator.set_target(lengths)
+        if len(lengths) != self.actuator.n_links:
+            self.actuator.set_target(lengths)     # raises its ValueError
+        self.actuator._set_target(lengths)
         self._note('command', lengths)
 
     def trajectory(self, prepared: PreparedTrajectory | None) -> None:
