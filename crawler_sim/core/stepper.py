@@ -20,7 +20,7 @@ from .solvers.base import capabilities, solver_class
 from .solvers.exact import ExactSolver
 from .solvers.implicit import ImplicitSolver
 from .solvers.penalty import PenaltySolver
-from .trajectory import Event, State, Trajectory
+from .trajectory import Event, EventLog, State, Trajectory
 
 __all__ = ['METHODS', 'GaitLengthError', 'Stepper', 'simulate']
 
@@ -256,8 +256,13 @@ class Stepper:
         """Contact events since the last call, in time order."""
         ev = self._solver.events
         n = len(ev)
-        # none new (most calls of a stream): no slice of the log
-        out = ev[self._n_events_read:] if n > self._n_events_read else ()
+        start = self._n_events_read
+        if n <= start:
+            out = ()             # none new (most calls of a stream): no slice of the log
+        elif start == 0 and type(ev) is EventLog:
+            out = ev.compact()   # all of it (a stream's events): its list, not n index reads
+        else:
+            out = ev[start:]
         if self._keep:
             self._n_events_read = n
         else:
