@@ -239,23 +239,18 @@ def test_with_static_equal_to_kinetic_the_reference_agrees_with_todays_exact_met
     assert np.max(np.abs(run.x - reference_positions(sc))) <= 1e-9
 
 
-def _exact_with_stiction(sc, rule):
-    """The exact method's positions with stiction, or a skip when the contract (issue 40:
-    ``static_friction`` on Crawler, ``stiction_rule`` on simulate) is not there yet. Only the
-    keywords' absence (TypeError naming them) skips; a wrong answer fails."""
-    try:
-        return exact_positions(sc, rule)
-    except TypeError as exc:
-        if 'static_friction' not in str(exc) and 'stiction_rule' not in str(exc):
-            raise
-        pytest.skip(f'the stiction contract is not there yet ({exc})')
+def _stiction_crawler(sc) -> cs.Crawler:
+    """The scene's crawler with its static bounds [N] (issue 40's contract)."""
+    return cs.Crawler(sc['masses'], sc['friction'], sc['friction_backward'],
+                      slope=sc['slope'], gravity=G, static_friction=sc['static_friction'],
+                      static_friction_backward=sc['static_friction_backward'])
 
 
 @pytest.mark.parametrize('rule', ['incumbent', 'margin'])
 @pytest.mark.parametrize('seed', SEEDS)
 def test_the_exact_method_with_stiction_agrees_with_the_reference_on_random_scenes(seed, rule):
     sc = random_scene(seed)
-    got = _exact_with_stiction(sc, rule)
+    got = exact_positions(sc, rule)
     want = reference_positions(sc, rule)
     err = np.abs(got - want)
     assert err.max() <= 1e-9, (f'seed {seed}, rule {rule}: times {sample_times(sc).tolist()}, '
@@ -281,12 +276,7 @@ def test_initial_stuck_names_the_incumbent_at_a_start_from_coincident_rest(stuck
     assert sol.state_at(1.0)[0][0] - sol.state_at(0.0)[0][0] == pytest.approx(dx0, abs=1e-12)
     crawler = cs.Crawler([1.0, 1.0], 1.0, static_friction=[2.0, 2.5])
     gait = gaits.PiecewiseParabolic([0, 1, 3, 4], [0.5, -0.5, 0.5], l0=1.0)
-    try:
-        run = cs.simulate(crawler, gait, 1.0, initial_stuck=stuck)
-    except TypeError as exc:
-        if 'initial_stuck' not in str(exc):
-            raise
-        pytest.skip(f'simulate has no initial_stuck yet ({exc})')
+    run = cs.simulate(crawler, gait, 1.0, initial_stuck=stuck)
     assert run.state_at(1.0).x[0] - run.state_at(0.0).x[0] == pytest.approx(dx0, abs=1e-12)
 
 
@@ -299,7 +289,7 @@ def test_the_exact_method_applies_the_chosen_rule_where_rule_s_and_margin_differ
     want = reference_positions(sc, rule)
     other = reference_positions(sc, 'margin' if rule == 'incumbent' else 'incumbent')
     assert np.abs(want - other).max() > 1e-3          # the scene does tell the rules apart
-    got = _exact_with_stiction(sc, rule)
+    got = exact_positions(sc, rule)
     assert np.abs(got - want).max() <= 1e-9, (
         f'reversal seed {seed}, rule {rule}: times {sample_times(sc).tolist()}, '
         f'exact {got.tolist()}, reference {want.tolist()}')
@@ -323,16 +313,8 @@ def test_the_exact_method_reports_the_instants_where_the_rule_chose(seed):
     # integrated), to 1e-9 s
     sc = random_scene(seed)
     T = sc['period']
-    try:
-        crawler = cs.Crawler(sc['masses'], sc['friction'], sc['friction_backward'],
-                             slope=sc['slope'], gravity=G,
-                             static_friction=sc['static_friction'],
-                             static_friction_backward=sc['static_friction_backward'])
-    except TypeError as exc:
-        pytest.skip(f'the stiction contract is not there yet ({exc})')
+    crawler = _stiction_crawler(sc)
     info = cs.simulate(crawler, sc['gait'], 3 * T, periodic_skip=False).info
-    if 'choice_times' not in info:
-        pytest.skip('the exact method does not report choice_times yet')
     want = [d.t for d in sc['ref'].solve(3 * T, h=T / 4000).flags]
     got = np.asarray(info['choice_times'], float)
     assert got.shape == (len(want),), (got.tolist(), want)
@@ -347,16 +329,8 @@ def test_the_exact_method_agrees_with_the_reference_over_20_periods(seed, rule):
     sc = random_scene(seed)
     T = sc['period']
     times = np.array([12.3, 19.6, 20.0]) * T
-    try:
-        crawler = cs.Crawler(sc['masses'], sc['friction'], sc['friction_backward'],
-                             slope=sc['slope'], gravity=G,
-                             static_friction=sc['static_friction'],
-                             static_friction_backward=sc['static_friction_backward'])
-        run = cs.simulate(crawler, sc['gait'], times[-1], t_eval=times, stiction_rule=rule)
-    except TypeError as exc:
-        if 'static_friction' not in str(exc) and 'stiction_rule' not in str(exc):
-            raise
-        pytest.skip(f'the stiction contract is not there yet ({exc})')
+    run = cs.simulate(_stiction_crawler(sc), sc['gait'], times[-1], t_eval=times,
+                      stiction_rule=rule)
     want = sc['ref'].solve(times[-1], h=T / 2000, rule=rule).positions(times)
     assert np.max(np.abs(run.x - want)) <= 1e-9
 
@@ -367,13 +341,7 @@ def test_the_implicit_method_with_stiction_converges_to_the_reference_at_first_o
     # measured 0.998-1.013 on these four scenes (one of each family)
     sc = random_scene(seed)
     times = sample_times(sc)
-    try:
-        crawler = cs.Crawler(sc['masses'], sc['friction'], sc['friction_backward'],
-                             slope=sc['slope'], gravity=G,
-                             static_friction=sc['static_friction'],
-                             static_friction_backward=sc['static_friction_backward'])
-    except TypeError as exc:
-        pytest.skip(f'the stiction contract is not there yet ({exc})')
+    crawler = _stiction_crawler(sc)
     want = reference_positions(sc)
     dts = np.array([2e-3, 1e-3, 5e-4])
     errs = np.array([np.max(np.abs(cs.simulate(crawler, sc['gait'], times[-1], method='implicit',
