@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -60,13 +60,13 @@ def figure(run: Run | Trajectory, title: str | None = None) -> Figure:
             ax.plot(t, values[:, i], color=colours[i], lw=1.0, label=names[i])
         ax.set_ylabel(label)
         ax.grid(True, alpha=0.3)
-    _best_once(axes[0].legend(loc='best', fontsize='small', ncols=min(p, 6)))
+    axes[0].legend(loc='best', fontsize='small', ncols=min(p, 6))
     ax = axes[3]
     lengths = np.asarray(run.lengths)
     for j in range(lengths.shape[1] if lengths.ndim == 2 else 0):
         ax.plot(t, lengths[:, j], lw=1.0, label=f'linkage_{j}')
     if lengths.ndim == 2 and lengths.shape[1]:
-        _best_once(ax.legend(loc='best', fontsize='small', ncols=min(lengths.shape[1], 6)))
+        ax.legend(loc='best', fontsize='small', ncols=min(lengths.shape[1], 6))
     ax.set_ylabel(PANELS[3])
     ax.grid(True, alpha=0.3)
     ax = axes[4]
@@ -90,29 +90,6 @@ def figure(run: Run | Trajectory, title: str | None = None) -> Figure:
             title += ' (incomplete recording)'
     fig.suptitle(title)
     return fig
-
-
-def _best_once(legend: Any) -> None:
-    """Let ``legend`` (loc='best') search its place once per geometry: matplotlib searches
-    it (every line's vertices counted in 9 boxes) on each of the 6 times a constrained-layout
-    figure asks where it is, 3 of them in the same axes at the same size (0.2 s of 1.6 for a
-    200,001-sample bag). The place found is the one matplotlib finds: the key is everything it
-    depends on (the legend's size, the axes' box, limits and scales, the dpi, the very artists
-    and line paths)."""
-    find = legend._find_best_position
-    places: dict = {}
-
-    def best(width: float, height: float, renderer: Any) -> Any:
-        ax = legend.parent
-        key = (width, height, tuple(legend.get_bbox_to_anchor().bounds),
-               tuple(ax.bbox.bounds), tuple(ax.viewLim.bounds), ax.get_xscale(),
-               ax.get_yscale(), renderer.points_to_pixels(1.0),
-               tuple((a, a.get_path() if hasattr(a, 'get_path') else None)
-                     for a in ax._children))
-        if key not in places:
-            places[key] = find(width, height, renderer)
-        return places[key]
-    legend._find_best_position = best
 
 
 def figure_output(out: os.PathLike | str) -> tuple[Path, str]:
