@@ -505,6 +505,28 @@ def _n_levels(Py_ssize_t n):
     return L
 
 
+cdef void _fill_levels(double* o, const int* off, Py_ssize_t L, Py_ssize_t n, Py_ssize_t w,
+                       const double* sg, Py_ssize_t nl) noexcept nogil:
+    """Levels 1..L-1 of ``_aligned_levels`` in the records ``o`` (rows of w doubles, level 0
+    already in rows 0..n-1, level q from row off[q]): the largest of each pair of the level
+    below where column c's sign is +1, the smallest where -1; the sign is sg[c], or with
+    sg = NULL +1 on even and -1 on odd blocks of nl columns (a table's rows: ``table_of_run``)."""
+    cdef Py_ssize_t q, i, c, lo, hi, cnt, prev = n
+    cdef double x, y
+    cdef bint mx
+    for q in range(1, L):
+        cnt = (prev + 1) // 2
+        for i in range(cnt):
+            lo = off[q - 1] + 2 * i
+            hi = lo + 1 if 2 * i + 1 < prev else lo
+            for c in range(w):
+                x = o[lo * w + c]
+                y = o[hi * w + c]
+                mx = sg[c] > 0.0 if sg != NULL else ((c // nl) % 2) == 0
+                o[(off[q] + i) * w + c] = (x if x >= y else y) if mx else (x if x <= y else y)
+        prev = cnt
+
+
 def _aligned_levels(st, sign):
     """Items (n, ...) -> (records (R, ...), level offsets (L,)): level q, from record
     offsets[q] on, holds the extremes of the items i 2^q .. (i + 1) 2^q - 1 (the last block
@@ -513,7 +535,7 @@ def _aligned_levels(st, sign):
     overlapping levels of ``_range_levels`` take n records per level, 3.5 times the memory,
     which a long table's walk reads from out of the caches)."""
     st = _f64(st)
-    cdef Py_ssize_t n = st.shape[0], w = st.size // max(n, 1), q, i, c, lo, hi, cnt, prev
+    cdef Py_ssize_t n = st.shape[0], w = st.size // max(n, 1), q, cnt
     cdef Py_ssize_t L = _n_levels(n)
     offsets = np.zeros(L, dtype=np.intc)
     cnt = n
@@ -526,19 +548,8 @@ def _aligned_levels(st, sign):
     cdef double[:, ::1] o = flat
     cdef const int[::1] off = offsets
     cdef const double[::1] sg = _f64(np.broadcast_to(sign, st.shape[1:]).reshape(-1))
-    cdef double x, y
-    prev = n
-    for q in range(1, L):
-        cnt = (prev + 1) // 2
-        for i in range(cnt):
-            lo = off[q - 1] + 2 * i
-            hi = lo + 1 if 2 * i + 1 < prev else lo
-            for c in range(w):
-                x = o[lo, c]
-                y = o[hi, c]
-                o[off[q] + i, c] = ((x if x >= y else y) if sg[c] > 0.0
-                                    else (x if x <= y else y))
-        prev = cnt
+    if w and n:
+        _fill_levels(&o[0, 0], &off[0], L, n, w, &sg[0], 0)
     return out_arr, offsets
 
 
@@ -1204,10 +1215,10 @@ def table_of_run(starts, anchors, coef) -> CompiledGait:
     cdef CompiledGait g = CompiledGait()
     cdef const double[::1] s = starts, o = anchors
     cdef const double[:, :, ::1] c = coef
-    cdef Py_ssize_t n = c.shape[0], nl = c.shape[1], k, j, q, i, cc, lo, hi, cnt, prev
+    cdef Py_ssize_t n = c.shape[0], nl = c.shape[1], k, j, q, i, cnt
     cdef Py_ssize_t w = 5 * nl, L = _n_levels(n), nrec, nj
-    cdef double scale = _FOUR_EPS, before, d, size, a, jk, dj, x, y, d0, d1
-    cdef bint bounded, mx
+    cdef double scale = _FOUR_EPS, before, d, size, a, jk, dj, d0, d1
+    cdef bint bounded
     cdef int off[RANGE_LEVELS + 2]
     if n == 0 or s.shape[0] != n or o.shape[0] != n:
         raise ValueError(f'table_of_run: n >= 1 pieces with one start and anchor each, got '
@@ -1281,19 +1292,7 @@ def table_of_run(starts, anchors, coef) -> CompiledGait:
         if bounded:
             piece_ranges(&c[k, 0, 0], <int>nl, d0, d1, rg)
     # the aligned levels (``_aligned_levels``: max of rows 0, 2, 4, min of rows 1, 3)
-    prev = n
-    for q in range(1, L):
-        cnt = (prev + 1) // 2
-        for i in range(cnt):
-            lo = off[q - 1] + 2 * i
-            hi = lo + 1 if 2 * i + 1 < prev else lo
-            for cc in range(w):
-                x = st[lo * w + cc]
-                y = st[hi * w + cc]
-                mx = ((cc // nl) % 2) == 0
-                st[(off[q] + i) * w + cc] = ((x if x >= y else y) if mx
-                                             else (x if x <= y else y))
-        prev = cnt
+    _fill_levels(st, off, L, n, w, NULL, nl)
     jb[0] = 0                                        # ``_counts_before(jj)``
     for i in range(2 * n):
         jb[i + 1] = jb[i] + jj[i % n]
