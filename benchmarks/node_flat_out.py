@@ -34,7 +34,7 @@ import sys
 import time
 
 from benchmarks.node import cpu_seconds, start, stop
-from crawler_sim.ros.workspace import share, workspace_env
+from crawler_sim.ros.workspace import workspace_env
 
 HERE = Path(__file__).resolve().parents[1]
 WARMUP = 3.0
@@ -109,8 +109,9 @@ def run(tree: Path, seconds: float, env: dict) -> dict:
     env = dict(env)
     env['PYTHONPATH'] = os.pathsep.join([str(tree), env.get('PYTHONPATH', '')]).rstrip(
         os.pathsep)
+    # the tree's own parameters file: an older tree's node refuses keys added since
     sim = start('sim_node', env, '--params-file',
-                str(share() / 'config' / 'ros' / 'crawler_sim.yaml'),
+                str(tree / 'config' / 'ros' / 'crawler_sim.yaml'),
                 '-p', 'real_time_factor:=0.0', '-p', 'start_paused:=true')
     gait = start('gait_node', env, '-p', 'n_links:=1', '-p', 'use_sim_time:=true',
                  '-p', 'mode:=trajectory', '-p', 'preload:=true',
