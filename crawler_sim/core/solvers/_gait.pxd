@@ -638,3 +638,11 @@ cdef inline int gait_bounds(GaitData* g, double a, double b, double* jerk,
     table_jerk(g, k0, count, jerk)
     # joins inside: the starts of the pieces after k0 (those after a), count - 1 of them
     return 0 if g.jj_before[k0 + count] - g.jj_before[k0 + 1] > 0 else 1
+
+
+# ----------------------------------------------------------------------------- a run's table
+# The engine's table of a run of constant-jerk pieces, built in place (``_gait.pyx``:
+# ``table_of_run`` is these two on copies of its arrays; the plant's compiled step,
+# ``core/plant/_batch.pyx``, has the actuator write the pieces into the block directly).
+cdef CompiledGait run_table(Py_ssize_t n, Py_ssize_t nl)
+cdef int run_table_fill(CompiledGait g) except -1

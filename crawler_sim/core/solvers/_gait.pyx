@@ -16,7 +16,8 @@ import numpy as np
 from libc.math cimport (acosh, ceil, cos, cosh, fabs, isfinite, nextafter, pow, sin, sinh,
                         INFINITY, M_PI, NAN)
 from cpython.mem cimport PyMem_Malloc, PyMem_Free
-from libc.string cimport memset
+from libc.string cimport memcpy, memset
+from cpython.bytearray cimport PyByteArray_FromStringAndSize, PyByteArray_AS_STRING
 
 __all__ = ['CompiledGait', 'fourier', 'scallop', 'table', 'proxy']
 
@@ -1211,18 +1212,30 @@ _FOUR_EPS = 4.0 * float(np.finfo(float).eps)
 def table_of_run(starts, anchors, coef) -> CompiledGait:
     """``table(coef, starts=starts, anchors=anchors, jumps=table_jumps(starts, anchors,
     coef))`` (``gaits.cubic``) of a table that is not periodic: ``starts``, ``anchors`` (n,)
-    [s] and ``coef`` (n, nl, 4) C-contiguous float64 (used as they are, kept alive), n >= 1."""
-    cdef CompiledGait g = CompiledGait()
+    [s] and ``coef`` (n, nl, 4) C-contiguous float64 (copied into the gait's block), n >= 1."""
     cdef const double[::1] s = starts, o = anchors
     cdef const double[:, :, ::1] c = coef
-    cdef Py_ssize_t n = c.shape[0], nl = c.shape[1], k, j, q, i, cnt
-    cdef Py_ssize_t w = 5 * nl, L = _n_levels(n), nrec, nj
-    cdef double scale = _FOUR_EPS, before, d, size, a, jk, dj, d0, d1
-    cdef bint bounded
-    cdef int off[RANGE_LEVELS + 2]
-    if n == 0 or s.shape[0] != n or o.shape[0] != n:
+    cdef Py_ssize_t n = c.shape[0], nl = c.shape[1]
+    if n == 0 or nl == 0 or s.shape[0] != n or o.shape[0] != n:
         raise ValueError(f'table_of_run: n >= 1 pieces with one start and anchor each, got '
                          f'{s.shape[0]} starts, {o.shape[0]} anchors, {n} pieces')
+    cdef CompiledGait g = run_table(n, nl)
+    memcpy(g.d.starts, &s[0], n * sizeof(double))
+    memcpy(g.d.anchors, &o[0], n * sizeof(double))
+    memcpy(g.d.coef, &c[0, 0, 0], n * nl * 4 * sizeof(double))
+    run_table_fill(g)
+    return g
+
+
+cdef CompiledGait run_table(Py_ssize_t n, Py_ssize_t nl):
+    """A TABLE gait (not periodic) of ``n`` >= 1 pieces of ``nl`` >= 1 linkages whose arrays
+    live in one block it owns: ``d.starts``, ``d.anchors`` (n,) [s] and ``d.coef`` (n, nl, 4)
+    are for the caller to write (the engine's actuator writes its run of ticks there, issue
+    41), then ``run_table_fill`` computes the rest. One allocation (a bytearray: cheaper than
+    a numpy array), no Python call per piece."""
+    cdef CompiledGait g = CompiledGait()
+    cdef Py_ssize_t w = 5 * nl, L = _n_levels(n), q, cnt, nrec
+    cdef int* off = g.d.lev_off
     # level offsets as ``_aligned_levels``
     off[0] = 0
     cnt = n
@@ -1230,32 +1243,67 @@ def table_of_run(starts, anchors, coef) -> CompiledGait:
         off[q] = off[q - 1] + cnt
         cnt = (cnt + 1) // 2
     nrec = off[L - 1] + cnt
-    # one block (a numpy allocation costs as much as the loops): the stat records (nrec, 5,
-    # nl) and the jump times (at most n) as doubles, then jj_before (2 n + 1) as ints, then
-    # the flags jumps, jj, rest (n each)
-    cdef Py_ssize_t n_dbl = nrec * w + n
-    mem = np.empty(n_dbl * sizeof(double) + (2 * n + 1) * sizeof(int) + 3 * n, dtype=np.uint8)
-    cdef unsigned char[::1] mv = mem
-    cdef double* st = <double*>&mv[0]
-    cdef double* jt = st + nrec * w
-    cdef int* jb = <int*>(st + n_dbl)
-    cdef unsigned char* jmp = <unsigned char*>(jb + 2 * n + 1)
+    # doubles: starts, anchors (n each), coef (n nl 4), the stat records (nrec, 5, nl), the
+    # jump times (at most n); then jj_before (2 n + 1) as ints; then the flags jump, jj, rest
+    cdef Py_ssize_t n_dbl = 3 * n + n * nl * 4 + nrec * w
+    mem = PyByteArray_FromStringAndSize(NULL, n_dbl * sizeof(double)
+                                        + (2 * n + 1) * sizeof(int) + 3 * n)
+    cdef double* base = <double*>PyByteArray_AS_STRING(mem)
+    g._keep = mem
+    g.d.kind = TABLE
+    g.d.nl = <int>nl
+    g.d.n = <int>n
+    g.d.nlev = <int>L
+    g.d.starts = base
+    g.d.anchors = base + n
+    g.d.coef = base + 2 * n
+    g.d.stat = base + 2 * n + n * nl * 4
+    g.d.jump_times = g.d.stat + nrec * w
+    g.d.jj_before = <int*>(base + n_dbl)
+    g.d.jump = <unsigned char*>(g.d.jj_before + 2 * n + 1)
+    g.d.jjump = g.d.jump + n
+    g.d.rest = g.d.jump + 2 * n
+    g.d.period = 0.0
+    g.n_links = <int>nl
+    g.period = None
+    return g
+
+
+cdef int run_table_fill(CompiledGait g) except -1:
+    """The struct of a ``run_table`` gait from its starts, anchors and coef: the same
+    expressions on the same doubles in the same order as ``table`` with ``table_jumps``
+    (``table_jumps``' loop, ``table``'s jj / rest, ``_table_stats``, ``_aligned_levels``,
+    ``_counts_before``), so the gait is bit for bit ``table``'s."""
+    cdef GaitData* gd = &g.d
+    cdef Py_ssize_t n = gd.n, nl = gd.nl, k, j, i, nj
+    cdef Py_ssize_t w = 5 * nl, L = gd.nlev
+    cdef const double* s = gd.starts
+    cdef const double* o = gd.anchors
+    cdef const double* c = gd.coef
+    cdef double* st = gd.stat
+    cdef double* jt = gd.jump_times
+    cdef int* jb = gd.jj_before
+    cdef unsigned char* jmp = gd.jump
+    cdef unsigned char* jj = gd.jjump
+    cdef unsigned char* rest = gd.rest
+    cdef double scale = _FOUR_EPS, before, d, size, a, jk, dj, d0, d1
+    cdef bint bounded
+    cdef double* rg
     memset(jmp, 0, 3 * n)
-    cdef unsigned char* jj = jmp + n
-    cdef unsigned char* rest = jmp + 2 * n
     # jumps (``table_jumps``' loop; piece 0 never jumps), jj (l''' changes; not at piece 0),
-    # rest (v0, a0, jerk all 0)
+    # rest (v0, a0, jerk all 0); piece k, linkage j, coefficient q at c[(k nl + j) 4 + q]
     nj = 0
     for k in range(n):
         rest[k] = 1
         for j in range(nl):
-            if not (c[k, j, 1] == 0.0 and c[k, j, 2] == 0.0 and c[k, j, 3] == 0.0):
+            if not (c[(k * nl + j) * 4 + 1] == 0.0 and c[(k * nl + j) * 4 + 2] == 0.0
+                    and c[(k * nl + j) * 4 + 3] == 0.0):
                 rest[k] = 0
                 break
         if k == 0:
             continue
         for j in range(nl):
-            if c[k, j, 3] != c[k - 1, j, 3]:
+            if c[(k * nl + j) * 4 + 3] != c[((k - 1) * nl + j) * 4 + 3]:
                 jj[k] = 1
                 break
         before = o[k - 1]
@@ -1264,14 +1312,14 @@ def table_of_run(starts, anchors, coef) -> CompiledGait:
         if not isfinite(size):
             size = 0.0
         for j in range(nl):
-            a = c[k - 1, j, 2]
-            jk = c[k - 1, j, 3]
+            a = c[((k - 1) * nl + j) * 4 + 2]
+            jk = c[((k - 1) * nl + j) * 4 + 3]
             dj = d * jk
-            if fabs((a + dj) - c[k, j, 2]) > scale * ((fabs(a) + fabs(dj)) + size * fabs(jk)):
+            if fabs((a + dj) - c[(k * nl + j) * 4 + 2]) > \
+                    scale * ((fabs(a) + fabs(dj)) + size * fabs(jk)):
                 jmp[k] = 1
                 nj += 1
                 break
-    cdef double* rg
     i = 0
     for k in range(n):
         if jmp[k]:
@@ -1284,44 +1332,28 @@ def table_of_run(starts, anchors, coef) -> CompiledGait:
         bounded = isfinite(d0) and isfinite(d1)
         rg = st + k * w + nl
         for j in range(nl):
-            st[k * w + j] = fabs(c[k, j, 3])
+            st[k * w + j] = fabs(c[(k * nl + j) * 4 + 3])
             rg[j] = INFINITY if bounded else -INFINITY
             rg[nl + j] = -rg[j]
             rg[2 * nl + j] = rg[j]
             rg[3 * nl + j] = -rg[j]
         if bounded:
-            piece_ranges(&c[k, 0, 0], <int>nl, d0, d1, rg)
+            piece_ranges(c + k * nl * 4, <int>nl, d0, d1, rg)
     # the aligned levels (``_aligned_levels``: max of rows 0, 2, 4, min of rows 1, 3)
-    _fill_levels(st, off, L, n, w, NULL, nl)
+    _fill_levels(st, gd.lev_off, L, n, w, NULL, nl)
     jb[0] = 0                                        # ``_counts_before(jj)``
     for i in range(2 * n):
         jb[i + 1] = jb[i] + jj[i % n]
-    g._keep = (coef, starts, anchors, mem)
-    g.d.kind = TABLE
-    g.d.nl = <int>nl
-    g.d.n = <int>n
-    g.d.coef = <double*>&c[0, 0, 0]
-    g.d.jump = jmp
-    g.d.jjump = jj
-    g.d.rest = rest
-    g.d.n_jumps = <int>nj
-    g.d.jump_times = jt if nj else NULL
-    g.d.stat = st
-    g.d.nlev = <int>L
-    for q in range(L):
-        g.d.lev_off[q] = off[q]
-    g.d.jj_before = jb
-    g.d.period = 0.0
-    g.d.starts = <double*>&s[0]
-    g.d.anchors = <double*>&o[0]
-    g.d.constant = True
+    gd.n_jumps = <int>nj
+    if not nj:
+        gd.jump_times = NULL
+    gd.hint = 0
+    gd.constant = True
     for k in range(n):
         if not rest[k]:
-            g.d.constant = False
+            gd.constant = False
             break
-    g.n_links = <int>nl
-    g.period = None
-    return g
+    return 0
 
 
 def table_struct(CompiledGait g):
