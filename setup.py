@@ -17,6 +17,10 @@ def compiled_core() -> list[Extension]:
                       extra_compile_args=flags) for n in ('_gait', '_exact', '_stepping')] + [
         # the actuator's per-tick work (core/actuator.py is its Python side)
         Extension('crawler_sim.core._actuator', ['crawler_sim/core/_actuator.pyx'],
+                  extra_compile_args=flags),
+        # the plant's compiled step (core/plant/engine.py's run to the publish grid, one or N
+        # crawlers: the vector environment's step)
+        Extension('crawler_sim.core.plant._batch', ['crawler_sim/core/plant/_batch.pyx'],
                   extra_compile_args=flags)]
 
 

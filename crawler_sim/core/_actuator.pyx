@@ -391,14 +391,16 @@ cdef class Servo:
         """A step command's new targets (``Actuator.set_target``: ``n_links`` Python floats,
         checked there): a linkage whose target changes is no longer settled."""
         cdef Py_ssize_t i
-        cdef double x
         if len(new) != self.n_links:
             raise ValueError(f'expected {self.n_links} values, got {len(new)}')
         for i in range(self.n_links):
-            x = new[i]
-            if x != self.tgt[i]:
-                self.settled[i] = 0
-            self.tgt[i] = x
+            self._retarget(i, new[i])
+
+    cdef inline void _retarget(self, Py_ssize_t i, double x) noexcept:
+        """Linkage i's new step target x [m]: unsettled if it changes (``_command``)."""
+        if x != self.tgt[i]:
+            self.settled[i] = 0
+        self.tgt[i] = x
 
     @property
     def _settled(self) -> list[bool]:
@@ -565,43 +567,87 @@ cdef class Servo:
         """``n`` ticks of ``dt_ns`` from ``t0_ns`` [ns], each as ``step(t0_ns / 1e9,
         t1_ns / 1e9)``: (starts (n,) [s], anchors (n,) [s], coef (n, n_links, 4),
         rest_from, rest_piece); see ``actuator.Pieces``."""
-        cdef Py_ssize_t k, i, nl = self.n_links, rest_from = n
-        cdef long long t_ns
-        cdef double t0, t1
-        cdef int status
         if n < 0 or dt_ns <= 0:
             raise ValueError(f'a run needs n >= 0 ticks of dt_ns > 0, got {n}, {dt_ns}')
         starts = np.empty(n)
         anchors = np.empty(n)
-        coef = np.empty((n, nl, 4))
+        coef = np.empty((n, self.n_links, 4))
         cdef double[::1] st = starts, an = anchors
         cdef double[:, :, ::1] cf = coef
-        for k in range(n):
-            t_ns = t0_ns + k * dt_ns
-            # the engine's times: integer ns to float seconds (Python's int / float converts
-            # the int to the nearest double first, as this cast does)
-            t0 = <double>t_ns / 1e9
-            t1 = <double>(t_ns + dt_ns) / 1e9
-            st[k] = t0
-            status = self._tick(t0, t1)
-            if status == REST:
-                if rest_from == n:
-                    rest_from = k
-                an[k] = self.rest_t0
-                for i in range(nl):
-                    cf[k, i, 0] = self.rest_coef[i, 0]
-                    cf[k, i, 1] = self.rest_coef[i, 1]
-                    cf[k, i, 2] = self.rest_coef[i, 2]
-                    cf[k, i, 3] = self.rest_coef[i, 3]
-                continue
-            an[k] = t0
-            for i in range(nl):
-                cf[k, i, 0] = self.l0[i]
-                cf[k, i, 1] = self.v0[i]
-                cf[k, i, 2] = self.a0[i]
-                cf[k, i, 3] = self.jk[i]
-            if status == NEW_REST:
-                # one Cubic object, handed out again by the ticks after this one (and by step)
-                self._keep_rest(t0, self._piece(t0))
-                rest_from = k
+        cdef Py_ssize_t rest_from = n
+        if n:
+            rest_from = servo_run(self, t0_ns, dt_ns, n, &st[0], &an[0], &cf[0, 0, 0])
         return starts, anchors, coef, rest_from, (self.rest if rest_from < n else None)
+
+
+# ---------------------------------------------------------------------- from C (_actuator.pxd)
+cdef Py_ssize_t servo_run(object servo, long long t0_ns, long long dt_ns, Py_ssize_t n,
+                          double* st, double* an, double* cf) except -1:
+    """``n`` >= 1 ticks of ``dt_ns`` > 0 from ``t0_ns`` [ns] (``Servo._run``'s loop, its one
+    home) written into starts ``st``, anchors ``an`` (n,) [s] and ``cf`` (n, n_links, 4)
+    (l0, v0, a0, jerk); returns rest_from (n: none at rest). The plant's compiled step writes
+    them straight into its table (``_gait.run_table``, issue 41)."""
+    cdef Servo self = <Servo?>servo
+    cdef Py_ssize_t k, i, nl = self.n_links, rest_from = n
+    cdef long long t_ns
+    cdef double t0, t1
+    cdef int status
+    for k in range(n):
+        t_ns = t0_ns + k * dt_ns
+        # the engine's times: integer ns to float seconds (Python's int / float converts
+        # the int to the nearest double first, as this cast does)
+        t0 = <double>t_ns / 1e9
+        t1 = <double>(t_ns + dt_ns) / 1e9
+        st[k] = t0
+        status = self._tick(t0, t1)
+        if status == REST:
+            if rest_from == n:
+                rest_from = k
+            an[k] = self.rest_t0
+            for i in range(nl):
+                cf[(k * nl + i) * 4 + 0] = self.rest_coef[i, 0]
+                cf[(k * nl + i) * 4 + 1] = self.rest_coef[i, 1]
+                cf[(k * nl + i) * 4 + 2] = self.rest_coef[i, 2]
+                cf[(k * nl + i) * 4 + 3] = self.rest_coef[i, 3]
+            continue
+        an[k] = t0
+        for i in range(nl):
+            cf[(k * nl + i) * 4 + 0] = self.l0[i]
+            cf[(k * nl + i) * 4 + 1] = self.v0[i]
+            cf[(k * nl + i) * 4 + 2] = self.a0[i]
+            cf[(k * nl + i) * 4 + 3] = self.jk[i]
+        if status == NEW_REST:
+            # one Cubic object, handed out again by the ticks after this one (and by step)
+            self._keep_rest(t0, self._piece(t0))
+            rest_from = k
+    return rest_from
+
+
+cdef int servo_target(object servo, const double* new) except -1:
+    """A step command of n_links targets [m] (``Actuator._set_target``: the trajectory
+    cancelled, the rest piece forgotten, then ``_command``'s rule), from C."""
+    cdef Servo self = <Servo?>servo
+    cdef Py_ssize_t i
+    self.traj = None
+    self.ref = None
+    self.rest = None
+    for i in range(self.n_links):
+        self._retarget(i, new[i])
+    return 0
+
+
+cdef int servo_state(object servo, double* l, double* v, double* a) except -1:
+    """l [m], l' [m/s], l'' [m/s^2] per linkage at the current tick start into three rows
+    (the ``l``, ``v``, ``a`` lists' values)."""
+    cdef Servo self = <Servo?>servo
+    cdef Py_ssize_t i
+    for i in range(self.n_links):
+        l[i] = self.l[i]
+        v[i] = self.v[i]
+        a[i] = self.a[i]
+    return 0
+
+
+cdef bint servo_following(object servo) except -1:
+    """Whether the servo follows a trajectory reference."""
+    return (<Servo?>servo).traj is not None

@@ -46,6 +46,7 @@ from ..solvers.base import SolverError, capabilities
 from ..stepper import Stepper
 from ..trajectory import Event, State
 from .inputs import PreparedTrajectory
+from ._batch import plant_step as _plant_step
 from ..simtime import to_seconds
 
 #: what a tick's integration may raise without stopping the plant: a failed step
@@ -99,6 +100,7 @@ class Engine:
         self.integrate = integrate
         # integrate=False: what the actuator emitted, the queue's runs (``_drain``) in order
         self._log: list = []
+        self._step: Any = None
         self._build(cfg, t_ns)
 
     # ------------------------------------------------------------------ inputs
@@ -147,6 +149,7 @@ class Engine:
         else:
             self.sync()
             self.cfg = cfg
+            self._step = None           # the publish grid may have changed
             if cfg.limits != old.limits:
                 self.actuator.configure(limits=cfg.limits)
         self._note('configure', cfg)
@@ -190,6 +193,7 @@ class Engine:
         self.stepper = Stepper(cfg.crawler, rest, cfg.method, t0=t, x0=cfg.initial_position,
                                v0=0.0, dt=dt, penalty=cfg.penalty, **cfg.stepper_options())
         self.stepper.pop_events()
+        self._step = None               # the compiled step of these objects, made when needed
         # the queue of ticks not integrated yet: single ticks (tick()) as start times and Cubic
         # pieces, and runs of ticks as (number of single ticks queued before it, Pieces)
         self._starts: list[float] = []
@@ -211,6 +215,7 @@ class Engine:
                                v0=v0, dt=to_seconds(cfg.dt_ns), penalty=cfg.penalty, **opts)
         self.stepper.pop_events()
         self.cfg = cfg
+        self._step = None
 
     # ------------------------------------------------------------------ time
     @property
@@ -246,12 +251,26 @@ class Engine:
         self._blocks.append((len(self._pieces), self.actuator.run(self.t_ns, dt_ns, n)))
         self.t_ns += n * dt_ns
 
+    def _fast(self) -> Any:
+        """The compiled step of this engine (``_batch.PlantStep``: the actuator's run, its
+        table and the exact integration in one pass), or False where only the Python path
+        runs (``_batch.plant_step``); made once per stepper, actuator and configuration."""
+        step = self._step
+        if step is None:
+            step = self._step = _plant_step(self) or False
+        return step
+
     def tick_to_grid(self) -> int:
         """``tick()`` repeated up to and including the next tick that ends on the publish grid
         (which syncs); returns how many ticks ran. The same pieces, bit for bit, as calling
         ``tick()`` that many times: a caller that has nothing to apply between those ticks
         (the flat-out node between two publish ticks) saves the per-tick calls (one compiled
-        run of the actuator, ``Actuator.run``)."""
+        run of the actuator, ``Actuator.run``; with nothing queued, the plant's compiled
+        step, ``_batch``)."""
+        if not (self._pieces or self._blocks):
+            step = self._step if self._step is not None else self._fast()
+            if step and step.current():
+                return step.run()
         n = self._ticks_to_grid()
         self._run(n)
         self.sync()
@@ -269,6 +288,10 @@ class Engine:
             k = self._ticks_to_grid()
             if n < k:
                 self._run(n)             # ends off the grid: queued, as single ticks are
+            elif not (self._pieces or self._blocks) and (
+                    self._step if self._step is not None else self._fast()) \
+                    and self._step.current():
+                n = self._step.run()     # tick_to_grid() with nothing queued: compiled
             elif self.integrate:
                 n = k                    # tick_to_grid(), k known
                 self._run(n)
@@ -378,19 +401,45 @@ class Engine:
         else:
             runs = self._drain()
         t1 = to_seconds(self.t_ns)
+        if not _fixed_step(self.stepper.method):
+            self._integrate(t1, self._gait(runs))
+            return
         try:
-            if _fixed_step(self.stepper.method):
-                # time stepping: one call per tick keeps its steps on the tick grid
-                starts, pieces = self._ticks(runs)
-                ends = starts[1:] + [t1]
-                for end, piece in zip(ends, pieces):
-                    self.stepper.advance(end, piece)
-            else:
-                gait = self._gait(runs)
-                try:
-                    self.stepper.advance(t1, gait)
-                except _FAILURES as exc:
-                    self._fallback(t1, gait, exc)
+            # time stepping: one call per tick keeps its steps on the tick grid
+            starts, pieces = self._ticks(runs)
+            ends = starts[1:] + [t1]
+            for end, piece in zip(ends, pieces):
+                self.stepper.advance(end, piece)
+        except _FAILURES as exc:
+            self._contain(exc)
+            return
+        self._events.extend(self.stepper.pop_events())
+
+    def _integrate(self, t1: float, gait: Gait) -> None:
+        """The queued ticks' ``gait`` integrated up to t1 [s] by an event-driven method
+        (``sync``'s work once the queue is drained; the compiled step's path for what it does
+        not handle itself): a failure falls back to the implicit method, then is contained;
+        the events are kept."""
+        try:
+            try:
+                self.stepper.advance(t1, gait)
+            except _FAILURES as exc:
+                self._fallback(t1, gait, exc)
+        except _FAILURES as exc:
+            self._contain(exc)
+            return
+        self._events.extend(self.stepper.pop_events())
+
+    def _failed(self, t1: float, status: int) -> None:
+        """The compiled step's integration towards t1 [s] stopped with ``status`` (the core
+        restored, as ``ExactSolver.advance`` leaves it): what ``_integrate`` does with that
+        failure (the solver's message, the fallback, containment, events)."""
+        gait = self.stepper.gait
+        try:
+            try:
+                self.stepper._solver._fail(status, t1)      # raises the solver's failure
+            except _FAILURES as exc:
+                self._fallback(t1, gait, exc)
         except _FAILURES as exc:
             self._contain(exc)
             return
@@ -404,6 +453,7 @@ class Engine:
         v0, opts = _handover(st, gait, self.cfg)
         self.stepper = Stepper(self.cfg.crawler, gait, 'implicit', t0=float(st.t),
                                x0=float(st.x[0]), v0=v0, dt=to_seconds(self.cfg.dt_ns), **opts)
+        self._step = None
         self.stepper.advance(t1, gait)
 
     def _contain(self, exc: Exception) -> None:

@@ -842,6 +842,9 @@ cdef class ExactCore:
 
     def save(self):
         """Keep the state, so a call that raises can be undone (``restore``)."""
+        self._save()
+
+    cdef int _save(self) except -1:
         cdef int p = self.p
         memcpy(self._snap, self.K, self._n_state * sizeof(double))
         cdef char* b = self._snap + self._n_state * sizeof(double)
@@ -867,8 +870,12 @@ cdef class ExactCore:
         self._snap_f[18] = self.origin
         self._snap_f[19] = self.origin_k
         self._saved_gait = self.last_gait
+        return 0
 
     def restore(self):
+        self._restore()
+
+    cdef int _restore(self) except -1:
         cdef int p = self.p
         memcpy(self.K, self._snap, self._n_state * sizeof(double))
         memcpy(self.contact, self._snap + self._n_state * sizeof(double), 9 * p)
@@ -896,6 +903,7 @@ cdef class ExactCore:
         self.n_seg = 0
         self.n_ev = 0
         self.n_choice = 0
+        return 0
 
     def forget_mode(self):
         """The next segment chooses its mode anew (a gait switch that is not C2)."""
@@ -1950,6 +1958,9 @@ cdef class ExactCore:
         for a gait read from its period's frame (every kind but a Python gait's pieces not yet
         periodic), where the frame moves on (``tl``, ``origin``; without ``skip``, at the first
         segment end past a period's end: segments are not cut there). Returns a status."""
+        return self._drive(gait, t_abs, T)
+
+    cdef int _drive(self, CompiledGait gait, double t_abs, double T) except -1:
         cdef GaitData* g = &gait.d
         cdef int p = self.p, nl = self.nl, i, j, r, nr, r0, code, n_hit
         cdef int guard = 0, status = S_REACHED, n_max = self.n_buf
@@ -2418,6 +2429,13 @@ cdef class ExactCore:
         segment's closed form when it ends now, through ``ClosedForm._rows`` as ``current``
         evaluates it (the same arithmetic, bit for bit). False, nothing written, when
         ``current`` would take its provisional path (no segment ending now): then read that."""
+        cdef int p = self.p
+        if x.shape[0] != p or v.shape[0] != p or contact.shape[0] != p:
+            raise ValueError(f'read_state: arrays of {p} entries expected')
+        return self._read(&x[0], &v[0], &contact[0]) == 1
+
+    cdef int _read(self, double* x, double* v, signed char* contact) except -1:
+        """``read_state`` into (p,) rows: 1 written, 0 not (the provisional path)."""
         cdef int p = self.p, nl = self.nl
         cdef CompiledGait g
         cdef ClosedForm cf = self.closed
@@ -2426,12 +2444,10 @@ cdef class ExactCore:
         cdef double* w
         cdef unsigned char ind
         if not (self.last_valid and self.last_f[1] == self.t and self.last_gait is not None):
-            return False
-        if x.shape[0] != p or v.shape[0] != p or contact.shape[0] != p:
-            raise ValueError(f'read_state: arrays of {p} entries expected')
+            return 0
         g = self.last_gait
         if g.d.kind == PROXY:
-            return False          # (``values`` may read the user's functions there)
+            return 0              # (``values`` may read the user's functions there)
         # gait values at t (``CompiledGait.values``' one call), then R, K, lam as scratch
         w = <double*>PyMem_Malloc((4 * max(nl, 1) + 2 * p + max(p - 1, 1)) * sizeof(double))
         if w == NULL:
@@ -2439,12 +2455,12 @@ cdef class ExactCore:
         try:
             gait_eval(&g.d, t, w, w + nl, w + 2 * nl, w + 3 * nl)
             cf._rows(1, w, w + nl, w + 2 * nl, self.last_f, &ref, self.last_group,
-                     self.last_contact, self.last_R, self.last_K0, &owner, &t, &x[0], &v[0],
+                     self.last_contact, self.last_R, self.last_K0, &owner, &t, x, v,
                      w + 4 * max(nl, 1), w + 4 * max(nl, 1) + p,
-                     w + 4 * max(nl, 1) + 2 * p, &contact[0], &ind)
+                     w + 4 * max(nl, 1) + 2 * p, contact, &ind)
         finally:
             PyMem_Free(w)
-        return True
+        return 1
 
     def switch_gait(self, CompiledGait old, CompiledGait new) -> bint:
         """``ExactSolver._switch_gait``'s work on the core, compiled (the engine switches gait
@@ -2454,12 +2470,15 @@ cdef class ExactCore:
         ddot below 16 terms), so bit for bit the Python path. False, nothing changed, for a
         gait of Python functions (PROXY: read through its callables) or 16 linkages or more:
         then the Python path runs."""
+        return self._switch(old, new) == 1
+
+    cdef int _switch(self, CompiledGait old, CompiledGait new) except -1:
         cdef int nl = self.nl, j
         cdef double t = self.t, dx = 0.0, dv = 0.0
         cdef double* w
         cdef bint same = True
         if old.d.kind == PROXY or new.d.kind == PROXY or nl >= 16:
-            return False
+            return 0
         w = <double*>PyMem_Malloc(8 * nl * sizeof(double))
         if w == NULL:
             raise MemoryError()
@@ -2484,7 +2503,7 @@ cdef class ExactCore:
                 self.V += dv
         finally:
             PyMem_Free(w)
-        return True
+        return 1
 
 
 
@@ -2501,3 +2520,61 @@ def solve_inclusion(double c, double u_ref, double force, kinks, f_plus, f_minus
         return u_ref + force / c, 0.0
     u = inclusion(c, u_ref, force, &k[0], &a[0], &b[0], n, &idx[0], &s)
     return u, s
+
+
+# ---------------------------------------------------------------------- from C (_exact.pxd)
+# ``ExactSolver.advance``'s work on its core, for the plant's compiled step
+# (``core/plant/_batch.pyx``, issue 41): the same methods as from Python, without a call.
+
+cdef int core_switch(object core, CompiledGait old, CompiledGait new) except -1:
+    """``ExactCore.switch_gait``: 1 done, 0 the Python path must run (nothing changed)."""
+    return (<ExactCore?>core)._switch(old, new)
+
+
+cdef int core_drive(object core, CompiledGait gait, double t1, long ev_base,
+                    long* counts) except -1:
+    """One pass of ``ExactSolver.advance``'s loop with ``T`` = 0 (a gait that is not
+    periodic) and no kept segments: ``seg_base`` 0, ``ev_base``, ``save``, ``drive`` towards
+    t1 [s]. Returns drive's status with counts = (n_seg, n_ev, n_choice) of the call; a call
+    that failed (a status but REACHED or FULL) or raised is undone (``restore``), as there."""
+    cdef ExactCore c = <ExactCore?>core
+    cdef int status
+    c.seg_base = 0
+    c.ev_base = ev_base
+    c._save()
+    try:
+        status = c._drive(gait, t1, 0.0)
+    except BaseException:
+        c._restore()
+        raise
+    if status != S_REACHED and status != S_FULL:
+        c._restore()
+    counts[0] = c.n_seg
+    counts[1] = c.n_ev
+    counts[2] = c.n_choice
+    return status
+
+
+cdef double core_time(object core) except? -1.0:
+    """The core's time t [s]."""
+    return (<ExactCore?>core).t
+
+
+cdef int core_settle(object core, bint skip, double tscale, double cap) except -1:
+    """``advance``'s settings of a call: ``skip``, ``tscale`` [s], ``cap`` [s]."""
+    cdef ExactCore c = <ExactCore?>core
+    c.skip = skip
+    c.tscale = tscale
+    c.cap = cap
+    return 0
+
+
+cdef int core_forget(object core) except -1:
+    """``ExactSolver.forget_history``'s work on the core: the periodic check starts anew."""
+    (<ExactCore?>core).ck_valid = False
+    return 0
+
+
+cdef int core_read(object core, double* x, double* v, signed char* contact) except -1:
+    """``ExactCore.read_state`` into (p,) rows: 1 written, 0 not (read ``current`` then)."""
+    return (<ExactCore?>core)._read(x, v, contact)

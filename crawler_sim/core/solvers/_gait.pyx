@@ -1356,6 +1356,25 @@ cdef int run_table_fill(CompiledGait g) except -1:
     return 0
 
 
+def run_arrays(CompiledGait g):
+    """(starts (n,) [s], anchors (n,) [s], coef (n, nl, 4)) of a TABLE gait that is not
+    periodic, as new arrays: what ``gaits.PiecewiseCubic.from_arrays`` takes (a gait the
+    plant's compiled step built in place, made a Python gait when one is asked for)."""
+    cdef GaitData* d = &g.d
+    cdef Py_ssize_t n = d.n, nl = d.nl
+    if d.kind != TABLE or d.period > 0.0 or n < 1:
+        raise ValueError('run_arrays reads a TABLE gait that is not periodic')
+    starts = np.empty(n)
+    anchors = np.empty(n)
+    coef = np.empty((n, nl, 4))
+    cdef double[::1] s = starts, o = anchors
+    cdef double[:, :, ::1] c = coef
+    memcpy(&s[0], d.starts, n * sizeof(double))
+    memcpy(&o[0], d.anchors, n * sizeof(double))
+    memcpy(&c[0, 0, 0], d.coef, n * nl * 4 * sizeof(double))
+    return starts, anchors, coef
+
+
 def table_struct(CompiledGait g):
     """The struct of a TABLE gait that is not periodic as copies (a dict of arrays and
     numbers): what two builders of one table must agree on, bit for bit (tests)."""

@@ -46,11 +46,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..friction import DEFAULT_RULE, check_rule
-from ..gaits import Gait, _positive
+from ..gaits import Gait, PiecewiseCubic, _positive
 from ..model import Crawler
 from ..trajectory import EventLog, new_event
 from . import _exact
-from ._gait import _NO_LOCK
+from ._gait import _NO_LOCK, run_arrays as _gait_arrays
 from .base import Capabilities, SolverError, register
 from .segments import (PeriodicBlock, Records, Segment, SegmentChunk, SegmentList,
                        crawler_constants, evaluate_records, offset_matrices)
@@ -79,6 +79,15 @@ def check_finite_gait(vals: Sequence[ArrayLike], t: float) -> None:
                 arr, (np.size(t), -1))).any(axis=1))[0][0]]
             raise ValueError(f'gait {name} must be finite, got a non-finite value at t = '
                              f'{float(bad)!r} s')
+
+
+def _run_gait(cg: Any) -> Gait:
+    """The ``PiecewiseCubic`` of a run's table built in place (``_gait.run_table``): its
+    pieces copied (``_gait.run_arrays``), its compiled form the table itself, so the solver
+    reads the same struct whichever it is handed."""
+    gait = PiecewiseCubic.from_arrays(*_gait_arrays(cg))
+    gait.__dict__['_compiled'] = gait.__dict__['_native_kind'] = cg
+    return gait
 
 
 @register('exact')
@@ -161,6 +170,20 @@ class ExactSolver:
         self.n_skipped_periods = 0
         self._last_gait = self.gait
 
+    @property
+    def gait(self) -> Gait:
+        """The gait of the current interval. A run's table the plant's compiled step built
+        (``core/plant/_batch.pyx``) is made a ``PiecewiseCubic`` only when asked for here
+        (``_run_gait``: the same pieces, its compiled form that very table)."""
+        g = self._gait
+        if g is None:
+            g = self._gait = _run_gait(self._cg)
+        return g
+
+    @gait.setter
+    def gait(self, gait: Gait) -> None:
+        self._gait = gait
+
     def forget_history(self) -> None:
         """Streaming use drops the events read: the periodic check starts anew, and the
         choice instants listed so far are dropped too (``n_choices`` keeps counting), so a
@@ -175,6 +198,9 @@ class ExactSolver:
         if rec is None:
             return None
         f, ref, contact, group, R, K0, _ = rec
+        if self._last_gait is None:       # a compiled step's table (``gait``)
+            cg = self._core.last_gait
+            self._last_gait = self.gait if cg is self._cg else _run_gait(cg)
         return Segment(float(f[0]), float(f[1]), self._last_gait, contact, R, K0, float(f[2]),
                        float(f[3]), float(f[4]), int(ref), float(f[5]), group)
 
@@ -272,7 +298,7 @@ class ExactSolver:
         if not n:
             return
         self.n_segments += n
-        self._last_gait = self.gait
+        self._last_gait = self._gait      # None: the compiled step's table, made when read
         if self.keep_segments:
             self.segments.extend_chunk(SegmentChunk(self.gait, *core.records(n)))
 
