@@ -21,6 +21,9 @@ def compiled_core() -> list[Extension]:
         # the plant's compiled step (core/plant/engine.py's run to the publish grid, one or N
         # crawlers: the vector environment's step)
         Extension('crawler_sim.core.plant._batch', ['crawler_sim/core/plant/_batch.pyx'],
+                  extra_compile_args=flags),
+        # the environments' step over N rows (envs/plant.py, envs/vector.py)
+        Extension('crawler_sim.envs._rows', ['crawler_sim/envs/_rows.pyx'],
                   extra_compile_args=flags)]
 
 

@@ -36,6 +36,7 @@ from ..core.actuator import ActuatorLimits
 from ..core.plant.config import PARAMETERS, PlantConfig, as_float
 from ..core.plant.engine import Engine, Journal
 from ..core.scene import crawler_from_mapping
+from ._rows import EnvRows
 
 __all__ = ['CrawlPlant', 'SEED_CRAWLER', 'check_action']
 
@@ -82,20 +83,6 @@ def check_action(action: Any, shape: tuple[int, ...]) -> NDArray[np.float64]:
         raise ValueError(f'action{list(bad.tolist())} must be finite, in [-1, 1], got '
                          f'{a[tuple(bad)]!r}')
     return np.clip(a, -1.0, 1.0)
-
-
-def _dot(a: NDArray[np.float64], b: NDArray[np.float64], la: list[float] | None = None,
-         lb: list[float] | None = None) -> float:
-    """float(a @ b) of two (k,) float64 arrays: below 16 terms in Python floats, summed from
-    0.0 in order as numpy's dot does there (BLAS ddot's loop; cheaper than the call on a few
-    numbers), else numpy's. ``la``, ``lb``: ``a.tolist()``, ``b.tolist()`` if the caller has
-    them."""
-    if a.size >= 16:
-        return float(a @ b)
-    s = 0.0
-    for x, y in zip(a.tolist() if la is None else la, b.tolist() if lb is None else lb):
-        s += x * y
-    return s
 
 
 class CrawlPlant:
@@ -164,8 +151,43 @@ class CrawlPlant:
         self.randomize = as_float('randomize', randomize, (0.0, 0.9))
         self.journal = journal
         self.masses = self.base.masses
+        self.mass = float(self.base.total_mass)
         self.engine: Engine | None = None
-        self.targets = [float(x) for x in lengths]
+        # the episode's numbers: a row of compiled rows (``_rows.EnvRows``: the step, the
+        # reward and the observation), its own or a vector env's (``bind``)
+        self.bind(self.rows(1), 0)
+        self.targets = lengths
+
+    def rows(self, n: int) -> EnvRows:
+        """New rows for ``n`` crawlers of this configuration (a vector env's, ``bind``)."""
+        return EnvRows(n, self.p, self.min_length, 0.5 * (self.max_length - self.min_length),
+                       self.period_ns, self.control_period, self.forward_reward_weight,
+                       self.ctrl_cost_weight)
+
+    def bind(self, rows: EnvRows, i: int) -> None:
+        """Keep this crawler's numbers in row ``i`` of ``rows`` from now on (reset next)."""
+        self._rows, self._i = rows, i
+        # views of the row: the plant's x [m], v [m/s] and contact, refilled in place
+        self.x, self.v, self.contact = rows.x[i], rows.v[i], rows.contact[i]
+
+    @property
+    def targets(self) -> list[float]:
+        """The commanded target lengths [m] (the observation's)."""
+        return self._rows.targets[self._i].tolist()
+
+    @targets.setter
+    def targets(self, lengths: Any) -> None:
+        self._rows.targets[self._i] = lengths
+
+    @property
+    def com(self) -> float:
+        """The centre of mass's position [m] after the last step (or reset)."""
+        return float(self._rows.com[self._i])
+
+    @property
+    def failures(self) -> int:
+        """The engine's failures counted by the last step (or reset)."""
+        return int(self._rows.failures[self._i])
 
     @property
     def obs_size(self) -> int:
@@ -201,58 +223,40 @@ class CrawlPlant:
         self.masses = crawler.masses
         self.mass = float(crawler.total_mass)
         self.engine = Engine(cfg, 0, self.journal)
-        self.targets = [float(x) for x in cfg.initial_lengths]
-        self.failures = 0
+        rows, i = self._rows, self._i
+        rows.masses[i] = self.masses
+        rows.mass[i] = self.mass
+        rows.targets[i] = cfg.initial_lengths
+        rows.failures[i] = 0
         st = self.engine.state
-        # the plant's own arrays, refilled in place each step (``Engine.read_state``)
-        self.x = st.x.copy()
-        self.v = st.v.copy()
-        self.contact = np.array(st.contact, dtype=np.int8)
-        self.com = float(self.masses @ st.x) / self.mass
+        # the row's arrays, refilled in place each step (``Engine.read_state``)
+        self.x[:] = st.x
+        self.v[:] = st.v
+        self.contact[:] = st.contact
+        rows.com[i] = float(self.masses @ st.x) / self.mass
+        rows.observe(i, self.engine)
 
     def lengths_of(self, action: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Target lengths [m] of a checked action in [-1, 1] (shape (n_links,))."""
-        return np.array(self._targets(action.tolist()))
-
-    def _targets(self, action: list[float]) -> list[float]:
-        """``lengths_of`` of the action as a list, as Python floats: min_length + (a + 1)
-        (max_length - min_length) / 2 per linkage (doubles, as numpy would compute it
-        elementwise)."""
-        lo, half = self.min_length, 0.5 * (self.max_length - self.min_length)
-        return [lo + (x + 1.0) * half for x in action]
+        """Target lengths [m] of a checked action in [-1, 1] (shape (n_links,)):
+        min_length + (a + 1) (max_length - min_length) / 2 per linkage (``_rows``)."""
+        return self._rows.lengths_of(action)
 
     def step(self, action: NDArray[np.float64]) -> tuple[float, float, bool]:
         """One control period with the checked ``action``: (reward, forward speed of the centre
         of mass [m/s], terminated). Terminated when the plant had to contain a solver failure
-        (it restarts at rest, ``Engine._contain``): that episode's physics ended."""
-        eng = self.engine
-        vals = action.tolist()          # once, for the targets and the control cost
-        self.targets = self._targets(vals)
-        eng.command(self.targets)
-        eng.run_to(eng.t_ns + self.period_ns)
-        eng.read_state(self.x, self.v, self.contact)
-        com = _dot(self.masses, self.x) / self.mass
-        speed = (com - self.com) / self.control_period
-        self.com = com
-        reward = self.forward_reward_weight * speed \
-            - self.ctrl_cost_weight * _dot(action, action, vals, vals)
-        failed = len(eng.failures) > self.failures
-        self.failures = len(eng.failures)
-        return reward, speed, failed
+        (it restarts at rest, ``Engine._contain``): that episode's physics ended. The
+        compiled step of the row (``_rows.EnvRows``; the vector env steps all its rows in
+        one call of it)."""
+        return self._rows.step_row(self._i, self.engine, action)
 
     def observe(self, out: NDArray[np.float64]) -> NDArray[np.float64]:
         """The observation (module doc) written into ``out`` (shape (obs_size,))."""
-        # one assignment from one list (six slices of a few numbers cost twice as much)
-        out[:] = self._observation()
+        out[:] = self._rows.obs[self._i]
         return out
 
     def observation(self) -> NDArray[np.float64]:
         """The observation (module doc) as a new array."""
-        return np.array(self._observation())
-
-    def _observation(self) -> list[float]:
-        act = self.engine.actuator
-        return act.l + act.v + act.a + self.targets + self.v.tolist() + self.contact.tolist()
+        return self._rows.obs[self._i].copy()
 
     def info(self) -> dict[str, Any]:
         """What a policy must not see but a user wants: positions, time, failures."""

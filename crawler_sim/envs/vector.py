@@ -8,8 +8,9 @@ reset from its own generator, as a single env reset without a seed). Gymnasium 1
 ``NEXT_STEP``: the step after an episode ended resets that env, ignores its action and returns
 its first observation with reward 0, not terminated, not truncated.
 
-The step runs the plants one after the other (each: ``Engine.command`` + ``Engine.run_to``);
-docs/gym.md gives its speed and what a batched compiled step inside the plant would need.
+The plants are rows of one ``_rows.EnvRows``: the step is one compiled loop over them, each
+through its engine's compiled step (``core/plant/_batch``, sim_node's plant), the same code a
+single env's step runs (docs/gym.md, Speed).
 """
 from __future__ import annotations
 
@@ -54,6 +55,9 @@ class CrawlVectorEnv(VectorEnv):
         self.max_episode_steps = max_episode_steps
         first = CrawlPlant(crawler, **plant)      # checks the arguments once
         self.plants = [first] + [CrawlPlant(crawler, **plant) for _ in range(num_envs - 1)]
+        self._rows = first.rows(self.num_envs)
+        for i, pl in enumerate(self.plants):
+            pl.bind(self._rows, i)
         n = first.n_links
         self.control_period = first.control_period
         self.single_action_space = spaces.Box(-1.0, 1.0, (n,), np.float64)
@@ -62,7 +66,6 @@ class CrawlVectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.metadata = {**self.metadata, 'render_fps': 1.0 / self.control_period}
-        self._obs = np.zeros((self.num_envs, first.obs_size))
         self._steps = np.zeros(self.num_envs, dtype=np.int64)
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._rngs: list[np.random.Generator] = [seeding.np_random()[0]
@@ -86,43 +89,38 @@ class CrawlVectorEnv(VectorEnv):
             if s is not None:
                 self._rngs[i] = seeding.np_random(s)[0]
             self.plants[i].reset(self._rngs[i])
-            self.plants[i].observe(self._obs[i])
         self._steps[:] = 0
         self._autoreset[:] = False
-        return self._obs.copy(), self._infos(np.zeros(self.num_envs))
+        return self._rows.obs.copy(), self._infos(np.zeros(self.num_envs))
 
     def step(self, actions: Any) -> tuple[NDArray[np.float64], NDArray[np.float64],
                                           NDArray[np.bool_], NDArray[np.bool_], dict]:
         """One control period of every env (NEXT_STEP autoreset, module doc)."""
         acts = check_action(actions, (self.num_envs, self.plants[0].n_links))
-        n = self.num_envs
-        rewards, speeds, terminated = [0.0] * n, [0.0] * n, [False] * n
-        # the loop on Python objects (numpy item access per env cost as much as a step's
-        # bookkeeping); the arrays are written once after it
+        rows = self._rows
         resets = self._autoreset.nonzero()[0].tolist()
+        engines = [pl.engine for pl in self.plants]
+        for i in resets:
+            engines[i] = None            # not stepped: reset below
+        rows.step(engines, np.ascontiguousarray(acts))
+        rewards, speeds = rows.reward.copy(), rows.speed.copy()
+        terminated = rows.failed.copy()
+        for i in resets:
+            self.plants[i].reset(self._rngs[i])
+        rewards[resets] = 0.0
+        speeds[resets] = 0.0
+        terminated[resets] = False
         self._steps[resets] = -1
-        reset = set(resets)
-        rows = [None] * n
-        for i, (pl, a) in enumerate(zip(self.plants, acts)):
-            if i in reset:
-                pl.reset(self._rngs[i])
-            else:
-                rewards[i], speeds[i], terminated[i] = pl.step(a)
-            rows[i] = pl._observation()
-        # the observations written in one assignment (one per row cost a numpy call per env)
-        self._obs[:] = rows
         self._steps += 1
-        rewards, speeds = np.array(rewards), np.array(speeds)
-        terminated = np.array(terminated, dtype=bool)
         truncated = (self._steps >= self.max_episode_steps) if self.max_episode_steps \
             else np.zeros(self.num_envs, dtype=bool)
         truncated &= ~self._autoreset
         self._autoreset = terminated | truncated
-        return self._obs.copy(), rewards, terminated, truncated, self._infos(speeds)
+        return rows.obs.copy(), rewards, terminated, truncated, self._infos(speeds)
 
     def _infos(self, speeds: NDArray[np.float64]) -> dict[str, Any]:
         mask = np.ones(self.num_envs, dtype=bool)
-        return {'x_position': np.array([pl.com for pl in self.plants]), '_x_position': mask,
+        return {'x_position': self._rows.com.copy(), '_x_position': mask,
                 'x_velocity': speeds, '_x_velocity': mask}
 
     def render(self) -> tuple[NDArray[np.uint8], ...] | None:

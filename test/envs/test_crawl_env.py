@@ -221,16 +221,26 @@ def test_a_small_action_is_clipped_as_numpy_clips_it():
         assert pl.lengths_of(got).tobytes() == lengths.tobytes()
 
 
-def test_the_plants_short_dot_is_numpys_bit_for_bit():
-    """The reward's sums (masses . x, action . action) in Python floats below 16 terms give
-    numpy's float(a @ b) to the bit (sign of zero included) on vectors spanning 10 decades."""
-    from crawler_sim.envs.plant import _dot
-    rng = np.random.default_rng(11)
-    for k in range(20000):
-        n = int(rng.integers(1, 16))
-        a = rng.normal(size=n) * 10.0 ** rng.uniform(-5, 5, n)
-        b = a if k % 3 == 0 else rng.normal(size=n) * 10.0 ** rng.uniform(-5, 5, n)
-        if k % 7 == 0:
-            b = -0.0 * b
-        got, want = _dot(a, b), float(a @ b)
-        assert np.float64(got).tobytes() == np.float64(want).tobytes()
+@pytest.mark.parametrize('masses', [[0.5, 1.0], [1.0, 0.7, 1.3], [0.9, 1e-3, 2.0, 1e3, 0.4]])
+def test_the_steps_sums_are_numpys_bit_for_bit(masses):
+    """The compiled step's sums (``_rows``: masses . x for the centre of mass, action . action
+    for the control cost, from 0.0 in order) give numpy's float(a @ b) to the bit below 16
+    terms, so the centre of mass, the speed and the reward are numpy's expressions of the
+    state read; masses spanning six decades, actions with -0.0 and the bounds."""
+    from crawler_sim.envs.plant import CrawlPlant
+    pl = CrawlPlant({'masses': masses, 'mu': 0.3}, control_period=0.01,
+                    ctrl_cost_weight=0.37, forward_reward_weight=1.3)
+    pl.reset(None)
+    rng = np.random.default_rng(len(masses))
+    com = float(pl.masses @ pl.x) / pl.mass
+    for k in range(300):
+        a = rng.uniform(-1.0, 1.0, pl.n_links)
+        a[k % pl.n_links] = (-0.0, 1.0, -1.0, 0.0, 0.3)[k % 5]
+        reward, speed, _ = pl.step(a)
+        want_com = float(pl.masses @ pl.x) / pl.mass
+        want_speed = (want_com - com) / pl.control_period
+        want_reward = 1.3 * want_speed - 0.37 * float(a @ a)
+        assert np.float64(pl.com).tobytes() == np.float64(want_com).tobytes()
+        assert np.float64(speed).tobytes() == np.float64(want_speed).tobytes()
+        assert np.float64(reward).tobytes() == np.float64(want_reward).tobytes()
+        com = want_com

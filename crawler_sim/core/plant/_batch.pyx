@@ -179,37 +179,56 @@ cdef long long run_grid(PlantStep s) except -1:
     return n
 
 
-def step_plants(list engines, const double[:, ::1] targets, const long long[::1] t_ns,
+def step_plants(list engines, const double[:, ::1] targets, long long span_ns,
                 double[:, ::1] x, double[:, ::1] v, signed char[:, ::1] contact):
-    """For each i: ``Engine.command(targets[i])``, ``Engine.run_to(t_ns[i])`` [ns] and
-    ``Engine.read_state`` into row i of ``x`` [m], ``v`` [m/s] and ``contact`` for the
-    ``Engine`` ``engines[i]`` (None: row i is skipped), in one compiled loop: each engine's
-    compiled step where it has one (``Engine._fast``), else its Python methods."""
-    cdef Py_ssize_t i, j, n = len(engines), nl = targets.shape[1]
-    cdef PlantStep s
-    if targets.shape[0] < n or t_ns.shape[0] < n or x.shape[0] < n or v.shape[0] < n \
-            or contact.shape[0] < n:
-        raise ValueError(f'step_plants: {n} rows of targets, t_ns, x, v and contact needed')
+    """For each i: ``Engine.command(targets[i])``, ``Engine.run_to(t_ns + span_ns)`` (from
+    its own time t_ns [ns]) and ``Engine.read_state`` into row i of ``x`` [m], ``v`` [m/s]
+    and ``contact`` for the ``Engine`` ``engines[i]`` (None: row i is skipped), in one
+    compiled loop (``step_engine``)."""
+    cdef Py_ssize_t i, n = len(engines), nl = targets.shape[1], p = x.shape[1]
+    if targets.shape[0] < n or x.shape[0] < n or v.shape[0] < n or contact.shape[0] < n \
+            or v.shape[1] != p or contact.shape[1] != p:
+        raise ValueError(f'step_plants: {n} rows of targets, x, v and contact needed')
     for i in range(n):
-        eng = engines[i]
-        if eng is None:
-            continue
-        obj = eng._step
-        if obj is None:
-            obj = eng._fast()
-        if obj is False or not (<PlantStep>obj).current():
-            eng.command([targets[i, j] for j in range(nl)])
-            eng.run_to(t_ns[i])
-            eng.read_state(np.asarray(x[i]), np.asarray(v[i]), np.asarray(contact[i]))
-            continue
+        if engines[i] is not None:
+            step_engine(engines[i], &targets[i, 0], nl, span_ns, &x[i, 0], &v[i, 0],
+                        &contact[i, 0], p)
+
+
+cdef int step_engine(object eng, const double* targets, Py_ssize_t nl, long long span_ns,
+                     double* x, double* v, signed char* contact, Py_ssize_t p) except -1:
+    """``Engine.command`` of ``nl`` targets [m], ``Engine.run_to(t_ns + span_ns)`` and
+    ``Engine.read_state`` into the (p,) rows: the engine's compiled step where it has one
+    (``Engine._fast``), else its Python methods (the same states)."""
+    cdef Py_ssize_t j
+    cdef PlantStep s
+    obj = eng._step
+    if obj is None:
+        obj = eng._fast()
+    if obj is not False:
         s = <PlantStep>obj
-        if s.nl != nl or x.shape[1] != s.p or v.shape[1] != s.p or contact.shape[1] != s.p:
-            raise ValueError(f'step_plants: row {i} has {nl} targets and {x.shape[1]} '
-                             f'positions, its crawler {s.nl} linkages and {s.p} bodies')
-        plant_command(s, &targets[i, 0])
-        plant_run_to(s, t_ns[i])
-        if not (s.current() and core_read(s.core, &x[i, 0], &v[i, 0], &contact[i, 0])):
-            eng.read_state(np.asarray(x[i]), np.asarray(v[i]), np.asarray(contact[i]))
+        if s.nl != nl or s.p != p:
+            raise ValueError(f'step_plants: {nl} targets and {p} bodies for a crawler of '
+                             f'{s.nl} linkages')
+    if obj is False or not s.current():
+        eng.command([targets[j] for j in range(nl)])
+        eng.run_to(eng.t_ns + span_ns)
+        _read(eng, x, v, contact, p)
+        return 0
+    plant_command(s, targets)
+    # the core's state is the engine's when the compiled run ended the span (nothing queued)
+    if not (plant_run_to(s, eng.t_ns + span_ns) and s.current()
+            and core_read(s.core, x, v, contact)):
+        _read(eng, x, v, contact, p)
+    return 0
+
+
+cdef int _read(object eng, double* x, double* v, signed char* contact,
+               Py_ssize_t p) except -1:
+    """``Engine.read_state`` into the (p,) rows."""
+    eng.read_state(np.asarray(<double[:p]>x), np.asarray(<double[:p]>v),
+                   np.asarray(<signed char[:p]>contact))
+    return 0
 
 
 cdef int plant_command(PlantStep s, const double* targets) except -1:
@@ -224,12 +243,13 @@ cdef int plant_command(PlantStep s, const double* targets) except -1:
 
 cdef int plant_run_to(PlantStep s, long long t_ns) except -1:
     """``Engine.run_to(t_ns)`` [ns]: the compiled run when the span ends on the next grid
-    tick with nothing queued, else the engine's own (which takes it where it can)."""
+    tick with nothing queued (returns 1), else the engine's own (which takes it where it
+    can; returns 0)."""
     eng = s.engine
     cdef long long now = eng.t_ns
     if (t_ns - now == (s.every - (now // s.dt_ns) % s.every) * s.dt_ns
             and not eng._pieces and not eng._blocks):
         run_grid(s)
-    else:
-        eng.run_to(t_ns)
+        return 1
+    eng.run_to(t_ns)
     return 0
