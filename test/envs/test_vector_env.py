@@ -93,3 +93,57 @@ def test_a_nan_action_is_refused_naming_the_entry():
     acts[2, 0] = np.nan
     with pytest.raises(ValueError, match=r'action\[2, 0\] must be finite'):
         vec.step(acts)
+
+
+@pytest.mark.parametrize('crawler, limit', [
+    ({'masses': [1.0, 0.8, 1.2], 'mu': 0.25, 'mu_static': [0.4, 0.3, 0.5],
+      'mu_backward': 0.4}, 7),                          # p = 3, stiction
+    (None, 4),
+])
+def test_the_batched_step_is_python_path_plants_bit_for_bit(crawler, limit):
+    """The vector env's step (its N rows in one compiled loop, each engine's compiled step)
+    against N single plants whose engines run the Python path (``Actuator.run``,
+    ``PiecewiseCubic``, ``Stepper.advance``), seeded s + i: observations, rewards, flags and
+    every engine state bit for bit across autoresets (NEXT_STEP: the env that ended is reset
+    from its own generator, reward 0), with domain randomisation."""
+    from gymnasium.utils import seeding
+    from crawler_sim.core.plant._batch import PlantStep
+    from crawler_sim.envs.plant import CrawlPlant
+    from test.core.plant.test_compiled_paths import PythonEngine, _state_bytes
+
+    class PythonPlant(CrawlPlant):
+        def reset(self, rng):
+            super().reset(rng)
+            self.engine.__class__ = PythonEngine     # the Python path from now on
+
+    kw = dict(control_period=0.01, randomize=0.3)
+    vec = CrawlVectorEnv(N, crawler, max_episode_steps=limit, **kw)
+    refs = [PythonPlant(crawler, **kw) for _ in range(N)]
+    rngs = [seeding.np_random(SEED + i)[0] for i in range(N)]
+    obs, _ = vec.reset(seed=SEED)
+    for pl, rng in zip(refs, rngs):
+        pl.reset(rng)
+    assert obs.tobytes() == np.array([pl.observation() for pl in refs]).tobytes()
+    acts = np.random.default_rng(9).uniform(-1.0, 1.0, (3 * limit + 2, N, refs[0].n_links))
+    ended = np.zeros(N, dtype=bool)
+    resets = 0
+    for a in acts:
+        obs, rew, term, trunc, info = vec.step(a)
+        for i, pl in enumerate(refs):
+            if ended[i]:
+                pl.reset(rngs[i])
+                want = (0.0, 0.0, False)
+                resets += 1
+            else:
+                want = pl.step(a[i])
+            assert obs[i].tobytes() == pl.observation().tobytes()
+            assert np.array([rew[i], info['x_velocity'][i]]).tobytes() == \
+                np.array(want[:2]).tobytes() and term[i] == want[2]
+            assert np.float64(info['x_position'][i]).tobytes() == \
+                np.float64(pl.com).tobytes()
+            assert _state_bytes(vec.plants[i].engine) == _state_bytes(pl.engine)
+            assert repr(vec.plants[i].engine.pop_events()) == repr(pl.engine.pop_events())
+        ended = term | trunc
+    assert resets >= 2 * N
+    assert all(isinstance(pl.engine._step, PlantStep) for pl in vec.plants)
+    assert all(type(pl.engine) is PythonEngine and pl.engine._step is None for pl in refs)

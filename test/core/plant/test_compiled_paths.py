@@ -174,3 +174,87 @@ def test_native_kind_found_per_class():
 
     assert [native(c) for c in (Cubic, Plain, Overrides, Below, Overrides, Plain)] == \
         [True, True, False, True, False, True]
+
+
+# ---------------------------------------------------------------------- the plant's compiled step
+from crawler_sim.core.plant._batch import PlantStep, step_plants  # noqa: E402
+from crawler_sim.core.plant.engine import Engine  # noqa: E402
+
+
+class PythonEngine(Engine):
+    """sim_node's plant without its compiled step: ``Actuator.run``, ``sync`` and
+    ``Stepper.advance`` as Python calls (the path the compiled step must repeat)."""
+
+    def _fast(self):
+        return False
+
+
+def _state_bytes(engine: Engine) -> list[bytes]:
+    st = engine.state
+    inc = b'' if st.incumbent is None else np.asarray(st.incumbent).tobytes()
+    return [np.float64(st.t).tobytes(), st.x.tobytes(), st.v.tobytes(),
+            st.contact.astype(np.int8).tobytes(), st.friction.tobytes(),
+            st.linkage_force.tobytes(), st.lengths.tobytes(), st.rates.tobytes(), inc,
+            np.array(engine.actuator_state()).tobytes()]
+
+
+@pytest.mark.parametrize('crawler, period', [
+    ({'masses': [0.5, 1.0], 'mu': 0.3, 'mu_backward': 0.6}, 0.01),
+    ({'masses': [1.0, 0.8, 1.2], 'mu': 0.25, 'mu_static': [0.4, 0.3, 0.5],
+      'mu_backward': 0.4}, 0.01),                                   # p = 3, stiction
+    ({'masses': [1.0, 0.7, 1.3], 'mu': [0.3, 0.2, 0.4], 'slope': 0.1}, 0.04),
+    ({'masses': [0.5, 1.0], 'mu': 0.3, 'mu_static': 0.45}, 0.001),  # one tick a period
+])
+def test_n_plants_stepped_together_are_n_python_engines_bit_for_bit(crawler, period):
+    """``_batch.step_plants`` (N engines, each command + run + state read in one compiled loop,
+    the vector env's step) against N engines stepped through the Python path
+    (``Actuator.run``, ``PiecewiseCubic``, ``Stepper.advance``): every state (x, v, contact,
+    friction, forces, lengths, incumbent), the actuator, the events, the journal and the
+    failures, bit for bit, over 150 periods of random commands, with commands repeated until
+    the actuator settles (a run at rest: the Python rule's Cubic), a command that is not
+    finite (the gait refused, the solver failure contained: the plant restarts at rest) and an
+    integration cut off the publish grid between two periods (the next span starts off it)."""
+    from crawler_sim.envs.plant import CrawlPlant
+    cfg = CrawlPlant(crawler, control_period=period).engine_config
+    n, p = 4, cfg.crawler.p
+    logs = [[] for _ in range(2 * n)]
+
+    def journal(k):
+        return lambda kind, t_ns, payload: logs[k].append(repr((kind, t_ns, payload)))
+    fast = [Engine(cfg, 0, journal(i)) for i in range(n)]
+    slow = [PythonEngine(cfg, 0, journal(n + i)) for i in range(n)]
+    span = round(period * 1e9)
+    rng = np.random.default_rng(p + round(1e3 * period))
+    x, v, c = np.zeros((n, p)), np.zeros((n, p)), np.zeros((n, p), dtype=np.int8)
+    xr, vr, cr = x[0].copy(), v[0].copy(), c[0].copy()
+    targets = rng.uniform(0.05, 0.15, (n, p - 1))
+    events = 0
+    for k in range(150):
+        fresh = rng.uniform(0.05, 0.15, (n, p - 1))
+        if k % 30 >= 12:
+            fresh[1] = targets[1]               # engine 1 holds its command: it settles
+        targets = fresh
+        if k == 60:
+            targets[2] = math.nan               # refused, contained
+        if k % 40 == 17:
+            for e in (fast[3], slow[3]):        # a cut off the grid: the next span starts off it
+                e.run_to(e.t_ns + 3 * cfg.dt_ns)
+                e.sync()
+        step_plants(fast, targets, span, x, v, c)
+        for i, e in enumerate(slow):
+            e.command(targets[i].tolist())
+            e.run_to(e.t_ns + span)
+            e.read_state(xr, vr, cr)
+            assert (x[i].tobytes(), v[i].tobytes(), c[i].tobytes()) == \
+                (xr.tobytes(), vr.tobytes(), cr.tobytes())
+            assert _state_bytes(fast[i]) == _state_bytes(e)
+            got, want = fast[i].pop_events(), e.pop_events()
+            assert repr(got) == repr(want)
+            events += len(got)
+            assert fast[i].failures == e.failures and fast[i].t_ns == e.t_ns
+    assert logs[:n] == logs[n:]
+    assert events > 0                  # the events path (``ExactSolver._store``) ran
+    # the exact solver's failure, then the implicit fallback's: contained
+    assert len(fast[2].failures) == 2 and 'starts again at rest' in fast[2].failures[1]
+    assert all(isinstance(e._step, PlantStep) for e in fast)      # the compiled step ran
+    assert all(e._step is None for e in slow)
