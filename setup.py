@@ -31,6 +31,8 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test', 'test.*', 'benchmarks', 'benchmarks.*']),
+    # sim_node's Fast DDS profile, read at run time next to its module (ros/sim/main.py)
+    package_data={'crawler_sim.ros.sim': ['fastdds_profile.xml']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),

@@ -9,19 +9,26 @@ before rclpy starts. Before rclpy parses them, the arguments are checked
 (``crawler_sim.ros.args``): a ``--params-file`` that is missing, not YAML, or not a ROS
 parameter file, or an argument outside ``--ros-args``, gives one line naming it and exit code
 2, instead of an rcl traceback or silence.
+
+Before rclpy starts, :func:`use_fastdds_profile` gives Fast DDS the node's writer profile
+(``fastdds_profile.xml`` next to this module: why in its comments) unless the user chose a
+profile or another middleware.
 """
 from __future__ import annotations
 
+import os
+from pathlib import Path
 import signal
 import sys
 import threading
+from typing import MutableMapping
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
 from .standard import ACTION, SERVICES
 
-__all__ = ['main']
+__all__ = ['main', 'use_fastdds_profile', 'FASTDDS_PROFILE']
 
 SPIN_TIMEOUT = 2.0       # s, the longest wait of the executor thread for a callback
 
@@ -37,6 +44,32 @@ HELP_SUMMARY = ('Simulates a friction crawler of p bodies joined by p-1 imposed 
                 'only (docs/node.md).')
 
 
+#: sim_node's Fast DDS profile: every writer's nack suppression (issue 42), installed with the
+#: package (setup.py package_data) so that it is found wherever the code is
+FASTDDS_PROFILE = Path(__file__).with_name('fastdds_profile.xml')
+#: the variables naming a user's own profile file (Fast DDS 2 reads the first, 3 the second)
+PROFILE_VARIABLES = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')
+#: the file Fast DDS loads from the working directory when present
+CWD_PROFILE = 'DEFAULT_FASTRTPS_PROFILES.xml'
+
+
+def use_fastdds_profile(environ: MutableMapping[str, str] = os.environ) -> str:
+    """Point ``FASTRTPS_DEFAULT_PROFILES_FILE`` of ``environ`` (this process's environment: call
+    before rclpy starts) at :data:`FASTDDS_PROFILE` and return its path, or leave ``environ``
+    alone and return '' when the user chose otherwise: a profile file of their own (either
+    variable of :data:`PROFILE_VARIABLES`, or :data:`CWD_PROFILE` in the working directory),
+    QoS from XML (``RMW_FASTRTPS_USE_QOS_FROM_XML``), or a middleware other than rmw_fastrtps
+    (``RMW_IMPLEMENTATION``)."""
+    rmw = environ.get('RMW_IMPLEMENTATION', '')
+    if (any(environ.get(name) for name in PROFILE_VARIABLES)
+            or environ.get('RMW_FASTRTPS_USE_QOS_FROM_XML', '0') not in ('', '0')
+            or (rmw and not rmw.startswith('rmw_fastrtps'))
+            or Path(CWD_PROFILE).is_file() or not FASTDDS_PROFILE.is_file()):
+        return ''
+    environ['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(FASTDDS_PROFILE)
+    return str(FASTDDS_PROFILE)
+
+
 def main(args: list[str] | None = None) -> None:
     """Run sim_node until SIGINT/SIGTERM."""
     from crawler_sim.ros.args import (ArgsError, check_args, print_help_and_exit,
@@ -50,6 +83,7 @@ def main(args: list[str] | None = None) -> None:
     except ArgsError as exc:
         print(f'[crawler_sim] cannot start: {exc}', file=sys.stderr, flush=True)
         raise SystemExit(2) from None
+    use_fastdds_profile()
     rclpy.init(args=args)
     node = None
     executor = None
