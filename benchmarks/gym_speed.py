@@ -15,12 +15,17 @@ Without mujoco (``pip install ".[bench]"``) the Swimmer line gives the issue's m
     .venv/bin/python -m benchmarks.gym_speed [--repeats 5] [--steps 4000] [--envs 256]
     .venv/bin/python -m benchmarks.gym_speed --profile      # cProfile of the vector step
     .venv/bin/python -m benchmarks.gym_speed --breakdown    # where one env-step's time goes
+    .venv/bin/python -m benchmarks.gym_speed --compare      # compiled step vs Python path
 
-``--breakdown``: one env-step (control_period 0.01, 10 ticks) of the plant taken apart into
-what ``Engine.command`` + ``Engine.run_to`` + ``Engine.state`` do in it (the command, the
-compiled actuator run, the exact solver's table of the 10 constant-jerk pieces, the exact
-integration, the read of x, v and contact the env observes), each timed in CPU time, the states checked bit for bit against
-an Engine stepped beside it: what a compiled batched step inside the plant would remove.
+``--breakdown``: one env-step (control_period 0.01, 10 ticks) through the Python path the
+plant's compiled step stands for, taken apart (the command, the actuator run, the exact
+solver's table of the 10 constant-jerk pieces, the exact integration, the read of x, v and
+contact the env observes), each timed in CPU time, against the compiled step
+(``CrawlPlant.step``) alternated with it, the states checked bit for bit.
+
+``--compare``: the single and vector figures with the engines' compiled step
+(``core/plant/_batch``) and with it turned off (every engine through ``Actuator.run``,
+``PiecewiseCubic``, ``Stepper.advance``), alternated in one process.
 """
 from __future__ import annotations
 
@@ -59,15 +64,37 @@ def _vector_rate(env, steps: int, seed: int = 0) -> float:
     return steps * env.num_envs / (time.process_time() - t0)
 
 
+def _python_path(on: bool) -> None:
+    """Turn the engines' compiled step (``core/plant/_batch``) off (``on``) or back on: every
+    ``Engine`` then runs the Python path it stands for (``Actuator.run``, ``PiecewiseCubic``,
+    ``Stepper.advance``; the same states, bit for bit), for a comparison in one process."""
+    from crawler_sim.core.plant.engine import Engine
+    own = _OWN_FAST.setdefault('fast', Engine._fast)
+    Engine._fast = (lambda self: False) if on else own
+
+
+#: ``Engine._fast`` as the class defines it (``_python_path`` puts it back)
+_OWN_FAST: dict = {}
+
+
+def _forget_steps(env) -> None:
+    """Forget the engines' cached compiled steps (``Engine._step``) after ``_python_path``."""
+    for pl in getattr(env.unwrapped, 'plants', None) or [env.unwrapped.plant]:
+        pl.engine._step = None
+
+
 def breakdown(steps: int = 3000) -> None:
-    """Print the CPU time of each part of one env-step (module doc)."""
+    """Print the CPU time of one env-step (module doc): the compiled step of a plant's row
+    (``EnvRows.step_row``: targets, command, the actuator's run into the table, the exact
+    integration, the state read, reward and observation) against the Python path's parts on
+    an engine stepped beside it (checked bit for bit), alternated step by step."""
     from crawler_sim.core.gaits import PiecewiseCubic
     from crawler_sim.envs.plant import CrawlPlant
 
     pl, ref = CrawlPlant(control_period=0.01), CrawlPlant(control_period=0.01)
     pl.reset(None)
     ref.reset(None)
-    e = pl.engine
+    e = ref.engine
     acts = np.random.default_rng(0).uniform(-1, 1, (steps, 1))
     parts = dict.fromkeys(('Engine.command', 'Actuator.run (10 ticks)',
                            'table of the pieces (PiecewiseCubic.compiled)',
@@ -75,15 +102,19 @@ def breakdown(steps: int = 3000) -> None:
                            'state read (Stepper.read_state: x, v, contact)'),
                           0.0)
     names = list(parts)
+    compiled = 0.0
     clock = time.process_time
     x, v, contact = pl.x.copy(), pl.v.copy(), pl.contact.copy()
     for k in range(steps):
+        t0 = clock()
+        pl.step(acts[k])
+        compiled += clock() - t0
         marks = [clock()]
-        e.command(pl.lengths_of(acts[k]).tolist())
+        e.command(ref.lengths_of(acts[k]).tolist())
         marks.append(clock())
-        pieces = e.actuator.run(e.t_ns, e.cfg.dt_ns, pl.ticks)
+        pieces = e.actuator.run(e.t_ns, e.cfg.dt_ns, ref.ticks)
         marks.append(clock())
-        e.t_ns += pl.ticks * e.cfg.dt_ns
+        e.t_ns += ref.ticks * e.cfg.dt_ns
         gait = PiecewiseCubic.from_arrays(pieces.starts, pieces.anchors, pieces.coef)
         gait.compiled()
         marks.append(clock())
@@ -93,13 +124,42 @@ def breakdown(steps: int = 3000) -> None:
         marks.append(clock())
         for name, a, b in zip(names, marks, marks[1:]):
             parts[name] += b - a
-        ref.step(acts[k])
-        assert x.tobytes() == ref.x.tobytes(), 'the parts no longer make the plant\'s step'
+        assert x.tobytes() == pl.x.tobytes(), 'the Python path no longer makes the plant\'s step'
     total = sum(parts.values())
-    print(f'one env-step of the plant, control_period 0.01 (10 ticks), {steps} steps, CPU us:')
+    print(f'one env-step of the plant, control_period 0.01 (10 ticks), {steps} steps, CPU us')
+    print('the Python path, part by part:')
     for name, v in parts.items():
         print(f'  {name:48s} {1e6 * v / steps:6.1f} ({100 * v / total:4.1f} %)')
     print(f'  {"sum":48s} {1e6 * total / steps:6.1f}')
+    print(f'the compiled step (CrawlPlant.step: EnvRows.step_row, reward and observation '
+          f'included): {1e6 * compiled / steps:.1f} ({total / compiled:.1f} x faster)')
+
+
+def compare(args) -> None:
+    """The compiled step against the engines' Python path (``_python_path``), alternated in
+    one process, ``--repeats`` rounds: single env and vector env, medians and ratios."""
+    crawl = gym.make('crawler_sim/Crawl-v0', control_period=0.04)
+    vec = gym.make_vec('crawler_sim/Crawl-v0', num_envs=args.envs,
+                       vectorization_mode='vector_entry_point', control_period=0.01)
+    _single_rate(crawl, 200)
+    rates = {(kind, path): [] for kind in ('single', 'vector') for path in ('python', 'compiled')}
+    for r in range(args.repeats):
+        for path in ('python', 'compiled'):
+            _python_path(path == 'python')
+            _forget_steps(crawl)
+            _forget_steps(vec)
+            rates['single', path].append(_single_rate(crawl, args.steps, r))
+            rates['vector', path].append(_vector_rate(vec, args.vector_steps, r))
+            if path == 'python':
+                _python_path(False)
+    print(f'median of {args.repeats} runs each, CPU time, one process, alternated')
+    for kind, unit, what in (('single', 'steps/s', 'p=2 control_period=0.04'),
+                             ('vector', 'env-steps/s',
+                              f'p=2 control_period=0.01 {args.envs} envs')):
+        py, co = (statistics.median(rates[kind, p]) for p in ('python', 'compiled'))
+        print(f'  {kind} {what}: Python path {py:11,.0f}, compiled step {co:11,.0f} {unit} '
+              f'({co / py:.2f} x; runs {", ".join(f"{x:,.0f}" for x in rates[kind, "python"])}'
+              f' / {", ".join(f"{x:,.0f}" for x in rates[kind, "compiled"])})')
 
 
 def main() -> None:
@@ -110,9 +170,14 @@ def main() -> None:
     ap.add_argument('--vector-steps', type=int, default=40, help='vector steps per run')
     ap.add_argument('--profile', action='store_true')
     ap.add_argument('--breakdown', action='store_true')
+    ap.add_argument('--compare', action='store_true',
+                    help='the compiled step against the engines\' Python path, alternated')
     args = ap.parse_args()
     if args.breakdown:
         breakdown()
+        return
+    if args.compare:
+        compare(args)
         return
 
     crawl = gym.make('crawler_sim/Crawl-v0', control_period=0.04)

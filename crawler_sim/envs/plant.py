@@ -2,12 +2,15 @@
 
 ``CrawlPlant`` holds what the single environment (``CrawlEnv``) and the vector environment
 (``CrawlVectorEnv``) share: the configuration (the crawler as in scene files, the actuator,
-the tick grid), the seeded reset (domain randomisation), the step (one ``Engine.command`` and
-one ``Engine.run_to`` a control period) and the observation. Both environments step the same
-objects, so env i of a vector reset with seed s is, bit for bit, a single env reset with seed
-s + i.
+the tick grid), the seeded reset (domain randomisation), the step (``Engine.command`` and
+``Engine.run_to`` a control period, then the state read) and the observation. Its episode's
+numbers are a row of ``_rows.EnvRows``, whose compiled step (the plant's own compiled step,
+``core/plant/_batch``, then the reward and the observation) both environments run: a single
+env its own row, the vector env all its rows in one call. So env i of a vector reset with
+seed s is, bit for bit, a single env reset with seed s + i.
 
-No gymnasium and no ROS here (only the core): the observation and reward rules have one home.
+No gymnasium and no ROS here (only the core): the observation and reward rules have one home
+(``_rows``).
 
 Choices (docs/gym.md):
 

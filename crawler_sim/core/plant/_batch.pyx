@@ -19,8 +19,8 @@ whatever this path does not handle goes back to them at the point it arises:
   ``Pieces`` through ``Engine._gait`` and ``Engine._integrate``;
 - contact events or stiction choices of a call: ``ExactSolver._store`` and
   ``Stepper.pop_events`` (the events as objects);
-- a failed integration: ``Engine._failed`` (the solver's message, the implicit fallback,
-  containment).
+- a failed integration: ``Engine._integrate`` with its status (the solver's message, the
+  implicit fallback, containment).
 
 So every state, event, journal entry and failure is the Python path's, bit for bit
 (test/core/plant/test_compiled_paths.py, test/envs).
@@ -160,7 +160,7 @@ cdef long long run_grid(PlantStep s) except -1:
     while core_time(core) < t1:
         status = core_drive(core, g, t1, ev_base, counts)
         if status != REACHED and status != FULL:
-            eng._failed(t1, status)
+            eng._integrate(t1, solver.gait, status)
             return n
         if counts[1] or counts[2]:
             # events or Rule S choices: kept by the solver as objects (``_store``)

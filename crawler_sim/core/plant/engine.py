@@ -28,7 +28,11 @@ nothing of this is passed, so such runs are bit for bit what they were before st
 Runs of ticks with no input in between (``tick_to_grid``, ``run_to``) are one compiled run of
 the actuator (``Actuator.run``, the pieces as arrays) and reach the exact solver as one
 array-built ``PiecewiseCubic``: the same pieces, gaits and states, bit for bit, as ``tick()``
-repeated.
+repeated. With nothing queued and the exact method, a run up to the publish grid and its sync
+are the plant's compiled step (``_batch.PlantStep``, issue 41): the actuator writes its pieces
+into the table the exact core integrates, with no Python call in between, and hands back to
+the methods here (``_gait``, ``_integrate``) whatever it does not handle; the
+vector environment steps N engines through the same function (``_batch.step_plants``).
 """
 from __future__ import annotations
 
@@ -415,29 +419,19 @@ class Engine:
             return
         self._events.extend(self.stepper.pop_events())
 
-    def _integrate(self, t1: float, gait: Gait) -> None:
+    def _integrate(self, t1: float, gait: Gait, failed: int | None = None) -> None:
         """The queued ticks' ``gait`` integrated up to t1 [s] by an event-driven method
         (``sync``'s work once the queue is drained; the compiled step's path for what it does
         not handle itself): a failure falls back to the implicit method, then is contained;
-        the events are kept."""
+        the events are kept. ``failed``: the status with which the compiled step's
+        integration stopped (its core restored, as ``ExactSolver.advance`` leaves it): that
+        failure is raised as the solver raises it, and goes the same way."""
         try:
             try:
-                self.stepper.advance(t1, gait)
-            except _FAILURES as exc:
-                self._fallback(t1, gait, exc)
-        except _FAILURES as exc:
-            self._contain(exc)
-            return
-        self._events.extend(self.stepper.pop_events())
-
-    def _failed(self, t1: float, status: int) -> None:
-        """The compiled step's integration towards t1 [s] stopped with ``status`` (the core
-        restored, as ``ExactSolver.advance`` leaves it): what ``_integrate`` does with that
-        failure (the solver's message, the fallback, containment, events)."""
-        gait = self.stepper.gait
-        try:
-            try:
-                self.stepper._solver._fail(status, t1)      # raises the solver's failure
+                if failed is None:
+                    self.stepper.advance(t1, gait)
+                else:
+                    self.stepper._solver._fail(failed, t1)
             except _FAILURES as exc:
                 self._fallback(t1, gait, exc)
         except _FAILURES as exc:
