@@ -17,8 +17,8 @@ whatever this path does not handle goes back to them at the point it arises:
 - a run wholly at rest or of one tick (``Engine._gait`` then hands the solver a ``Cubic``
   object), or a gait not finite at the start (``Stepper.advance`` refuses it): the pieces as
   ``Pieces`` through ``Engine._gait`` and ``Engine._integrate``;
-- contact events or stiction choices of a call: ``ExactSolver._store`` and
-  ``Stepper.pop_events`` (the events as objects);
+- stiction choices of a call: ``ExactSolver._store`` and ``Stepper.pop_events`` (contact
+  events alone go to the engine's list as those two would hand them);
 - a failed integration: ``Engine._integrate`` with its status (the solver's message, the
   implicit fallback, containment).
 
@@ -38,6 +38,7 @@ from crawler_sim.core.solvers._gait import run_arrays
 from crawler_sim.core.solvers.exact import ExactSolver, _run_gait
 from crawler_sim.core.solvers import _exact
 from crawler_sim.core.stepper import Stepper
+from crawler_sim.core.trajectory import new_event
 
 #: the Python methods the compiled step stands for (``PlantStep.current``)
 _STEPPER_ADVANCE = Stepper.advance
@@ -162,12 +163,19 @@ cdef long long run_grid(PlantStep s) except -1:
         if status != REACHED and status != FULL:
             eng._integrate(t1, solver.gait, status)
             return n
-        if counts[1] or counts[2]:
-            # events or Rule S choices: kept by the solver as objects (``_store``)
+        if counts[2] or stored:
+            # Rule S choices (and, after them, all of the call): kept by the solver as
+            # objects (``_store``), popped by the engine below
             solver._store(counts[0], counts[1])
             ev_base += counts[1]
             stored = True
-        elif counts[0]:
+            continue
+        if counts[1]:
+            # the contact events as objects straight to the engine's list: what ``_store``
+            # then ``Stepper.pop_events`` hand it (in order; the solver's log stays empty)
+            eng._events.extend(core.events(counts[1], new_event))
+            ev_base += counts[1]
+        if counts[0]:
             solver.n_segments += counts[0]
             solver._last_gait = None
     if stored:
