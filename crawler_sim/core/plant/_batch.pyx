@@ -29,6 +29,7 @@ from crawler_sim.core._actuator cimport servo_run, servo_target
 from crawler_sim.core.solvers._gait cimport CompiledGait, gait_eval, run_table, run_table_fill
 from crawler_sim.core.solvers._exact cimport (core_drive, core_forget, core_read,
                                               core_settle, core_switch, core_time)
+from cpython.ref cimport Py_REFCNT
 from libc.math cimport isfinite
 
 import numpy as np
@@ -62,6 +63,11 @@ cdef class PlantStep:
     cdef Py_ssize_t nl, p
     cdef bint skip
     cdef double tscale, cap
+    # tables of past steps, refilled in place once nothing else holds them (``_table``)
+    cdef object ring0, ring1, ring2
+    # the last ``run_grid`` ended in the core, on the compiled path throughout (no Python
+    # path took over: the engine's stepper is still this one and holds the state)
+    cdef bint compiled
 
     def __init__(self, engine):
         stepper = engine.stepper
@@ -121,6 +127,32 @@ cdef int finite_at(CompiledGait g, double t, Py_ssize_t nl) except -1:
     return 1
 
 
+cdef CompiledGait _table(PlantStep s, Py_ssize_t n):
+    """A table of n pieces to write: one of the step's past tables that nothing else holds
+    any more (the solver and its core hold the last two: the gait and the one ``restore``
+    would put back; a gait made for Python holds its own), else a new one
+    (``_gait.run_table``). Its contents are all written again (``servo_run``,
+    ``run_table_fill``), so a refilled table is a new one to the bit, without an allocation
+    or the cyclic collector's count of one."""
+    cdef CompiledGait g
+    # free: a reference count of 2, the ring's and this local variable's
+    if s.ring0 is not None:
+        g = s.ring0
+        if Py_REFCNT(g) == 2 and g.d.n == n:
+            return g
+    if s.ring1 is not None:
+        g = s.ring1
+        if Py_REFCNT(g) == 2 and g.d.n == n:
+            return g
+    if s.ring2 is not None:
+        g = s.ring2
+        if Py_REFCNT(g) == 2 and g.d.n == n:
+            return g
+    g = run_table(n, s.nl)
+    s.ring0, s.ring1, s.ring2 = g, s.ring0, s.ring1
+    return g
+
+
 cdef long long run_grid(PlantStep s) except -1:
     """``Engine._run(k)`` + ``Engine.sync()`` of the k ticks up to the publish grid, the queue
     empty (module doc); returns k."""
@@ -128,13 +160,14 @@ cdef long long run_grid(PlantStep s) except -1:
     cdef long long t0_ns = eng.t_ns
     cdef long long n = s.every - (t0_ns // s.dt_ns) % s.every
     cdef long long t1_ns = t0_ns + n * s.dt_ns
-    cdef CompiledGait g = run_table(n, s.nl)
+    cdef CompiledGait g = _table(s, n)
     cdef Py_ssize_t rest_from
     cdef double t1
     cdef long counts[3]
     cdef long ev_base = 0
     cdef int status
     cdef bint stored = False
+    s.compiled = False
     rest_from = servo_run(s.servo, t0_ns, s.dt_ns, n, g.d.starts, g.d.anchors, g.d.coef)
     eng.t_ns = t1_ns
     # ``to_seconds``: the int converted to the nearest double, then divided
@@ -184,6 +217,7 @@ cdef long long run_grid(PlantStep s) except -1:
         # ``Stepper.pop_events`` with nothing to pop: its ``forget_history`` (the solver's
         # choices list is empty: only ``_store`` fills it)
         core_forget(core)
+    s.compiled = True
     return n
 
 
@@ -225,7 +259,8 @@ cdef int step_engine(object eng, const double* targets, Py_ssize_t nl, long long
         return 0
     plant_command(s, targets)
     # the core's state is the engine's when the compiled run ended the span (nothing queued)
-    if not (plant_run_to(s, eng.t_ns + span_ns) and s.current()
+    # on the compiled path throughout (the stepper the same)
+    if not (plant_run_to(s, eng.t_ns + span_ns) and s.compiled
             and core_read(s.core, x, v, contact)):
         _read(eng, x, v, contact, p)
     return 0

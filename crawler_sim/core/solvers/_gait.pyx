@@ -1275,13 +1275,13 @@ cdef int run_table_fill(CompiledGait g) except -1:
     (``table_jumps``' loop, ``table``'s jj / rest, ``_table_stats``, ``_aligned_levels``,
     ``_counts_before``), so the gait is bit for bit ``table``'s."""
     cdef GaitData* gd = &g.d
-    cdef Py_ssize_t n = gd.n, nl = gd.nl, k, j, i, nj
+    cdef Py_ssize_t n = gd.n, nl = gd.nl, k, j, i, nj, q, cnt
     cdef Py_ssize_t w = 5 * nl, L = gd.nlev
     cdef const double* s = gd.starts
     cdef const double* o = gd.anchors
     cdef const double* c = gd.coef
     cdef double* st = gd.stat
-    cdef double* jt = gd.jump_times
+    cdef double* jt
     cdef int* jb = gd.jj_before
     cdef unsigned char* jmp = gd.jump
     cdef unsigned char* jj = gd.jjump
@@ -1289,6 +1289,13 @@ cdef int run_table_fill(CompiledGait g) except -1:
     cdef double scale = _FOUR_EPS, before, d, size, a, jk, dj, d0, d1
     cdef bint bounded
     cdef double* rg
+    # the jump times after the records (``run_table``'s layout; the pointer is NULL in a
+    # table without jumps, so it is found again here when a block is refilled)
+    cnt = n
+    for q in range(1, L):
+        cnt = (cnt + 1) // 2
+    jt = st + (gd.lev_off[L - 1] + cnt) * w
+    gd.jump_times = jt
     memset(jmp, 0, 3 * n)
     # jumps (``table_jumps``' loop; piece 0 never jumps), jj (l''' changes; not at piece 0),
     # rest (v0, a0, jerk all 0); piece k, linkage j, coefficient q at c[(k nl + j) 4 + q]
