@@ -17,6 +17,15 @@ stamps of every robot agree). The rules, each in one place below:
   rest: exactly one takes over, within about a second). It continues from the last time heard
   (:attr:`Outputs.clock_floor`: no /clock below it), so the clock never goes back and no
   follower stays frozen.
+- **Silence** is counted from when the owner last *published* (the DDS source timestamp of the
+  latest message, on this host's clock: :meth:`SharedClock._heard_at`), not from when this
+  follower took the message. On a loaded machine the kernel leaves a runnable sim waiting on
+  the run queue for up to seconds (measured here: 0.5-1.7 s of run-queue wait at load 10-25
+  on 2 cores, see docs/node.md); a follower that waited across the owner's last messages took
+  them when it ran again and, counting from then, waited a whole SILENCE more before taking
+  over. A follower that has just run again after such a wait (:data:`STALL`) acts only
+  :data:`WAKE` (+ its rank's turn) later: its own DDS threads deliver what arrived meanwhile,
+  and the candidates before it, woken by the same stall, go first.
 - **Foreign clock silent**: a /clock published by a node that is not a crawler_sim (a paused
   bag player, another simulator) is followed and never taken over; its silence is reported (a
   WARN line and a diagnostics WARN), not hidden.
@@ -48,7 +57,7 @@ if TYPE_CHECKING:
     from .node import SimNode
 
 __all__ = ['SharedClock', 'DISCOVERY', 'LISTEN', 'HEAR', 'SILENCE', 'STAGGER', 'HEARTBEAT',
-           'POLL', 'clock_ns']
+           'STALL', 'WAKE', 'POLL', 'clock_ns']
 
 #: wall s from a sim's creation before it may decide to own /clock: DDS discovery between
 #: processes on this host took a few ms, or, when the first announcements are missed, until
@@ -64,6 +73,10 @@ SILENCE = 0.6        # wall s without /clock after which an owner that is a sim 
 START_GRACE = DISCOVERY + LISTEN + HEAR + SILENCE
 STAGGER = 0.25       # wall s between the turns of successive candidates to take over
 HEARTBEAT = 0.1      # wall s: an owner publishes /clock at least this often
+#: wall s between two polls of a follower (it polls every loop iteration, ~1 ms apart) that
+#: mean it was not running: waiting on the run queue (a loaded machine) or stopped
+STALL = 0.1
+WAKE = 0.1           # wall s a follower runs after a STALL before it may take over
 POLL = 0.05          # wall s between two checks of an owner (keep-alive, a later clock heard)
 DEPTH = 100          # /clock messages kept for the loop between two takes
 
@@ -95,7 +108,15 @@ class SharedClock:
         self.foreign = False               # the clock followed is not a crawler_sim's
         self.target_ns: int | None = None  # following: tick up to this sim time
         self.heard_ns = -1                 # the latest /clock heard [ns]
-        self.heard_wall = 0.0              # when (perf_counter s); 0: never
+        #: when its publisher last published (perf_counter s, :meth:`_heard_at`); 0: never
+        self.heard_wall = 0.0
+        #: min over the messages taken of (this host's time of the take - source timestamp)
+        #: [ns]: the delivery delay of a message taken at once, plus the offset between the
+        #: publisher's clock and this one's (another host); None: no message yet
+        self._delay_ns: int | None = None
+        self._taken_wall = 0.0             # perf_counter s of the last take that got messages
+        self._tried = 0.0                  # ... of the last take (a follower's last poll)
+        self._woke = 0.0                   # ... of a follower's first poll after a STALL
         self.silent_for = 0.0              # wall s the followed clock has been silent
         self.takeovers = 0
         self.yields = 0
@@ -217,19 +238,40 @@ class SharedClock:
     def _drain(self) -> bool:
         """Take every /clock message waiting; return whether any was."""
         take = self._take
+        now = time.perf_counter()
+        since, self._tried = now - (self._tried or now), now
         got = take(Clock, True)
         if got is None:
             return False
         latest = self.heard_ns
+        source = 0
         while got is not None:
             try:
                 latest = max(latest, clock_ns(got[0]))
             except (struct.error, IndexError, ValueError):
                 pass                              # not a Clock in CDR: ignored
+            source = max(source, got[1].get('source_timestamp', 0))
             got = take(Clock, True)
         self.heard_ns = latest
-        self.heard_wall = time.perf_counter()
+        self.heard_wall = max(self.heard_wall, self._heard_at(now, source, since))
         return True
+
+    def _heard_at(self, now: float, source_ns: int, since: float) -> float:
+        """When (perf_counter s) the latest message taken at ``now`` was published, from its
+        source timestamp ``source_ns`` (0: unknown, then ``now``), at most ``since`` s (the
+        time since the take before) earlier: only what came while this sim was not taking
+        (not running) is dated back. The publisher's clock may be another host's: its offset
+        goes with the smallest delay seen between publication and take (a message taken at
+        once), allowed to grow by 1 % of the time since the last take (clocks drift)."""
+        if source_ns <= 0:
+            return now
+        delay = time.time_ns() - source_ns
+        if self._delay_ns is not None:
+            delay_min = min(delay, self._delay_ns + int(1e7 * (now - self._taken_wall)))
+        else:
+            delay_min = delay
+        self._delay_ns, self._taken_wall = delay_min, now
+        return now - min((delay - delay_min) / 1e9, since)
 
     def poll(self, now: float) -> None:
         """One check from the loop (under the node's lock), ``now`` = perf_counter()."""
@@ -240,6 +282,8 @@ class SharedClock:
                 self.next_poll = now + POLL
                 self._poll_owner(now)
             return
+        if now - self._tried > STALL:
+            self._woke = now                   # it did not run: waited on the run queue
         if self._drain():
             if self._fresh:                    # the first tick of the clock chosen at start
                 self._fresh = False
@@ -256,7 +300,7 @@ class SharedClock:
         if self.silent_for <= SILENCE or now < self.next_poll:
             return
         self.next_poll = now + POLL
-        self._on_silence()
+        self._on_silence(now)
 
     def _poll_owner(self, now: float) -> None:
         outputs = self._node.outputs
@@ -275,10 +319,11 @@ class SharedClock:
         if now - outputs.clock_wall > HEARTBEAT:
             outputs.publish_clock_again()        # keep-alive: silence means dead or hung
 
-    def _on_silence(self) -> None:
+    def _on_silence(self, now: float) -> None:
         """The followed clock has been silent for more than SILENCE: report a foreign one; a
         sim's is given up, and the followers take over in name order, one STAGGER apart (a
-        follower waiting for a sim still starting gives it START_GRACE)."""
+        follower waiting for a sim still starting gives it START_GRACE; one that has just run
+        again after a STALL waits WAKE too)."""
         publishing, sims, foreign = self._graph()
         if foreign:
             self.foreign = True
@@ -304,7 +349,8 @@ class SharedClock:
         # publisher then): the same list in every follower, whatever each presumed about the
         # owner, and not shortened by the one taking over
         rank = sum(fqn < mine for fqn in sims if fqn not in self._episode)
-        if self.silent_for < grace + rank * STAGGER:
+        if (self.silent_for < grace + rank * STAGGER
+                or now - self._woke < WAKE + rank * STAGGER):
             return
         self._take_over()
 
