@@ -18,7 +18,8 @@ whatever this path does not handle goes back to them at the point it arises:
   object), or a gait not finite at the start (``Stepper.advance`` refuses it): the pieces as
   ``Pieces`` through ``Engine._gait`` and ``Engine._integrate``;
 - stiction choices of a call: ``ExactSolver._store`` and ``Stepper.pop_events`` (contact
-  events alone go to the engine's list as those two would hand them);
+  events alone go to the engine's list as those two would hand them, packed as records
+  until ``Engine.pop_events``);
 - a failed integration: ``Engine._integrate`` with its status (the solver's message, the
   implicit fallback, containment).
 
@@ -27,8 +28,8 @@ So every state, event, journal entry and failure is the Python path's, bit for b
 """
 from crawler_sim.core._actuator cimport servo_run, servo_target
 from crawler_sim.core.solvers._gait cimport CompiledGait, gait_eval, run_table, run_table_fill
-from crawler_sim.core.solvers._exact cimport (core_drive, core_forget, core_read,
-                                              core_settle, core_switch, core_time)
+from crawler_sim.core.solvers._exact cimport (core_drive, core_event_records, core_forget,
+                                              core_read, core_settle, core_switch, core_time)
 from cpython.ref cimport Py_REFCNT
 from libc.math cimport isfinite
 
@@ -39,7 +40,6 @@ from crawler_sim.core.solvers._gait import run_arrays
 from crawler_sim.core.solvers.exact import ExactSolver, _run_gait
 from crawler_sim.core.solvers import _exact
 from crawler_sim.core.stepper import Stepper
-from crawler_sim.core.trajectory import new_event
 
 #: the Python methods the compiled step stands for (``PlantStep.current``)
 _STEPPER_ADVANCE = Stepper.advance
@@ -204,9 +204,11 @@ cdef long long run_grid(PlantStep s) except -1:
             stored = True
             continue
         if counts[1]:
-            # the contact events as objects straight to the engine's list: what ``_store``
-            # then ``Stepper.pop_events`` hand it (in order; the solver's log stays empty)
-            eng._events.extend(core.events(counts[1], new_event))
+            # the contact events straight to the engine's list, what ``_store`` then
+            # ``Stepper.pop_events`` hand it (in order; the solver's log stays empty), as one
+            # bytes of records that ``Engine.pop_events`` makes Events
+            eng._events.append(core_event_records(core, counts[1]))
+            eng._packed = True
             ev_base += counts[1]
         if counts[0]:
             solver.n_segments += counts[0]

@@ -48,7 +48,8 @@ from ..gaits import Cubic, Gait, PiecewiseCubic
 from ..model import Crawler
 from ..solvers.base import SolverError, capabilities
 from ..stepper import Stepper
-from ..trajectory import Event, State
+from ..solvers._exact import event_records as _event_records
+from ..trajectory import Event, State, new_event
 from .inputs import PreparedTrajectory
 from ._batch import plant_step as _plant_step
 from ..simtime import to_seconds
@@ -203,7 +204,11 @@ class Engine:
         self._starts: list[float] = []
         self._pieces: list[Cubic] = []
         self._blocks: list[tuple[int, Pieces]] = []
-        self._events: list[Event] = []
+        # the events not popped yet, in order: Event tuples, and from the compiled step the
+        # events of a call as one bytes of records (``_packed``: some are; made Events when
+        # popped, so a run that does not pop them keeps no object per event)
+        self._events: list = []
+        self._packed = False
 
     def _restart_stepper(self, cfg: EngineConfig) -> None:
         """New crawler, method or step from the current state on (bodies keep x and v)."""
@@ -497,6 +502,15 @@ class Engine:
     def pop_events(self) -> list[Event]:
         """Contact events integrated so far and not yet popped, in time order."""
         out, self._events = self._events, []
+        if self._packed:
+            self._packed = False
+            events: list[Event] = []
+            for item in out:
+                if type(item) is bytes:
+                    events += _event_records(item, new_event)
+                else:
+                    events.append(item)
+            return events
         return out
 
 

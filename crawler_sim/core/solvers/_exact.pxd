@@ -12,3 +12,9 @@ cdef double core_time(object core) except? -1.0
 cdef int core_settle(object core, bint skip, double tscale, double cap) except -1
 cdef int core_forget(object core) except -1
 cdef int core_read(object core, double* x, double* v, signed char* contact) except -1
+
+ctypedef struct EventRecord:
+    double t                # [s]
+    long body, old, new     # the body, its contact state before and after (+1, 0, -1)
+
+cdef object core_event_records(object core, long n)

@@ -33,6 +33,7 @@ from cpython.mem cimport PyMem_Calloc, PyMem_Free, PyMem_Malloc
 from cpython.buffer cimport (PyObject_GetBuffer, PyBuffer_Release, PyBUF_C_CONTIGUOUS,
                             PyBUF_FORMAT, PyBUF_WRITABLE)
 from libc.string cimport memcpy
+from cpython.bytes cimport PyBytes_AS_STRING, PyBytes_FromStringAndSize
 
 from crawler_sim.core.solvers._gait cimport (CompiledGait, GaitData, FOURIER, SCALLOP,
                                              TABLE, PROXY, gait_eval, gait_rates,
@@ -2578,3 +2579,30 @@ cdef int core_forget(object core) except -1:
 cdef int core_read(object core, double* x, double* v, signed char* contact) except -1:
     """``ExactCore.read_state`` into (p,) rows: 1 written, 0 not (read ``current`` then)."""
     return (<ExactCore?>core)._read(x, v, contact)
+
+
+cdef object core_event_records(object core, long n):
+    """The call's first n contact changes as ``EVENT_RECORD`` records (t [s], body, old, new)
+    packed in one bytes object (not a tracked object per event: ``Engine.pop_events`` makes
+    the ``Event`` tuples when they are asked for)."""
+    cdef ExactCore c = <ExactCore?>core
+    out = PyBytes_FromStringAndSize(NULL, n * sizeof(EventRecord))
+    cdef EventRecord* r = <EventRecord*>PyBytes_AS_STRING(out)
+    cdef long k
+    for k in range(n):
+        r[k].t = c.et[k]
+        r[k].body = c.ei[3 * k]
+        r[k].old = c.ei[3 * k + 1]
+        r[k].new = c.ei[3 * k + 2]
+    return out
+
+
+def event_records(bytes records, make):
+    """The events of ``core_event_records``' bytes as a list of ``make((time, body, old,
+    new))``, what ``ExactCore.events`` returns for them."""
+    cdef const EventRecord* r = <const EventRecord*>PyBytes_AS_STRING(records)
+    cdef Py_ssize_t k, n = len(records) // sizeof(EventRecord)
+    cdef list out = []
+    for k in range(n):
+        out.append(make((r[k].t, r[k].body, r[k].old, r[k].new)))
+    return out
