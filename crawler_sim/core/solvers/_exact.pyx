@@ -834,12 +834,7 @@ cdef class ExactCore:
     def events(self, int n, make):
         """The call's first n contact changes as a list of ``make((time, body, old, new))``
         (``make`` builds an ``Event`` from its tuple)."""
-        cdef list out = []
-        cdef int k
-        for k in range(n):
-            out.append(make((self.et[k], self.ei[3 * k], self.ei[3 * k + 1],
-                             self.ei[3 * k + 2])))
-        return out
+        return event_records(core_event_records(self, n), make)
 
     def save(self):
         """Keep the state, so a call that raises can be undone (``restore``)."""
