@@ -211,16 +211,33 @@ def _stamp_ns(data: bytes, offset: int = 4) -> int:
     return sec * 1_000_000_000 + nanosec
 
 
+def _runq_ns(pid: int) -> int:
+    """Nanoseconds the main thread of process ``pid`` (a sim's loop) has spent runnable but
+    waiting on the run queue (/proc/<pid>/schedstat, second field); 0 once it is gone."""
+    try:
+        return int(Path(f'/proc/{pid}/schedstat').read_text().split()[1])
+    except (OSError, IndexError, ValueError):
+        return 0
+
+
 def clock_run(env: dict, robots: int, seed: int, *, load: int = 2, max_delay: float = 3.0,
-              after_kill: float = 4.0, tmp: Path | None = None) -> dict:
+              after_kill: float = 4.0, stall: float = 0.0, tmp: Path | None = None) -> dict:
     """One run of the shared clock under stress: ``robots`` sims (namespaces /r1...,
     real_time_factor 1) started in random order with random delays (``seed``) while ``load``
     busy processes run; once every sim has published for 3 s, the /clock owner (the one
     publisher the graph shows) is killed with SIGKILL; the survivors run ``after_kill`` s more
-    and are stopped with SIGINT. Measured from the DDS source timestamps of what this process
-    receives (not its own, possibly starved, loop): /clock messages that went backwards, the
-    longest time each sim's body_states stamp stood still, the longest /clock silence after
-    the kill, /clock publishers before the kill, exit codes, tracebacks."""
+    and are stopped with SIGINT. ``stall`` > 0: the survivors are stopped (SIGSTOP) from 0.1 s
+    before the kill until ``stall`` s after it, as the kernel of a loaded machine leaves a
+    runnable process waiting on the run queue, across the owner's last messages.
+    Measured from the DDS source timestamps of what this process receives (not its own,
+    possibly starved, loop): /clock messages that went backwards, the longest time each sim's
+    body_states stamp stood still (``max_freeze``; a stretch over which this process missed
+    some of the sim's messages, told by their sequence numbers, is not a freeze: it goes to
+    ``unobserved``), the longest /clock silence after the kill (and after the SIGCONT:
+    ``silence_after_cont``), /clock publishers before the kill, exit codes, tracebacks; and
+    how long the kernel kept each sim's loop waiting on the run queue during its longest
+    freeze (``freeze_runq``, from /proc/<pid>/schedstat read as this process runs: a lower
+    bound)."""
     import random
     import tempfile
     import rclpy
@@ -248,12 +265,23 @@ def clock_run(env: dict, robots: int, seed: int, *, load: int = 2, max_delay: fl
     tmpdir = tempfile.TemporaryDirectory() if tmp is None else None
     where = Path(tmpdir.name) if tmpdir is not None else tmp
 
+    runq: dict[str, list[tuple[int, int]]] = {ns: [] for ns in names}
+
     def drain() -> None:
         for take, typ, got in takes.values():
             msg = take(typ, True)
             while msg is not None:
-                got.append((msg[1]['source_timestamp'], _stamp_ns(msg[0])))
+                got.append((msg[1]['source_timestamp'], _stamp_ns(msg[0]),
+                            msg[1]['publication_sequence_number']))
                 msg = take(typ, True)
+        for ns, p in procs.items():
+            runq[ns].append((time.time_ns(), _runq_ns(p.pid)))
+
+    def wait(seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            drain()
+            time.sleep(0.01)
 
     out: dict = {'robots': robots, 'seed': seed, 'delays': [round(d, 2) for d, _ in delays]}
     try:
@@ -284,12 +312,20 @@ def clock_run(env: dict, robots: int, seed: int, *, load: int = 2, max_delay: fl
         out['publishers_before_kill'] = len(pubs)
         owner = pubs[0] if pubs else names[0]
         out['killed'] = owner
-        kill_ns = time.time_ns()
+        out['loadavg'] = round(os.getloadavg()[0], 1)
+        survivors = [ns for ns in names if ns != owner]
+        if stall:
+            for ns in survivors:
+                procs[ns].send_signal(signal.SIGSTOP)
+            wait(0.1)
         procs[owner].kill()
-        end = time.monotonic() + after_kill
-        while time.monotonic() < end:
-            drain()
-            time.sleep(0.01)
+        kill_ns = time.time_ns()      # (after it: what the owner sent before is not after)
+        if stall:
+            wait(stall)
+            for ns in survivors:
+                procs[ns].send_signal(signal.SIGCONT)
+            cont_ns = time.time_ns()
+        wait(after_kill)
         codes = {}
         stop_ns = time.time_ns()
         for ns, p in procs.items():
@@ -310,32 +346,54 @@ def clock_run(env: dict, robots: int, seed: int, *, load: int = 2, max_delay: fl
         node.destroy_node()
         rclpy.shutdown(context=ctx)
     clock = takes['/clock'][2]
-    stamps = [t for _, t in clock]
+    stamps = [t for _, t, _ in clock]
     out['clock_messages'] = len(stamps)
     out['backwards'] = sum(b < a for a, b in zip(stamps, stamps[1:]))
-    after = sorted(src for src, _ in clock if src > kill_ns)
+    after = sorted(src for src, _, _ in clock if src > kill_ns)
     out['clock_silence_after_kill'] = ((after[0] - kill_ns) / 1e9 if after else math.inf)
-    freeze = {}
+    if stall:
+        later = [src for src in after if src > cont_ns]
+        out['silence_after_cont'] = round((later[0] - cont_ns) / 1e9 if later else math.inf, 3)
+
+    def waited(ns: str, a: int, b: int) -> float:
+        """Run-queue wait of ns's loop between a and b [ns] (samples inside: a lower bound)."""
+        inside = [w for t, w in runq[ns] if a <= t <= b and w]
+        return (inside[-1] - inside[0]) / 1e9 if len(inside) > 1 else 0.0
+    freeze, unobserved, freeze_runq = {}, {}, {}
     for ns in names:
         if ns == owner:
             continue
         got = sorted(takes[f'/{ns}/body_states'][2])
         # the longest wall time (publisher's clock) between two states of increasing stamps
-        longest, last_src, last_t = 0.0, None, None
-        for src, t in got:
+        # (a stretch in which messages of the sim's were missed here is not one: it published)
+        longest, missed, at, last_src, last_t, last_seq = 0.0, 0.0, (0, 0), None, None, None
+        gap = False
+        for src, t, seq in got:
+            gap = gap or (last_seq is not None and seq > last_seq + 1)
+            last_seq = seq
             if last_t is None or t > last_t:
                 if last_src is not None:
-                    longest = max(longest, (src - last_src) / 1e9)
-                last_src, last_t = src, t
-        if last_src is not None:      # a sim that stood still until the end
-            longest = max(longest, (stop_ns - last_src) / 1e9)
+                    if gap:
+                        missed = max(missed, (src - last_src) / 1e9)
+                    elif (src - last_src) / 1e9 > longest:
+                        longest, at = (src - last_src) / 1e9, (last_src, src)
+                last_src, last_t, gap = src, t, False
+        if last_src is not None and (stop_ns - last_src) / 1e9 > longest:
+            longest, at = (stop_ns - last_src) / 1e9, (last_src, stop_ns)   # still at the end
         freeze[ns] = round(longest, 3)
+        unobserved[ns] = round(missed, 3)
+        freeze_runq[ns] = round(waited(ns, *at), 3)
     out['max_freeze'] = freeze
+    out['unobserved'] = unobserved
+    out['freeze_runq'] = freeze_runq
     out['codes'] = {ns: c for ns, c in codes.items() if ns != owner}
     text = {ns: errs[ns].read_text() for ns in names}
     out['tracebacks'] = [ns for ns, t in text.items() if 'Traceback' in t]
     out['followers_warn'] = sum('WARN' in line and 'this node follows it' in line
                                 for t in text.values() for line in t.splitlines())
+    # the survivors' takeovers (one WARN line each): after the kill, one takes over
+    out['takeovers'] = sum('this node publishes /clock from' in line
+                           for ns, t in text.items() if ns != owner for line in t.splitlines())
     if tmpdir is not None:
         tmpdir.cleanup()
     out['ok'] = (out['backwards'] == 0 and out['publishers_before_kill'] == 1
@@ -358,6 +416,9 @@ def main() -> int:
     parser.add_argument('--runs', type=int, default=20, help='clock: runs per number of sims')
     parser.add_argument('--robots', default='2,3', help='clock: numbers of sims')
     parser.add_argument('--load', type=int, default=2, help='clock: busy processes')
+    parser.add_argument('--stall', type=float, default=0.0,
+                        help='clock: survivors stopped from 0.1 s before the kill to this long '
+                             'after it (as a starved process)')
     args = parser.parse_args()
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     env = workspace_env(dict(os.environ))
@@ -378,7 +439,8 @@ def main() -> int:
                 runs = []
                 for k in range(args.runs):
                     try:
-                        r = clock_run(env, robots, seed=1000 * robots + k, load=args.load)
+                        r = clock_run(env, robots, seed=1000 * robots + k, load=args.load,
+                                      stall=args.stall)
                     except RuntimeError as exc:           # a sim that never published
                         r = {'ok': False, 'error': str(exc), 'max_freeze': {},
                              'backwards': 0, 'clock_messages': 0,
@@ -387,7 +449,9 @@ def main() -> int:
                     print(f'    {"PASS" if r["ok"] else "FAIL"} {r}', flush=True)
                 ok = sum(r['ok'] for r in runs)
                 freeze = max(f for r in runs for f in r['max_freeze'].values())
-                print(f'  clock    | {robots} sims, {args.load} busy processes: {ok}/{len(runs)} '
+                loads = [r['loadavg'] for r in runs if 'loadavg' in r] or [math.nan]
+                print(f'  clock    | {robots} sims, {args.load} busy processes (load average '
+                      f'{min(loads):.1f}-{max(loads):.1f}): {ok}/{len(runs)} '
                       f'runs pass; backwards {sum(r["backwards"] for r in runs)} of '
                       f'{sum(r["clock_messages"] for r in runs)} /clock messages; longest freeze '
                       f'{freeze:.2f} s; longest /clock silence after the kill '

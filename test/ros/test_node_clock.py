@@ -3,7 +3,9 @@
 Real sim_node processes over real DDS, in the session's domain. The stress run itself lives in
 ``benchmarks.node.clock_run`` (the 20-run check, ``python -m benchmarks.node --only clock``,
 runs the same function); here two runs, one of two sims and one of three, with the machine
-loaded by two busy processes. Every wait has a deadline; the figures compared are DDS source
+loaded by two busy processes, and one in which the survivors are stopped across the kill (what
+the kernel of a loaded machine does to a runnable process, for seconds at load 10-25 on two
+cores: docs/node.md). Every wait has a deadline; the figures compared are DDS source
 timestamps of what the sims published, not this process's own (starved) loop.
 """
 from __future__ import annotations
@@ -18,7 +20,7 @@ from sensor_msgs.msg import JointState
 
 from benchmarks.node import MAX_FREEZE, clock_run
 from crawler_sim.ros.messages import clock_msg, ns_from_stamp
-from crawler_sim.ros.sim.clock import SILENCE
+from crawler_sim.ros.sim.clock import SILENCE, WAKE
 from test.support.ros import Peer, Proc  # noqa: F401
 
 
@@ -37,6 +39,23 @@ def test_the_clock_survives_its_owner_killed_with_sigkill_on_a_loaded_machine(
     assert all(code == 0 for code in run['codes'].values()) and not run['tracebacks'], run
     # issue 43: following the shared clock is the normal set-up of a second robot: INFO
     assert run['followers_warn'] == 0, run
+
+
+def test_followers_starved_across_the_kill_take_over_as_soon_as_they_run_again(ament_env,
+                                                                             tmp_path):
+    """Three sims; the two survivors do not run from 0.1 s before the SIGKILL to 1 s after it
+    (SIGSTOP: what the kernel of a loaded machine does to a runnable process). Before: the next
+    owner took the dead owner's last messages when it ran again and counted the silence from
+    then, a whole SILENCE more: /clock came back 0.62 s after the SIGCONT, 1.67 s after the kill
+    (floor 1.5 s). Now the silence runs from when those messages were published (their source
+    timestamps): /clock comes back about WAKE after the SIGCONT, from one sim (the first in name
+    order; the other, woken by the same stall, waits its turn and hears it), never backwards."""
+    run = clock_run(ament_env, 3, 22, load=2, stall=1.0, after_kill=2.0, tmp=tmp_path)
+    assert run['backwards'] == 0, run
+    assert run['silence_after_cont'] < WAKE + 0.5 * SILENCE, run
+    assert run['clock_silence_after_kill'] <= MAX_FREEZE, run
+    assert run['takeovers'] == 1, run
+    assert all(code == 0 for code in run['codes'].values()) and not run['tracebacks'], run
 
 
 def test_a_silent_foreign_clock_is_followed_reported_and_not_taken_over(ament_env, peer,
