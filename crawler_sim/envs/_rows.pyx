@@ -73,7 +73,7 @@ cdef class EnvRows:
         self.m_contact = self.contact
         self.m_failed = self.failed.view(np.uint8)
 
-    def step(self, list engines, const double[:, ::1] actions):
+    def step(self, list engines, const double[:, ::1] actions) -> None:
         """One control period of each row i whose ``engines[i]`` (an ``Engine``) is not None,
         with the checked ``actions[i]`` in [-1, 1]: its targets, the plant's step, its centre
         of mass, ``speed``, ``reward``, ``failed`` (the engine contained a solver failure)
@@ -87,7 +87,8 @@ cdef class EnvRows:
             if engines[i] is not None:
                 self._step(i, engines[i], &actions[i, 0])
 
-    def step_row(self, Py_ssize_t i, engine, const double[::1] action):
+    def step_row(self, Py_ssize_t i, engine,
+                 const double[::1] action) -> tuple[float, float, bool]:
         """``step`` of row i alone (``action``: (n_links,)): (reward, speed [m/s], failed)."""
         if not 0 <= i < self.n or action.shape[0] != self.nl:
             raise ValueError(f'EnvRows.step_row: a row in [0, {self.n}) and '
@@ -95,14 +96,14 @@ cdef class EnvRows:
         self._step(i, engine, &action[0])
         return self.m_reward[i], self.m_speed[i], self.m_failed[i] != 0
 
-    def observe(self, Py_ssize_t i, engine):
+    def observe(self, Py_ssize_t i, engine) -> None:
         """Row i's observation from ``engine`` (an ``Engine``) and the row's targets, v and
         contact (a reset writes those first)."""
         if not 0 <= i < self.n:
             raise ValueError(f'EnvRows.observe: a row in [0, {self.n})')
         self._observe(i, engine)
 
-    def lengths_of(self, const double[::1] action):
+    def lengths_of(self, const double[::1] action) -> np.ndarray:
         """Target lengths [m] (n_links,) of one checked action."""
         out = np.empty(action.shape[0])
         cdef double[::1] o = out

@@ -224,7 +224,7 @@ cdef long long run_grid(PlantStep s) except -1:
 
 
 def step_plants(list engines, const double[:, ::1] targets, long long span_ns,
-                double[:, ::1] x, double[:, ::1] v, signed char[:, ::1] contact):
+                double[:, ::1] x, double[:, ::1] v, signed char[:, ::1] contact) -> None:
     """For each i: ``Engine.command(targets[i])``, ``Engine.run_to(t_ns + span_ns)`` (from
     its own time t_ns [ns]) and ``Engine.read_state`` into row i of ``x`` [m], ``v`` [m/s]
     and ``contact`` for the ``Engine`` ``engines[i]`` (None: row i is skipped), in one

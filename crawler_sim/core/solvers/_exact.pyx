@@ -2592,7 +2592,7 @@ cdef object core_event_records(object core, long n):
     return out
 
 
-def event_records(bytes records, make):
+def event_records(bytes records, make) -> list:
     """The events of ``core_event_records``' bytes as a list of ``make((time, body, old,
     new))``, what ``ExactCore.events`` returns for them."""
     cdef const EventRecord* r = <const EventRecord*>PyBytes_AS_STRING(records)
