@@ -105,6 +105,11 @@ class CrawlPlant:
     ``journal``: sim_node's journal callback, handed to each episode's Engine.
     """
 
+    #: whether each episode's Engine keeps its contact events (``Engine.pop_events``): off,
+    #: since the env never pops them and an episode without end would keep them all; set it
+    #: on a plant before a reset to inspect them
+    keep_events = False
+
     def __init__(self, crawler: Mapping[str, Any] | None = None, *,
                  control_period: float = 0.04, min_length: float = 0.05,
                  max_length: float = 0.15, initial_lengths: Any = None,
@@ -225,7 +230,7 @@ class CrawlPlant:
                                                                       crawler=crawler)
         self.masses = crawler.masses
         self.mass = float(crawler.total_mass)
-        self.engine = Engine(cfg, 0, self.journal)
+        self.engine = Engine(cfg, 0, self.journal, keep_events=self.keep_events)
         rows, i = self._rows, self._i
         rows.masses[i] = self.masses
         rows.mass[i] = self.mass

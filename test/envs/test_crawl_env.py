@@ -244,3 +244,27 @@ def test_the_steps_sums_are_numpys_bit_for_bit(masses):
         assert np.float64(speed).tobytes() == np.float64(want_speed).tobytes()
         assert np.float64(reward).tobytes() == np.float64(want_reward).tobytes()
         com = want_com
+
+
+def test_an_episode_keeps_no_contact_events_and_its_states_do_not_depend_on_them():
+    """The env never pops the engine's contact events, so it keeps none (an episode without end
+    would hold every event of it: memory growing with the run; before, 200 steps of the seed's
+    crawler kept 100s of them). A plant told to keep them (``keep_events``) steps to the same
+    states bit for bit and does see contact changes: the switch drops only the record."""
+    from crawler_sim.envs.plant import CrawlPlant
+    kept, dropped = CrawlPlant(control_period=0.01), CrawlPlant(control_period=0.01)
+    kept.keep_events = True
+    for pl in (kept, dropped):
+        pl.reset(None)
+    acts = np.random.default_rng(3).uniform(-1.0, 1.0, (200, kept.n_links))
+    for a in acts:
+        assert kept.step(a) == dropped.step(a)
+        assert kept.observation().tobytes() == dropped.observation().tobytes()
+    assert kept.x.tobytes() == dropped.x.tobytes()
+    assert len(kept.engine.pop_events()) > 20        # the crawler stuck and slid many times
+    assert dropped.engine.pop_events() == []
+    env = gym.make(ENV_ID, max_episode_steps=None)
+    env.reset(seed=0)
+    for a in acts[:50]:
+        env.step(a)
+    assert env.unwrapped.plant.engine.pop_events() == []

@@ -119,6 +119,8 @@ def test_the_batched_step_is_python_path_plants_bit_for_bit(crawler, limit):
     kw = dict(control_period=0.01, randomize=0.3)
     vec = CrawlVectorEnv(N, crawler, max_episode_steps=limit, **kw)
     refs = [PythonPlant(crawler, **kw) for _ in range(N)]
+    for pl in vec.plants + refs:
+        pl.keep_events = True          # the events compared below (an env keeps none)
     rngs = [seeding.np_random(SEED + i)[0] for i in range(N)]
     obs, _ = vec.reset(seed=SEED)
     for pl, rng in zip(refs, rngs):

@@ -91,15 +91,29 @@ class EngineConfig:
         return {'stiction_rule': self.stiction_rule}
 
 
+class _NoEvents(list):
+    """The event list of an engine with ``keep_events=False``: whatever is added is dropped
+    (the compiled step and the Python paths add to it alike)."""
+
+    def append(self, item: Any) -> None:
+        pass
+
+    def extend(self, items: Any) -> None:
+        pass
+
+
 class Engine:
     """Actuator + core stepper on a fixed tick grid in integer nanoseconds."""
 
     def __init__(self, cfg: EngineConfig, t_ns: int = 0, journal: Journal | None = None, *,
-                 integrate: bool = True) -> None:
+                 integrate: bool = True, keep_events: bool = True) -> None:
         """``integrate=False``: the actuator only; the pieces it emits are kept for
         :meth:`actuator_output` instead of being integrated (an offline run hands them to the
-        core in one call, ``streams``)."""
+        core in one call, ``streams``). ``keep_events=False``: contact events are dropped
+        (:meth:`pop_events` returns none), so a plant that never pops them (a Gymnasium
+        env, an episode without end) does not grow."""
         self.failures: list[str] = []
+        self.keep_events = keep_events
         self.journal = journal
         self.paused = False
         self.integrate = integrate
@@ -207,7 +221,7 @@ class Engine:
         # the events not popped yet, in order: Event tuples, and from the compiled step the
         # events of a call as one bytes of records (``_packed``: some are; made Events when
         # popped, so a run that does not pop them keeps no object per event)
-        self._events: list = []
+        self._events: list = [] if self.keep_events else _NoEvents()
         self._packed = False
 
     def _restart_stepper(self, cfg: EngineConfig) -> None:
@@ -501,7 +515,7 @@ class Engine:
 
     def pop_events(self) -> list[Event]:
         """Contact events integrated so far and not yet popped, in time order."""
-        out, self._events = self._events, []
+        out, self._events = self._events, [] if self.keep_events else self._events
         if self._packed:
             self._packed = False
             events: list[Event] = []
