@@ -71,7 +71,12 @@ SILENCE = 0.6        # wall s without /clock after which an owner that is a sim 
 #: wall s a follower chosen at start waits for the sim before it in name order, still starting,
 #: to begin ticking (its discovery and warm-up), before it takes over
 START_GRACE = DISCOVERY + LISTEN + HEAR + SILENCE
-STAGGER = 0.25       # wall s between the turns of successive candidates to take over
+#: wall s between the turns of successive candidates to take over. The next one must hear
+#: the /clock of the one before, from a publisher created at its takeover: under load its DDS
+#: discovery took 0.30 s once (load 29; 3 sims: the second took over 0.25 s after the first
+#: and /clock went back 3 times until it yielded), hence 0.5 s, not 0.25 s. Only a second
+#: fault (the first in line dead or stalled too) waits for it.
+STAGGER = 0.5
 HEARTBEAT = 0.1      # wall s: an owner publishes /clock at least this often
 #: wall s between two polls of a follower (it polls every loop iteration, ~1 ms apart) that
 #: mean it was not running: waiting on the run queue (a loaded machine) or stopped
