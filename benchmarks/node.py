@@ -419,6 +419,8 @@ def main() -> int:
     parser.add_argument('--stall', type=float, default=0.0,
                         help='clock: survivors stopped from 0.1 s before the kill to this long '
                              'after it (as a starved process)')
+    parser.add_argument('--logs', type=Path, default=None,
+                        help="clock: keep each sim's stderr in this folder (<ns>_<seed>.err)")
     args = parser.parse_args()
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     env = workspace_env(dict(os.environ))
@@ -439,8 +441,10 @@ def main() -> int:
                 runs = []
                 for k in range(args.runs):
                     try:
+                        if args.logs is not None:
+                            args.logs.mkdir(parents=True, exist_ok=True)
                         r = clock_run(env, robots, seed=1000 * robots + k, load=args.load,
-                                      stall=args.stall)
+                                      stall=args.stall, tmp=args.logs)
                     except RuntimeError as exc:           # a sim that never published
                         r = {'ok': False, 'error': str(exc), 'max_freeze': {},
                              'backwards': 0, 'clock_messages': 0,
