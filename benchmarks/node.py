@@ -356,9 +356,18 @@ def clock_run(env: dict, robots: int, seed: int, *, load: int = 2, max_delay: fl
         out['silence_after_cont'] = round((later[0] - cont_ns) / 1e9 if later else math.inf, 3)
 
     def waited(ns: str, a: int, b: int) -> float:
-        """Run-queue wait of ns's loop between a and b [ns] (samples inside: a lower bound)."""
-        inside = [w for t, w in runq[ns] if a <= t <= b and w]
-        return (inside[-1] - inside[0]) / 1e9 if len(inside) > 1 else 0.0
+        """Run-queue wait of ns's loop between a and b [ns], a lower bound: between the
+        samples inside, or between those around less the time outside (this process may have
+        been kept off the CPU too, and sampled nothing inside)."""
+        got = [(t, w) for t, w in runq[ns] if w]
+        inside = [w for t, w in got if a <= t <= b]
+        low = (inside[-1] - inside[0]) / 1e9 if len(inside) > 1 else 0.0
+        before = [(t, w) for t, w in got if t <= a]
+        after = [(t, w) for t, w in got if t >= b]
+        if before and after:
+            (t0, w0), (t1, w1) = before[-1], after[0]
+            low = max(low, (w1 - w0 - (a - t0) - (t1 - b)) / 1e9)
+        return low
     freeze, unobserved, freeze_runq = {}, {}, {}
     for ns in names:
         if ns == owner:
