@@ -208,13 +208,13 @@ def main() -> int:
             results[name].append(r)
             print(f'    run {k + 1} {name}: {r["speedup"]:.1f}x real time, '
                   f'{r["cpu_ms_per_sim_s"]:.1f} ms CPU per sim s, '
-                  f'{r["cpu_percent"]:.0f} % of a core (the subscriber '
+                  f'{r["cpu_percent"]:.1f} % of a core (the subscriber '
                   f'{r["subscriber_percent"]:.0f} %)', flush=True)
     med = {name: {key: statistics.median(r[key] for r in runs) for key in runs[0]}
            for name, runs in results.items()}
     for name, m in med.items():
         print(f'  {name:30s} speed-up {m["speedup"]:5.1f}x | node CPU '
-              f'{m["cpu_ms_per_sim_s"]:5.1f} ms per sim s | {m["cpu_percent"]:.0f} % of a core '
+              f'{m["cpu_ms_per_sim_s"]:5.1f} ms per sim s | {m["cpu_percent"]:.1f} % of a core '
               f'(the subscriber {m["subscriber_percent"]:.0f} %)')
     if len(med) == 2:
         (_, b), (_, a) = med.items()
