@@ -3,6 +3,7 @@ other process (issue 42's floor: at least 2x the factor before, measured in the 
 
     nice python -m benchmarks.node_flat_out [--baseline REV] [--seconds 10] [--repeats 5]
                                             [--real-time-factor 0]
+                                            [--candidate-env VAR=VALUE ...]
 
 (with the environment of ``make``: AMENT_PREFIX_PATH=install/crawler_sim:.venv.) The colcon
 install's sim_node runs the code of a source tree (PYTHONPATH first): ``--baseline REV`` is
@@ -23,7 +24,9 @@ not depend on the share of a core the node gets on a busy machine (2 cores here:
 the subscriber each want one). Medians of ``--repeats`` runs per tree.
 
 ``--real-time-factor 1`` runs the same setting paced at real time instead: the figure is then
-the node's CPU in % of a core (the speed-up stays 1).
+the node's CPU in % of a core (the speed-up stays 1). ``--candidate-env VAR=VALUE`` sets a
+variable for the candidate's sim_node only: one tree with and without a setting, e.g.
+``--baseline HEAD --candidate HEAD --candidate-env RMW_FASTRTPS_PUBLICATION_MODE=ASYNCHRONOUS``.
 
 Each tree's sim_node configures Fast DDS as that tree's code does (from a478df3 on, its writer
 profile ``crawler_sim/ros/sim/fastdds_profile.xml``, unless this environment names a profile
@@ -106,8 +109,10 @@ def worktree(rev: str, workdir: Path) -> Path:
     return path
 
 
-def run(tree: Path, seconds: float, env: dict, real_time_factor: float = 0.0) -> dict:
-    """One run of the sim_node of source tree ``tree`` (flat out unless ``real_time_factor``)."""
+def run(tree: Path, seconds: float, env: dict, real_time_factor: float = 0.0,
+        sim_env: dict | None = None) -> dict:
+    """One run of the sim_node of source tree ``tree`` (flat out unless ``real_time_factor``;
+    ``sim_env``: variables for sim_node only)."""
     import rclpy
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.context import Context
@@ -118,7 +123,7 @@ def run(tree: Path, seconds: float, env: dict, real_time_factor: float = 0.0) ->
     env['PYTHONPATH'] = os.pathsep.join([str(tree), env.get('PYTHONPATH', '')]).rstrip(
         os.pathsep)
     # the tree's own parameters file: an older tree's node refuses keys added since
-    sim = start('sim_node', env, '--params-file',
+    sim = start('sim_node', {**env, **(sim_env or {})}, '--params-file',
                 str(tree / 'config' / 'ros' / 'crawler_sim.yaml'),
                 '-p', f'real_time_factor:={float(real_time_factor)}',
                 '-p', 'start_paused:=true')
@@ -188,14 +193,18 @@ def main() -> int:
     parser.add_argument('--repeats', type=int, default=5, help='runs per tree (median)')
     parser.add_argument('--real-time-factor', type=float, default=0.0,
                         help='0: flat out (the default); e.g. 1: paced at real time')
+    parser.add_argument('--candidate-env', action='append', default=[], metavar='VAR=VALUE',
+                        help="a variable of the candidate's sim_node only (repeatable)")
     args = parser.parse_args()
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     env = workspace_env(dict(os.environ))
-    trees = {}
+    sim_env = dict(item.split('=', 1) for item in args.candidate_env)
+    trees: dict[str, tuple[Path, dict]] = {}
     if args.baseline:
-        trees['before ' + args.baseline] = worktree(args.baseline, args.workdir)
-    trees['after ' + (args.candidate or 'this checkout')] = (
-        worktree(args.candidate, args.workdir) if args.candidate else HERE)
+        trees['before ' + args.baseline] = (worktree(args.baseline, args.workdir), {})
+    trees['after ' + (args.candidate or 'this checkout')
+          + ''.join(f' {item}' for item in args.candidate_env)] = (
+        worktree(args.candidate, args.workdir) if args.candidate else HERE, sim_env)
     pace = (f'real_time_factor {args.real_time_factor:g}' if args.real_time_factor > 0
             else 'flat out')
     print(f'sim_node {pace}, default outputs, one subscriber process taking each; '
@@ -203,8 +212,8 @@ def main() -> int:
           f'load {os.getloadavg()[0]:.1f}', flush=True)
     results: dict[str, list[dict]] = {name: [] for name in trees}
     for k in range(args.repeats):            # alternated: both trees see the same machine
-        for name, tree in trees.items():
-            r = run(tree, args.seconds, env, args.real_time_factor)
+        for name, (tree, extra) in trees.items():
+            r = run(tree, args.seconds, env, args.real_time_factor, extra)
             results[name].append(r)
             print(f'    run {k + 1} {name}: {r["speedup"]:.1f}x real time, '
                   f'{r["cpu_ms_per_sim_s"]:.1f} ms CPU per sim s, '
