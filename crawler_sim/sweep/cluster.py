@@ -2,15 +2,16 @@
 
 One Dask task is one chunk of ``spec.chunk_size`` scenes (a few hundred milliseconds of work,
 not a one-millisecond job), computed by the same pure function as a local run
-(`crawler_sim.sweep.runner.run_chunk`), so the assembled DataFrame is bit-identical. The spec
-is sent once (``client.scatter``) and every task only carries its chunk index. Results are
+(`crawler_sim.sweep.runner.run_chunk`), so the assembled DataFrame is bit-identical. Every
+task carries the spec as plain data (a few kB) and its chunk index, so a task whose worker dies
+is run again elsewhere (scattered data lost with its worker cancelled its dependents). Results are
 gathered as they finish so the driver can checkpoint them (resume after an interruption).
 A few tasks per worker thread are in flight at once, the next submitted as one finishes, so a
 sweep of millions of chunks neither floods the scheduler nor the driver's memory.
 
 Nothing waits on the cluster without a deadline (:func:`deadline`: Dask's own
 ``distributed.comm.timeouts.connect``, 30 s unless configured): connecting, checking the
-workers, sending the spec, each result, and, while chunks run, the scheduler must answer a
+workers, each result, and, while chunks run, the scheduler must answer a
 ping once per deadline without a finished chunk (a chunk itself may take as long as it takes;
 a scheduler with no worker for a whole deadline is a failure too). A call that does not
 return in time is abandoned (its thread is a daemon) and every failure of the cluster (no
@@ -208,8 +209,11 @@ def run_on_client(client: Any, spec: SweepSpec, todo: Iterable[int],
     """
     limit, address = deadline(), _address(client)
     check_workers(client)
-    data = _within(limit, 'sending the spec', address, client.scatter, spec.to_dict(),
-                   broadcast=True)
+    # the spec (plain data, a few kB) goes inside each task, not scattered: Dask's active
+    # memory manager keeps one replica of scattered data, and the worker holding it, killed,
+    # took it with it: its dependents were cancelled ('cancelled for reason: unknown'), where
+    # a task holding its own arguments is simply run again elsewhere
+    data = spec.to_dict()
     run_id = uuid.uuid4().hex[:12]      # keys unique per call, readable on the dashboard
     todo = iter(todo)
     if window is None:

@@ -96,6 +96,28 @@ def test_a_scheduler_that_accepts_and_then_fails_ends_the_command_with_one_line(
     assert not (tmp_path / 'far.parquet').exists()
 
 
+def test_every_worker_killed_mid_sweep_loses_nothing(tmp_path):
+    """Both workers SIGKILLed after the first chunk: their nannies start new ones and every
+    chunk is run again there, the frame equal to a one-process run. Before, the spec was
+    scattered to the workers, and data that only dead workers held cannot be recomputed: every
+    chunk not finished was cancelled ('cancelled for reason: unknown', a ClusterError). The
+    same loss struck one killed worker when Dask's memory manager had kept its only replica."""
+    whole = sweep(SPEC, workers=1)
+    with local_cluster(tmp_path, workers=2) as client:
+        pids = sorted(client.run(os.getpid).values())
+        killed: list[int] = []
+
+        def kill_every_worker(done: int, total: int) -> None:
+            if done and not killed:
+                for pid in pids:
+                    killed.append(pid)
+                    os.kill(pid, signal.SIGKILL)
+
+        df = sweep(SPEC, client=client, progress=kill_every_worker)
+    assert killed == pids and len(pids) == 2
+    pd.testing.assert_frame_equal(df, whole, check_exact=True)
+
+
 def test_a_killed_worker_is_replaced_and_a_killed_scheduler_is_one_line_and_a_resume(tmp_path):
     whole = sweep(SPEC, workers=1)
     ck = tmp_path / 'ck'
