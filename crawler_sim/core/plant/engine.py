@@ -283,6 +283,14 @@ class Engine:
             step = self._step = _plant_step(self) or False
         return step
 
+    def _compiled(self) -> Any:
+        """The compiled step when it may run the ticks up to the grid now (nothing queued,
+        one made for these objects, ``_fast``, and still theirs), else None."""
+        if self._pieces or self._blocks:
+            return None
+        step = self._step if self._step is not None else self._fast()
+        return step if step and step.current() else None
+
     def tick_to_grid(self) -> int:
         """``tick()`` repeated up to and including the next tick that ends on the publish grid
         (which syncs); returns how many ticks ran. The same pieces, bit for bit, as calling
@@ -290,10 +298,9 @@ class Engine:
         (the flat-out node between two publish ticks) saves the per-tick calls (one compiled
         run of the actuator, ``Actuator.run``; with nothing queued, the plant's compiled
         step, ``_batch``)."""
-        if not (self._pieces or self._blocks):
-            step = self._step if self._step is not None else self._fast()
-            if step and step.current():
-                return step.run()
+        step = self._compiled()
+        if step is not None:
+            return step.run()
         n = self._ticks_to_grid()
         self._run(n)
         self.sync()
@@ -311,10 +318,8 @@ class Engine:
             k = self._ticks_to_grid()
             if n < k:
                 self._run(n)             # ends off the grid: queued, as single ticks are
-            elif not (self._pieces or self._blocks) and (
-                    self._step if self._step is not None else self._fast()) \
-                    and self._step.current():
-                n = self._step.run()     # tick_to_grid() with nothing queued: compiled
+            elif (step := self._compiled()) is not None:
+                n = step.run()           # tick_to_grid() with nothing queued: compiled
             elif self.integrate:
                 n = k                    # tick_to_grid(), k known
                 self._run(n)
